@@ -1,0 +1,414 @@
+//! `pipeline.toml`: raw TOML → validated [`PipelineConfig`] with typed units.
+//!
+//! Two stages, as in ripgrep: serde reads the raw tables (unknown keys are
+//! rejected, with the key's name and where it stands), then
+//! [`RawConfig::validate`] checks every value and converts it to SI. An error
+//! names the key, the value and what is allowed.
+
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The default configuration shipped with the binary (the repository's
+/// `pipeline.toml`, pointing at the committed fixtures).
+pub const EMBEDDED_DEFAULT: &str = include_str!("../pipeline.toml");
+
+/// Why a configuration could not be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("{path}: key `{key}` = {value}: {allowed}")]
+    Invalid {
+        path: PathBuf,
+        key: String,
+        value: String,
+        allowed: String,
+    },
+}
+
+// ---------------------------------------------------------------- raw tables
+
+/// The TOML file as written. Every table rejects keys it does not know.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawConfig {
+    #[serde(default)]
+    pub input: RawInput,
+    #[serde(default)]
+    pub camera: RawCamera,
+    #[serde(default)]
+    pub sphere: RawSphere,
+    #[serde(default)]
+    pub surface: BTreeMap<String, RawSurface>,
+    #[serde(default)]
+    pub detect: RawDetect,
+    #[serde(default)]
+    pub output: RawOutput,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawInput {
+    /// A `runs.csv` manifest (SPEC §4), relative to the configuration file.
+    pub manifest: Option<PathBuf>,
+    /// Run folders, `.cine` files, or directories holding them (used when no manifest).
+    #[serde(default)]
+    pub paths: Vec<PathBuf>,
+    /// The `[surface.<name>]` used by runs whose manifest row names none.
+    pub surface: Option<String>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawCamera {
+    /// Frames per second, used only when neither the file nor the manifest gives one.
+    pub fps: Option<f64>,
+    /// A fixed scale; otherwise the scale comes from the sphere (R_mm / R_px).
+    pub mm_per_px: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawSphere {
+    pub density_kg_m3: Option<f64>,
+    /// Radius for runs given without a manifest.
+    pub radius_mm: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawSurface {
+    /// Young's modulus E of the pillars' material.
+    pub modulus_pa: f64,
+    /// Pillar height h.
+    pub pillar_height_mm: f64,
+    /// Pillar width b.
+    pub pillar_width_mm: f64,
+    /// Channel width c.
+    pub channel_width_mm: f64,
+    /// Solid fraction φ; default b / (b + c).
+    pub solid_fraction: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawDetect {
+    /// Frames at the start of each run used for the background and surface.
+    pub background_frames: Option<usize>,
+    /// Fixed undeformed surface row (px) at column 0, overriding detection.
+    pub surface_row_px: Option<f64>,
+    /// Surface tilt in rows per column, used with `surface_row_px`.
+    pub surface_slope: Option<f64>,
+    /// Edge points closer than this to the surface line are not used (px).
+    pub contact_margin_px: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawOutput {
+    /// Output folder, relative to the configuration file.
+    pub dir: Option<PathBuf>,
+}
+
+// ---------------------------------------------------------- validated config
+
+/// A validated configuration; lengths in metres, paths resolved.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PipelineConfig {
+    pub input: InputConfig,
+    pub camera: CameraConfig,
+    pub sphere: SphereConfig,
+    /// Named surfaces (`[surface.<name>]`), at least one.
+    pub surfaces: BTreeMap<String, Surface>,
+    pub detect: DetectConfig,
+    pub output: OutputConfig,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputConfig {
+    pub manifest: Option<PathBuf>,
+    pub paths: Vec<PathBuf>,
+    /// Name of the default surface; always a key of [`PipelineConfig::surfaces`].
+    pub surface: String,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraConfig {
+    pub fps: Option<f64>,
+    pub mm_per_px: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct SphereConfig {
+    pub density_kg_m3: f64,
+    pub radius_m: Option<f64>,
+}
+
+/// A pillar-textured elastic surface (SPEC §1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Surface {
+    /// Young's modulus E.
+    pub modulus_pa: f64,
+    /// Pillar height h.
+    pub pillar_height_m: f64,
+    /// Pillar width b.
+    pub pillar_width_m: f64,
+    /// Channel width c.
+    pub channel_width_m: f64,
+    /// Solid fraction φ in (0, 1].
+    pub solid_fraction: f64,
+}
+
+impl Surface {
+    /// The paper's PDMS surface: E = 1.6 MPa, h = 3.5 mm, b = 2.5 mm, c = 1.5 mm, φ = 0.625.
+    pub fn paper_pdms() -> Self {
+        Surface {
+            modulus_pa: 1.6e6,
+            pillar_height_m: 3.5e-3,
+            pillar_width_m: 2.5e-3,
+            channel_width_m: 1.5e-3,
+            solid_fraction: 2.5 / 4.0,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct DetectConfig {
+    pub background_frames: usize,
+    pub surface_row_px: Option<f64>,
+    pub surface_slope: f64,
+    pub contact_margin_px: f64,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputConfig {
+    pub dir: PathBuf,
+}
+
+impl PipelineConfig {
+    /// Read and validate a configuration file. Relative paths inside it are
+    /// taken relative to the file's folder.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let base = path.parent().unwrap_or(Path::new("")).to_path_buf();
+        Self::from_toml_str(&text, path, &base)
+    }
+
+    /// Parse and validate TOML text; `path` is only used in messages.
+    pub fn from_toml_str(text: &str, path: &Path, base_dir: &Path) -> Result<Self, ConfigError> {
+        let raw: RawConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string().trim_end().to_string(),
+        })?;
+        raw.validate(path, base_dir)
+    }
+}
+
+struct Checker<'a> {
+    path: &'a Path,
+}
+
+impl Checker<'_> {
+    fn invalid(&self, key: &str, value: impl ToString, allowed: &str) -> ConfigError {
+        ConfigError::Invalid {
+            path: self.path.to_path_buf(),
+            key: key.to_string(),
+            value: value.to_string(),
+            allowed: allowed.to_string(),
+        }
+    }
+
+    /// A finite number strictly above zero.
+    fn positive(&self, key: &str, v: f64) -> Result<f64, ConfigError> {
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self.invalid(key, v, "must be a finite number greater than 0"))
+        }
+    }
+
+    fn positive_opt(&self, key: &str, v: Option<f64>) -> Result<Option<f64>, ConfigError> {
+        v.map(|v| self.positive(key, v)).transpose()
+    }
+}
+
+impl RawConfig {
+    /// Check every value and convert to SI.
+    pub fn validate(self, path: &Path, base_dir: &Path) -> Result<PipelineConfig, ConfigError> {
+        let c = Checker { path };
+        let resolve = |p: PathBuf| if p.is_absolute() { p } else { base_dir.join(p) };
+
+        let mut surfaces = BTreeMap::new();
+        for (name, s) in self.surface {
+            let key = |k: &str| format!("surface.{name}.{k}");
+            let modulus_pa = c.positive(&key("modulus_pa"), s.modulus_pa)?;
+            let h = c.positive(&key("pillar_height_mm"), s.pillar_height_mm)?;
+            let b = c.positive(&key("pillar_width_mm"), s.pillar_width_mm)?;
+            let ch = c.positive(&key("channel_width_mm"), s.channel_width_mm)?;
+            let phi = s.solid_fraction.unwrap_or(b / (b + ch));
+            if !(phi.is_finite() && phi > 0.0 && phi <= 1.0) {
+                return Err(c.invalid(&key("solid_fraction"), phi, "must lie in (0, 1]"));
+            }
+            surfaces.insert(
+                name,
+                Surface {
+                    modulus_pa,
+                    pillar_height_m: h * 1e-3,
+                    pillar_width_m: b * 1e-3,
+                    channel_width_m: ch * 1e-3,
+                    solid_fraction: phi,
+                },
+            );
+        }
+        if surfaces.is_empty() {
+            surfaces.insert("pdms".to_string(), Surface::paper_pdms());
+        }
+        let surface = match self.input.surface {
+            Some(s) if surfaces.contains_key(&s) => s,
+            Some(s) => {
+                let known: Vec<_> = surfaces.keys().cloned().collect();
+                return Err(c.invalid(
+                    "input.surface",
+                    format!("\"{s}\""),
+                    &format!("must name a [surface.<name>] table: {}", known.join(", ")),
+                ));
+            }
+            None if surfaces.len() == 1 => surfaces.keys().next().cloned().unwrap_or_default(),
+            None => {
+                return Err(c.invalid(
+                    "input.surface",
+                    "(missing)",
+                    "several [surface.<name>] tables are defined: say which is the default",
+                ))
+            }
+        };
+
+        let density = c.positive(
+            "sphere.density_kg_m3",
+            self.sphere.density_kg_m3.unwrap_or(7800.0),
+        )?;
+        let radius_m = c
+            .positive_opt("sphere.radius_mm", self.sphere.radius_mm)?
+            .map(|r| r * 1e-3);
+        let fps = c.positive_opt("camera.fps", self.camera.fps)?;
+        let mm_per_px = c.positive_opt("camera.mm_per_px", self.camera.mm_per_px)?;
+
+        let background_frames = self.detect.background_frames.unwrap_or(8);
+        if background_frames == 0 {
+            return Err(c.invalid("detect.background_frames", 0, "must be at least 1"));
+        }
+        let contact_margin_px = self.detect.contact_margin_px.unwrap_or(2.0);
+        if !(contact_margin_px.is_finite() && contact_margin_px >= 0.0) {
+            return Err(c.invalid(
+                "detect.contact_margin_px",
+                contact_margin_px,
+                "must be a finite number ≥ 0",
+            ));
+        }
+        let surface_slope = self.detect.surface_slope.unwrap_or(0.0);
+        if !surface_slope.is_finite() || surface_slope.abs() > 0.2 {
+            return Err(c.invalid(
+                "detect.surface_slope",
+                surface_slope,
+                "must be a finite tilt in rows per column, |slope| ≤ 0.2",
+            ));
+        }
+        if let Some(r) = self.detect.surface_row_px {
+            if !r.is_finite() {
+                return Err(c.invalid("detect.surface_row_px", r, "must be a finite row"));
+            }
+        }
+
+        Ok(PipelineConfig {
+            input: InputConfig {
+                manifest: self.input.manifest.map(resolve),
+                paths: self.input.paths.into_iter().map(resolve).collect(),
+                surface,
+            },
+            camera: CameraConfig { fps, mm_per_px },
+            sphere: SphereConfig {
+                density_kg_m3: density,
+                radius_m,
+            },
+            surfaces,
+            detect: DetectConfig {
+                background_frames,
+                surface_row_px: self.detect.surface_row_px,
+                surface_slope,
+                contact_margin_px,
+            },
+            output: OutputConfig {
+                dir: resolve(self.output.dir.unwrap_or_else(|| PathBuf::from("out"))),
+            },
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<PipelineConfig, ConfigError> {
+        PipelineConfig::from_toml_str(text, Path::new("pipeline.toml"), Path::new("/base"))
+    }
+
+    #[test]
+    fn embedded_default_is_valid_and_points_at_fixtures() {
+        let c = parse(EMBEDDED_DEFAULT).unwrap();
+        let s = &c.surfaces[&c.input.surface];
+        assert!((s.solid_fraction - 0.625).abs() < 1e-12);
+        assert!((s.modulus_pa - 1.6e6).abs() < 1e-6);
+        let m = c.input.manifest.expect("the default names a manifest");
+        assert!(m.starts_with("/base/fixtures"), "{}", m.display());
+    }
+
+    #[test]
+    fn unknown_key_is_rejected_with_its_name() {
+        let e = parse("[camera]\nfsp = 10000\n").unwrap_err().to_string();
+        assert!(e.contains("fsp"), "{e}");
+        assert!(e.contains("pipeline.toml"), "{e}");
+    }
+
+    #[test]
+    fn impossible_values_name_the_key_and_the_value() {
+        let cases = [
+            ("[sphere]\nradius_mm = -3\n", "sphere.radius_mm", "-3"),
+            ("[camera]\nfps = 0\n", "camera.fps", "0"),
+            (
+                "[surface.p]\nmodulus_pa = 1e6\npillar_height_mm = 3\npillar_width_mm = 2\nchannel_width_mm = 1\nsolid_fraction = 1.5\n",
+                "surface.p.solid_fraction",
+                "1.5",
+            ),
+            ("[detect]\nbackground_frames = 0\n", "detect.background_frames", "0"),
+        ];
+        for (text, key, value) in cases {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(e.contains(key) && e.contains(value), "{text} → {e}");
+        }
+    }
+
+    #[test]
+    fn several_surfaces_need_a_named_default() {
+        let two = "[surface.a]\nmodulus_pa = 1e6\npillar_height_mm = 3\npillar_width_mm = 2\nchannel_width_mm = 1\n\
+                   [surface.b]\nmodulus_pa = 2e6\npillar_height_mm = 3\npillar_width_mm = 2\nchannel_width_mm = 2\n";
+        let e = parse(two).unwrap_err().to_string();
+        assert!(e.contains("input.surface"), "{e}");
+        let c = parse(&format!("[input]\nsurface = \"b\"\n{two}")).unwrap();
+        assert_eq!(c.input.surface, "b");
+        assert!((c.surfaces["b"].solid_fraction - 0.5).abs() < 1e-12);
+        let e = parse(&format!("[input]\nsurface = \"zz\"\n{two}"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("\"zz\"") && e.contains("a, b"), "{e}");
+    }
+}

@@ -1,0 +1,255 @@
+//! The per-drop record and `drops.csv` (SPEC §4). The struct is the schema:
+//! its field names are the CSV columns, in this order, with their units in
+//! their names. A run that could not be measured still has a row, with its
+//! status and reason and the measured columns empty.
+
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Outcome of one run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DropStatus {
+    /// Every quantity measured.
+    Ok,
+    /// Measured, with a warning in `reason` (e.g. fitted g off by more than 2 %).
+    Warning,
+    /// Nothing measured; `reason` says why.
+    Failed,
+}
+
+/// One drop: what was measured, with one-sigma uncertainties in the `_err`
+/// columns. Measured fields are `None` (an empty CSV cell) when the run failed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DropRecord {
+    /// Run name (the manifest's `run` column, or the folder / file stem).
+    pub run: String,
+    pub sphere_radius_mm: f64,
+    #[serde(default = "default_density")]
+    pub sphere_density_kg_m3: f64,
+    /// Key of the `[surface.<name>]` table of pipeline.toml holding the material.
+    #[serde(default)]
+    pub surface: String,
+    pub v_impact_m_s: Option<f64>,
+    #[serde(default)]
+    pub v_impact_m_s_err: Option<f64>,
+    pub v_rebound_m_s: Option<f64>,
+    #[serde(default)]
+    pub v_rebound_m_s_err: Option<f64>,
+    pub restitution: Option<f64>,
+    #[serde(default)]
+    pub restitution_err: Option<f64>,
+    pub delta_max_mm: Option<f64>,
+    #[serde(default)]
+    pub delta_max_mm_err: Option<f64>,
+    pub a_max_mm: Option<f64>,
+    #[serde(default)]
+    pub a_max_mm_err: Option<f64>,
+    pub a_geom_mm: Option<f64>,
+    #[serde(default)]
+    pub a_geom_mm_err: Option<f64>,
+    pub tau_c_ms: Option<f64>,
+    #[serde(default)]
+    pub tau_c_ms_err: Option<f64>,
+    pub t_contact_s: Option<f64>,
+    #[serde(default)]
+    pub t_contact_s_err: Option<f64>,
+    pub t_rebound_s: Option<f64>,
+    #[serde(default)]
+    pub t_rebound_s_err: Option<f64>,
+    pub mm_per_px: Option<f64>,
+    #[serde(default)]
+    pub mm_per_px_err: Option<f64>,
+    pub surface_row_px: Option<f64>,
+    #[serde(default)]
+    pub surface_row_px_err: Option<f64>,
+    pub status: DropStatus,
+    /// Why the run failed, or its warnings; empty when all is well.
+    #[serde(default)]
+    pub reason: String,
+}
+
+fn default_density() -> f64 {
+    7800.0
+}
+
+impl DropRecord {
+    /// A row for a run that could not be measured.
+    pub fn failed(run: &str, sphere_radius_mm: f64, reason: impl Into<String>) -> Self {
+        DropRecord {
+            run: run.to_string(),
+            sphere_radius_mm,
+            sphere_density_kg_m3: default_density(),
+            surface: String::new(),
+            v_impact_m_s: None,
+            v_impact_m_s_err: None,
+            v_rebound_m_s: None,
+            v_rebound_m_s_err: None,
+            restitution: None,
+            restitution_err: None,
+            delta_max_mm: None,
+            delta_max_mm_err: None,
+            a_max_mm: None,
+            a_max_mm_err: None,
+            a_geom_mm: None,
+            a_geom_mm_err: None,
+            tau_c_ms: None,
+            tau_c_ms_err: None,
+            t_contact_s: None,
+            t_contact_s_err: None,
+            t_rebound_s: None,
+            t_rebound_s_err: None,
+            mm_per_px: None,
+            mm_per_px_err: None,
+            surface_row_px: None,
+            surface_row_px_err: None,
+            status: DropStatus::Failed,
+            reason: reason.into(),
+        }
+    }
+}
+
+/// One frame of a drop's track (`tracks/<run>.csv`, SPEC §4). Rows are in
+/// frame order; a frame where the sphere was not measured keeps its row with
+/// the measured columns empty and `flags` saying why.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrackRow {
+    /// Camera image number.
+    pub frame: i64,
+    /// Time of the frame's mid-exposure, relative to the trigger.
+    pub t_s: f64,
+    /// Centre column.
+    pub x_px: Option<f64>,
+    /// Centre row (rows grow downward).
+    pub z_px: Option<f64>,
+    /// Fitted (or held) radius.
+    pub r_px: Option<f64>,
+    /// RMS distance of the edge points used from the fitted circle.
+    pub residual_px: Option<f64>,
+    /// Number of edge points used in the fit.
+    pub edge_points: usize,
+    /// True while the sphere bottom is below the undeformed surface line.
+    pub in_contact: bool,
+    /// Penetration δ = (z + R − y_s)·s; negative in flight.
+    pub delta_mm: Option<f64>,
+    /// One-sigma uncertainty of `z_px` from the fit's covariance.
+    #[serde(default)]
+    pub sigma_z_px: Option<f64>,
+    /// Contact force F = m (g − z̈) from the smoothed trajectory, in contact only.
+    #[serde(default)]
+    pub force_n: Option<f64>,
+    /// Space-separated flags (`missing`, `partial`, `recovered`, …); empty when clean.
+    #[serde(default)]
+    pub flags: String,
+}
+
+/// Why `drops.csv` could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum DatasetError {
+    #[error("{path}: {source}")]
+    Io {
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: row {row}: {source}")]
+    Csv {
+        path: std::path::PathBuf,
+        row: u64,
+        #[source]
+        source: csv::Error,
+    },
+}
+
+/// Serialise records as CSV bytes (header row first). Floats are written with
+/// Rust's shortest round-trip formatting, so the same records always give the
+/// same bytes.
+pub fn to_csv_bytes(records: &[DropRecord]) -> Vec<u8> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for r in records {
+        w.serialize(r)
+            .expect("serialising a DropRecord into memory cannot fail");
+    }
+    w.into_inner().expect("flushing into memory cannot fail")
+}
+
+/// Write `drops.csv` whole or not at all.
+pub fn write_csv(path: &Path, records: &[DropRecord]) -> Result<(), DatasetError> {
+    crate::io_util::write_atomic(path, &to_csv_bytes(records)).map_err(|source| DatasetError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Read a `drops.csv` (from `process`, or any CSV with those columns, so
+/// hand-measured data works too; the `_err` columns and `surface` may be absent).
+pub fn read_csv(path: &Path) -> Result<Vec<DropRecord>, DatasetError> {
+    let mut rdr = csv::Reader::from_path(path).map_err(|e| DatasetError::Csv {
+        path: path.to_path_buf(),
+        row: 0,
+        source: e,
+    })?;
+    let mut out = Vec::new();
+    for (i, rec) in rdr.deserialize().enumerate() {
+        out.push(rec.map_err(|source| DatasetError::Csv {
+            path: path.to_path_buf(),
+            row: i as u64 + 2,
+            source,
+        })?);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_round_trip_keeps_every_field_and_failed_rows() {
+        let mut ok = DropRecord::failed("r1", 4.5, "");
+        ok.status = DropStatus::Ok;
+        ok.v_impact_m_s = Some(1.7155);
+        ok.delta_max_mm = Some(0.812_345_678_9);
+        ok.surface = "pdms".into();
+        let bad = DropRecord::failed("r2", 3.0, "no sphere found in 40 frames");
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("drops.csv");
+        write_csv(&p, &[ok.clone(), bad.clone()]).unwrap();
+        let back = read_csv(&p).unwrap();
+        assert_eq!(back, vec![ok, bad]);
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(text.starts_with("run,sphere_radius_mm,"));
+        assert!(text.contains(",failed,no sphere found in 40 frames"));
+    }
+
+    #[test]
+    fn hand_made_csv_without_error_columns_reads() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("hand.csv");
+        std::fs::write(
+            &p,
+            "run,sphere_radius_mm,v_impact_m_s,v_rebound_m_s,restitution,delta_max_mm,a_max_mm,a_geom_mm,tau_c_ms,t_contact_s,t_rebound_s,mm_per_px,surface_row_px,status\n\
+             a,3.0,1.2,0.9,0.75,0.9,2.1,2.17,4.1,,,,,ok\n",
+        )
+        .unwrap();
+        let r = read_csv(&p).unwrap();
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0].tau_c_ms, Some(4.1));
+        assert_eq!(r[0].t_contact_s, None);
+        assert_eq!(r[0].sphere_density_kg_m3, 7800.0);
+    }
+
+    #[test]
+    fn a_bad_cell_names_the_file_and_row() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.csv");
+        std::fs::write(
+            &p,
+            "run,sphere_radius_mm,v_impact_m_s,v_rebound_m_s,restitution,delta_max_mm,a_max_mm,a_geom_mm,tau_c_ms,t_contact_s,t_rebound_s,mm_per_px,surface_row_px,status\n\
+             a,three,1.2,0.9,0.75,0.9,2.1,2.17,4.1,,,,,ok\n",
+        )
+        .unwrap();
+        let e = read_csv(&p).unwrap_err().to_string();
+        assert!(e.contains("bad.csv") && e.contains("row 2"), "{e}");
+    }
+}

@@ -1,0 +1,20 @@
+//! dropscope — high-speed recordings of sphere impacts into physics.
+//!
+//! Data flows one way (SPEC §2), and the modules follow it:
+//!
+//! | module | stage |
+//! | --- | --- |
+//! | [`config`] | `pipeline.toml` → validated [`config::PipelineConfig`] in SI units |
+//! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
+//! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
+//! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
+//!
+//! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
+//! column `x` grows to the right and row `z` grows downward. Quantities carry
+//! their unit in their name (`_px`, `_mm`, `_s`, `_m_s`, `_pa`); inside the
+//! library everything is SI unless the name says otherwise.
+
+pub mod config;
+pub mod dataset;
+pub mod io_util;
+pub mod source;

@@ -1,0 +1,3 @@
+//! The integration tests, compiled into one binary (one module per stage).
+
+mod cli;

@@ -7,14 +7,22 @@
 //! loop over a movie allocates nothing per frame, and frames are read on
 //! demand in any order.
 
-use ndarray::{Array2, ArrayViewMut2};
-use std::path::PathBuf;
+use ndarray::{Array2, ArrayViewMut1, ArrayViewMut2};
+use std::path::{Path, PathBuf};
+
+pub mod cine;
+pub mod cine_write;
+pub mod cli;
+pub mod folder;
+mod p10_lut;
+mod packing;
+pub mod pcc_xml;
 
 /// One grey frame, shape `(height, width)`, rows top-down, values as stored.
 pub type Frame = Array2<u16>;
 
 /// What a frame sequence holds, read from its headers or side files.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct SourceMeta {
     /// The file or folder the frames come from.
     pub path: PathBuf,
@@ -39,6 +47,145 @@ pub struct SourceMeta {
     pub gaps: Vec<(i64, i64)>,
     /// Per-frame time in seconds relative to the trigger, where the file has it.
     pub timestamps_s: Option<Vec<f64>>,
+    /// Everything else the headers say (levels, flips, per-frame exposures, camera).
+    pub details: SourceDetails,
+}
+
+/// Secondary metadata: what `inspect` shows beyond the contract keys.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SourceDetails {
+    /// How samples are stored, e.g. `"16-bit unpacked"`, `"P10 packed"`, `"tiff 8-bit"`.
+    pub container: String,
+    /// Raw black level (counts) from the cine SETUP or the PCC XML.
+    pub black_level: Option<i64>,
+    /// Raw white level (counts) from the cine SETUP or the PCC XML.
+    pub white_level: Option<i64>,
+    /// Viewer flips recorded by the camera software (formats/phantom.md §8.6).
+    pub flip_h: bool,
+    pub flip_v: bool,
+    /// Viewer rotation in degrees (+90 counter-clockwise), recorded, never applied.
+    pub rotate_deg: i32,
+    /// True when the reader applies `flip_h`/`flip_v` to the pixels it returns
+    /// ([`OpenOptions::apply_flips`]); false means storage order.
+    pub flips_applied: bool,
+    /// Per-frame exposure in seconds (cine tag 1003, PCC XML EXPOSUREBLOCK).
+    pub exposures_s: Option<Vec<f64>>,
+    /// Acquisition frame rate before save decimation (cine), frames per second.
+    pub acquisition_fps: Option<f64>,
+    /// Save decimation (cine SETUP.fDecimation); 1 when absent.
+    pub decimation: f64,
+    /// Camera model text or code, software version, SETUP length (cine).
+    pub camera: Option<String>,
+    pub software_version: Option<u32>,
+    pub setup_length: Option<u16>,
+    /// The PCC XML side file read for a folder.
+    pub side_file: Option<PathBuf>,
+    /// Non-fatal oddities found while opening (e.g. a corrupt ImageSize field).
+    pub warnings: Vec<String>,
+}
+
+/// How the P10 packed 10-bit codes of a `.cine` are returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum P10Mode {
+    /// The 10-bit codes as stored (0‥1023), like pims and ffmpeg. The default.
+    #[default]
+    Raw,
+    /// Through Vision Research's 1024-entry linearisation table to linear
+    /// 12-bit values (2‥4095), like pycine and CineFiles.jl (without their
+    /// black/white rescale). `bit_depth` then reads 12.
+    Linear,
+}
+
+/// Choices made when opening a source.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OpenOptions {
+    /// Frame rate to use when the input carries none (a folder without a PCC
+    /// XML): from the run manifest or `pipeline.toml`'s `camera.fps`.
+    pub fps_fallback: Option<f64>,
+    /// Apply the recorded viewer flips (`bFlipV`, `bFlipH`) to the returned
+    /// pixels, i.e. show the picture "as PCC displays it". Off by default:
+    /// frames come in storage order (formats/phantom.md §0.12, §8.6).
+    pub apply_flips: bool,
+    /// P10 packed cines: raw codes (default) or linearised.
+    pub p10: P10Mode,
+}
+
+/// Open a folder of frames or a `.cine` file.
+///
+/// A directory is read as one PCC-style image sequence ([`folder::FolderSource`]);
+/// a file whose name ends in `.cine` (any case) or that starts with the cine
+/// magic `"CI"` is read by [`cine::CineSource`].
+pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn FrameSource>, SourceError> {
+    let md = std::fs::metadata(path).map_err(|source| SourceError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if md.is_dir() {
+        return Err(SourceError::Unsupported{path: path.to_path_buf(), reason: "TODO".into()});
+    }
+    let is_cine_name = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("cine"));
+    if is_cine_name || cine::has_cine_magic(path) {
+        return Ok(Box::new(cine::CineSource::open(path, options)?));
+    }
+    Err(SourceError::Unsupported {
+        path: path.to_path_buf(),
+        reason: "not a folder of frames nor a .cine file (give a folder or a .cine)".into(),
+    })
+}
+
+/// Check a band request against the metadata: frame index, row range, buffer width.
+pub(crate) fn check_band(
+    meta: &SourceMeta,
+    index: usize,
+    row0: usize,
+    out: &ArrayViewMut2<u16>,
+) -> Result<(), SourceError> {
+    if index >= meta.frame_count {
+        return Err(SourceError::FrameOutOfRange {
+            path: meta.path.clone(),
+            index,
+            count: meta.frame_count,
+        });
+    }
+    let row_end = row0.saturating_add(out.nrows());
+    if row_end > meta.height {
+        return Err(SourceError::RowsOutOfRange {
+            path: meta.path.clone(),
+            row0,
+            row_end,
+            height: meta.height,
+        });
+    }
+    if out.ncols() != meta.width {
+        return Err(SourceError::BufferShape {
+            path: meta.path.clone(),
+            width: meta.width,
+            got: out.ncols(),
+        });
+    }
+    Ok(())
+}
+
+/// Run `fill` on row `row` of `out` as a plain slice; when the view's row is
+/// not contiguous, fill `scratch` and copy it over.
+pub(crate) fn fill_row(
+    mut row: ArrayViewMut1<u16>,
+    scratch: &mut Vec<u16>,
+    fill: impl FnOnce(&mut [u16]),
+) {
+    if let Some(s) = row.as_slice_mut() {
+        fill(s);
+    } else {
+        scratch.clear();
+        scratch.resize(row.len(), 0);
+        fill(scratch);
+        for (d, s) in row.iter_mut().zip(scratch.iter()) {
+            *d = *s;
+        }
+    }
 }
 
 impl SourceMeta {
@@ -65,7 +212,14 @@ pub trait FrameSource: Send {
 
     /// Fill `out` (shape `(height, width)`) with frame `index`.
     fn read_into(&mut self, index: usize, out: &mut Frame) -> Result<(), SourceError> {
-        let h = self.meta().height;
+        let (h, w) = (self.meta().height, self.meta().width);
+        if out.dim() != (h, w) {
+            return Err(SourceError::BufferShape {
+                path: self.meta().path.clone(),
+                width: w,
+                got: if out.nrows() == h { out.ncols() } else { 0 },
+            });
+        }
         self.read_rows_into(
             index,
             0,
@@ -108,5 +262,17 @@ pub enum SourceError {
         row0: usize,
         row_end: usize,
         height: usize,
+    },
+    #[error("{path}: the output buffer has {got} columns but the frames are {width} wide")]
+    BufferShape {
+        path: PathBuf,
+        width: usize,
+        got: usize,
+    },
+    #[error("{path}: frame {index}: {reason}")]
+    Frame {
+        path: PathBuf,
+        index: usize,
+        reason: String,
     },
 }

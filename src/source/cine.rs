@@ -1,0 +1,768 @@
+//! Raw Phantom `.cine` files (formats/phantom.md, decisions in §0).
+//!
+//! Layout: `CINEFILEHEADER` (44 B at 0) → `BITMAPINFOHEADER` at
+//! `OffImageHeader` → `SETUP` at `OffSetup` (only its first `SETUP.Length`
+//! bytes exist; later fields fall back, §4.3) → tagged blocks from
+//! `OffSetup + Length` to `OffImageOffsets` (1002 time stamps, 1003
+//! exposures) → `ImageCount` × int64 absolute image offsets → per image
+//! `u32 AnnotationSize`, annotation, `u32 ImageSize`, pixels.
+//!
+//! Pixels: 8-bit and 16-bit (LE, LSB-aligned) rows are stored **bottom-up**;
+//! packed P10 (biCompression 256) and P12L (1024) rows **top-down**. Frames
+//! are returned top-down in storage orientation; the viewer flips `bFlipV` /
+//! `bFlipH` are reported in [`SourceMeta::details`] and applied only with
+//! [`OpenOptions::apply_flips`]. P10 codes are raw unless
+//! [`OpenOptions::p10`] asks for the linearisation table.
+//!
+//! Every size and count is checked against the file length before anything
+//! is allocated; all seeks are 64-bit, so files over 4 GB work.
+
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom};
+use std::path::Path;
+
+use ndarray::{s, ArrayViewMut2};
+
+use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
+use super::p10_lut::P10_TO_LINEAR12;
+use super::{
+    check_band, fill_row, FrameSource, OpenOptions, P10Mode, SourceDetails, SourceError,
+    SourceMeta,
+};
+
+/// Largest accepted frame (pixels); 16 k × 16 k is far beyond any Phantom.
+const MAX_PIXELS: u64 = 1 << 28;
+/// Largest accepted per-image annotation (bytes); 8 in every file seen.
+const MAX_ANNOTATION: u32 = 1 << 20;
+
+/// Does the file start with the cine magic `"CI"`?
+pub fn has_cine_magic(path: &Path) -> bool {
+    let mut magic = [0u8; 2];
+    File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .is_ok()
+        && &magic == b"CI"
+}
+
+/// How pixels are stored (BITMAPINFOHEADER biBitCount / biCompression).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CineStorage {
+    /// biBitCount 8, biCompression 0: one byte per pixel, rows bottom-up.
+    Gray8,
+    /// biBitCount 16, biCompression 0: LE u16 per pixel, rows bottom-up.
+    Gray16,
+    /// biCompression 256: 10-bit MSB-first packed, rows top-down.
+    P10,
+    /// biCompression 1024: 12-bit MSB-first packed, rows top-down.
+    P12L,
+}
+
+impl CineStorage {
+    /// Bits per stored sample.
+    pub fn bits(self) -> u32 {
+        match self {
+            CineStorage::Gray8 => 8,
+            CineStorage::Gray16 => 16,
+            CineStorage::P10 => 10,
+            CineStorage::P12L => 12,
+        }
+    }
+    /// Packed layouts store rows top-down; unpacked ones bottom-up.
+    pub fn top_down(self) -> bool {
+        matches!(self, CineStorage::P10 | CineStorage::P12L)
+    }
+    fn describe(self) -> &'static str {
+        match self {
+            CineStorage::Gray8 => "8-bit unpacked, bottom-up",
+            CineStorage::Gray16 => "16-bit unpacked, bottom-up",
+            CineStorage::P10 => "P10 packed 10-bit, top-down",
+            CineStorage::P12L => "P12L packed 12-bit, top-down",
+        }
+    }
+}
+
+/// TIME64: seconds since 1970-01-01 UTC in 32.32 fixed point (phantom.md §10).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Time64 {
+    pub fractions: u32,
+    pub seconds: u32,
+}
+
+impl Time64 {
+    /// `seconds<<32 | fractions` with the two flag bits of `fractions` cleared.
+    pub fn ticks(self) -> i128 {
+        (i128::from(self.seconds) << 32) | i128::from(self.fractions & !3)
+    }
+    /// `self − other` in seconds.
+    pub fn seconds_since(self, other: Time64) -> f64 {
+        (self.ticks() - other.ticks()) as f64 / 4_294_967_296.0
+    }
+}
+
+/// The header fields dropscope uses, with SETUP fields `None` when they lie
+/// beyond `SETUP.Length`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CineHeader {
+    pub compression: u16,
+    pub version: u16,
+    pub first_movie_image: i32,
+    pub total_image_count: u32,
+    pub first_image_no: i32,
+    pub image_count: u32,
+    pub off_image_header: u32,
+    pub off_setup: u32,
+    pub off_image_offsets: u32,
+    pub trigger_time: Time64,
+    pub width: u32,
+    pub height: u32,
+    pub bit_count: u16,
+    pub bi_compression: u32,
+    pub size_image: u32,
+    pub storage: CineStorage,
+    /// SETUP.Length: how many SETUP bytes this file holds.
+    pub setup_length: u16,
+    pub frame_rate16: u16,
+    pub shutter16_us: u16,
+    pub frame_rate: Option<u32>,
+    pub shutter_us: Option<u32>,
+    pub flip_h: Option<bool>,
+    pub flip_v: Option<bool>,
+    pub camera_version: Option<u32>,
+    pub software_version: Option<u32>,
+    pub cfa: Option<u32>,
+    pub rotate: Option<i32>,
+    pub real_bpp: Option<u32>,
+    pub shutter_ns: Option<u32>,
+    pub black_level: Option<i32>,
+    pub white_level: Option<i32>,
+    pub camera_model: Option<String>,
+    pub f_decimation: Option<f32>,
+    pub d_frame_rate: Option<f64>,
+}
+
+impl CineHeader {
+    /// Acquisition rate: dFrameRate, else FrameRate, else FrameRate16 (§0.9).
+    pub fn acquisition_fps(&self) -> f64 {
+        match (self.d_frame_rate, self.frame_rate) {
+            (Some(d), _) if d.is_finite() && d > 0.0 => d,
+            (_, Some(f)) if f > 0 => f64::from(f),
+            _ => f64::from(self.frame_rate16),
+        }
+    }
+    /// Save decimation: fDecimation when present and > 0, else 1.
+    pub fn decimation(&self) -> f64 {
+        match self.f_decimation {
+            Some(d) if d.is_finite() && d > 0.0 => f64::from(d),
+            _ => 1.0,
+        }
+    }
+    /// Spacing of the saved frames: acquisition rate / decimation.
+    pub fn saved_fps(&self) -> f64 {
+        self.acquisition_fps() / self.decimation()
+    }
+    /// Exposure: ShutterNs, else Shutter (µs), else Shutter16 (µs) (§0.10).
+    pub fn exposure_s(&self) -> Option<f64> {
+        match (self.shutter_ns, self.shutter_us) {
+            (Some(ns), _) if ns > 0 => Some(f64::from(ns) * 1e-9),
+            (_, Some(us)) if us > 0 => Some(f64::from(us) * 1e-6),
+            _ if self.shutter16_us > 0 => Some(f64::from(self.shutter16_us) * 1e-6),
+            _ => None,
+        }
+    }
+    /// Significant bits: RealBPP when present and plausible, else the container's.
+    pub fn bit_depth(&self) -> u8 {
+        match self.real_bpp {
+            Some(b) if (1..=self.storage.bits()).contains(&b) => b as u8,
+            _ => self.storage.bits() as u8,
+        }
+    }
+    /// Bytes of one stored row (meaningful for the unpacked layouts).
+    fn row_bytes(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.storage.bits()) / 8
+    }
+    /// Bytes of one image's pixels (no row padding).
+    pub fn image_bytes(&self) -> u64 {
+        packed_span(
+            0,
+            u64::from(self.width) * u64::from(self.height),
+            self.storage.bits(),
+        )
+    }
+}
+
+/// Everything located in the header region: the header, per-frame times and
+/// exposures from the tagged blocks, and the image offsets.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CineLayout {
+    pub header: CineHeader,
+    /// Tag 1002 time of each image relative to TriggerTime, seconds.
+    pub timestamps_s: Option<Vec<f64>>,
+    /// Tag 1003 exposure of each image, seconds.
+    pub exposures_s: Option<Vec<f64>>,
+    /// Absolute file offset of each image record.
+    pub image_offsets: Vec<u64>,
+    /// Tagged block types in file order.
+    pub block_types: Vec<u16>,
+}
+
+fn u16_at(b: &[u8], off: usize) -> Option<u16> {
+    b.get(off..off + 2).map(|s| u16::from_le_bytes([s[0], s[1]]))
+}
+fn u32_at(b: &[u8], off: usize) -> Option<u32> {
+    b.get(off..off + 4)
+        .map(|s| u32::from_le_bytes([s[0], s[1], s[2], s[3]]))
+}
+fn i32_at(b: &[u8], off: usize) -> Option<i32> {
+    u32_at(b, off).map(|v| v as i32)
+}
+fn u64_at(b: &[u8], off: usize) -> Option<u64> {
+    b.get(off..off + 8).map(|s| {
+        let mut a = [0u8; 8];
+        a.copy_from_slice(s);
+        u64::from_le_bytes(a)
+    })
+}
+
+/// A view of SETUP that only yields fields lying within `Length` (§0.3).
+struct Setup<'a> {
+    bytes: &'a [u8],
+}
+
+impl Setup<'_> {
+    fn u32(&self, off: usize) -> Option<u32> {
+        u32_at(self.bytes, off)
+    }
+    fn i32(&self, off: usize) -> Option<i32> {
+        i32_at(self.bytes, off)
+    }
+    fn f32(&self, off: usize) -> Option<f32> {
+        self.u32(off).map(f32::from_bits)
+    }
+    fn f64(&self, off: usize) -> Option<f64> {
+        u64_at(self.bytes, off).map(f64::from_bits)
+    }
+    /// A NUL-terminated string field of `len` bytes (256 for CameraModel, §0.4).
+    fn text(&self, off: usize, len: usize) -> Option<String> {
+        let raw = self.bytes.get(off..off + len)?;
+        let end = raw.iter().position(|&c| c == 0).unwrap_or(len);
+        let s = String::from_utf8_lossy(&raw[..end]).trim().to_string();
+        (!s.is_empty()).then_some(s)
+    }
+}
+
+/// Bytes needed from the start of the file to parse the header region and
+/// the offset table, from the first 44 bytes. Errors when the header is not
+/// a cine or points outside a file of `file_len` bytes.
+pub fn header_region_len(first44: &[u8], file_len: u64) -> Result<u64, String> {
+    if first44.len() < 44 {
+        return Err(format!(
+            "too short for a cine header ({} bytes, need 44)",
+            first44.len()
+        ));
+    }
+    if &first44[0..2] != b"CI" {
+        return Err("not a cine file (no \"CI\" magic at byte 0)".into());
+    }
+    let count = u64::from(u32_at(first44, 20).unwrap_or(0));
+    let off_offsets = u64::from(u32_at(first44, 32).unwrap_or(0));
+    let end = off_offsets + 8 * count;
+    if end > file_len {
+        return Err(format!(
+            "header claims {count} images with their offset table at byte {off_offsets}, \
+             which runs past the end of the file ({file_len} bytes): truncated or corrupt"
+        ));
+    }
+    Ok(end)
+}
+
+/// Parse the header region of a cine held in `data` (at least
+/// [`header_region_len`] bytes from the file's start) for a file of
+/// `file_len` bytes. Pure and allocation-bounded by `data.len()`: this is the
+/// function the fuzz target drives.
+pub fn parse_layout(data: &[u8], file_len: u64) -> Result<CineLayout, String> {
+    let region = header_region_len(data, file_len)?;
+    if (data.len() as u64) < region {
+        return Err(format!(
+            "header region needs {region} bytes, only {} available",
+            data.len()
+        ));
+    }
+    let h = |off| u32_at(data, off).unwrap_or(0);
+    let header_size = u16_at(data, 2).unwrap_or(0);
+    let compression = u16_at(data, 4).unwrap_or(0);
+    let version = u16_at(data, 6).unwrap_or(0);
+    let (off_ih, off_setup, off_offsets) = (h(24), h(28), h(32));
+    let image_count = h(20);
+    if header_size < 44 {
+        return Err(format!("CINEFILEHEADER.Headersize {header_size} < 44"));
+    }
+    if version != 1 {
+        return Err(format!(
+            "unsupported: cine header version {version} (only version 1, with 64-bit image offsets, is known)"
+        ));
+    }
+    if image_count == 0 {
+        return Err("the cine holds no images (ImageCount 0)".into());
+    }
+    for (name, off) in [
+        ("OffImageHeader", off_ih),
+        ("OffSetup", off_setup),
+        ("OffImageOffsets", off_offsets),
+    ] {
+        if off < u32::from(header_size) {
+            return Err(format!(
+                "{name} = {off} points inside the 44-byte file header"
+            ));
+        }
+    }
+    // BITMAPINFOHEADER
+    let bih = data
+        .get(off_ih as usize..off_ih as usize + 40)
+        .ok_or_else(|| format!("BITMAPINFOHEADER at {off_ih} lies outside the header region"))?;
+    let width = i32_at(bih, 4).unwrap_or(0);
+    let height = i32_at(bih, 8).unwrap_or(0);
+    let bit_count = u16_at(bih, 14).unwrap_or(0);
+    let bi_compression = u32_at(bih, 16).unwrap_or(0);
+    let size_image = u32_at(bih, 20).unwrap_or(0);
+    if width <= 0 || height <= 0 {
+        return Err(format!(
+            "unsupported image size {width}×{height} (biWidth and biHeight must be positive)"
+        ));
+    }
+    let (width, height) = (width as u32, height as u32);
+    if u64::from(width) * u64::from(height) > MAX_PIXELS {
+        return Err(format!("image size {width}×{height} is implausibly large"));
+    }
+    // SETUP
+    let setup_start = off_setup as usize;
+    let mark = data.get(setup_start + 140..setup_start + 142);
+    if mark != Some(b"ST".as_slice()) {
+        return Err(format!(
+            "SETUP at {off_setup} has no \"ST\" mark at +140: corrupt header"
+        ));
+    }
+    let setup_length = u16_at(data, setup_start + 142).unwrap_or(0);
+    if setup_length < 144 {
+        return Err(format!("SETUP.Length {setup_length} is too small (< 144)"));
+    }
+    let setup_end = setup_start + usize::from(setup_length);
+    let setup = Setup {
+        bytes: data.get(setup_start..setup_end).ok_or_else(|| {
+            format!("SETUP (Length {setup_length}) runs past the header region")
+        })?,
+    };
+    let cfa = setup.u32(808);
+    let is_colour = compression == 2
+        || cfa.is_some_and(|c| c & 0xFF != 0)
+        || bit_count == 24
+        || bit_count == 48;
+    if is_colour {
+        let c = cfa.map(|c| c & 0xFF).unwrap_or(0);
+        let name = match c {
+            0 => "0 = gray, but colour container",
+            1 => "1 = VRI gbrg/rggb",
+            2 => "2 = VRIV6 bggr/grbg",
+            3 => "3 = BAYER gb/rg",
+            4 => "4 = BAYERFLIP rg/gb",
+            5 => "5 = BAYERFLIPB gr/bg",
+            6 => "6 = BAYERFLIPH bg/gr",
+            _ => "unknown pattern",
+        };
+        return Err(format!(
+            "unsupported: colour cine (CFA {name}; Compression {compression}, biBitCount {bit_count}); \
+             dropscope reads grey recordings only — re-save it as grey in PCC"
+        ));
+    }
+    if compression != 0 {
+        return Err(format!(
+            "unsupported: cine Compression {compression} (1 = JPEG .cci); only uncompressed grey is read"
+        ));
+    }
+    let storage = match (bit_count, bi_compression) {
+        (8, 0) => CineStorage::Gray8,
+        (16, 0) => CineStorage::Gray16,
+        (_, 256) => CineStorage::P10,
+        (_, 1024) => CineStorage::P12L,
+        (b, c) => {
+            return Err(format!(
+                "unsupported: biBitCount {b} with biCompression {c}"
+            ))
+        }
+    };
+    let header = CineHeader {
+        compression,
+        version,
+        first_movie_image: i32_at(data, 8).unwrap_or(0),
+        total_image_count: h(12),
+        first_image_no: i32_at(data, 16).unwrap_or(0),
+        image_count,
+        off_image_header: off_ih,
+        off_setup,
+        off_image_offsets: off_offsets,
+        trigger_time: Time64 {
+            fractions: h(36),
+            seconds: h(40),
+        },
+        width,
+        height,
+        bit_count,
+        bi_compression,
+        size_image,
+        storage,
+        setup_length,
+        frame_rate16: u16_at(setup.bytes, 0).unwrap_or(0),
+        shutter16_us: u16_at(setup.bytes, 2).unwrap_or(0),
+        frame_rate: setup.u32(768),
+        shutter_us: setup.u32(772),
+        flip_h: setup.i32(756).map(|v| v != 0),
+        flip_v: setup.i32(760).map(|v| v != 0),
+        camera_version: setup.u32(792),
+        software_version: setup.u32(800),
+        cfa,
+        rotate: setup.i32(884),
+        real_bpp: setup.u32(896),
+        shutter_ns: setup.u32(1568),
+        black_level: setup.i32(5732),
+        white_level: setup.i32(5736),
+        camera_model: setup.text(10128, 256),
+        f_decimation: setup.f32(10388),
+        d_frame_rate: setup.f64(10400),
+    };
+    if header.storage == CineStorage::P10 && header.bit_depth() > 10 {
+        return Err(format!(
+            "P10 packing with RealBPP {} is contradictory",
+            header.bit_depth()
+        ));
+    }
+    // Tagged blocks from OffSetup + Length to OffImageOffsets (§5).
+    let n = image_count as usize;
+    let mut timestamps_s = None;
+    let mut exposures_s = None;
+    let mut block_types = Vec::new();
+    let mut pos = setup_end;
+    let blocks_end = off_offsets as usize;
+    while pos + 8 <= blocks_end {
+        let size = u32_at(data, pos).unwrap_or(0) as usize;
+        let kind = u16_at(data, pos + 4).unwrap_or(0);
+        if size < 8 || pos + size > blocks_end {
+            break;
+        }
+        block_types.push(kind);
+        let body = &data[pos + 8..pos + size];
+        match kind {
+            1002 if body.len() >= 8 * n => {
+                let t = (0..n)
+                    .map(|i| {
+                        let v = u64_at(body, 8 * i).unwrap_or(0);
+                        Time64 {
+                            fractions: v as u32,
+                            seconds: (v >> 32) as u32,
+                        }
+                        .seconds_since(header.trigger_time)
+                    })
+                    .collect();
+                timestamps_s = Some(t);
+            }
+            1003 if body.len() >= 4 * n => {
+                let e = (0..n)
+                    .map(|i| f64::from(u32_at(body, 4 * i).unwrap_or(0)) / 4_294_967_296.0)
+                    .collect();
+                exposures_s = Some(e);
+            }
+            _ => {}
+        }
+        pos += size;
+    }
+    // Image offsets: int64, absolute (§6). Checked against the file length.
+    let table = &data[blocks_end..blocks_end + 8 * n];
+    let min_record = 8 + header.image_bytes();
+    let mut image_offsets = Vec::with_capacity(n);
+    for (i, c) in table.chunks_exact(8).enumerate() {
+        let v = i64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
+        if v < region as i64 || (v as u64).saturating_add(min_record) > file_len {
+            return Err(format!(
+                "frame {i}: image offset {v} does not leave room for the image \
+                 (file is {file_len} bytes): truncated or corrupt"
+            ));
+        }
+        image_offsets.push(v as u64);
+    }
+    Ok(CineLayout {
+        header,
+        timestamps_s,
+        exposures_s,
+        image_offsets,
+        block_types,
+    })
+}
+
+/// A `.cine` opened for random access; frames are read on demand.
+#[derive(Debug)]
+pub struct CineSource {
+    meta: SourceMeta,
+    layout: CineLayout,
+    file: File,
+    file_len: u64,
+    options: OpenOptions,
+    /// Annotation size of each image once read (0 = not yet read).
+    annotation: Vec<u32>,
+    bytes: Vec<u8>,
+    row_scratch: Vec<u16>,
+}
+
+impl CineSource {
+    /// Open `path`, parse and check its headers. No pixels are read.
+    pub fn open(path: &Path, options: &OpenOptions) -> Result<Self, SourceError> {
+        let io = |source| SourceError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let fmt = |reason: String| {
+            if let Some(r) = reason.strip_prefix("unsupported: ") {
+                SourceError::Unsupported {
+                    path: path.to_path_buf(),
+                    reason: r.to_string(),
+                }
+            } else {
+                SourceError::Format {
+                    path: path.to_path_buf(),
+                    reason,
+                }
+            }
+        };
+        let mut file = File::open(path).map_err(io)?;
+        let file_len = file.metadata().map_err(io)?.len();
+        let mut first = Vec::with_capacity(44);
+        (&mut file).take(44).read_to_end(&mut first).map_err(io)?;
+        let region = header_region_len(&first, file_len).map_err(fmt)?;
+        let mut data = Vec::new();
+        file.seek(SeekFrom::Start(0)).map_err(io)?;
+        data.try_reserve_exact(region as usize)
+            .map_err(|e| fmt(format!("cannot hold a {region}-byte header: {e}")))?;
+        (&mut file).take(region).read_to_end(&mut data).map_err(io)?;
+        let layout = parse_layout(&data, file_len).map_err(fmt)?;
+        let meta = build_meta(path, &layout, options);
+        let annotation = vec![0; layout.image_offsets.len()];
+        let mut src = CineSource {
+            meta,
+            layout,
+            file,
+            file_len,
+            options: options.clone(),
+            annotation,
+            bytes: Vec::new(),
+            row_scratch: Vec::new(),
+        };
+        src.cross_check_sizes()?;
+        Ok(src)
+    }
+
+    /// Compare biSizeImage and the first image's ImageSize with the size
+    /// implied by width, height and packing; a disagreement that still fits
+    /// the file is a warning (packed_10.cine stores ImageSize 0xE4005000 for
+    /// 0x5000, §7), not an error.
+    fn cross_check_sizes(&mut self) -> Result<(), SourceError> {
+        let expect = self.layout.header.image_bytes();
+        let bi = u64::from(self.layout.header.size_image);
+        if bi != 0 && bi != expect {
+            self.meta.details.warnings.push(format!(
+                "biSizeImage {bi} differs from width×height×bits/8 = {expect}; using {expect}"
+            ));
+        }
+        let pixels = self.pixel_offset(0)?;
+        let mut b = [0u8; 4];
+        let io = |source| SourceError::Io {
+            path: self.meta.path.clone(),
+            source,
+        };
+        self.file.seek(SeekFrom::Start(pixels - 4)).map_err(io)?;
+        self.file.read_exact(&mut b).map_err(io)?;
+        let image_size = u64::from(u32::from_le_bytes(b));
+        if image_size != expect {
+            self.meta.details.warnings.push(format!(
+                "frame 0: annotation ImageSize {image_size} (0x{image_size:X}) differs from the \
+                 computed image size {expect}; the computed size is used"
+            ));
+        }
+        Ok(())
+    }
+
+    /// The parsed headers.
+    pub fn layout(&self) -> &CineLayout {
+        &self.layout
+    }
+
+    fn frame_err(&self, index: usize, reason: String) -> SourceError {
+        SourceError::Frame {
+            path: self.meta.path.clone(),
+            index,
+            reason,
+        }
+    }
+
+    /// Absolute offset of image `index`'s pixel data, checking the
+    /// annotation and its ImageSize against biSizeImage and the file (§0.7).
+    fn pixel_offset(&mut self, index: usize) -> Result<u64, SourceError> {
+        let start = self.layout.image_offsets[index];
+        let io = |source| SourceError::Io {
+            path: self.meta.path.clone(),
+            source,
+        };
+        if self.annotation[index] == 0 {
+            let mut head = [0u8; 4];
+            self.file.seek(SeekFrom::Start(start)).map_err(io)?;
+            self.file.read_exact(&mut head).map_err(io)?;
+            let annot = u32::from_le_bytes(head);
+            let expect = self.layout.header.image_bytes();
+            if !(8..=MAX_ANNOTATION).contains(&annot)
+                || start + u64::from(annot) + expect > self.file_len
+            {
+                return Err(self.frame_err(
+                    index,
+                    format!(
+                        "annotation size {annot} at byte {start} leaves no room for the \
+                         {expect}-byte image: truncated or corrupt"
+                    ),
+                ));
+            }
+            // ImageSize (last 4 annotation bytes) is informative only: the
+            // pixel size follows from width, height and packing. A mismatch
+            // (packed_10.cine stores 0xE4005000 for 0x5000) is tolerated as
+            // long as the computed image fits, which was just checked.
+            self.annotation[index] = annot;
+        }
+        Ok(start + u64::from(self.annotation[index]))
+    }
+}
+
+/// The generic metadata of a parsed cine.
+fn build_meta(path: &Path, layout: &CineLayout, options: &OpenOptions) -> SourceMeta {
+    let h = &layout.header;
+    let n = layout.image_offsets.len();
+    let first = i64::from(h.first_image_no);
+    let mut fps = h.saved_fps();
+    let mut warnings = Vec::new();
+    if !(fps.is_finite() && fps > 0.0) {
+        warnings.push("the header holds no frame rate".to_string());
+        fps = options.fps_fallback.unwrap_or(f64::NAN);
+    }
+    let linear = h.storage == CineStorage::P10 && options.p10 == P10Mode::Linear;
+    let flip_h = h.flip_h.unwrap_or(false);
+    let flip_v = h.flip_v.unwrap_or(false);
+    SourceMeta {
+        path: path.to_path_buf(),
+        format: "cine".into(),
+        frame_count: n,
+        width: h.width as usize,
+        height: h.height as usize,
+        bit_depth: if linear { 12 } else { h.bit_depth() },
+        fps,
+        exposure_s: h.exposure_s(),
+        first_frame: first,
+        frame_numbers: (0..n as i64).map(|i| first + i).collect(),
+        gaps: Vec::new(),
+        timestamps_s: layout.timestamps_s.clone(),
+        details: SourceDetails {
+            container: format!(
+                "{}{}",
+                h.storage.describe(),
+                if linear { ", P10 linearised to 12 bit" } else { "" }
+            ),
+            black_level: h.black_level.map(i64::from),
+            white_level: h.white_level.map(i64::from),
+            flip_h,
+            flip_v,
+            rotate_deg: h.rotate.unwrap_or(0),
+            flips_applied: options.apply_flips && (flip_h || flip_v),
+            exposures_s: layout.exposures_s.clone(),
+            acquisition_fps: Some(h.acquisition_fps()),
+            decimation: h.decimation(),
+            camera: Some(match (&h.camera_model, h.camera_version) {
+                (Some(m), Some(v)) => format!("{m} (CameraVersion {v})"),
+                (None, Some(v)) => format!("CameraVersion {v}"),
+                (Some(m), None) => m.clone(),
+                (None, None) => "unknown".into(),
+            }),
+            software_version: h.software_version,
+            setup_length: Some(h.setup_length),
+            side_file: None,
+            warnings,
+        },
+    }
+}
+
+impl FrameSource for CineSource {
+    fn meta(&self) -> &SourceMeta {
+        &self.meta
+    }
+
+    fn read_rows_into(
+        &mut self,
+        index: usize,
+        row0: usize,
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
+        check_band(&self.meta, index, row0, out)?;
+        let n = out.nrows();
+        if n == 0 {
+            return Ok(());
+        }
+        let pixels = self.pixel_offset(index)?;
+        let hdr = &self.layout.header;
+        let (h, w) = (hdr.height as usize, hdr.width as usize);
+        let storage = hdr.storage;
+        let row_bytes = hdr.row_bytes() as usize;
+        let flip_v = self.options.apply_flips && self.meta.details.flip_v;
+        let flip_h = self.options.apply_flips && self.meta.details.flip_h;
+        // Output row j ↦ stored row: ascending from `lo` or descending.
+        // Unpacked rows are stored bottom-up, packed ones top-down; a
+        // requested vertical flip inverts that.
+        let descending = storage.top_down() == flip_v;
+        let lo = if descending { h - row0 - n } else { row0 };
+        let bits = u64::from(storage.bits());
+        let start_bit = lo as u64 * w as u64 * bits;
+        let span = packed_span(start_bit % 8, (n * w) as u64, storage.bits());
+        let byte0 = pixels + start_bit / 8;
+        self.bytes.clear();
+        self.bytes.resize(span as usize, 0);
+        let io = |source| SourceError::Io {
+            path: self.meta.path.clone(),
+            source,
+        };
+        self.file.seek(SeekFrom::Start(byte0)).map_err(io)?;
+        if let Err(e) = self.file.read_exact(&mut self.bytes) {
+            return Err(self.frame_err(index, format!("reading pixels: {e}")));
+        }
+        let linear = storage == CineStorage::P10 && self.options.p10 == P10Mode::Linear;
+        let row_bits = w as u64 * bits;
+        let bytes = &self.bytes;
+        for j in 0..n {
+            let k = if descending { n - 1 - j } else { j };
+            let row = out.slice_mut(s![j, ..]);
+            fill_row(row, &mut self.row_scratch, |dst| {
+                match storage {
+                    CineStorage::Gray8 => unpack_u8(&bytes[k * row_bytes..], dst),
+                    CineStorage::Gray16 => unpack_u16le(&bytes[k * row_bytes..], dst),
+                    CineStorage::P10 | CineStorage::P12L => {
+                        let b = start_bit % 8 + k as u64 * row_bits;
+                        unpack_msb(
+                            &bytes[(b / 8) as usize..],
+                            (b % 8) as u32,
+                            storage.bits(),
+                            dst,
+                        );
+                        if linear {
+                            for v in dst.iter_mut() {
+                                *v = P10_TO_LINEAR12[usize::from(*v & 0x3FF)];
+                            }
+                        }
+                    }
+                }
+                if flip_h {
+                    dst.reverse();
+                }
+            });
+        }
+        Ok(())
+    }
+}

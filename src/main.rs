@@ -24,6 +24,10 @@ enum Command {
         #[arg(long)]
         config: Option<PathBuf>,
     },
+    /// What a folder of frames or a .cine holds (frames, size, fps, bit depth, gaps…).
+    Inspect(dropscope::source::cli::InspectArgs),
+    /// Write frames A..B−1 exactly as read, as 16-bit PNG named by frame number.
+    Export(dropscope::source::cli::ExportArgs),
 }
 
 /// Load `--config FILE`, else `./pipeline.toml`, else the embedded default.
@@ -45,6 +49,13 @@ fn main() -> ExitCode {
     let result: anyhow::Result<ExitCode> = match cli.command {
         Command::CheckConfig { config } => load_config(config.as_deref()).map(|c| {
             println!("{c:#?}");
+            ExitCode::SUCCESS
+        }),
+        Command::Inspect(args) => {
+            dropscope::source::cli::run_inspect(&args).map(|()| ExitCode::SUCCESS)
+        }
+        Command::Export(args) => dropscope::source::cli::run_export(&args).map(|files| {
+            eprintln!("wrote {} frame(s) to {}", files.len(), args.out.display());
             ExitCode::SUCCESS
         }),
     };

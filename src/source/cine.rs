@@ -23,11 +23,10 @@ use std::path::Path;
 
 use ndarray::{s, ArrayViewMut2};
 
-use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
 use super::p10_lut::P10_TO_LINEAR12;
+use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
 use super::{
-    check_band, fill_row, FrameSource, OpenOptions, P10Mode, SourceDetails, SourceError,
-    SourceMeta,
+    check_band, fill_row, FrameSource, OpenOptions, P10Mode, SourceDetails, SourceError, SourceMeta,
 };
 
 /// Largest accepted frame (pixels); 16 k × 16 k is far beyond any Phantom.
@@ -135,6 +134,10 @@ pub struct CineHeader {
     pub shutter_ns: Option<u32>,
     pub black_level: Option<i32>,
     pub white_level: Option<i32>,
+    /// Viewer image adjustments PCC applies when exporting (fOffset, fGain, fGamma).
+    pub f_offset: Option<f32>,
+    pub f_gain: Option<f32>,
+    pub f_gamma: Option<f32>,
     pub camera_model: Option<String>,
     pub f_decimation: Option<f32>,
     pub d_frame_rate: Option<f64>,
@@ -206,7 +209,8 @@ pub struct CineLayout {
 }
 
 fn u16_at(b: &[u8], off: usize) -> Option<u16> {
-    b.get(off..off + 2).map(|s| u16::from_le_bytes([s[0], s[1]]))
+    b.get(off..off + 2)
+        .map(|s| u16::from_le_bytes([s[0], s[1]]))
 }
 fn u32_at(b: &[u8], off: usize) -> Option<u32> {
     b.get(off..off + 4)
@@ -347,9 +351,9 @@ pub fn parse_layout(data: &[u8], file_len: u64) -> Result<CineLayout, String> {
     }
     let setup_end = setup_start + usize::from(setup_length);
     let setup = Setup {
-        bytes: data.get(setup_start..setup_end).ok_or_else(|| {
-            format!("SETUP (Length {setup_length}) runs past the header region")
-        })?,
+        bytes: data
+            .get(setup_start..setup_end)
+            .ok_or_else(|| format!("SETUP (Length {setup_length}) runs past the header region"))?,
     };
     let cfa = setup.u32(808);
     let is_colour = compression == 2
@@ -424,6 +428,9 @@ pub fn parse_layout(data: &[u8], file_len: u64) -> Result<CineLayout, String> {
         shutter_ns: setup.u32(1568),
         black_level: setup.i32(5732),
         white_level: setup.i32(5736),
+        f_offset: setup.f32(6008),
+        f_gain: setup.f32(6012),
+        f_gamma: setup.f32(6024),
         camera_model: setup.text(10128, 256),
         f_decimation: setup.f32(10388),
         d_frame_rate: setup.f64(10400),
@@ -539,7 +546,10 @@ impl CineSource {
         file.seek(SeekFrom::Start(0)).map_err(io)?;
         data.try_reserve_exact(region as usize)
             .map_err(|e| fmt(format!("cannot hold a {region}-byte header: {e}")))?;
-        (&mut file).take(region).read_to_end(&mut data).map_err(io)?;
+        (&mut file)
+            .take(region)
+            .read_to_end(&mut data)
+            .map_err(io)?;
         let layout = parse_layout(&data, file_len).map_err(fmt)?;
         let meta = build_meta(path, &layout, options);
         let annotation = vec![0; layout.image_offsets.len()];
@@ -666,10 +676,15 @@ fn build_meta(path: &Path, layout: &CineLayout, options: &OpenOptions) -> Source
             container: format!(
                 "{}{}",
                 h.storage.describe(),
-                if linear { ", P10 linearised to 12 bit" } else { "" }
+                if linear {
+                    ", P10 linearised to 12 bit"
+                } else {
+                    ""
+                }
             ),
-            black_level: h.black_level.map(i64::from),
-            white_level: h.white_level.map(i64::from),
+            // Absent beyond SETUP.Length (v7.3 files): 0 and 2^RealBPP − 1 (§4.3).
+            black_level: Some(h.black_level.map_or(0, i64::from)),
+            white_level: Some(h.white_level.map_or((1i64 << h.bit_depth()) - 1, i64::from)),
             flip_h,
             flip_v,
             rotate_deg: h.rotate.unwrap_or(0),

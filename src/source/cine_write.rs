@@ -225,11 +225,15 @@ impl CineWriter {
                 pack_msb(&self.samples, spec.packing.bits(), &mut self.scratch);
             }
         }
-        let out = self.out.as_mut().ok_or_else(|| frame_err("writer already finished".into()))?;
-        out.write_all(&self.scratch).map_err(|source| CineWriteError::Io {
-            path: self.path.clone(),
-            source,
-        })?;
+        let out = self
+            .out
+            .as_mut()
+            .ok_or_else(|| frame_err("writer already finished".into()))?;
+        out.write_all(&self.scratch)
+            .map_err(|source| CineWriteError::Io {
+                path: self.path.clone(),
+                source,
+            })?;
         self.written += 1;
         Ok(())
     }
@@ -337,7 +341,7 @@ fn put_text(b: &mut [u8], off: usize, len: usize, text: &str) {
 fn time64(trigger_unix_s: u32, rel_s: f64) -> u64 {
     let ticks = (i128::from(trigger_unix_s) << 32) + (rel_s * 4_294_967_296.0).round() as i128;
     let ticks = ticks.clamp(0, i128::from(u64::MAX)) as u64;
-    ticks | 3
+    (ticks & !3) | 3
 }
 
 /// Everything before the first image: header, bitmap header, SETUP,
@@ -376,7 +380,11 @@ fn header_bytes(spec: &CineSpec) -> Result<Vec<u8>, String> {
     put_u16(
         &mut b,
         bi + 14,
-        if spec.packing == CinePacking::Gray8 { 8 } else { 16 },
+        if spec.packing == CinePacking::Gray8 {
+            8
+        } else {
+            16
+        },
     );
     let compression = match spec.packing {
         CinePacking::P10 => 256,

@@ -1,1 +1,888 @@
-//! stub
+//! Folders of numbered frames, as Phantom Camera Control exports them
+//! (formats/phantom.md §12): `<prefix><number>.<ext>` with TIFF (8/16-bit,
+//! any compression), PNG (8/16-bit), BMP (8-bit grey read as is) or JPEG,
+//! plus PCC's XML side file for frame rate, exposure, bit depth and times.
+//!
+//! Naming: the number is the run of digits before the extension, negative
+//! when the character before it is a `-` that is itself at the start of the
+//! name or preceded by a non-alphanumeric character (`run_-00005.tif` is
+//! −5, `run-00005.tif` is 5 with prefix `run-`). Numbers need not be
+//! zero-padded and are sorted numerically. One sequence per folder: the
+//! largest group of files sharing prefix and extension; files outside it
+//! (notes, a stray `background.tif`) are ignored and listed in the warnings.
+//! Missing numbers are reported as gaps; frame index `i` is the `i`-th file
+//! present, and its time comes from its number, so a gap never shifts time.
+//!
+//! Every file's header is read when the folder is opened: a file whose size
+//! or bit depth differs from the first frame's is an error naming it.
+//!
+//! Speed: uncompressed single-sample TIFFs are parsed here (only the IFD and
+//! the requested rows are read, straight into the caller's buffer); PNGs are
+//! decoded row by row with the `png` crate into reused buffers and stop after
+//! the last requested row; BMP 8-bit is parsed here; everything else goes
+//! through the `image` crate.
+
+use std::fs::File;
+use std::io::{Cursor, Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+
+use ndarray::{s, ArrayViewMut2};
+
+use super::pcc_xml::{self, PccXml};
+use super::{
+    check_band, fill_row, FrameSource, OpenOptions, SourceDetails, SourceError, SourceMeta,
+};
+
+/// Image file kinds a folder may hold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum ImageKind {
+    Tiff,
+    Png,
+    Bmp,
+    Jpeg,
+}
+
+impl ImageKind {
+    /// The kind of a file extension (case-insensitive), if it is an image.
+    pub fn from_extension(ext: &str) -> Option<ImageKind> {
+        match ext.to_ascii_lowercase().as_str() {
+            "tif" | "tiff" => Some(ImageKind::Tiff),
+            "png" => Some(ImageKind::Png),
+            "bmp" => Some(ImageKind::Bmp),
+            "jpg" | "jpeg" => Some(ImageKind::Jpeg),
+            _ => None,
+        }
+    }
+    fn name(self) -> &'static str {
+        match self {
+            ImageKind::Tiff => "tiff",
+            ImageKind::Png => "png",
+            ImageKind::Bmp => "bmp",
+            ImageKind::Jpeg => "jpeg",
+        }
+    }
+}
+
+/// Split a file name into `(prefix, number, kind)`, or `None` when it is not
+/// a numbered image (see the module documentation for the sign rule).
+pub fn parse_frame_name(name: &str) -> Option<(String, i64, ImageKind)> {
+    let (stem, ext) = name.rsplit_once('.')?;
+    let kind = ImageKind::from_extension(ext)?;
+    let digits_start = stem
+        .char_indices()
+        .rev()
+        .take_while(|(_, c)| c.is_ascii_digit())
+        .last()
+        .map(|(i, _)| i)?;
+    let digits = &stem[digits_start..];
+    if digits.len() > 18 {
+        return None;
+    }
+    let value: i64 = digits.parse().ok()?;
+    let before = &stem[..digits_start];
+    let negative = before.strip_suffix('-').is_some_and(|rest| {
+        rest.chars()
+            .last()
+            .map_or(true, |c| !c.is_ascii_alphanumeric())
+    });
+    if negative {
+        Some((before[..before.len() - 1].to_string(), -value, kind))
+    } else {
+        Some((before.to_string(), value, kind))
+    }
+}
+
+/// How one file's pixels are laid out, found by reading its header only.
+#[derive(Debug, Clone, PartialEq)]
+struct Probe {
+    width: usize,
+    height: usize,
+    /// Container bits per sample: 8 or 16.
+    bits: u8,
+    layout: Layout,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Layout {
+    /// Uncompressed one-sample TIFF: strips of `rows_per_strip` rows.
+    TiffRaw {
+        big_endian: bool,
+        rows_per_strip: usize,
+        strip_offsets: Vec<u64>,
+    },
+    /// 8-bit paletted BMP with a grey palette, rows bottom-up unless `top_down`.
+    Bmp8 {
+        data_offset: u64,
+        stride: usize,
+        top_down: bool,
+        palette: Vec<u8>,
+    },
+    /// Grey 8/16-bit PNG decoded row by row.
+    PngGrey,
+    /// Anything else: whole-image decode by the `image` crate, then grey.
+    Generic,
+}
+
+/// A folder of numbered frames opened for random access.
+pub struct FolderSource {
+    meta: SourceMeta,
+    files: Vec<PathBuf>,
+    kind: ImageKind,
+    /// Scratch: file bytes / rows read.
+    bytes: Vec<u8>,
+    row_scratch: Vec<u16>,
+    u16_scratch: Vec<u16>,
+}
+
+impl std::fmt::Debug for FolderSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FolderSource")
+            .field("meta", &self.meta)
+            .field("files", &self.files.len())
+            .finish()
+    }
+}
+
+fn io_err(path: &Path) -> impl Fn(std::io::Error) -> SourceError + '_ {
+    move |source| SourceError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+fn format_err(path: &Path, reason: impl Into<String>) -> SourceError {
+    SourceError::Format {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}
+
+impl FolderSource {
+    /// List `dir`, pick its frame sequence, read every file's header and the
+    /// PCC XML side file if there is one.
+    pub fn open(dir: &Path, options: &OpenOptions) -> Result<Self, SourceError> {
+        let entries = std::fs::read_dir(dir).map_err(io_err(dir))?;
+        let mut names = Vec::new();
+        for e in entries {
+            let e = e.map_err(io_err(dir))?;
+            if let Some(name) = e.file_name().to_str() {
+                names.push(name.to_string());
+            }
+        }
+        names.sort();
+        // Group numbered images by (prefix, kind); pick the largest group.
+        let mut groups: std::collections::BTreeMap<(String, ImageKind), Vec<(i64, String)>> =
+            Default::default();
+        let mut xmls = Vec::new();
+        let mut others = Vec::new();
+        for name in &names {
+            if dir.join(name).is_dir() {
+                continue;
+            }
+            if let Some((prefix, number, kind)) = parse_frame_name(name) {
+                groups
+                    .entry((prefix, kind))
+                    .or_default()
+                    .push((number, name.clone()));
+            } else if name.to_ascii_lowercase().ends_with(".xml") {
+                xmls.push(name.clone());
+            } else {
+                others.push(name.clone());
+            }
+        }
+        let Some(best) = groups.values().map(Vec::len).max() else {
+            return Err(format_err(
+                dir,
+                "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder",
+            ));
+        };
+        let mut tied = groups.iter().filter(|(_, v)| v.len() == best);
+        let ((prefix, kind), _) = tied.next().expect("a largest group exists");
+        if let Some(((p2, k2), _)) = tied.next() {
+            return Err(format_err(
+                dir,
+                format!(
+                    "two frame sequences of {best} files each ({prefix:?}*.{} and {p2:?}*.{}): \
+                     keep one sequence per folder",
+                    kind.name(),
+                    k2.name()
+                ),
+            ));
+        }
+        let (prefix, kind) = (prefix.clone(), *kind);
+        let mut warnings = Vec::new();
+        for ((p, k), v) in &groups {
+            if (p, *k) != (&prefix, kind) {
+                warnings.push(format!(
+                    "ignored {} file(s) outside the sequence, e.g. {}",
+                    v.len(),
+                    v[0].1
+                ));
+            }
+        }
+        if !others.is_empty() {
+            let shown: Vec<&str> = others.iter().take(5).map(String::as_str).collect();
+            warnings.push(format!(
+                "ignored {} non-frame file(s): {}{}",
+                others.len(),
+                shown.join(", "),
+                if others.len() > 5 { ", …" } else { "" }
+            ));
+        }
+        let mut frames = groups.remove(&(prefix.clone(), kind)).unwrap_or_default();
+        frames.sort();
+        if let Some(w) = frames.windows(2).find(|w| w[0].0 == w[1].0) {
+            return Err(format_err(
+                &dir.join(&w[1].1),
+                format!("frame number {} also belongs to {}", w[0].0, w[0].1),
+            ));
+        }
+        let files: Vec<PathBuf> = frames.iter().map(|(_, n)| dir.join(n)).collect();
+        let frame_numbers: Vec<i64> = frames.iter().map(|(n, _)| *n).collect();
+        let gaps = gaps_of(&frame_numbers);
+
+        // Every header: same size and depth as the first frame.
+        let mut bytes = Vec::new();
+        let (_, first) = open_and_probe(&files[0], kind, &mut bytes)?;
+        for f in &files[1..] {
+            let (_, p) = open_and_probe(f, kind, &mut bytes)?;
+            if (p.width, p.height, p.bits) != (first.width, first.height, first.bits) {
+                return Err(format_err(
+                    f,
+                    format!(
+                        "{}×{} {}-bit, but the sequence's first frame {} is {}×{} {}-bit: \
+                         one size and bit depth per folder",
+                        p.width,
+                        p.height,
+                        p.bits,
+                        files[0].display(),
+                        first.width,
+                        first.height,
+                        first.bits
+                    ),
+                ));
+            }
+        }
+
+        // The PCC XML side file.
+        let xml = pick_xml(dir, &prefix, &xmls)?;
+        let (xml_path, xml) = match xml {
+            Some((p, x)) => (Some(p), Some(x)),
+            None => (None, None),
+        };
+        let fps =
+            match xml.as_ref().and_then(|x| x.fps) {
+                Some(f) if f.is_finite() && f > 0.0 => f,
+                _ => match options.fps_fallback {
+                    Some(f) if f.is_finite() && f > 0.0 => f,
+                    _ => return Err(format_err(
+                        dir,
+                        "no frame rate: no PCC XML side file with FrameRateDouble/FrameRate here; \
+                         give fps in the run manifest or camera.fps in pipeline.toml (or --fps)",
+                    )),
+                },
+            };
+        // Bit depth: the XML's RealBPP when it fits the container, else the container's.
+        let bit_depth = match xml.as_ref().and_then(|x| x.real_bpp) {
+            Some(b) if (1..=first.bits).contains(&b) => b,
+            _ => first.bits,
+        };
+        let timestamps_s = xml
+            .as_ref()
+            .and_then(|x| per_frame(&x.times, &frame_numbers));
+        let exposures_s = xml
+            .as_ref()
+            .and_then(|x| per_frame(&x.exposures, &frame_numbers));
+        if let Some(x) = &xml {
+            if let Some(f0) = x.first_image_no {
+                if x.image_count == Some(frame_numbers.len() as u64) && f0 != frame_numbers[0] {
+                    warnings.push(format!(
+                        "XML FirstImageNo {f0} differs from the first file number {}; \
+                         file numbers are used",
+                        frame_numbers[0]
+                    ));
+                }
+            }
+        }
+        let meta = SourceMeta {
+            path: dir.to_path_buf(),
+            format: kind.name().into(),
+            frame_count: files.len(),
+            width: first.width,
+            height: first.height,
+            bit_depth,
+            fps,
+            exposure_s: xml.as_ref().and_then(|x| x.exposure_s),
+            first_frame: frame_numbers[0],
+            frame_numbers,
+            gaps,
+            timestamps_s,
+            details: SourceDetails {
+                container: format!("{} {}-bit", kind.name(), first.bits),
+                black_level: xml.as_ref().and_then(|x| x.black_level),
+                white_level: xml.as_ref().and_then(|x| x.white_level),
+                flip_h: xml.as_ref().and_then(|x| x.flip_h).unwrap_or(false),
+                flip_v: xml.as_ref().and_then(|x| x.flip_v).unwrap_or(false),
+                rotate_deg: 0,
+                flips_applied: false,
+                exposures_s,
+                acquisition_fps: None,
+                decimation: 1.0,
+                camera: None,
+                software_version: None,
+                setup_length: None,
+                side_file: xml_path,
+                warnings,
+            },
+        };
+        Ok(FolderSource {
+            meta,
+            files,
+            kind,
+            bytes,
+            row_scratch: Vec::new(),
+            u16_scratch: Vec::new(),
+        })
+    }
+
+    /// The frame files in index order.
+    pub fn files(&self) -> &[PathBuf] {
+        &self.files
+    }
+}
+
+/// Missing numbers between consecutive present ones, as inclusive ranges.
+fn gaps_of(numbers: &[i64]) -> Vec<(i64, i64)> {
+    numbers
+        .windows(2)
+        .filter(|w| w[1] > w[0] + 1)
+        .map(|w| (w[0] + 1, w[1] - 1))
+        .collect()
+}
+
+/// Values for exactly the present frame numbers, or `None` if any is missing.
+fn per_frame(by_number: &[(i64, f64)], numbers: &[i64]) -> Option<Vec<f64>> {
+    if by_number.is_empty() {
+        return None;
+    }
+    let mut sorted: Vec<(i64, f64)> = by_number.to_vec();
+    sorted.sort_by_key(|t| t.0);
+    numbers
+        .iter()
+        .map(|n| {
+            sorted
+                .binary_search_by_key(n, |t| t.0)
+                .ok()
+                .map(|i| sorted[i].1)
+        })
+        .collect()
+}
+
+/// The folder's PCC XML: the one named like the sequence prefix, else the
+/// only `<chd>` XML there. Several candidates without a name match → error.
+fn pick_xml(
+    dir: &Path,
+    prefix: &str,
+    xmls: &[String],
+) -> Result<Option<(PathBuf, PccXml)>, SourceError> {
+    let mut parsed = Vec::new();
+    for name in xmls {
+        let path = dir.join(name);
+        let text = std::fs::read_to_string(&path).map_err(io_err(&path))?;
+        if !text.contains("<chd") {
+            continue; // some other XML, not PCC's
+        }
+        let x = pcc_xml::parse(&text).map_err(|r| format_err(&path, r))?;
+        parsed.push((path, x));
+    }
+    if parsed.len() <= 1 {
+        return Ok(parsed.pop());
+    }
+    let trimmed = prefix.trim_end_matches(['_', '-', ' ', '.']);
+    let matching: Vec<_> = parsed
+        .into_iter()
+        .filter(|(p, _)| p.file_stem().and_then(|s| s.to_str()) == Some(trimmed))
+        .collect();
+    match matching.len() {
+        1 => Ok(matching.into_iter().next()),
+        _ => Err(format_err(
+            dir,
+            format!(
+                "several PCC XML side files and none named {trimmed}.xml: keep the one of this sequence"
+            ),
+        )),
+    }
+}
+
+/// Read `buf.len()` bytes at `offset`.
+fn read_at(file: &mut File, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
+    file.seek(SeekFrom::Start(offset))?;
+    file.read_exact(buf)
+}
+
+/// Open a frame file and read its header.
+fn open_and_probe(
+    path: &Path,
+    kind: ImageKind,
+    bytes: &mut Vec<u8>,
+) -> Result<(File, Probe), SourceError> {
+    let mut file = File::open(path).map_err(io_err(path))?;
+    let p = probe(path, &mut file, kind, bytes)?;
+    Ok((file, p))
+}
+
+/// Read a file's header and decide how to decode it. `bytes` is scratch.
+fn probe(
+    path: &Path,
+    file: &mut File,
+    kind: ImageKind,
+    bytes: &mut Vec<u8>,
+) -> Result<Probe, SourceError> {
+    let len = file.metadata().map_err(io_err(path))?.len();
+    match kind {
+        ImageKind::Tiff => {
+            if let Some(p) = probe_tiff(file, len).map_err(|r| format_err(path, r))? {
+                return Ok(p);
+            }
+        }
+        ImageKind::Bmp => {
+            if let Some(p) = probe_bmp(file, len).map_err(|r| format_err(path, r))? {
+                return Ok(p);
+            }
+        }
+        ImageKind::Png => {
+            bytes.clear();
+            file.read_to_end(bytes).map_err(io_err(path))?;
+            let dec = png::Decoder::new(Cursor::new(&bytes[..]));
+            let reader = dec
+                .read_info()
+                .map_err(|e| format_err(path, format!("not a readable PNG: {e}")))?;
+            let info = reader.info();
+            let bits = match info.bit_depth {
+                png::BitDepth::Sixteen => 16,
+                _ => 8,
+            };
+            let grey = info.color_type == png::ColorType::Grayscale
+                && matches!(
+                    info.bit_depth,
+                    png::BitDepth::Eight | png::BitDepth::Sixteen
+                )
+                && info.interlaced.eq(&false);
+            return Ok(Probe {
+                width: info.width as usize,
+                height: info.height as usize,
+                bits,
+                layout: if grey {
+                    Layout::PngGrey
+                } else {
+                    Layout::Generic
+                },
+            });
+        }
+        ImageKind::Jpeg => {}
+    }
+    // Generic: dimensions and depth from the image crate's header reader.
+    bytes.clear();
+    file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
+    file.read_to_end(bytes).map_err(io_err(path))?;
+    let reader = image::ImageReader::new(Cursor::new(&bytes[..]))
+        .with_guessed_format()
+        .map_err(io_err(path))?;
+    let dec = reader
+        .into_decoder()
+        .map_err(|e| format_err(path, format!("not a readable image: {e}")))?;
+    use image::ImageDecoder;
+    let (w, h) = dec.dimensions();
+    let bits = if dec.color_type().bytes_per_pixel() / dec.color_type().channel_count() >= 2 {
+        16
+    } else {
+        8
+    };
+    Ok(Probe {
+        width: w as usize,
+        height: h as usize,
+        bits,
+        layout: Layout::Generic,
+    })
+}
+
+/// Parse a classic TIFF's first IFD. `Ok(None)` = valid but not the simple
+/// uncompressed grey layout (left to the generic decoder).
+fn probe_tiff(file: &mut File, len: u64) -> Result<Option<Probe>, String> {
+    let mut head = [0u8; 8];
+    read_at(file, 0, &mut head).map_err(|e| format!("not a TIFF (header: {e})"))?;
+    let big_endian = match &head[0..4] {
+        b"II*\0" => false,
+        b"MM\0*" => true,
+        _ => return Ok(None), // BigTIFF or not a TIFF: let the generic path decide
+    };
+    let u16_ = |b: &[u8]| {
+        let a = [b[0], b[1]];
+        if big_endian {
+            u16::from_be_bytes(a)
+        } else {
+            u16::from_le_bytes(a)
+        }
+    };
+    let u32_ = |b: &[u8]| {
+        let a = [b[0], b[1], b[2], b[3]];
+        if big_endian {
+            u32::from_be_bytes(a)
+        } else {
+            u32::from_le_bytes(a)
+        }
+    };
+    let ifd = u64::from(u32_(&head[4..8]));
+    if ifd + 2 > len {
+        return Err(format!("IFD offset {ifd} is past the end ({len} bytes)"));
+    }
+    let mut nb = [0u8; 2];
+    read_at(file, ifd, &mut nb).map_err(|e| e.to_string())?;
+    let n = usize::from(u16_(&nb));
+    if ifd + 2 + 12 * n as u64 > len {
+        return Err(format!("IFD with {n} entries runs past the end"));
+    }
+    let mut entries = vec![0u8; 12 * n];
+    read_at(file, ifd + 2, &mut entries).map_err(|e| e.to_string())?;
+    // (type, count, value-or-offset bytes)
+    let tag = |t: u16| {
+        entries
+            .chunks_exact(12)
+            .find(|e| u16_(&e[0..2]) == t)
+            .map(|e| (u16_(&e[2..4]), u32_(&e[4..8]), [e[8], e[9], e[10], e[11]]))
+    };
+    let scalar = |e: Option<(u16, u32, [u8; 4])>| -> Option<u64> {
+        let (ty, count, v) = e?;
+        if count < 1 {
+            return None;
+        }
+        match ty {
+            3 => Some(u64::from(u16_(&v[0..2]))),
+            4 => Some(u64::from(u32_(&v))),
+            _ => None,
+        }
+    };
+    let width = scalar(tag(256)).ok_or("TIFF without ImageWidth")? as usize;
+    let height = scalar(tag(257)).ok_or("TIFF without ImageLength")? as usize;
+    let bits = scalar(tag(258)).unwrap_or(1);
+    let compression = scalar(tag(259)).unwrap_or(1);
+    let photometric = scalar(tag(262)).unwrap_or(1);
+    let spp = scalar(tag(277)).unwrap_or(1);
+    let rows_per_strip = scalar(tag(278)).unwrap_or(u64::from(u32::MAX));
+    let sample_format = scalar(tag(339)).unwrap_or(1);
+    let predictor = scalar(tag(317)).unwrap_or(1);
+    let tiled = tag(322).is_some();
+    if width == 0 || height == 0 || (width as u64) * (height as u64) > 1 << 28 {
+        return Err(format!("implausible TIFF size {width}×{height}"));
+    }
+    let simple = compression == 1
+        && photometric == 1
+        && spp == 1
+        && (bits == 8 || bits == 16)
+        && sample_format == 1
+        && predictor == 1
+        && !tiled;
+    if !simple {
+        return Ok(None);
+    }
+    let strips = tag(273).ok_or("TIFF without StripOffsets")?;
+    let (ty, count, v) = strips;
+    let rps = rows_per_strip.clamp(1, height as u64) as usize;
+    let need = height.div_ceil(rps);
+    if (count as usize) < need {
+        return Err(format!(
+            "{count} strip offsets for {height} rows of {rps} per strip"
+        ));
+    }
+    let size = match ty {
+        3 => 2,
+        4 => 4,
+        _ => return Err(format!("StripOffsets of TIFF type {ty}")),
+    };
+    let mut raw = vec![0u8; need * size];
+    if need * size <= 4 {
+        raw.copy_from_slice(&v[..need * size]);
+    } else {
+        let off = u64::from(u32_(&v));
+        if off + raw.len() as u64 > len {
+            return Err("StripOffsets array runs past the end".into());
+        }
+        read_at(file, off, &mut raw).map_err(|e| e.to_string())?;
+    }
+    let strip_offsets: Vec<u64> = raw
+        .chunks_exact(size)
+        .map(|c| {
+            if size == 2 {
+                u64::from(u16_(c))
+            } else {
+                u64::from(u32_(c))
+            }
+        })
+        .collect();
+    let row_bytes = width as u64 * bits / 8;
+    for (i, &o) in strip_offsets.iter().enumerate() {
+        let rows = rps.min(height - i * rps) as u64;
+        if o + rows * row_bytes > len {
+            return Err(format!(
+                "strip {i} runs past the end of the file: truncated?"
+            ));
+        }
+    }
+    Ok(Some(Probe {
+        width,
+        height,
+        bits: bits as u8,
+        layout: Layout::TiffRaw {
+            big_endian,
+            rows_per_strip: rps,
+            strip_offsets,
+        },
+    }))
+}
+
+/// Parse an 8-bit paletted BMP with a grey palette; `Ok(None)` for any
+/// other BMP (decoded generically).
+fn probe_bmp(file: &mut File, len: u64) -> Result<Option<Probe>, String> {
+    let mut h = [0u8; 54];
+    read_at(file, 0, &mut h).map_err(|e| format!("not a BMP (header: {e})"))?;
+    if &h[0..2] != b"BM" {
+        return Err("not a BMP (no \"BM\" magic)".into());
+    }
+    let le32 = |o: usize| u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]);
+    let data_offset = u64::from(le32(10));
+    let dib = le32(14);
+    let width = le32(18) as i32;
+    let height = le32(22) as i32;
+    let bpp = u16::from_le_bytes([h[28], h[29]]);
+    let compression = le32(30);
+    let colours = le32(46);
+    if dib < 40 || bpp != 8 || compression != 0 || width <= 0 || height == 0 {
+        return Ok(None);
+    }
+    let (w, hh) = (width as usize, height.unsigned_abs() as usize);
+    if (w as u64) * (hh as u64) > 1 << 28 {
+        return Err(format!("implausible BMP size {w}×{hh}"));
+    }
+    let n_pal = if colours == 0 {
+        256
+    } else {
+        colours.min(256) as usize
+    };
+    let pal_off = 14 + u64::from(dib);
+    if pal_off + 4 * n_pal as u64 > len {
+        return Err("BMP palette runs past the end".into());
+    }
+    let mut pal = vec![0u8; 4 * n_pal];
+    read_at(file, pal_off, &mut pal).map_err(|e| e.to_string())?;
+    // Grey palette: B = G = R for every entry; the value is that grey.
+    let mut palette = Vec::with_capacity(256);
+    for c in pal.chunks_exact(4) {
+        if c[0] != c[1] || c[1] != c[2] {
+            return Ok(None);
+        }
+        palette.push(c[0]);
+    }
+    palette.resize(256, 0);
+    let stride = w.div_ceil(4) * 4;
+    if data_offset + (stride * hh) as u64 > len {
+        return Err("BMP pixel data runs past the end: truncated?".into());
+    }
+    Ok(Some(Probe {
+        width: w,
+        height: hh,
+        bits: 8,
+        layout: Layout::Bmp8 {
+            data_offset,
+            stride,
+            top_down: height < 0,
+            palette,
+        },
+    }))
+}
+
+impl FrameSource for FolderSource {
+    fn meta(&self) -> &SourceMeta {
+        &self.meta
+    }
+
+    fn read_rows_into(
+        &mut self,
+        index: usize,
+        row0: usize,
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
+        check_band(&self.meta, index, row0, out)?;
+        let path = &self.files[index];
+        let frame_err = |reason: String| SourceError::Frame {
+            path: path.clone(),
+            index,
+            reason,
+        };
+        let (mut file, p) =
+            open_and_probe(path, self.kind, &mut self.bytes).map_err(|e| match e {
+                SourceError::Format { reason, .. } => frame_err(reason),
+                other => other,
+            })?;
+        if (p.width, p.height) != (self.meta.width, self.meta.height) {
+            return Err(frame_err(format!(
+                "size changed to {}×{} since the folder was opened",
+                p.width, p.height
+            )));
+        }
+        let n = out.nrows();
+        let w = p.width;
+        match &p.layout {
+            Layout::TiffRaw {
+                big_endian,
+                rows_per_strip,
+                strip_offsets,
+            } => {
+                let bpp = usize::from(p.bits / 8);
+                let row_bytes = w * bpp;
+                let mut r = row0;
+                while r < row0 + n {
+                    // Rows r.. within one strip, read in one go.
+                    let strip = r / rows_per_strip;
+                    let in_strip = r % rows_per_strip;
+                    let take = (rows_per_strip - in_strip).min(row0 + n - r);
+                    let off = strip_offsets[strip] + (in_strip * row_bytes) as u64;
+                    self.bytes.clear();
+                    self.bytes.resize(take * row_bytes, 0);
+                    read_at(&mut file, off, &mut self.bytes)
+                        .map_err(|e| frame_err(format!("reading rows: {e}")))?;
+                    for k in 0..take {
+                        let src = &self.bytes[k * row_bytes..(k + 1) * row_bytes];
+                        let row = out.slice_mut(s![r - row0 + k, ..]);
+                        fill_row(row, &mut self.row_scratch, |dst| {
+                            if bpp == 1 {
+                                for (d, s) in dst.iter_mut().zip(src) {
+                                    *d = u16::from(*s);
+                                }
+                            } else if *big_endian {
+                                for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                                    *d = u16::from_be_bytes([s[0], s[1]]);
+                                }
+                            } else {
+                                for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                                    *d = u16::from_le_bytes([s[0], s[1]]);
+                                }
+                            }
+                        });
+                    }
+                    r += take;
+                }
+            }
+            Layout::Bmp8 {
+                data_offset,
+                stride,
+                top_down,
+                palette,
+            } => {
+                let h = p.height;
+                // Stored rows for the band are contiguous; bottom-up reverses them.
+                let first_stored = if *top_down { row0 } else { h - row0 - n };
+                self.bytes.clear();
+                self.bytes.resize(n * stride, 0);
+                read_at(
+                    &mut file,
+                    data_offset + (first_stored * stride) as u64,
+                    &mut self.bytes,
+                )
+                .map_err(|e| frame_err(format!("reading rows: {e}")))?;
+                for j in 0..n {
+                    let k = if *top_down { j } else { n - 1 - j };
+                    let src = &self.bytes[k * stride..k * stride + w];
+                    fill_row(out.slice_mut(s![j, ..]), &mut self.row_scratch, |dst| {
+                        for (d, s) in dst.iter_mut().zip(src) {
+                            *d = u16::from(palette[usize::from(*s)]);
+                        }
+                    });
+                }
+            }
+            Layout::PngGrey => {
+                // `probe` left the whole file in `self.bytes`.
+                let mut reader = png::Decoder::new(Cursor::new(&self.bytes[..]))
+                    .read_info()
+                    .map_err(|e| frame_err(format!("PNG: {e}")))?;
+                let sixteen = p.bits == 16;
+                for r in 0..row0 + n {
+                    let row = reader
+                        .next_row()
+                        .map_err(|e| frame_err(format!("PNG: {e}")))?
+                        .ok_or_else(|| frame_err("PNG ends early".into()))?;
+                    if r < row0 {
+                        continue;
+                    }
+                    let src = row.data();
+                    fill_row(
+                        out.slice_mut(s![r - row0, ..]),
+                        &mut self.row_scratch,
+                        |dst| {
+                            if sixteen {
+                                for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                                    *d = u16::from_be_bytes([s[0], s[1]]);
+                                }
+                            } else {
+                                for (d, s) in dst.iter_mut().zip(src) {
+                                    *d = u16::from(*s);
+                                }
+                            }
+                        },
+                    );
+                }
+            }
+            Layout::Generic => {
+                self.bytes.clear();
+                file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
+                file.read_to_end(&mut self.bytes).map_err(io_err(path))?;
+                let img = image::ImageReader::new(Cursor::new(&self.bytes[..]))
+                    .with_guessed_format()
+                    .map_err(io_err(path))?
+                    .decode()
+                    .map_err(|e| frame_err(format!("cannot decode: {e}")))?;
+                self.u16_scratch.clear();
+                if p.bits == 16 {
+                    self.u16_scratch.extend(img.into_luma16().into_raw());
+                } else {
+                    self.u16_scratch
+                        .extend(img.into_luma8().into_raw().into_iter().map(u16::from));
+                }
+                if self.u16_scratch.len() < (row0 + n) * w {
+                    return Err(frame_err("decoded image is smaller than its header".into()));
+                }
+                for j in 0..n {
+                    let src = &self.u16_scratch[(row0 + j) * w..(row0 + j + 1) * w];
+                    fill_row(out.slice_mut(s![j, ..]), &mut self.row_scratch, |dst| {
+                        dst.copy_from_slice(src)
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_split_into_prefix_number_and_kind() {
+        let p = |n: &str| parse_frame_name(n).map(|(a, b, _)| (a, b));
+        assert_eq!(p("run_000012.tif"), Some(("run_".into(), 12)));
+        assert_eq!(p("run_-00005.tif"), Some(("run_".into(), -5)));
+        assert_eq!(p("-3.png"), Some(("".into(), -3)));
+        assert_eq!(p("img-0004.png"), Some(("img-".into(), 4)));
+        assert_eq!(p("img--4.png"), Some(("img-".into(), -4)));
+        assert_eq!(p("Img7.BMP"), Some(("Img".into(), 7)));
+        assert_eq!(p("notes.txt"), None);
+        assert_eq!(p("background.tif"), None);
+        assert_eq!(p("run.xml"), None);
+    }
+
+    #[test]
+    fn gaps_are_inclusive_ranges_of_missing_numbers() {
+        assert_eq!(gaps_of(&[-2, -1, 0, 3, 4, 6]), vec![(1, 2), (5, 5)]);
+        assert!(gaps_of(&[5]).is_empty());
+    }
+}

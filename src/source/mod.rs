@@ -121,7 +121,7 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn FrameSource>, 
         source,
     })?;
     if md.is_dir() {
-        return Err(SourceError::Unsupported{path: path.to_path_buf(), reason: "TODO".into()});
+        return Ok(Box::new(folder::FolderSource::open(path, options)?));
     }
     let is_cine_name = path
         .extension()

@@ -110,13 +110,21 @@ mod tests {
     #[test]
     fn p10_matches_the_documented_formula() {
         // p0 = b0<<2 | b1>>6 etc. (phantom.md §8.4) on a hand-made group.
-        let src = [0b1010_1010, 0b1100_1100, 0b1111_0000, 0b0000_1111, 0b0101_0101];
+        let src = [
+            0b1010_1010u8,
+            0b1100_1100,
+            0b1111_0101,
+            0b0110_1111,
+            0b0101_0101,
+        ];
+        let b: Vec<u16> = src.iter().map(|&v| u16::from(v)).collect();
         let mut out = [0u16; 4];
         unpack_msb(&src, 0, 10, &mut out);
-        assert_eq!(out[0], (0b1010_1010 << 2) | (0b1100_1100 >> 6));
-        assert_eq!(out[1], ((0b1100_1100 & 0x3F) << 4) | (0b1111_0000 >> 4));
-        assert_eq!(out[2], ((0b1111_0000 & 0x0F) << 6) | (0b0000_1111 >> 2));
-        assert_eq!(out[3], ((0b0000_1111 & 0x03) << 8) | 0b0101_0101);
+        assert_eq!(out[0], (b[0] << 2) | (b[1] >> 6));
+        assert_eq!(out[1], ((b[1] & 0x3F) << 4) | (b[2] >> 4));
+        assert_eq!(out[2], ((b[2] & 0x0F) << 6) | (b[3] >> 2));
+        assert_eq!(out[3], ((b[3] & 0x03) << 8) | b[4]);
+        assert_eq!(out, [683, 207, 347, 853]);
     }
 
     #[test]

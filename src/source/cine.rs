@@ -738,6 +738,22 @@ impl FrameSource for CineSource {
         let start_bit = lo as u64 * w as u64 * bits;
         let span = packed_span(start_bit % 8, (n * w) as u64, storage.bits());
         let byte0 = pixels + start_bit / 8;
+        // Fast path: 16-bit LE samples go straight from the file into the
+        // caller's rows (one vectored read puts bottom-up rows in place).
+        if storage == CineStorage::Gray16 && cfg!(target_endian = "little") && !flip_h {
+            if let Some(dst) = out.as_slice_mut() {
+                let dst: &mut [u8] = bytemuck::cast_slice_mut(dst);
+                let r = self
+                    .file
+                    .seek(SeekFrom::Start(byte0))
+                    .and_then(|_| read_rows(&mut self.file, dst, row_bytes, descending));
+                return r.map_err(|e| SourceError::Frame {
+                    path: self.meta.path.clone(),
+                    index,
+                    reason: format!("reading pixels: {e}"),
+                });
+            }
+        }
         self.bytes.clear();
         self.bytes.resize(span as usize, 0);
         let io = |source| SourceError::Io {
@@ -779,5 +795,45 @@ impl FrameSource for CineSource {
             });
         }
         Ok(())
+    }
+}
+
+/// Read `dst.len()` bytes into `dst`, seen as rows of `row_bytes`; with
+/// `reverse` the file's first row goes to `dst`'s last row (bottom-up
+/// storage), using vectored reads of up to 512 rows per call.
+fn read_rows(
+    file: &mut File,
+    dst: &mut [u8],
+    row_bytes: usize,
+    reverse: bool,
+) -> std::io::Result<()> {
+    use std::io::IoSliceMut;
+    if !reverse || row_bytes == 0 {
+        return file.read_exact(dst);
+    }
+    const BATCH: usize = 512;
+    let mut rows = dst.rchunks_exact_mut(row_bytes);
+    loop {
+        let mut bufs: [IoSliceMut<'_>; BATCH] = std::array::from_fn(|_| IoSliceMut::new(&mut []));
+        let mut k = 0;
+        for (slot, row) in bufs.iter_mut().zip(rows.by_ref()) {
+            *slot = IoSliceMut::new(row);
+            k += 1;
+        }
+        if k == 0 {
+            return Ok(());
+        }
+        let mut done = file.read_vectored(&mut bufs[..k])?;
+        // A short read: finish row by row from where it stopped.
+        if done < k * row_bytes {
+            for b in bufs[..k].iter_mut() {
+                if done >= b.len() {
+                    done -= b.len();
+                    continue;
+                }
+                file.read_exact(&mut b[done..])?;
+                done = 0;
+            }
+        }
     }
 }

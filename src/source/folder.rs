@@ -104,18 +104,18 @@ struct Probe {
 
 #[derive(Debug, Clone, PartialEq)]
 enum Layout {
-    /// Uncompressed one-sample TIFF: strips of `rows_per_strip` rows.
+    /// Uncompressed one-sample TIFF: strips of `rows_per_strip` rows at the
+    /// offsets left in [`Scratch::strips`] (merged into one when contiguous).
     TiffRaw {
         big_endian: bool,
         rows_per_strip: usize,
-        strip_offsets: Vec<u64>,
     },
     /// 8-bit paletted BMP with a grey palette, rows bottom-up unless `top_down`.
     Bmp8 {
         data_offset: u64,
         stride: usize,
         top_down: bool,
-        palette: Vec<u8>,
+        palette: Box<[u8; 256]>,
     },
     /// Grey 8/16-bit PNG decoded row by row.
     PngGrey,
@@ -123,13 +123,23 @@ enum Layout {
     Generic,
 }
 
+/// Buffers reused from frame to frame: header bytes, IFD entries, strip
+/// offsets, file bytes / rows read.
+#[derive(Debug, Default)]
+struct Scratch {
+    head: Vec<u8>,
+    entries: Vec<u8>,
+    raw: Vec<u8>,
+    strips: Vec<u64>,
+    bytes: Vec<u8>,
+}
+
 /// A folder of numbered frames opened for random access.
 pub struct FolderSource {
     meta: SourceMeta,
     files: Vec<PathBuf>,
     kind: ImageKind,
-    /// Scratch: file bytes / rows read.
-    bytes: Vec<u8>,
+    scratch: Scratch,
     row_scratch: Vec<u16>,
     u16_scratch: Vec<u16>,
 }
@@ -242,10 +252,10 @@ impl FolderSource {
         let gaps = gaps_of(&frame_numbers);
 
         // Every header: same size and depth as the first frame.
-        let mut bytes = Vec::new();
-        let (_, first) = open_and_probe(&files[0], kind, &mut bytes)?;
+        let mut scratch = Scratch::default();
+        let (_, first) = open_and_probe(&files[0], kind, &mut scratch)?;
         for f in &files[1..] {
-            let (_, p) = open_and_probe(f, kind, &mut bytes)?;
+            let (_, p) = open_and_probe(f, kind, &mut scratch)?;
             if (p.width, p.height, p.bits) != (first.width, first.height, first.bits) {
                 return Err(format_err(
                     f,
@@ -339,7 +349,7 @@ impl FolderSource {
             meta,
             files,
             kind,
-            bytes,
+            scratch,
             row_scratch: Vec::new(),
             u16_scratch: Vec::new(),
         })
@@ -424,10 +434,10 @@ fn read_at(file: &mut File, offset: u64, buf: &mut [u8]) -> std::io::Result<()> 
 fn open_and_probe(
     path: &Path,
     kind: ImageKind,
-    bytes: &mut Vec<u8>,
+    scratch: &mut Scratch,
 ) -> Result<(File, Probe), SourceError> {
     let mut file = File::open(path).map_err(io_err(path))?;
-    let p = probe(path, &mut file, kind, bytes)?;
+    let p = probe(path, &mut file, kind, scratch)?;
     Ok((file, p))
 }
 
@@ -436,12 +446,13 @@ fn probe(
     path: &Path,
     file: &mut File,
     kind: ImageKind,
-    bytes: &mut Vec<u8>,
+    scratch: &mut Scratch,
 ) -> Result<Probe, SourceError> {
     let len = file.metadata().map_err(io_err(path))?.len();
+    let bytes = &mut scratch.bytes;
     match kind {
         ImageKind::Tiff => {
-            if let Some(p) = probe_tiff(file, len).map_err(|r| format_err(path, r))? {
+            if let Some(p) = probe_tiff(file, len, scratch).map_err(|r| format_err(path, r))? {
                 return Ok(p);
             }
         }
@@ -482,6 +493,7 @@ fn probe(
         ImageKind::Jpeg => {}
     }
     // Generic: dimensions and depth from the image crate's header reader.
+    let bytes = &mut scratch.bytes;
     bytes.clear();
     file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
     file.read_to_end(bytes).map_err(io_err(path))?;
@@ -508,9 +520,27 @@ fn probe(
 
 /// Parse a classic TIFF's first IFD. `Ok(None)` = valid but not the simple
 /// uncompressed grey layout (left to the generic decoder).
-fn probe_tiff(file: &mut File, len: u64) -> Result<Option<Probe>, String> {
-    let mut head = [0u8; 8];
-    read_at(file, 0, &mut head).map_err(|e| format!("not a TIFF (header: {e})"))?;
+fn probe_tiff(file: &mut File, len: u64, sc: &mut Scratch) -> Result<Option<Probe>, String> {
+    // One read of the first 4 KiB serves the header, and the IFD and strip
+    // table when they lie there (PCC writes the IFD at byte 8).
+    let head_len = len.min(4096) as usize;
+    sc.head.clear();
+    sc.head.resize(head_len, 0);
+    read_at(file, 0, &mut sc.head).map_err(|e| format!("not a TIFF (header: {e})"))?;
+    if head_len < 8 {
+        return Err(format!("not a TIFF ({len} bytes)"));
+    }
+    let head = &sc.head;
+    let fetch = |file: &mut File, off: u64, out: &mut Vec<u8>, n: usize| {
+        out.clear();
+        if off + n as u64 <= head.len() as u64 {
+            out.extend_from_slice(&head[off as usize..off as usize + n]);
+            Ok(())
+        } else {
+            out.resize(n, 0);
+            read_at(file, off, out).map_err(|e| e.to_string())
+        }
+    };
     let big_endian = match &head[0..4] {
         b"II*\0" => false,
         b"MM\0*" => true,
@@ -536,14 +566,13 @@ fn probe_tiff(file: &mut File, len: u64) -> Result<Option<Probe>, String> {
     if ifd + 2 > len {
         return Err(format!("IFD offset {ifd} is past the end ({len} bytes)"));
     }
-    let mut nb = [0u8; 2];
-    read_at(file, ifd, &mut nb).map_err(|e| e.to_string())?;
-    let n = usize::from(u16_(&nb));
+    fetch(file, ifd, &mut sc.entries, 2)?;
+    let n = usize::from(u16_(&sc.entries));
     if ifd + 2 + 12 * n as u64 > len {
         return Err(format!("IFD with {n} entries runs past the end"));
     }
-    let mut entries = vec![0u8; 12 * n];
-    read_at(file, ifd + 2, &mut entries).map_err(|e| e.to_string())?;
+    fetch(file, ifd + 2, &mut sc.entries, 12 * n)?;
+    let entries = &sc.entries;
     // (type, count, value-or-offset bytes)
     let tag = |t: u16| {
         entries
@@ -599,28 +628,26 @@ fn probe_tiff(file: &mut File, len: u64) -> Result<Option<Probe>, String> {
         4 => 4,
         _ => return Err(format!("StripOffsets of TIFF type {ty}")),
     };
-    let mut raw = vec![0u8; need * size];
     if need * size <= 4 {
-        raw.copy_from_slice(&v[..need * size]);
+        sc.raw.clear();
+        sc.raw.extend_from_slice(&v[..need * size]);
     } else {
         let off = u64::from(u32_(&v));
-        if off + raw.len() as u64 > len {
+        if off + (need * size) as u64 > len {
             return Err("StripOffsets array runs past the end".into());
         }
-        read_at(file, off, &mut raw).map_err(|e| e.to_string())?;
+        fetch(file, off, &mut sc.raw, need * size)?;
     }
-    let strip_offsets: Vec<u64> = raw
-        .chunks_exact(size)
-        .map(|c| {
-            if size == 2 {
-                u64::from(u16_(c))
-            } else {
-                u64::from(u32_(c))
-            }
-        })
-        .collect();
+    sc.strips.clear();
+    for c in sc.raw.chunks_exact(size) {
+        sc.strips.push(if size == 2 {
+            u64::from(u16_(c))
+        } else {
+            u64::from(u32_(c))
+        });
+    }
     let row_bytes = width as u64 * bits / 8;
-    for (i, &o) in strip_offsets.iter().enumerate() {
+    for (i, &o) in sc.strips.iter().enumerate() {
         let rows = rps.min(height - i * rps) as u64;
         if o + rows * row_bytes > len {
             return Err(format!(
@@ -628,6 +655,15 @@ fn probe_tiff(file: &mut File, len: u64) -> Result<Option<Probe>, String> {
             ));
         }
     }
+    // Strips back to back: one strip of all rows, read in one call.
+    let strip_bytes = rps as u64 * row_bytes;
+    let contiguous = sc.strips.windows(2).all(|w| w[1] == w[0] + strip_bytes);
+    let rps = if contiguous {
+        sc.strips.truncate(1);
+        height
+    } else {
+        rps
+    };
     Ok(Some(Probe {
         width,
         height,
@@ -635,7 +671,6 @@ fn probe_tiff(file: &mut File, len: u64) -> Result<Option<Probe>, String> {
         layout: Layout::TiffRaw {
             big_endian,
             rows_per_strip: rps,
-            strip_offsets,
         },
     }))
 }
@@ -675,14 +710,13 @@ fn probe_bmp(file: &mut File, len: u64) -> Result<Option<Probe>, String> {
     let mut pal = vec![0u8; 4 * n_pal];
     read_at(file, pal_off, &mut pal).map_err(|e| e.to_string())?;
     // Grey palette: B = G = R for every entry; the value is that grey.
-    let mut palette = Vec::with_capacity(256);
-    for c in pal.chunks_exact(4) {
+    let mut palette = Box::new([0u8; 256]);
+    for (p, c) in palette.iter_mut().zip(pal.chunks_exact(4)) {
         if c[0] != c[1] || c[1] != c[2] {
             return Ok(None);
         }
-        palette.push(c[0]);
+        *p = c[0];
     }
-    palette.resize(256, 0);
     let stride = w.div_ceil(4) * 4;
     if data_offset + (stride * hh) as u64 > len {
         return Err("BMP pixel data runs past the end: truncated?".into());
@@ -719,7 +753,7 @@ impl FrameSource for FolderSource {
             reason,
         };
         let (mut file, p) =
-            open_and_probe(path, self.kind, &mut self.bytes).map_err(|e| match e {
+            open_and_probe(path, self.kind, &mut self.scratch).map_err(|e| match e {
                 SourceError::Format { reason, .. } => frame_err(reason),
                 other => other,
             })?;
@@ -735,8 +769,8 @@ impl FrameSource for FolderSource {
             Layout::TiffRaw {
                 big_endian,
                 rows_per_strip,
-                strip_offsets,
             } => {
+                let strip_offsets = &self.scratch.strips;
                 let bpp = usize::from(p.bits / 8);
                 let row_bytes = w * bpp;
                 let mut r = row0;
@@ -746,12 +780,13 @@ impl FrameSource for FolderSource {
                     let in_strip = r % rows_per_strip;
                     let take = (rows_per_strip - in_strip).min(row0 + n - r);
                     let off = strip_offsets[strip] + (in_strip * row_bytes) as u64;
-                    self.bytes.clear();
-                    self.bytes.resize(take * row_bytes, 0);
-                    read_at(&mut file, off, &mut self.bytes)
+                    let bytes = &mut self.scratch.bytes;
+                    bytes.clear();
+                    bytes.resize(take * row_bytes, 0);
+                    read_at(&mut file, off, bytes)
                         .map_err(|e| frame_err(format!("reading rows: {e}")))?;
                     for k in 0..take {
-                        let src = &self.bytes[k * row_bytes..(k + 1) * row_bytes];
+                        let src = &bytes[k * row_bytes..(k + 1) * row_bytes];
                         let row = out.slice_mut(s![r - row0 + k, ..]);
                         fill_row(row, &mut self.row_scratch, |dst| {
                             if bpp == 1 {
@@ -781,17 +816,18 @@ impl FrameSource for FolderSource {
                 let h = p.height;
                 // Stored rows for the band are contiguous; bottom-up reverses them.
                 let first_stored = if *top_down { row0 } else { h - row0 - n };
-                self.bytes.clear();
-                self.bytes.resize(n * stride, 0);
+                let bytes = &mut self.scratch.bytes;
+                bytes.clear();
+                bytes.resize(n * stride, 0);
                 read_at(
                     &mut file,
                     data_offset + (first_stored * stride) as u64,
-                    &mut self.bytes,
+                    bytes,
                 )
                 .map_err(|e| frame_err(format!("reading rows: {e}")))?;
                 for j in 0..n {
                     let k = if *top_down { j } else { n - 1 - j };
-                    let src = &self.bytes[k * stride..k * stride + w];
+                    let src = &bytes[k * stride..k * stride + w];
                     fill_row(out.slice_mut(s![j, ..]), &mut self.row_scratch, |dst| {
                         for (d, s) in dst.iter_mut().zip(src) {
                             *d = u16::from(palette[usize::from(*s)]);
@@ -801,7 +837,7 @@ impl FrameSource for FolderSource {
             }
             Layout::PngGrey => {
                 // `probe` left the whole file in `self.bytes`.
-                let mut reader = png::Decoder::new(Cursor::new(&self.bytes[..]))
+                let mut reader = png::Decoder::new(Cursor::new(&self.scratch.bytes[..]))
                     .read_info()
                     .map_err(|e| frame_err(format!("PNG: {e}")))?;
                 let sixteen = p.bits == 16;
@@ -832,10 +868,11 @@ impl FrameSource for FolderSource {
                 }
             }
             Layout::Generic => {
-                self.bytes.clear();
+                let bytes = &mut self.scratch.bytes;
+                bytes.clear();
                 file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
-                file.read_to_end(&mut self.bytes).map_err(io_err(path))?;
-                let img = image::ImageReader::new(Cursor::new(&self.bytes[..]))
+                file.read_to_end(bytes).map_err(io_err(path))?;
+                let img = image::ImageReader::new(Cursor::new(&bytes[..]))
                     .with_guessed_format()
                     .map_err(io_err(path))?
                     .decode()

@@ -1,0 +1,209 @@
+//! Frame-reading speed (issue 3): a 2 000-frame 512×384 8-bit TIFF folder,
+//! the same frames as PNG, and a 16-bit `.cine`, in frames/s on 1 and 2
+//! threads, beside a plain memory copy of the same bytes in the same run
+//! and, for PNG, the `image` crate's own decoder.
+//!
+//!     cargo bench --bench read            (DROPSCOPE_BENCH_FRAMES=N to change 2000)
+//!
+//! Data are generated in a temporary folder (≈1.4 GB, removed at the end)
+//! and read once before timing, so every figure is from the page cache.
+//! Each figure is the best of `REPEATS` runs (the machine is shared).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use dropscope::source::cine_write::{CinePacking, CineSpec, CineWriter};
+use dropscope::source::{open, Frame, OpenOptions};
+
+const W: usize = 512;
+const H: usize = 384;
+const REPEATS: usize = 3;
+
+/// Best (highest) frames/s of `REPEATS` runs of `f`.
+fn best(mut f: impl FnMut() -> f64) -> f64 {
+    (0..REPEATS).map(|_| f()).fold(0.0, f64::max)
+}
+
+/// A drop-like frame: bright background with a gradient, a dark disk that
+/// moves with `i`, mild deterministic noise. Values 0‥max.
+fn synthetic(i: usize, max: u16) -> Frame {
+    let cx = 256.0;
+    let cz = 40.0 + (i % 300) as f64;
+    let mut x: u64 = 0x9E37_79B9_7F4A_7C15 ^ i as u64;
+    Frame::from_shape_fn((H, W), |(r, c)| {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let noise = ((x >> 60) as f64) - 7.5;
+        let d = ((r as f64 - cz).powi(2) + (c as f64 - cx).powi(2)).sqrt();
+        let base = if d < 60.0 {
+            0.15
+        } else {
+            0.8 - 0.1 * r as f64 / H as f64
+        };
+        ((base * f64::from(max) + noise * f64::from(max) / 255.0).clamp(0.0, f64::from(max))) as u16
+    })
+}
+
+fn gray8(f: &Frame) -> image::GrayImage {
+    image::GrayImage::from_fn(W as u32, H as u32, |x, y| {
+        image::Luma([f[[y as usize, x as usize]] as u8])
+    })
+}
+
+/// Frames/s of `n` frames split over `threads` threads, each with its own source.
+fn time_source(path: &Path, n: usize, threads: usize) -> f64 {
+    let opts = OpenOptions {
+        fps_fallback: Some(10_000.0),
+        ..OpenOptions::default()
+    };
+    let t0 = Instant::now();
+    std::thread::scope(|s| {
+        for t in 0..threads {
+            let opts = &opts;
+            s.spawn(move || {
+                let mut src = open(path, opts).expect("open");
+                let mut f = Frame::zeros((H, W));
+                for i in (t..n).step_by(threads) {
+                    src.read_into(i, &mut f).expect("read");
+                }
+            });
+        }
+    });
+    n as f64 / t0.elapsed().as_secs_f64()
+}
+
+/// Frames/s of copying each frame's bytes out of one big in-memory buffer
+/// (DRAM-bound: the buffer is far larger than the caches).
+fn time_copy(all: &[u8], frame_bytes: usize, threads: usize) -> f64 {
+    let n = all.len() / frame_bytes;
+    let t0 = Instant::now();
+    std::thread::scope(|s| {
+        for t in 0..threads {
+            s.spawn(move || {
+                let mut dst = vec![0u8; frame_bytes];
+                for i in (t..n).step_by(threads) {
+                    dst.copy_from_slice(&all[i * frame_bytes..(i + 1) * frame_bytes]);
+                    std::hint::black_box(&dst);
+                }
+            });
+        }
+    });
+    n as f64 / t0.elapsed().as_secs_f64()
+}
+
+/// Frames/s of the image crate decoding each PNG file (`image::open`).
+fn time_image_crate(files: &[PathBuf], threads: usize) -> f64 {
+    let t0 = Instant::now();
+    std::thread::scope(|s| {
+        for t in 0..threads {
+            s.spawn(move || {
+                for f in files.iter().skip(t).step_by(threads) {
+                    let img = image::open(f).expect("decode");
+                    std::hint::black_box(img);
+                }
+            });
+        }
+    });
+    files.len() as f64 / t0.elapsed().as_secs_f64()
+}
+
+fn main() {
+    let n: usize = std::env::var("DROPSCOPE_BENCH_FRAMES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(2000);
+    let dir = tempfile::tempdir().expect("temp dir");
+    let tiff_dir = dir.path().join("tiff");
+    let png_dir = dir.path().join("png");
+    std::fs::create_dir_all(&tiff_dir).unwrap();
+    std::fs::create_dir_all(&png_dir).unwrap();
+    let cine = dir.path().join("movie.cine");
+    eprintln!(
+        "generating {n} frames of {W}×{H} in {} …",
+        dir.path().display()
+    );
+    let spec = CineSpec {
+        width: W,
+        height: H,
+        frame_count: n,
+        packing: CinePacking::Gray16,
+        bit_depth: 12,
+        ..CineSpec::default()
+    };
+    let mut writer = CineWriter::create(&cine, &spec).unwrap();
+    let mut png_files = Vec::new();
+    // 16 distinct frames, reused, keep generation quick.
+    let pool: Vec<Frame> = (0..16).map(|i| synthetic(i * 37, 255)).collect();
+    let pool12: Vec<Frame> = pool.iter().map(|f| f.mapv(|v| v * 16)).collect();
+    for i in 0..n {
+        let f = &pool[i % pool.len()];
+        let img = gray8(f);
+        img.save(tiff_dir.join(format!("run_{i:06}.tif"))).unwrap();
+        let p = png_dir.join(format!("run_{i:06}.png"));
+        img.save(&p).unwrap();
+        png_files.push(p);
+        writer.write_frame(&pool12[i % pool.len()]).unwrap();
+    }
+    writer.finish().unwrap();
+
+    let read_all_files = |d: &Path| -> Vec<u8> {
+        let mut v = Vec::new();
+        let mut names: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        names.sort();
+        for p in names {
+            v.extend(std::fs::read(p).unwrap());
+        }
+        v
+    };
+    // Warm the page cache (and hold the bytes for the copy baseline).
+    let tiff_bytes = read_all_files(&tiff_dir);
+    let png_bytes = read_all_files(&png_dir);
+    let cine_bytes = std::fs::read(&cine).unwrap();
+    let tiff_frame = tiff_bytes.len() / n;
+    let cine_frame = W * H * 2;
+    eprintln!(
+        "sizes: tiff {:.0} kB/frame, png {:.0} kB/frame, cine {:.0} kB/frame",
+        tiff_frame as f64 / 1e3,
+        png_bytes.len() as f64 / n as f64 / 1e3,
+        cine_frame as f64 / 1e3
+    );
+    // One untimed pass each.
+    time_source(&tiff_dir, n.min(200), 1);
+    time_source(&png_dir, n.min(200), 1);
+    time_source(&cine, n.min(200), 1);
+
+    println!("| input | threads | dropscope frames/s | baseline | baseline frames/s | ratio baseline/dropscope |");
+    println!("|---|---:|---:|---|---:|---:|");
+    for threads in [1, 2] {
+        let rows = [
+            (
+                "TIFF 8-bit folder",
+                best(|| time_source(&tiff_dir, n, threads)),
+                "memcpy of the file bytes",
+                best(|| time_copy(&tiff_bytes, tiff_frame, threads)),
+            ),
+            (
+                "PNG 8-bit folder",
+                best(|| time_source(&png_dir, n, threads)),
+                "image::open (image crate)",
+                best(|| time_image_crate(&png_files, threads)),
+            ),
+            (
+                "16-bit .cine",
+                best(|| time_source(&cine, n, threads)),
+                "memcpy of the pixel bytes",
+                best(|| time_copy(&cine_bytes[..n * cine_frame], cine_frame, threads)),
+            ),
+        ];
+        for (name, ours, base_name, base) in rows {
+            println!(
+                "| {name} | {threads} | {ours:.0} | {base_name} | {base:.0} | {:.2} |",
+                base / ours
+            );
+        }
+    }
+}

@@ -1049,3 +1049,62 @@ fn commands_exit_2_naming_the_file_on_bad_input() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("10:20") && err.contains("2 frames"), "{err}");
 }
+
+/// A hand-made 3×4 8-bit TIFF with two strips of two rows stored in reverse
+/// order (not contiguous): the fast path must follow StripOffsets.
+fn tiff_with_reversed_strips(value: impl Fn(usize, usize) -> u8) -> Vec<u8> {
+    let mut b = Vec::new();
+    b.extend_from_slice(b"II*\0");
+    b.extend_from_slice(&8u32.to_le_bytes());
+    let entries: [(u16, u16, u32, u32); 9] = [
+        (256, 3, 1, 3),
+        (257, 3, 1, 4),
+        (258, 3, 1, 8),
+        (259, 3, 1, 1),
+        (262, 3, 1, 1),
+        (273, 4, 2, 122),
+        (277, 3, 1, 1),
+        (278, 3, 1, 2),
+        (279, 4, 2, 130),
+    ];
+    b.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+    for (tag, ty, count, v) in entries {
+        b.extend_from_slice(&tag.to_le_bytes());
+        b.extend_from_slice(&ty.to_le_bytes());
+        b.extend_from_slice(&count.to_le_bytes());
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    b.extend_from_slice(&0u32.to_le_bytes());
+    assert_eq!(b.len(), 122);
+    for v in [144u32, 138, 6, 6] {
+        b.extend_from_slice(&v.to_le_bytes()); // offsets: strip 0 at 144, strip 1 at 138
+    }
+    for r in [2, 3, 0, 1] {
+        for c in 0..3 {
+            b.push(value(r, c));
+        }
+    }
+    b
+}
+
+#[test]
+fn tiff_strips_out_of_order_are_followed() {
+    let dir = tempfile::tempdir().unwrap();
+    let v = |r: usize, c: usize| (10 * r + c) as u8;
+    std::fs::write(dir.path().join("s_1.tif"), tiff_with_reversed_strips(v)).unwrap();
+    let opts = OpenOptions {
+        fps_fallback: Some(1.0),
+        ..OpenOptions::default()
+    };
+    let mut src = open(dir.path(), &opts).unwrap();
+    let f = read_all(src.as_mut(), 0);
+    assert_eq!(f, Frame::from_shape_fn((4, 3), |(r, c)| u16::from(v(r, c))));
+    // The image crate agrees with the hand-made file.
+    let img = image::open(dir.path().join("s_1.tif"))
+        .unwrap()
+        .into_luma8();
+    assert_eq!(img.get_pixel(2, 3).0[0], 32);
+    let mut band = Frame::zeros((2, 3));
+    src.read_rows_into(0, 1, &mut band.view_mut()).unwrap();
+    assert_eq!(band, f.slice(s![1..3, ..]));
+}

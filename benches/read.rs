@@ -92,7 +92,7 @@ fn time_copy(all: &[u8], frame_bytes: usize, threads: usize) -> f64 {
     n as f64 / t0.elapsed().as_secs_f64()
 }
 
-/// Frames/s of the image crate decoding each PNG file (`image::open`).
+/// Frames/s of the image crate decoding each file (`image::open`).
 fn time_image_crate(files: &[PathBuf], threads: usize) -> f64 {
     let t0 = Instant::now();
     std::thread::scope(|s| {
@@ -133,13 +133,16 @@ fn main() {
     };
     let mut writer = CineWriter::create(&cine, &spec).unwrap();
     let mut png_files = Vec::new();
+    let mut tiff_files = Vec::new();
     // 16 distinct frames, reused, keep generation quick.
     let pool: Vec<Frame> = (0..16).map(|i| synthetic(i * 37, 255)).collect();
     let pool12: Vec<Frame> = pool.iter().map(|f| f.mapv(|v| v * 16)).collect();
     for i in 0..n {
         let f = &pool[i % pool.len()];
         let img = gray8(f);
-        img.save(tiff_dir.join(format!("run_{i:06}.tif"))).unwrap();
+        let t = tiff_dir.join(format!("run_{i:06}.tif"));
+        img.save(&t).unwrap();
+        tiff_files.push(t);
         let p = png_dir.join(format!("run_{i:06}.png"));
         img.save(&p).unwrap();
         png_files.push(p);
@@ -185,6 +188,12 @@ fn main() {
                 best(|| time_source(&tiff_dir, n, threads)),
                 "memcpy of the file bytes",
                 best(|| time_copy(&tiff_bytes, tiff_frame, threads)),
+            ),
+            (
+                "TIFF 8-bit folder",
+                best(|| time_source(&tiff_dir, n, threads)),
+                "image::open (image crate)",
+                best(|| time_image_crate(&tiff_files, threads)),
             ),
             (
                 "PNG 8-bit folder",

@@ -115,7 +115,7 @@ enum Layout {
         data_offset: u64,
         stride: usize,
         top_down: bool,
-        palette: Box<[u8; 256]>,
+        palette: [u8; 256],
     },
     /// Grey 8/16-bit PNG decoded row by row.
     PngGrey,
@@ -457,7 +457,7 @@ fn probe(
             }
         }
         ImageKind::Bmp => {
-            if let Some(p) = probe_bmp(file, len).map_err(|r| format_err(path, r))? {
+            if let Some(p) = probe_bmp(file, len, scratch).map_err(|r| format_err(path, r))? {
                 return Ok(p);
             }
         }
@@ -677,7 +677,7 @@ fn probe_tiff(file: &mut File, len: u64, sc: &mut Scratch) -> Result<Option<Prob
 
 /// Parse an 8-bit paletted BMP with a grey palette; `Ok(None)` for any
 /// other BMP (decoded generically).
-fn probe_bmp(file: &mut File, len: u64) -> Result<Option<Probe>, String> {
+fn probe_bmp(file: &mut File, len: u64, sc: &mut Scratch) -> Result<Option<Probe>, String> {
     let mut h = [0u8; 54];
     read_at(file, 0, &mut h).map_err(|e| format!("not a BMP (header: {e})"))?;
     if &h[0..2] != b"BM" {
@@ -707,10 +707,12 @@ fn probe_bmp(file: &mut File, len: u64) -> Result<Option<Probe>, String> {
     if pal_off + 4 * n_pal as u64 > len {
         return Err("BMP palette runs past the end".into());
     }
-    let mut pal = vec![0u8; 4 * n_pal];
-    read_at(file, pal_off, &mut pal).map_err(|e| e.to_string())?;
+    let pal = &mut sc.raw;
+    pal.clear();
+    pal.resize(4 * n_pal, 0);
+    read_at(file, pal_off, pal).map_err(|e| e.to_string())?;
     // Grey palette: B = G = R for every entry; the value is that grey.
-    let mut palette = Box::new([0u8; 256]);
+    let mut palette = [0u8; 256];
     for (p, c) in palette.iter_mut().zip(pal.chunks_exact(4)) {
         if c[0] != c[1] || c[1] != c[2] {
             return Ok(None);

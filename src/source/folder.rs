@@ -115,7 +115,6 @@ enum Layout {
         data_offset: u64,
         stride: usize,
         top_down: bool,
-        palette: [u8; 256],
     },
     /// Grey 8/16-bit PNG decoded row by row.
     PngGrey,
@@ -132,6 +131,8 @@ struct Scratch {
     raw: Vec<u8>,
     strips: Vec<u64>,
     bytes: Vec<u8>,
+    /// Grey value of each BMP palette index.
+    palette: Vec<u8>,
 }
 
 /// A folder of numbered frames opened for random access.
@@ -712,8 +713,9 @@ fn probe_bmp(file: &mut File, len: u64, sc: &mut Scratch) -> Result<Option<Probe
     pal.resize(4 * n_pal, 0);
     read_at(file, pal_off, pal).map_err(|e| e.to_string())?;
     // Grey palette: B = G = R for every entry; the value is that grey.
-    let mut palette = [0u8; 256];
-    for (p, c) in palette.iter_mut().zip(pal.chunks_exact(4)) {
+    sc.palette.clear();
+    sc.palette.resize(256, 0);
+    for (p, c) in sc.palette.iter_mut().zip(pal.chunks_exact(4)) {
         if c[0] != c[1] || c[1] != c[2] {
             return Ok(None);
         }
@@ -731,7 +733,6 @@ fn probe_bmp(file: &mut File, len: u64, sc: &mut Scratch) -> Result<Option<Probe
             data_offset,
             stride,
             top_down: height < 0,
-            palette,
         },
     }))
 }
@@ -813,8 +814,8 @@ impl FrameSource for FolderSource {
                 data_offset,
                 stride,
                 top_down,
-                palette,
             } => {
+                let palette = &self.scratch.palette;
                 let h = p.height;
                 // Stored rows for the band are contiguous; bottom-up reverses them.
                 let first_stored = if *top_down { row0 } else { h - row0 - n };

@@ -1108,3 +1108,35 @@ fn tiff_strips_out_of_order_are_followed() {
     src.read_rows_into(0, 1, &mut band.view_mut()).unwrap();
     assert_eq!(band, f.slice(s![1..3, ..]));
 }
+
+#[test]
+fn eight_bit_rows_padded_to_4_bytes_are_read() {
+    // A 6-pixel-wide 8-bit cine whose rows are padded to 8 bytes (DIB rule),
+    // announced by biSizeImage = 8 × height.
+    let dir = tempfile::tempdir().unwrap();
+    let plain = dir.path().join("plain.cine");
+    let (w, h) = (6usize, 3usize);
+    let spec = CineSpec {
+        width: w,
+        height: h,
+        frame_count: 1,
+        ..CineSpec::default()
+    };
+    let frame = test_frame(h, w, 255, 5);
+    write_cine(&plain, &spec, std::slice::from_ref(&frame));
+    let bytes = std::fs::read(&plain).unwrap();
+    let layout = cine::parse_layout(&bytes, bytes.len() as u64).unwrap();
+    let start = layout.image_offsets[0] as usize;
+    let mut b = bytes[..start].to_vec();
+    b[44 + 20..44 + 24].copy_from_slice(&((8 * h) as u32).to_le_bytes());
+    b.extend_from_slice(&8u32.to_le_bytes());
+    b.extend_from_slice(&((8 * h) as u32).to_le_bytes());
+    for r in (0..h).rev() {
+        b.extend(frame.row(r).iter().map(|&v| v as u8));
+        b.extend_from_slice(&[0xEE, 0xEE]);
+    }
+    let padded = dir.path().join("padded.cine");
+    std::fs::write(&padded, &b).unwrap();
+    let mut src = open_default(&padded).unwrap();
+    assert_eq!(read_all(src.as_mut(), 0), frame);
+}

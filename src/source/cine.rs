@@ -179,17 +179,33 @@ impl CineHeader {
             _ => self.storage.bits() as u8,
         }
     }
-    /// Bytes of one stored row (meaningful for the unpacked layouts).
-    fn row_bytes(&self) -> u64 {
-        u64::from(self.width) * u64::from(self.storage.bits()) / 8
+    /// Bytes from one stored row to the next for the unpacked layouts:
+    /// `width × bytes`, or that padded to 4 bytes (the DIB rule) when
+    /// biSizeImage says the rows are padded (§8.1). Packed layouts have no
+    /// row stride (rows run on bit by bit).
+    pub fn row_stride(&self) -> u64 {
+        let natural = u64::from(self.width) * u64::from(self.storage.bits()) / 8;
+        let padded = natural.div_ceil(4) * 4;
+        if !self.storage.top_down()
+            && padded != natural
+            && u64::from(self.size_image) == padded * u64::from(self.height)
+        {
+            padded
+        } else {
+            natural
+        }
     }
-    /// Bytes of one image's pixels (no row padding).
+    /// Bytes of one image's pixels.
     pub fn image_bytes(&self) -> u64 {
-        packed_span(
-            0,
-            u64::from(self.width) * u64::from(self.height),
-            self.storage.bits(),
-        )
+        if self.storage.top_down() {
+            packed_span(
+                0,
+                u64::from(self.width) * u64::from(self.height),
+                self.storage.bits(),
+            )
+        } else {
+            self.row_stride() * u64::from(self.height)
+        }
     }
 }
 
@@ -624,14 +640,18 @@ impl CineSource {
             self.file.read_exact(&mut head).map_err(io)?;
             let annot = u32::from_le_bytes(head);
             let expect = self.layout.header.image_bytes();
-            if !(8..=MAX_ANNOTATION).contains(&annot)
-                || start + u64::from(annot) + expect > self.file_len
-            {
+            // The image must fit before the end of the file and before the
+            // next image when that follows this one.
+            let limit = match self.layout.image_offsets.get(index + 1) {
+                Some(&next) if next > start => next.min(self.file_len),
+                _ => self.file_len,
+            };
+            if !(8..=MAX_ANNOTATION).contains(&annot) || start + u64::from(annot) + expect > limit {
                 return Err(self.frame_err(
                     index,
                     format!(
                         "annotation size {annot} at byte {start} leaves no room for the \
-                         {expect}-byte image: truncated or corrupt"
+                         {expect}-byte image before byte {limit}: truncated or corrupt"
                     ),
                 ));
             }
@@ -726,7 +746,7 @@ impl FrameSource for CineSource {
         let hdr = &self.layout.header;
         let (h, w) = (hdr.height as usize, hdr.width as usize);
         let storage = hdr.storage;
-        let row_bytes = hdr.row_bytes() as usize;
+        let stride = hdr.row_stride() as usize;
         let flip_v = self.options.apply_flips && self.meta.details.flip_v;
         let flip_h = self.options.apply_flips && self.meta.details.flip_h;
         // Output row j ↦ stored row: ascending from `lo` or descending.
@@ -736,17 +756,27 @@ impl FrameSource for CineSource {
         let lo = if descending { h - row0 - n } else { row0 };
         let bits = u64::from(storage.bits());
         let start_bit = lo as u64 * w as u64 * bits;
-        let span = packed_span(start_bit % 8, (n * w) as u64, storage.bits());
-        let byte0 = pixels + start_bit / 8;
+        let (byte0, span) = if storage.top_down() {
+            (
+                pixels + start_bit / 8,
+                packed_span(start_bit % 8, (n * w) as u64, storage.bits()),
+            )
+        } else {
+            (pixels + (lo * stride) as u64, (n * stride) as u64)
+        };
         // Fast path: 16-bit LE samples go straight from the file into the
         // caller's rows (one vectored read puts bottom-up rows in place).
-        if storage == CineStorage::Gray16 && cfg!(target_endian = "little") && !flip_h {
+        if storage == CineStorage::Gray16
+            && stride == 2 * w
+            && cfg!(target_endian = "little")
+            && !flip_h
+        {
             if let Some(dst) = out.as_slice_mut() {
                 let dst: &mut [u8] = bytemuck::cast_slice_mut(dst);
                 let r = self
                     .file
                     .seek(SeekFrom::Start(byte0))
-                    .and_then(|_| read_rows(&mut self.file, dst, row_bytes, descending));
+                    .and_then(|_| read_rows(&mut self.file, dst, stride, descending));
                 return r.map_err(|e| SourceError::Frame {
                     path: self.meta.path.clone(),
                     index,
@@ -772,8 +802,8 @@ impl FrameSource for CineSource {
             let row = out.slice_mut(s![j, ..]);
             fill_row(row, &mut self.row_scratch, |dst| {
                 match storage {
-                    CineStorage::Gray8 => unpack_u8(&bytes[k * row_bytes..], dst),
-                    CineStorage::Gray16 => unpack_u16le(&bytes[k * row_bytes..], dst),
+                    CineStorage::Gray8 => unpack_u8(&bytes[k * stride..], dst),
+                    CineStorage::Gray16 => unpack_u16le(&bytes[k * stride..], dst),
                     CineStorage::P10 | CineStorage::P12L => {
                         let b = start_bit % 8 + k as u64 * row_bits;
                         unpack_msb(

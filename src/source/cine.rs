@@ -21,12 +21,13 @@ use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
 
-use ndarray::{s, ArrayViewMut2};
+use ndarray::ArrayViewMut2;
 
 use super::p10_lut::P10_TO_LINEAR12;
 use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
 use super::{
-    check_band, fill_row, FrameSource, OpenOptions, P10Mode, SourceDetails, SourceError, SourceMeta,
+    check_band, fill_rows, FrameSource, OpenOptions, P10Mode, SourceDetails, SourceError,
+    SourceMeta,
 };
 
 /// Largest accepted frame (pixels); 16 k × 16 k is far beyond any Phantom.
@@ -797,10 +798,9 @@ impl FrameSource for CineSource {
         let linear = storage == CineStorage::P10 && self.options.p10 == P10Mode::Linear;
         let row_bits = w as u64 * bits;
         let bytes = &self.bytes;
-        for j in 0..n {
+        fill_rows(out, &mut self.row_scratch, |j, dst| {
             let k = if descending { n - 1 - j } else { j };
-            let row = out.slice_mut(s![j, ..]);
-            fill_row(row, &mut self.row_scratch, |dst| {
+            {
                 match storage {
                     CineStorage::Gray8 => unpack_u8(&bytes[k * stride..], dst),
                     CineStorage::Gray16 => unpack_u16le(&bytes[k * stride..], dst),
@@ -822,8 +822,8 @@ impl FrameSource for CineSource {
                 if flip_h {
                     dst.reverse();
                 }
-            });
-        }
+            }
+        });
         Ok(())
     }
 }

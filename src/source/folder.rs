@@ -30,7 +30,8 @@ use ndarray::{s, ArrayViewMut2};
 
 use super::pcc_xml::{self, PccXml};
 use super::{
-    check_band, fill_row, FrameSource, OpenOptions, SourceDetails, SourceError, SourceMeta,
+    check_band, fill_row, fill_rows, FrameSource, OpenOptions, SourceDetails, SourceError,
+    SourceMeta,
 };
 
 /// Image file kinds a folder may hold.
@@ -133,7 +134,14 @@ struct Scratch {
     bytes: Vec<u8>,
     /// Grey value of each BMP palette index.
     palette: Vec<u8>,
+    /// `head` holds the whole file (small TIFFs), not just its start.
+    whole: bool,
+    /// Read small TIFFs whole (frame reads) or only their headers (open).
+    read_whole: bool,
 }
+
+/// TIFFs up to this size are read with one call and decoded from memory.
+const WHOLE_FILE_MAX: u64 = 16 << 20;
 
 /// A folder of numbered frames opened for random access.
 pub struct FolderSource {
@@ -253,6 +261,7 @@ impl FolderSource {
         let gaps = gaps_of(&frame_numbers);
 
         // Every header: same size and depth as the first frame.
+        // Headers only: opening must not read the movie.
         let mut scratch = Scratch::default();
         let (_, first) = open_and_probe(&files[0], kind, &mut scratch)?;
         for f in &files[1..] {
@@ -346,6 +355,7 @@ impl FolderSource {
                 warnings,
             },
         };
+        scratch.read_whole = true;
         Ok(FolderSource {
             meta,
             files,
@@ -463,42 +473,24 @@ fn probe(
             }
         }
         ImageKind::Png => {
-            bytes.clear();
-            file.read_to_end(bytes).map_err(io_err(path))?;
-            let dec = png::Decoder::new(Cursor::new(&bytes[..]));
-            let reader = dec
-                .read_info()
-                .map_err(|e| format_err(path, format!("not a readable PNG: {e}")))?;
-            let info = reader.info();
-            let bits = match info.bit_depth {
-                png::BitDepth::Sixteen => 16,
-                _ => 8,
-            };
-            let grey = info.color_type == png::ColorType::Grayscale
-                && matches!(
-                    info.bit_depth,
-                    png::BitDepth::Eight | png::BitDepth::Sixteen
-                )
-                && info.interlaced.eq(&false);
-            return Ok(Probe {
-                width: info.width as usize,
-                height: info.height as usize,
-                bits,
-                layout: if grey {
-                    Layout::PngGrey
-                } else {
-                    Layout::Generic
-                },
-            });
+            // Frame reads keep the whole file in `bytes` for the decoder;
+            // opening reads only as far as the header chunks.
+            let info = if scratch.read_whole {
+                bytes.clear();
+                bytes.reserve(len as usize);
+                file.read_to_end(bytes).map_err(io_err(path))?;
+                png_info(Cursor::new(&bytes[..]))
+            } else {
+                png_info(std::io::BufReader::new(&mut *file))
+            }
+            .map_err(|e| format_err(path, format!("not a readable PNG: {e}")))?;
+            return Ok(info);
         }
         ImageKind::Jpeg => {}
     }
     // Generic: dimensions and depth from the image crate's header reader.
-    let bytes = &mut scratch.bytes;
-    bytes.clear();
     file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
-    file.read_to_end(bytes).map_err(io_err(path))?;
-    let reader = image::ImageReader::new(Cursor::new(&bytes[..]))
+    let reader = image::ImageReader::new(std::io::BufReader::new(&mut *file))
         .with_guessed_format()
         .map_err(io_err(path))?;
     let dec = reader
@@ -519,15 +511,54 @@ fn probe(
     })
 }
 
+/// Size, depth and layout of a PNG from its header chunks.
+fn png_info<R: std::io::BufRead + Seek>(r: R) -> Result<Probe, png::DecodingError> {
+    let reader = png::Decoder::new(r).read_info()?;
+    let info = reader.info();
+    let bits = match info.bit_depth {
+        png::BitDepth::Sixteen => 16,
+        _ => 8,
+    };
+    let grey = info.color_type == png::ColorType::Grayscale
+        && matches!(
+            info.bit_depth,
+            png::BitDepth::Eight | png::BitDepth::Sixteen
+        )
+        && !info.interlaced;
+    Ok(Probe {
+        width: info.width as usize,
+        height: info.height as usize,
+        bits,
+        layout: if grey {
+            Layout::PngGrey
+        } else {
+            Layout::Generic
+        },
+    })
+}
+
 /// Parse a classic TIFF's first IFD. `Ok(None)` = valid but not the simple
 /// uncompressed grey layout (left to the generic decoder).
 fn probe_tiff(file: &mut File, len: u64, sc: &mut Scratch) -> Result<Option<Probe>, String> {
-    // One read of the first 4 KiB serves the header, and the IFD and strip
-    // table when they lie there (PCC writes the IFD at byte 8).
-    let head_len = len.min(4096) as usize;
+    // Files up to WHOLE_FILE_MAX are read whole, in one call, and decoded
+    // from memory; larger ones by their first 4 KiB, then the rows needed.
+    let head_len = if sc.read_whole && len <= WHOLE_FILE_MAX {
+        len
+    } else {
+        len.min(4096)
+    };
     sc.head.clear();
-    sc.head.resize(head_len, 0);
-    read_at(file, 0, &mut sc.head).map_err(|e| format!("not a TIFF (header: {e})"))?;
+    sc.head.reserve(head_len as usize);
+    let got = (&mut *file)
+        .take(head_len)
+        .read_to_end(&mut sc.head)
+        .map_err(|e| format!("not a TIFF (header: {e})"))?;
+    if got as u64 != head_len {
+        return Err(format!(
+            "file shrank while reading ({got} of {head_len} bytes)"
+        ));
+    }
+    sc.whole = head_len == len;
     if head_len < 8 {
         return Err(format!("not a TIFF ({len} bytes)"));
     }
@@ -773,42 +804,53 @@ impl FrameSource for FolderSource {
                 big_endian,
                 rows_per_strip,
             } => {
-                let strip_offsets = &self.scratch.strips;
+                let sc = &mut self.scratch;
                 let bpp = usize::from(p.bits / 8);
                 let row_bytes = w * bpp;
-                let mut r = row0;
-                while r < row0 + n {
-                    // Rows r.. within one strip, read in one go.
-                    let strip = r / rows_per_strip;
-                    let in_strip = r % rows_per_strip;
-                    let take = (rows_per_strip - in_strip).min(row0 + n - r);
-                    let off = strip_offsets[strip] + (in_strip * row_bytes) as u64;
-                    let bytes = &mut self.scratch.bytes;
-                    bytes.clear();
-                    bytes.resize(take * row_bytes, 0);
-                    read_at(&mut file, off, bytes)
-                        .map_err(|e| frame_err(format!("reading rows: {e}")))?;
-                    for k in 0..take {
-                        let src = &bytes[k * row_bytes..(k + 1) * row_bytes];
-                        let row = out.slice_mut(s![r - row0 + k, ..]);
-                        fill_row(row, &mut self.row_scratch, |dst| {
-                            if bpp == 1 {
-                                for (d, s) in dst.iter_mut().zip(src) {
-                                    *d = u16::from(*s);
-                                }
-                            } else if *big_endian {
-                                for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
-                                    *d = u16::from_be_bytes([s[0], s[1]]);
-                                }
-                            } else {
-                                for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
-                                    *d = u16::from_le_bytes([s[0], s[1]]);
-                                }
-                            }
-                        });
+                let rps = *rows_per_strip;
+                let row_at =
+                    |strips: &[u64], r: usize| strips[r / rps] as usize + (r % rps) * row_bytes;
+                if !sc.whole {
+                    // A large file: read only the band's rows, strip by strip.
+                    sc.bytes.clear();
+                    let mut r = row0;
+                    while r < row0 + n {
+                        let take = (rps - r % rps).min(row0 + n - r);
+                        let len = (take * row_bytes) as u64;
+                        let got = file
+                            .seek(SeekFrom::Start(row_at(&sc.strips, r) as u64))
+                            .and_then(|_| (&mut file).take(len).read_to_end(&mut sc.bytes));
+                        match got {
+                            Ok(g) if g as u64 == len => {}
+                            Ok(_) => return Err(frame_err("file ends inside a strip".into())),
+                            Err(e) => return Err(frame_err(format!("reading rows: {e}"))),
+                        }
+                        r += take;
                     }
-                    r += take;
                 }
+                let (whole, head, bytes, strips) = (sc.whole, &sc.head, &sc.bytes, &sc.strips);
+                let big_endian = *big_endian;
+                fill_rows(out, &mut self.row_scratch, |j, dst| {
+                    let src = if whole {
+                        let o = row_at(strips, row0 + j);
+                        &head[o..o + row_bytes]
+                    } else {
+                        &bytes[j * row_bytes..(j + 1) * row_bytes]
+                    };
+                    if bpp == 1 {
+                        for (d, s) in dst.iter_mut().zip(src) {
+                            *d = u16::from(*s);
+                        }
+                    } else if big_endian {
+                        for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                            *d = u16::from_be_bytes([s[0], s[1]]);
+                        }
+                    } else {
+                        for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                            *d = u16::from_le_bytes([s[0], s[1]]);
+                        }
+                    }
+                });
             }
             Layout::Bmp8 {
                 data_offset,

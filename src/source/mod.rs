@@ -169,6 +169,28 @@ pub(crate) fn check_band(
     Ok(())
 }
 
+/// Run `fill(j, row)` on every row `j` of `out` as a plain slice: straight
+/// on the caller's memory when `out` is contiguous, else through `scratch`.
+pub(crate) fn fill_rows(
+    out: &mut ArrayViewMut2<u16>,
+    scratch: &mut Vec<u16>,
+    mut fill: impl FnMut(usize, &mut [u16]),
+) {
+    let w = out.ncols();
+    if w == 0 {
+        return;
+    }
+    if let Some(all) = out.as_slice_mut() {
+        for (j, row) in all.chunks_exact_mut(w).enumerate() {
+            fill(j, row);
+        }
+    } else {
+        for (j, row) in out.rows_mut().into_iter().enumerate() {
+            fill_row(row, scratch, |d| fill(j, d));
+        }
+    }
+}
+
 /// Run `fill` on row `row` of `out` as a plain slice; when the view's row is
 /// not contiguous, fill `scratch` and copy it over.
 pub(crate) fn fill_row(

@@ -547,17 +547,14 @@ fn probe_tiff(file: &mut File, len: u64, sc: &mut Scratch) -> Result<Option<Prob
     } else {
         len.min(4096)
     };
-    sc.head.clear();
-    sc.head.reserve(head_len as usize);
-    let got = (&mut *file)
-        .take(head_len)
-        .read_to_end(&mut sc.head)
-        .map_err(|e| format!("not a TIFF (header: {e})"))?;
-    if got as u64 != head_len {
-        return Err(format!(
-            "file shrank while reading ({got} of {head_len} bytes)"
-        ));
+    // Grow the reused buffer only when needed (no zeroing frame after frame).
+    let head_usize = head_len as usize;
+    if sc.head.len() < head_usize {
+        sc.head.resize(head_usize, 0);
     }
+    sc.head.truncate(head_usize);
+    file.read_exact(&mut sc.head)
+        .map_err(|e| format!("not a TIFF (reading {head_len} bytes: {e})"))?;
     sc.whole = head_len == len;
     if head_len < 8 {
         return Err(format!("not a TIFF ({len} bytes)"));

@@ -21,6 +21,7 @@ pub mod force;
 pub mod io_util;
 pub mod kinematics;
 pub mod lsq;
+pub mod manifest;
 pub mod source;
 #[cfg(test)]
 mod test_support;

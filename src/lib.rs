@@ -22,6 +22,7 @@ pub mod io_util;
 pub mod kinematics;
 pub mod lsq;
 pub mod manifest;
+pub mod measure;
 pub mod source;
 #[cfg(test)]
 mod test_support;

@@ -63,6 +63,33 @@ pub struct DropRecord {
     pub surface_row_px: Option<f64>,
     #[serde(default)]
     pub surface_row_px_err: Option<f64>,
+    /// Time of the maximum penetration.
+    #[serde(default)]
+    pub t_max_s: Option<f64>,
+    /// Start of a second contact, when the recording shows one (never mixed
+    /// into this drop's numbers).
+    #[serde(default)]
+    pub second_contact_s: Option<f64>,
+    /// Gravity from the pre-contact flight with g free: a check on frame rate and scale.
+    #[serde(default)]
+    pub g_fit_m_s2: Option<f64>,
+    #[serde(default)]
+    pub g_fit_m_s2_err: Option<f64>,
+    /// Contact law F = K·δⁿ fitted to the trajectory: K in SI units (N/mⁿ, δ in m).
+    #[serde(default)]
+    pub force_k_si: Option<f64>,
+    #[serde(default)]
+    pub force_k_si_err: Option<f64>,
+    /// The exponent n of F = K·δⁿ (the elastic-foundation model predicts 2).
+    #[serde(default)]
+    pub force_exponent: Option<f64>,
+    #[serde(default)]
+    pub force_exponent_err: Option<f64>,
+    /// Linear damping c of F = K·δⁿ + c·δ̇.
+    #[serde(default)]
+    pub damping_n_s_m: Option<f64>,
+    #[serde(default)]
+    pub damping_n_s_m_err: Option<f64>,
     pub status: DropStatus,
     /// Why the run failed, or its warnings; empty when all is well.
     #[serde(default)]
@@ -103,6 +130,16 @@ impl DropRecord {
             mm_per_px_err: None,
             surface_row_px: None,
             surface_row_px_err: None,
+            t_max_s: None,
+            second_contact_s: None,
+            g_fit_m_s2: None,
+            g_fit_m_s2_err: None,
+            force_k_si: None,
+            force_k_si_err: None,
+            force_exponent: None,
+            force_exponent_err: None,
+            damping_n_s_m: None,
+            damping_n_s_m_err: None,
             status: DropStatus::Failed,
             reason: reason.into(),
         }

@@ -16,5 +16,13 @@
 
 pub mod config;
 pub mod dataset;
+pub mod events;
+pub mod force;
 pub mod io_util;
+pub mod kinematics;
+pub mod lsq;
+pub mod manifest;
+pub mod measure;
 pub mod source;
+#[cfg(test)]
+mod test_support;

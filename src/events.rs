@@ -1,0 +1,400 @@
+//! Contact onset, maximum penetration and loss of contact from a track
+//! (SPEC §2, "Events").
+//!
+//! The free flight before contact is a parabola in time with the known
+//! gravity g: z(t) = z0 + v0·τ + ½·g_px·τ², τ = t − t_ref, fitted by weighted
+//! least squares to the frames whose sphere bottom is clear of the surface
+//! line by a margin. Contact onset is where that parabola's bottom,
+//! z + R_px, meets the undeformed surface row y_s at the impact column — a
+//! sub-frame time. Loss of contact is the same with the flight after the
+//! bounce (its ascending root). The maximum penetration comes from a local
+//! polynomial fit of z(t) around its peak, not from the largest sample.
+//!
+//! Rows grow downward: z increases as the sphere falls, and the penetration
+//! is δ = (z + R_px − y_s)·s, positive in contact.
+
+use crate::lsq::{LinearFit, PolyFit};
+use nalgebra::DMatrix;
+
+/// One measured frame of a track, as detection hands it on. Frames where the
+/// sphere was not measured are simply absent.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackPoint {
+    /// Camera image number.
+    pub frame: i64,
+    /// Mid-exposure time relative to the trigger.
+    pub t_s: f64,
+    /// Centre column.
+    pub x_px: f64,
+    /// Centre row.
+    pub z_px: f64,
+    /// One-sigma uncertainty of `z_px` (> 0).
+    pub sigma_z_px: f64,
+    /// Half-width of the silhouette along the surface line, where measured.
+    pub half_width_px: Option<f64>,
+    /// One-sigma uncertainty of `half_width_px`.
+    pub sigma_half_width_px: Option<f64>,
+}
+
+/// Calibration of a run: the surface line, the sphere's radius in pixels and
+/// the scale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Geometry {
+    /// Undeformed surface row at column 0; the line is row = y0 + slope·column.
+    pub surface_row_px: f64,
+    pub surface_slope: f64,
+    /// One-sigma uncertainty of the surface row near the impact column.
+    pub surface_row_err_px: f64,
+    pub radius_px: f64,
+    pub radius_err_px: f64,
+    /// Scale s in mm per pixel.
+    pub mm_per_px: f64,
+    /// One-sigma uncertainty of an independently given scale; ignored when
+    /// `scale_from_radius` (then s = R_mm / R_px and its error follows R_px's).
+    pub mm_per_px_err: f64,
+    /// True when s was measured as R_mm / R_px.
+    pub scale_from_radius: bool,
+}
+
+impl Geometry {
+    /// Surface row at column `x_px`.
+    pub fn surface_row_at(&self, x_px: f64) -> f64 {
+        self.surface_row_px + self.surface_slope * x_px
+    }
+
+    /// Penetration in pixels of a sphere centred at (x, z): z + R − y_s(x).
+    pub fn penetration_px(&self, x_px: f64, z_px: f64) -> f64 {
+        z_px + self.radius_px - self.surface_row_at(x_px)
+    }
+
+    /// Gravity in pixels per second squared (rows downward).
+    pub fn g_px_s2(&self, g_m_s2: f64) -> f64 {
+        g_m_s2 / (self.mm_per_px * 1e-3)
+    }
+}
+
+/// Settings of the event stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EventConfig {
+    /// Gravitational acceleration.
+    pub g_m_s2: f64,
+    /// Flight frames must have their bottom at least this far above the line.
+    pub flight_margin_px: f64,
+    /// Fewest flight frames on either side of the contact for a fit.
+    pub min_flight_frames: usize,
+    /// The peak fit (a quartic in t) uses the contact frames with δ above this
+    /// fraction of the largest sampled δ, and at least the seven deepest.
+    /// Wider windows average more noise but bias the quartic: on a 24-frame
+    /// contact, 0.5 gives −4·10⁻⁴ relative, 0.75 about −5·10⁻⁵.
+    pub peak_fraction: f64,
+}
+
+impl Default for EventConfig {
+    fn default() -> Self {
+        EventConfig {
+            g_m_s2: 9.81,
+            flight_margin_px: 1.0,
+            min_flight_frames: 5,
+            peak_fraction: 0.75,
+        }
+    }
+}
+
+/// Why events could not be found.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EventError {
+    #[error("too few measured frames ({0}) to find any event")]
+    TooFewFrames(usize),
+    #[error(
+        "the sphere never reaches the surface line (closest approach {gap_px:.2} px above it)"
+    )]
+    NeverLands { gap_px: f64 },
+    #[error("the sphere is already in contact in the first measured frame ({frame}): no free flight before contact")]
+    NoFlightBeforeContact { frame: i64 },
+    #[error("only {found} free-flight frames before contact (at least {needed} needed)")]
+    ShortFlightBeforeContact { found: usize, needed: usize },
+    #[error(
+        "the sphere is still in contact at the last measured frame ({frame}): no rebound recorded"
+    )]
+    NoRebound { frame: i64 },
+    #[error("only {found} free-flight frames after the rebound (at least {needed} needed)")]
+    ShortFlightAfterContact { found: usize, needed: usize },
+    #[error("only {0} frames around the maximum penetration: cannot fit the peak")]
+    ShortPeak(usize),
+    #[error("the {0} fit failed (degenerate frames)")]
+    FitFailed(&'static str),
+    #[error("the {0} parabola never meets the surface line")]
+    NoCrossing(&'static str),
+}
+
+/// A free-flight parabola z(t) = z0 + v0·τ + ½·g·τ² with g fixed, and a
+/// straight line x(t) = x0 + vx·τ, τ = t − t_ref.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FlightFit {
+    pub t_ref_s: f64,
+    pub z0_px: f64,
+    pub v0_px_s: f64,
+    pub g_px_s2: f64,
+    /// Scaled covariance of (z0, v0).
+    pub cov: [[f64; 2]; 2],
+    pub chi2_red: f64,
+    pub x0_px: f64,
+    pub vx_px_s: f64,
+    /// First and last image numbers used.
+    pub frames: (i64, i64),
+    pub n_points: usize,
+    /// Gravity from a fit with g free, in px/s², and its one-sigma error: a
+    /// check on the frame rate and the scale.
+    pub g_free_px_s2: Option<(f64, f64)>,
+}
+
+impl FlightFit {
+    pub fn z_at(&self, t_s: f64) -> f64 {
+        let u = t_s - self.t_ref_s;
+        self.z0_px + self.v0_px_s * u + 0.5 * self.g_px_s2 * u * u
+    }
+    pub fn v_at(&self, t_s: f64) -> f64 {
+        self.v0_px_s + self.g_px_s2 * (t_s - self.t_ref_s)
+    }
+    pub fn x_at(&self, t_s: f64) -> f64 {
+        self.x0_px + self.vx_px_s * (t_s - self.t_ref_s)
+    }
+}
+
+/// Fit a flight parabola with fixed gravity to `points`.
+pub fn fit_flight(points: &[TrackPoint], g_px_s2: f64) -> Option<FlightFit> {
+    let n = points.len();
+    if n < 3 {
+        return None;
+    }
+    let t_ref = points.iter().map(|p| p.t_s).sum::<f64>() / n as f64;
+    let a = DMatrix::from_fn(
+        n,
+        2,
+        |i, j| if j == 0 { 1.0 } else { points[i].t_s - t_ref },
+    );
+    let y: Vec<f64> = points
+        .iter()
+        .map(|p| p.z_px - 0.5 * g_px_s2 * (p.t_s - t_ref).powi(2))
+        .collect();
+    let s: Vec<f64> = points.iter().map(|p| p.sigma_z_px).collect();
+    let fit: LinearFit = crate::lsq::weighted_lsq(&a, &y, &s)?;
+    let c = fit.cov_scaled();
+    let ts: Vec<f64> = points.iter().map(|p| p.t_s).collect();
+    let xs: Vec<f64> = points.iter().map(|p| p.x_px).collect();
+    let xfit = PolyFit::fit(&ts, &xs, &vec![1.0; n], 1, t_ref)?;
+    let zs: Vec<f64> = points.iter().map(|p| p.z_px).collect();
+    let g_free = PolyFit::fit(&ts, &zs, &s, 2, t_ref)
+        .map(|q| (q.derivative_at_x0(2), q.derivative_at_x0_err(2)));
+    Some(FlightFit {
+        t_ref_s: t_ref,
+        z0_px: fit.coef[0],
+        v0_px_s: fit.coef[1],
+        g_px_s2,
+        cov: [[c[(0, 0)], c[(0, 1)]], [c[(1, 0)], c[(1, 1)]]],
+        chi2_red: fit.chi2_red(),
+        x0_px: xfit.derivative_at_x0(0),
+        vx_px_s: xfit.derivative_at_x0(1),
+        frames: (points[0].frame, points[n - 1].frame),
+        n_points: n,
+        g_free_px_s2: g_free,
+    })
+}
+
+/// The time τ (relative to t_ref) where ½·g·τ² + v0·τ + c = 0 with the sphere
+/// moving down (`descending`, velocity > 0) or up. Written in the forms that
+/// avoid cancellation.
+pub fn crossing_time(g: f64, v0: f64, c: f64, descending: bool) -> Option<f64> {
+    let a = 0.5 * g;
+    let disc = v0 * v0 - 4.0 * a * c;
+    if disc < 0.0 {
+        return None;
+    }
+    let sq = disc.sqrt();
+    // Roots (−v0 ± √D)/(2a); the descending crossing has velocity +√D.
+    let tau = if descending {
+        if v0 >= 0.0 {
+            -2.0 * c / (v0 + sq)
+        } else {
+            (-v0 + sq) / (2.0 * a)
+        }
+    } else if v0 <= 0.0 {
+        2.0 * c / (-v0 + sq)
+    } else {
+        (-v0 - sq) / (2.0 * a)
+    };
+    tau.is_finite().then_some(tau)
+}
+
+/// A polynomial fit of z(t) around the deepest point of the contact.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PeakFit {
+    pub poly: PolyFit,
+    /// Time of the fitted maximum of z.
+    pub t_max_s: f64,
+    pub frames: (i64, i64),
+}
+
+/// Find the maximum of a polynomial near `t_start` by Newton's method on its
+/// derivative, staying within [lo, hi].
+pub fn poly_max(p: &PolyFit, t_start: f64, lo: f64, hi: f64) -> f64 {
+    let mut t = t_start;
+    for _ in 0..50 {
+        let d1 = p.deriv(t);
+        let d2 = p.deriv2(t);
+        if d2 >= 0.0 || !d2.is_finite() {
+            break;
+        }
+        let step = d1 / d2;
+        let next = (t - step).clamp(lo, hi);
+        if (next - t).abs() < 1e-15 * (1.0 + t.abs()) {
+            t = next;
+            break;
+        }
+        t = next;
+    }
+    t
+}
+
+/// Everything the event stage finds in one track.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Events {
+    pub pre: FlightFit,
+    pub post: FlightFit,
+    pub peak: PeakFit,
+    /// Impact column (x of the pre-contact flight at contact onset).
+    pub impact_column_px: f64,
+    /// Surface row at the impact column.
+    pub surface_row_at_impact_px: f64,
+    /// Indices into the track of the first and last frame in contact.
+    pub contact_span: (usize, usize),
+    /// Start of a second contact (the post-rebound parabola's landing), when
+    /// the recording shows one. Never mixed into the first contact's numbers.
+    pub second_contact_s: Option<f64>,
+}
+
+/// Split the track into flight, contact and flight, and fit each part.
+pub fn find_events(
+    track: &[TrackPoint],
+    geom: &Geometry,
+    cfg: &EventConfig,
+) -> Result<Events, EventError> {
+    if track.len() < 2 * cfg.min_flight_frames + 1 {
+        return Err(EventError::TooFewFrames(track.len()));
+    }
+    let g_px = geom.g_px_s2(cfg.g_m_s2);
+    let pen: Vec<f64> = track
+        .iter()
+        .map(|p| geom.penetration_px(p.x_px, p.z_px))
+        .collect();
+    let first_contact =
+        pen.iter()
+            .position(|&d| d > 0.0)
+            .ok_or_else(|| EventError::NeverLands {
+                gap_px: -pen.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            })?;
+    if first_contact == 0 {
+        return Err(EventError::NoFlightBeforeContact {
+            frame: track[0].frame,
+        });
+    }
+    let last_contact = first_contact
+        + pen[first_contact..]
+            .iter()
+            .position(|&d| d <= 0.0)
+            .map(|k| k - 1)
+            .ok_or(EventError::NoRebound {
+                frame: track[track.len() - 1].frame,
+            })?;
+
+    // Flight before: clear of the line by the margin.
+    let pre_pts: Vec<TrackPoint> = (0..first_contact)
+        .filter(|&i| pen[i] < -cfg.flight_margin_px)
+        .map(|i| track[i])
+        .collect();
+    if pre_pts.len() < cfg.min_flight_frames {
+        return Err(EventError::ShortFlightBeforeContact {
+            found: pre_pts.len(),
+            needed: cfg.min_flight_frames,
+        });
+    }
+    // Flight after: from loss of contact up to a second contact, if any.
+    let after = last_contact + 1;
+    let second = pen[after..]
+        .iter()
+        .position(|&d| d > 0.0)
+        .map(|k| after + k);
+    let end = second.unwrap_or(track.len());
+    let post_pts: Vec<TrackPoint> = (after..end)
+        .filter(|&i| pen[i] < -cfg.flight_margin_px)
+        .map(|i| track[i])
+        .collect();
+    if post_pts.len() < cfg.min_flight_frames {
+        return Err(EventError::ShortFlightAfterContact {
+            found: post_pts.len(),
+            needed: cfg.min_flight_frames,
+        });
+    }
+    let pre = fit_flight(&pre_pts, g_px).ok_or(EventError::FitFailed("pre-contact flight"))?;
+    let post = fit_flight(&post_pts, g_px).ok_or(EventError::FitFailed("post-contact flight"))?;
+
+    // Impact column: iterate x(t_contact) and the tilted line (converges at once
+    // for the small tilts and drifts of real set-ups).
+    let mut x_imp = pre.x_at(track[first_contact].t_s);
+    for _ in 0..3 {
+        let c = pre.z0_px + geom.radius_px - geom.surface_row_at(x_imp);
+        let tau = crossing_time(g_px, pre.v0_px_s, c, true)
+            .ok_or(EventError::NoCrossing("pre-contact"))?;
+        x_imp = pre.x_at(pre.t_ref_s + tau);
+    }
+
+    // Peak: contact frames with δ above a fraction of the largest sample.
+    let (k_max, d_max) = (first_contact..=last_contact).map(|k| (k, pen[k])).fold(
+        (first_contact, f64::NEG_INFINITY),
+        |a, b| if b.1 > a.1 { b } else { a },
+    );
+    // The top of the contact: δ above the fraction of the largest sample, and
+    // at least the seven deepest frames, so that a quartic can be fitted.
+    let mut by_depth: Vec<usize> = (first_contact..=last_contact).collect();
+    by_depth.sort_by(|&a, &b| pen[b].total_cmp(&pen[a]));
+    let mut peak_idx: Vec<usize> = by_depth
+        .iter()
+        .enumerate()
+        .filter(|&(rank, &k)| rank < 7 || pen[k] >= cfg.peak_fraction * d_max)
+        .map(|(_, &k)| k)
+        .collect();
+    peak_idx.sort_unstable();
+    let degree = if peak_idx.len() >= 7 { 4 } else { 2 };
+    if peak_idx.len() < degree + 2 {
+        return Err(EventError::ShortPeak(peak_idx.len()));
+    }
+    let ts: Vec<f64> = peak_idx.iter().map(|&k| track[k].t_s).collect();
+    let zs: Vec<f64> = peak_idx.iter().map(|&k| track[k].z_px).collect();
+    let ss: Vec<f64> = peak_idx.iter().map(|&k| track[k].sigma_z_px).collect();
+    let t0 = track[k_max].t_s;
+    let poly = PolyFit::fit(&ts, &zs, &ss, degree, t0).ok_or(EventError::FitFailed("peak"))?;
+    let t_max = poly_max(&poly, t0, ts[0], ts[ts.len() - 1]);
+    let peak = PeakFit {
+        poly,
+        t_max_s: t_max,
+        frames: (
+            track[peak_idx[0]].frame,
+            track[*peak_idx.last().unwrap_or(&k_max)].frame,
+        ),
+    };
+
+    let second_contact_s = second.and_then(|_| {
+        let c = post.z0_px + geom.radius_px - geom.surface_row_at(x_imp);
+        crossing_time(g_px, post.v0_px_s, c, true).map(|tau| post.t_ref_s + tau)
+    });
+
+    Ok(Events {
+        surface_row_at_impact_px: geom.surface_row_at(x_imp),
+        impact_column_px: x_imp,
+        pre,
+        post,
+        peak,
+        contact_span: (first_contact, last_contact),
+        second_contact_s,
+    })
+}

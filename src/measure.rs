@@ -1,0 +1,190 @@
+//! One drop, from its track to its record: events → kinematics → force law
+//! → [`DropRecord`] and the per-frame [`TrackRow`]s. Pure: no I/O.
+
+use crate::dataset::{DropRecord, DropStatus, TrackRow};
+use crate::events::{find_events, EventConfig, EventError, Geometry, TrackPoint};
+use crate::force::{fit_force_law, force_table};
+use crate::kinematics::{kinematics, Measured, SphereParams};
+
+/// What the measurement of one drop produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DropMeasurement {
+    pub record: DropRecord,
+    /// F = m(g − z̈) per contact frame: (image number, force in N).
+    pub forces: Vec<(i64, f64)>,
+    pub in_contact: Vec<i64>,
+}
+
+/// Identity of the drop being measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DropInfo {
+    pub run: String,
+    pub sphere_radius_mm: f64,
+    pub sphere_density_kg_m3: f64,
+    pub surface: String,
+}
+
+/// Half-width (frames) of the local cubic giving z̈ in the force table.
+pub const FORCE_TABLE_HALF_WINDOW: usize = 2;
+
+/// Measure one drop. Returns the record with status `ok`, or `warning` with
+/// the warnings in `reason`; the event errors are returned for the caller to
+/// turn into a `failed` row.
+pub fn measure_drop(
+    info: &DropInfo,
+    track: &[TrackPoint],
+    geom: &Geometry,
+    cfg: &EventConfig,
+) -> Result<DropMeasurement, EventError> {
+    let sphere = SphereParams {
+        radius_m: info.sphere_radius_mm * 1e-3,
+        density_kg_m3: info.sphere_density_kg_m3,
+    };
+    let ev = find_events(track, geom, cfg)?;
+    let kin = kinematics(track, &ev, geom, &sphere)?;
+    let law = fit_force_law(track, &ev, geom, &sphere, cfg.g_m_s2);
+    let table = force_table(
+        track,
+        &ev,
+        geom,
+        &sphere,
+        cfg.g_m_s2,
+        FORCE_TABLE_HALF_WINDOW,
+    );
+
+    let mut warnings = Vec::new();
+    if let Some(g) = kin.g_fit_m_s2[0] {
+        // Off by more than 2 % and more than three of its own σ.
+        let off = g.value / cfg.g_m_s2 - 1.0;
+        if off.abs() > 0.02 && (g.value - cfg.g_m_s2).abs() > 3.0 * g.err {
+            warnings.push(format!(
+                "free-flight gravity {:.3} ± {:.3} m/s² is {:+.1} % off {} m/s²: check the frame rate and the scale",
+                g.value,
+                g.err,
+                off * 100.0,
+                cfg.g_m_s2
+            ));
+        }
+    }
+    if ev.second_contact_s.is_some() {
+        warnings.push("a second bounce follows; only the first contact is measured".into());
+    }
+    if law.is_none() {
+        warnings.push("the force law could not be fitted".into());
+    }
+
+    let v = |m: Measured| (Some(m.value), Some(m.err));
+    let mm = |m: Measured| (Some(m.value * 1e3), Some(m.err * 1e3));
+    let (v_in, v_in_err) = v(kin.v_impact_m_s);
+    let (v_out, v_out_err) = v(kin.v_rebound_m_s);
+    let (e_val, e_err) = v(kin.restitution);
+    let (d, d_err) = mm(kin.delta_max_m);
+    let (a_geom, a_geom_err) = mm(kin.a_geom_m);
+    let (a_max, a_max_err) = kin.a_max_m.map(mm).unwrap_or((None, None));
+    let (tau, tau_err) = mm(kin.tau_c_s);
+    let (tc, tc_err) = v(kin.t_contact_s);
+    let (tr, tr_err) = v(kin.t_rebound_s);
+    let record = DropRecord {
+        run: info.run.clone(),
+        sphere_radius_mm: info.sphere_radius_mm,
+        sphere_density_kg_m3: info.sphere_density_kg_m3,
+        surface: info.surface.clone(),
+        v_impact_m_s: v_in,
+        v_impact_m_s_err: v_in_err,
+        v_rebound_m_s: v_out,
+        v_rebound_m_s_err: v_out_err,
+        restitution: e_val,
+        restitution_err: e_err,
+        delta_max_mm: d,
+        delta_max_mm_err: d_err,
+        a_max_mm: a_max,
+        a_max_mm_err: a_max_err,
+        a_geom_mm: a_geom,
+        a_geom_mm_err: a_geom_err,
+        tau_c_ms: tau,
+        tau_c_ms_err: tau_err,
+        t_contact_s: tc,
+        t_contact_s_err: tc_err,
+        t_rebound_s: tr,
+        t_rebound_s_err: tr_err,
+        mm_per_px: Some(geom.mm_per_px),
+        mm_per_px_err: Some(if geom.scale_from_radius {
+            geom.mm_per_px * geom.radius_err_px / geom.radius_px
+        } else {
+            geom.mm_per_px_err
+        }),
+        surface_row_px: Some(ev.surface_row_at_impact_px),
+        surface_row_px_err: Some(geom.surface_row_err_px),
+        t_max_s: Some(kin.t_max_s),
+        second_contact_s: ev.second_contact_s,
+        g_fit_m_s2: kin.g_fit_m_s2[0].map(|g| g.value),
+        g_fit_m_s2_err: kin.g_fit_m_s2[0].map(|g| g.err),
+        force_k_si: law.as_ref().map(|l| l.k.value),
+        force_k_si_err: law.as_ref().map(|l| l.k.err),
+        force_exponent: law.as_ref().map(|l| l.n.value),
+        force_exponent_err: law.as_ref().map(|l| l.n.err),
+        damping_n_s_m: law.as_ref().map(|l| l.damping_n_s_m.value),
+        damping_n_s_m_err: law.as_ref().map(|l| l.damping_n_s_m.err),
+        status: if warnings.is_empty() {
+            DropStatus::Ok
+        } else {
+            DropStatus::Warning
+        },
+        reason: warnings.join("; "),
+    };
+    let (c0, c1) = ev.contact_span;
+    Ok(DropMeasurement {
+        record,
+        forces: table.iter().map(|p| (p.frame, p.force_n)).collect(),
+        in_contact: track[c0..=c1].iter().map(|p| p.frame).collect(),
+    })
+}
+
+/// Fill the contact flag, δ and force columns of track rows from a measurement.
+pub fn annotate_track(rows: &mut [TrackRow], m: &DropMeasurement, geom: &Geometry) {
+    for row in rows.iter_mut() {
+        row.in_contact = m.in_contact.binary_search(&row.frame).is_ok();
+        row.delta_mm = match (row.x_px, row.z_px) {
+            (Some(x), Some(z)) => Some(geom.penetration_px(x, z) * geom.mm_per_px),
+            _ => None,
+        };
+        row.force_n = m
+            .forces
+            .iter()
+            .find(|(f, _)| *f == row.frame)
+            .map(|(_, f)| *f);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_support::{geometry, track, Drop};
+
+    #[test]
+    fn a_clean_drop_gives_an_ok_record_with_every_column() {
+        let drop = Drop::new(4.5e-3, 1.7, 0.4e-4);
+        let geom = geometry();
+        let tr = track(&drop, &geom, 0.02, 3);
+        let info = DropInfo {
+            run: "r".into(),
+            sphere_radius_mm: 4.5,
+            sphere_density_kg_m3: 7800.0,
+            surface: "pdms".into(),
+        };
+        let m = measure_drop(&info, &tr, &geom, &EventConfig::default()).unwrap();
+        let r = &m.record;
+        assert_eq!(r.status, DropStatus::Ok, "{}", r.reason);
+        let tau_true_ms = (drop.t_r - drop.t0) * 1e3;
+        assert!((r.tau_c_ms.unwrap() / tau_true_ms - 1.0).abs() < 1e-3);
+        assert!((r.delta_max_mm.unwrap() / (drop.delta_max * 1e3) - 1.0).abs() < 1e-3);
+        assert!((r.force_exponent.unwrap() - 2.0).abs() < 0.05);
+        assert!(r.restitution.unwrap() > 0.99 && r.restitution.unwrap() < 1.01);
+        // Every contact frame is flagged, and the force table covers most of them.
+        assert!(m.in_contact.len() >= 20, "{}", m.in_contact.len());
+        assert!(m.forces.len() + 2 * FORCE_TABLE_HALF_WINDOW >= m.in_contact.len());
+        let bytes = crate::dataset::to_csv_bytes(std::slice::from_ref(r));
+        let text = String::from_utf8(bytes).unwrap();
+        assert!(text.lines().nth(1).unwrap().ends_with(",ok,"), "{text}");
+    }
+}

@@ -17,4 +17,5 @@
 pub mod config;
 pub mod dataset;
 pub mod io_util;
+pub mod render;
 pub mod source;

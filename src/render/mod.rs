@@ -674,12 +674,12 @@ pub fn render_drop(
     let step = params.default_step_s(frame_dt / 100.0);
     params.damping_n_s_m =
         physics::damping_for_restitution(&params, st.restitution, step).map_err(phys_err)?;
-    let t_contact = contact_phase * frame_dt;
+    let t_contact = contact_phase / st.fps;
     let first = Trajectory::simulate(&params, t_contact, t_contact, step).map_err(phys_err)?;
     let t_rebound = first.bounces()[0].t_rebound_s;
     let n0 = -(st.frames_before as i64);
-    let n1 = (t_rebound / frame_dt).ceil() as i64 + st.frames_after as i64;
-    let t_window_end = n1 as f64 * frame_dt + 0.5 * st.exposure_s;
+    let n1 = (t_rebound * st.fps).ceil() as i64 + st.frames_after as i64;
+    let t_window_end = n1 as f64 / st.fps + 0.5 * st.exposure_s;
     let traj = Trajectory::simulate(&params, t_contact, t_window_end, step).map_err(phys_err)?;
     let b = traj.bounces()[0];
 
@@ -735,7 +735,7 @@ pub fn render_drop(
         let frames: Vec<(i64, crate::source::Frame)> = chunk
             .par_iter()
             .map(|&n| {
-                let t = n as f64 * frame_dt;
+                let t = n as f64 / st.fps;
                 let centres = exposure_samples(&centre, t, st.exposure_s, st.look.motion_blur);
                 let mut rng = rng_for(st.seed, run, "frame", n);
                 (n, raster.frame(&centres, &mut rng))
@@ -762,7 +762,7 @@ pub fn render_drop(
     let frames_truth: Vec<FrameTruth> = numbers
         .iter()
         .map(|&n| {
-            let t = n as f64 * frame_dt;
+            let t = n as f64 / st.fps;
             let (x, z) = centre(t);
             let d = traj.state(t).0;
             FrameTruth {
@@ -826,6 +826,7 @@ pub fn render_drop(
         delta_max_mm: dmax_mm,
         a_max_mm: (r_mm * r_mm - (r_mm - dmax_mm).powi(2)).max(0.0).sqrt(),
         second_bounce,
+        resting_contact_s: traj.resting_contact_s().filter(|&t| t <= t_window_end),
         gravity_m_s2: g,
         damping_n_s_m: params.damping_n_s_m,
         integration_step_s: step,

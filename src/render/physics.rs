@@ -272,12 +272,14 @@ pub struct Trajectory {
     pieces: Vec<Piece>,
     bounces: Vec<Bounce>,
     step_s: f64,
+    resting_contact_s: Option<f64>,
 }
 
-/// Result of integrating one contact phase.
+/// Result of integrating one contact phase: the grid states, and the
+/// bounce if the sphere left the surface within the time limit.
 struct ContactRun {
     states: Vec<[f64; 2]>,
-    bounce: Bounce,
+    end: Result<Bounce, PhysicsError>,
 }
 
 /// Bisection for the sign change of `f` on `[0, hi]` (`f(0) > 0 ≥ f(hi)`),
@@ -341,9 +343,32 @@ impl Trajectory {
         let mut w_in = v;
         // A generous cap on bounces: each one ends far from the last (flight
         // time 2 v_out / g), so this is only reached with absurd inputs.
+        let mut resting_contact_s = None;
         for _ in 0..64 {
-            let run = integrate_contact(params, t_in, w_in, step_s)?;
-            let b = run.bounce;
+            let run = integrate_contact(params, t_in, w_in, step_s);
+            let b = match run.end {
+                Ok(b) => b,
+                Err(e) if bounces.is_empty() => return Err(e),
+                Err(_) => {
+                    // A later, slow contact that damping holds on the
+                    // surface: integrated for 100 τc, then at rest.
+                    let last = *run.states.last().expect("a contact has states");
+                    pieces.push(Piece {
+                        t_end: t_in + (run.states.len() - 1) as f64 * step_s,
+                        seg: Segment::Contact {
+                            t0: t_in,
+                            dt: step_s,
+                            states: run.states,
+                        },
+                    });
+                    pieces.push(Piece {
+                        t_end: f64::INFINITY,
+                        seg: Segment::Rest { d0: last[0] },
+                    });
+                    resting_contact_s = Some(t_in);
+                    break;
+                }
+            };
             pieces.push(Piece {
                 t_end: b.t_rebound_s,
                 seg: Segment::Contact {
@@ -380,6 +405,7 @@ impl Trajectory {
             pieces,
             bounces,
             step_s,
+            resting_contact_s,
         })
     }
 
@@ -426,22 +452,23 @@ impl Trajectory {
         }
     }
 
+    /// Start of a later contact from which the sphere did not rebound within
+    /// 100 τc (damping holds it; it is then taken as at rest), if any.
+    pub fn resting_contact_s(&self) -> Option<f64> {
+        self.resting_contact_s
+    }
+
     /// Penetration `δ = max(d, 0)` at `t_s` (m).
     pub fn delta_m(&self, t_s: f64) -> f64 {
         self.state(t_s).0.max(0.0)
     }
 }
 
-/// Integrate one contact phase from `d = 0`, `ḋ = w_in > 0` at `t_in`.
-fn integrate_contact(
-    p: &DropParams,
-    t_in: f64,
-    w_in: f64,
-    dt: f64,
-) -> Result<ContactRun, PhysicsError> {
+/// Integrate one contact phase from `d = 0`, `ḋ = w_in > 0` at `t_in`,
+/// for at most 100 τc (Eq. 5 at this speed).
+fn integrate_contact(p: &DropParams, t_in: f64, w_in: f64, dt: f64) -> ContactRun {
     let m = p.mass_kg();
     let k = p.stiffness_n_m2();
-    // τc of the undamped, gravity-free contact at this speed, for the cap.
     let tau_est = {
         let mut q = *p;
         q.impact_speed_m_s = w_in;
@@ -463,26 +490,29 @@ fn integrate_contact(
             let h = bisect(|h| p.rk4(s, h, m, k)[0], dt);
             let out = p.rk4(s, h, m, k);
             let (t_max_s, delta_max_m) = max_event.unwrap_or((t_i + h, out[0].max(s[0])));
-            return Ok(ContactRun {
+            return ContactRun {
                 states,
-                bounce: Bounce {
+                end: Ok(Bounce {
                     t_contact_s: t_in,
                     t_max_s,
                     t_rebound_s: t_i + h,
                     v_impact_m_s: w_in,
                     v_rebound_m_s: -out[1],
                     delta_max_m,
-                },
-            });
+                }),
+            };
         }
         states.push(next);
         s = next;
     }
-    Err(PhysicsError::NoRebound {
-        t_contact_s: t_in,
-        limit_s,
-        damping_n_s_m: p.damping_n_s_m,
-    })
+    ContactRun {
+        states,
+        end: Err(PhysicsError::NoRebound {
+            t_contact_s: t_in,
+            limit_s,
+            damping_n_s_m: p.damping_n_s_m,
+        }),
+    }
 }
 
 /// The damping coefficient `c` (N·s/m) for which the first bounce has the
@@ -507,8 +537,8 @@ pub fn damping_for_restitution(
     let e_of = |c: f64| -> f64 {
         let mut q = *params;
         q.damping_n_s_m = c;
-        match integrate_contact(&q, 0.0, q.impact_speed_m_s, step_s) {
-            Ok(run) => run.bounce.restitution(),
+        match integrate_contact(&q, 0.0, q.impact_speed_m_s, step_s).end {
+            Ok(b) => b.restitution(),
             Err(_) => 0.0, // stuck: below any positive target
         }
     };

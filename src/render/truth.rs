@@ -90,6 +90,9 @@ pub struct Truth {
     pub a_max_mm: f64,
     /// The next contact, when it starts before the last frame's exposure ends.
     pub second_bounce: Option<BounceTruth>,
+    /// Start of a later contact that damping holds on the surface (the
+    /// sphere then rests there), when it starts within the window; else null.
+    pub resting_contact_s: Option<f64>,
     /// g used in the simulation, m/s².
     pub gravity_m_s2: f64,
     /// Linear damping c solved for `restitution_requested`, N·s/m.

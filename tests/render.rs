@@ -331,11 +331,13 @@ fn files(dir: &Path) -> Vec<PathBuf> {
     out
 }
 
-const SMALL: [&str; 8] = [
+const SMALL: [&str; 10] = [
     "--width-px",
     "160",
     "--height-px",
     "120",
+    "--mm-per-px",
+    "0.2",
     "--frames-before",
     "6",
     "--frames-after",
@@ -639,4 +641,54 @@ fn bad_options_name_the_option() {
         let err = render(&args(&bad)).unwrap_err().to_string();
         assert!(err.contains(name), "{err}");
     }
+}
+
+/// The committed fixtures are what the command in fixtures/README.md
+/// renders today, byte for byte (a golden-file check: a deliberate change
+/// to the pictures must come with regenerated fixtures).
+#[test]
+fn the_committed_fixtures_regenerate_byte_for_byte() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    render(&args(&[
+        "--drop",
+        "3:1.5",
+        "--drop",
+        "4.5:12",
+        "--drop",
+        "7:50",
+        "--preset",
+        "realistic",
+        "--format",
+        "png",
+        "--width-px",
+        "384",
+        "--height-px",
+        "288",
+        "--restitution",
+        "0.9",
+        "--seed",
+        "2019",
+        "--out",
+        out,
+    ]))
+    .unwrap();
+    let ours = files(dir.path());
+    assert!(ours.len() > 260);
+    for p in &ours {
+        let committed = root.join(p.strip_prefix(dir.path()).unwrap());
+        let same = std::fs::read(&committed).map(|b| b == std::fs::read(p).unwrap());
+        assert!(
+            same.unwrap_or(false),
+            "{} differs from a fresh render: regenerate with the command in fixtures/README.md",
+            committed.display()
+        );
+    }
+    let committed_count = files(&root).len() - 1; // README.md
+    assert_eq!(
+        committed_count,
+        ours.len(),
+        "fixtures/ holds files the command does not write"
+    );
 }

@@ -239,7 +239,7 @@ pub struct RenderArgs {
     /// Exposure time, µs.
     #[arg(long, default_value_t = 50.0)]
     pub exposure_us: f64,
-    /// Scale, mm/px [default: 0.04 + 0.01·(R − 3 mm) per mm of R, times 384 / height].
+    /// Scale, mm/px [default: 0.04 + 0.01 per mm of R above 3 mm: R_px 75‥87.5].
     #[arg(long)]
     pub mm_per_px: Option<f64>,
     /// Bits per sample, 8 or 12 [default: the preset's].
@@ -597,16 +597,15 @@ pub fn rng_for(seed: u64, run: &str, stream: &str, index: i64) -> ChaCha8Rng {
     ChaCha8Rng::from_seed(key)
 }
 
-/// The default scale: 0.04 mm/px at R = 3 mm, +0.01 per mm of radius (R_px
-/// from 75 px at 3 mm to 87.5 px at 7 mm on a 384-row frame), scaled with
-/// the frame height so a smaller frame keeps the same framing.
-pub fn default_mm_per_px(radius_mm: f64, height_px: usize) -> f64 {
-    let at_384 = if radius_mm >= 3.0 {
+/// The default scale: 0.04 mm/px at R = 3 mm, +0.01 per mm of radius, so
+/// that R_px runs from 75 px (3 mm) to 87.5 px (7 mm) and a 384-row frame
+/// holds the sphere, its approach and its rebound; below 3 mm, R_px = 75.
+pub fn default_mm_per_px(radius_mm: f64) -> f64 {
+    if radius_mm >= 3.0 {
         0.04 + 0.01 * (radius_mm - 3.0)
     } else {
         radius_mm / 75.0
-    };
-    at_384 * 384.0 / height_px as f64
+    }
 }
 
 /// The trigger of campaign drop `index`: 2019-06-13 10:00:00 local time
@@ -686,7 +685,7 @@ pub fn render_drop(
     // ---- geometry
     let mm_per_px = st
         .mm_per_px
-        .unwrap_or_else(|| default_mm_per_px(spec.radius_mm, st.height_px));
+        .unwrap_or_else(|| default_mm_per_px(spec.radius_mm));
     let m_per_px = mm_per_px * 1e-3;
     let radius_px = spec.radius_mm / mm_per_px;
     let surface_row_px = st

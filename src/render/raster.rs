@@ -33,7 +33,7 @@ use rand::Rng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
 use serde::{Deserialize, Serialize};
 
-use super::coverage::{below_line_fraction, disk_pixel_coverage, pillar_fraction};
+use super::coverage::{below_line_fraction, pillar_fraction, DiskBlock};
 use crate::source::Frame;
 
 /// The look of the pictures: every effect with its setting (0 turns it off).
@@ -300,7 +300,8 @@ impl Raster {
                 } else {
                     v
                 };
-                frame[[i, j]] = noisy.round().clamp(0.0, white) as u16;
+                // round half up (values are ≥ 0 after the clamp)
+                frame[[i, j]] = (noisy.clamp(0.0, white) + 0.5) as u16;
             }
         }
         frame
@@ -606,7 +607,7 @@ fn clip_region(z0: f64, z1: f64, x0: f64, x1: f64, h: f64, w: f64) -> Option<Reg
 ///
 /// Per centre and row, the pixels wholly inside the disk are found from the
 /// farthest point of the row band and filled through a difference array; only
-/// the pixels the circle crosses get the exact [`disk_pixel_coverage`].
+/// the pixels the circle crosses get the exact coverage ([`DiskBlock`]).
 fn disk_coverage(region: Region, centres: &[(f64, f64)], r: f64, weight: f64) -> Vec<f64> {
     let cw = region.c1 - region.c0;
     let mut cov = vec![0.0_f64; (region.r1 - region.r0) * cw];
@@ -615,6 +616,16 @@ fn disk_coverage(region: Region, centres: &[(f64, f64)], r: f64, weight: f64) ->
     for &(cx, cz) in centres {
         let i0 = ((cz - r - 0.5).floor().max(region.r0 as f64)) as usize;
         let i1 = ((cz + r + 1.5).ceil().min(region.r1 as f64)).max(i0 as f64) as usize;
+        if i1 <= i0 {
+            continue;
+        }
+        let block = DiskBlock::new(
+            cx,
+            cz,
+            r,
+            (region.c0 as i64, region.c1 as i64 - 1),
+            (i0 as i64, i1 as i64 - 1),
+        );
         for i in i0..i1 {
             let dz = (i as f64 - cz).abs();
             let near = (dz - 0.5).max(0.0);
@@ -646,7 +657,7 @@ fn disk_coverage(region: Region, centres: &[(f64, f64)], r: f64, weight: f64) ->
                     j = run_end + 1.0;
                     continue;
                 }
-                let c = disk_pixel_coverage(i as f64, j, cx, cz, r);
+                let c = block.pixel(i as i64, j as i64);
                 if c > 0.0 {
                     cov[row + (j as usize - region.c0)] += weight * c;
                 }

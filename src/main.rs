@@ -45,7 +45,9 @@ fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<PipelineConfig>
 /// `dropscope render`: render, then one summary line (with the speed) on stderr.
 fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> {
     let start = std::time::Instant::now();
-    let report = dropscope::render::render(args)?;
+    let report = dropscope::render::render_with_progress(args, &mut |done, total, run| {
+        eprintln!("[{}/{total}] {run}", done + 1);
+    })?;
     let secs = start.elapsed().as_secs_f64();
     for (run, reason) in &report.failures {
         eprintln!("error: {reason}");

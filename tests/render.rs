@@ -641,6 +641,28 @@ fn bad_options_name_the_option() {
         let err = render(&args(&bad)).unwrap_err().to_string();
         assert!(err.contains(name), "{err}");
     }
+    // a drop beyond the model's range fails alone; the others are rendered
+    let mut a = vec![
+        "--out",
+        out,
+        "--drop",
+        "3:1.5",
+        "--pillar-height-mm",
+        "0.6",
+        "--drop",
+        "3:50",
+    ];
+    a.extend_from_slice(&SMALL);
+    let report = render(&args(&a)).unwrap();
+    assert_eq!(report.drops.len(), 1);
+    assert_eq!(report.failures.len(), 1);
+    assert!(
+        report.failures[0].1.contains("pillar height"),
+        "{:?}",
+        report.failures
+    );
+    let manifest = std::fs::read_to_string(dir.path().join("runs.csv")).unwrap();
+    assert_eq!(manifest.lines().count(), 2, "{manifest}");
 }
 
 /// The committed fixtures are what the command in fixtures/README.md
@@ -691,4 +713,38 @@ fn the_committed_fixtures_regenerate_byte_for_byte() {
         ours.len(),
         "fixtures/ holds files the command does not write"
     );
+}
+
+/// The command's exit status: 2 when it cannot run (the message names the
+/// option), 1 when some drops failed (the others are written), 0 otherwise.
+#[test]
+fn render_exit_codes_follow_the_spec() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let run = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_dropscope"))
+            .args(["render", "--out", out])
+            .args(SMALL)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let bad = run(&["--tilt", "0.5"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--tilt"));
+    let some_failed = run(&[
+        "--drop",
+        "3:1.5",
+        "--drop",
+        "3:50",
+        "--pillar-height-mm",
+        "0.6",
+    ]);
+    assert_eq!(some_failed.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&some_failed.stderr);
+    assert!(
+        err.contains("R3mm_H50cm_01") && err.contains("rendered 1 drops"),
+        "{err}"
+    );
+    assert_eq!(run(&["--drop", "3:1.5"]).status.code(), Some(0));
 }

@@ -70,6 +70,15 @@ pub enum RenderError {
         #[source]
         source: raster::RasterError,
     },
+    #[error(
+        "run {run}: δmax = {delta_max_mm:.3} mm reaches the pillar height h = {pillar_height_mm} mm, \
+         where the elastic-foundation model F = πEφRδ²/h no longer holds: lower the drop height"
+    )]
+    OutsideModel {
+        run: String,
+        delta_max_mm: f64,
+        pillar_height_mm: f64,
+    },
     #[error(transparent)]
     Export(#[from] export::ExportError),
     #[error("{path}: cannot create folder: {source}")]
@@ -521,6 +530,14 @@ impl RenderReport {
 /// Run `dropscope render`: every drop asked for, then the manifest.
 /// A drop that fails is reported and the others carry on.
 pub fn render(args: &RenderArgs) -> Result<RenderReport, RenderError> {
+    render_with_progress(args, &mut |_, _, _| {})
+}
+
+/// [`render`], calling `progress(done, total, run)` after each drop.
+pub fn render_with_progress(
+    args: &RenderArgs,
+    progress: &mut dyn FnMut(usize, usize, &str),
+) -> Result<RenderReport, RenderError> {
     let settings = args.settings()?;
     let drops = args.drops()?;
     std::fs::create_dir_all(&args.out).map_err(|source| RenderError::CreateDir {
@@ -528,7 +545,8 @@ pub fn render(args: &RenderArgs) -> Result<RenderReport, RenderError> {
         source,
     })?;
     let mut report = RenderReport::default();
-    for spec in &drops {
+    for (k, spec) in drops.iter().enumerate() {
+        progress(k, drops.len(), &spec.run);
         match render_drop(spec, &settings, &args.out) {
             Ok(d) => report.drops.push(d),
             Err(e @ RenderError::Export(_)) | Err(e @ RenderError::CreateDir { .. }) => {
@@ -681,6 +699,13 @@ pub fn render_drop(
     let t_window_end = n1 as f64 / st.fps + 0.5 * st.exposure_s;
     let traj = Trajectory::simulate(&params, t_contact, t_window_end, step).map_err(phys_err)?;
     let b = traj.bounces()[0];
+    if b.delta_max_m >= st.surface.pillar_height_m {
+        return Err(RenderError::OutsideModel {
+            run: run.to_string(),
+            delta_max_mm: b.delta_max_m * 1e3,
+            pillar_height_mm: st.surface.pillar_height_m * 1e3,
+        });
+    }
 
     // ---- geometry
     let mm_per_px = st

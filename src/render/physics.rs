@@ -208,10 +208,18 @@ impl DropParams {
         ]
     }
 
-    /// A step that resolves the contact: `τc(Eq. 5) / 2000`, and never more
-    /// than `max_step_s` (the renderer passes 1/100 of the frame interval).
+    /// A step that resolves the contact: `max_step_s` (the renderer passes
+    /// 1/100 of the frame interval) halved until it is at most
+    /// `τc(Eq. 5) / 2000`. Powers of two of the caller's step keep the result
+    /// independent of the last bits of `cbrt` (which libms may round
+    /// differently), so the same inputs give the same truth everywhere.
     pub fn default_step_s(&self, max_step_s: f64) -> f64 {
-        (self.tau_c_eq5_s() / 2000.0).min(max_step_s)
+        let limit = self.tau_c_eq5_s() / 2000.0;
+        let mut step = max_step_s;
+        while step > limit {
+            step *= 0.5;
+        }
+        step
     }
 }
 
@@ -542,8 +550,9 @@ pub fn damping_for_restitution(
             Err(_) => 0.0, // stuck: below any positive target
         }
     };
-    // Scale: m / τc, the damping that removes a fair share of the energy.
-    let mut hi = params.mass_kg() / params.tau_c_eq5_s();
+    // Start at a damping rate c/m of 1000 /s (about 1/τc) and double: a
+    // bracket built from arithmetic only, so the bisection is reproducible.
+    let mut hi = params.mass_kg() * 1000.0;
     let mut lo = 0.0;
     let mut tries = 0;
     while e_of(hi) > requested {

@@ -339,6 +339,19 @@ pub fn render_drop(
         source,
     })?;
     let numbers: Vec<i64> = (n0..=n1).collect();
+    // What the camera would state about the movie (the XML side file; a
+    // movie container such as .cine takes its header from here too).
+    let header = PccHeader {
+        description: format!("dropscope render {run} (synthetic)"),
+        first_image_no: n0,
+        image_count: numbers.len(),
+        width_px: st.width_px,
+        height_px: st.height_px,
+        bit_depth: st.look.bit_depth,
+        fps: st.fps,
+        exposure_s: st.exposure_s,
+        trigger_10ns: trigger_10ns(spec.index),
+    };
     let mut sink: Box<dyn FrameSink> = match st.format {
         FrameFormat::Tiff | FrameFormat::Png => {
             Box::new(FolderSink::new(&dir, run, st.format, st.look.bit_depth))
@@ -359,17 +372,6 @@ pub fn render_drop(
     sink.finish()?;
 
     // ---- side file and truth
-    let header = PccHeader {
-        description: format!("dropscope render {run} (synthetic)"),
-        first_image_no: n0,
-        image_count: numbers.len(),
-        width_px: st.width_px,
-        height_px: st.height_px,
-        bit_depth: st.look.bit_depth,
-        fps: st.fps,
-        exposure_s: st.exposure_s,
-        trigger_10ns: trigger_10ns(spec.index),
-    };
     export::write_pcc_xml(&dir.join(format!("{run}.xml")), &header)?;
 
     let frames_truth: Vec<FrameTruth> = numbers

@@ -23,6 +23,7 @@ pub mod kinematics;
 pub mod lsq;
 pub mod manifest;
 pub mod measure;
+pub mod render;
 pub mod source;
 #[cfg(test)]
 mod test_support;

@@ -28,6 +28,8 @@ enum Command {
     Inspect(dropscope::source::cli::InspectArgs),
     /// Write frames A..B−1 exactly as read, as 16-bit PNG named by frame number.
     Export(dropscope::source::cli::ExportArgs),
+    /// Render synthetic drops with exact truth, as PCC-style frame folders.
+    Render(Box<dropscope::render::RenderArgs>),
 }
 
 /// Load `--config FILE`, else `./pipeline.toml`, else the embedded default.
@@ -41,6 +43,36 @@ fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<PipelineConfig>
             std::path::Path::new("(embedded pipeline.toml)"),
             std::path::Path::new(""),
         )?,
+    })
+}
+
+/// `dropscope render`: render, then one summary line (with the speed) on stderr.
+fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> {
+    let start = std::time::Instant::now();
+    let report = dropscope::render::render_with_progress(args, &mut |done, total, run| {
+        eprintln!("[{}/{total}] {run}", done + 1);
+    })?;
+    let secs = start.elapsed().as_secs_f64();
+    for (run, reason) in &report.failures {
+        eprintln!("error: {reason}");
+        eprintln!("  (run {run} was not rendered)");
+    }
+    let frames = report.frames();
+    eprintln!(
+        "rendered {} drops, {frames} frames into {} in {secs:.2} s ({:.0} frames/s){}",
+        report.drops.len(),
+        args.out.display(),
+        frames as f64 / secs.max(1e-9),
+        report
+            .manifest
+            .as_ref()
+            .map(|m| format!("; manifest {}", m.display()))
+            .unwrap_or_default()
+    );
+    Ok(if report.failures.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
     })
 }
 
@@ -58,6 +90,7 @@ fn main() -> ExitCode {
             eprintln!("wrote {} frame(s) to {}", files.len(), args.out.display());
             ExitCode::SUCCESS
         }),
+        Command::Render(args) => run_render(&args),
     };
     match result {
         Ok(code) => code,

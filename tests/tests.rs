@@ -1,4 +1,5 @@
 //! The integration tests, compiled into one binary (one module per stage).
 
 mod cli;
+mod render;
 mod source;

@@ -1,0 +1,459 @@
+//! `dropscope render`: synthetic drops with exact truth, written the way
+//! Phantom Camera Control exports a recording (SPEC §4).
+//!
+//! | file | does |
+//! | --- | --- |
+//! | [`physics`] | the contact ODE, its events and the exact motion |
+//! | [`coverage`] | exact pixel coverage of disk, line and pillars |
+//! | [`raster`] | one frame from the sphere centres over the exposure |
+//! | [`export`] | frame files, the PCC XML side file, `truth.json` |
+//! | [`truth`] | the `truth.json` schema |
+//! | `options` | presets, [`RenderArgs`] and [`RenderSettings`] |
+//! | [`campaign`] | the paper's grid and the `runs.csv` manifest |
+//!
+//! # Conventions
+//!
+//! Image number `n` (the camera's, negative before the trigger) has its
+//! mid-exposure at `t = n / fps` after the trigger; motion blur integrates
+//! over `[t − exposure/2, t + exposure/2]`. The first contact falls at a
+//! random phase within image 0's frame interval, `t_contact ∈ [0, 1/fps)`,
+//! as when a PCC user triggers on the impact; the movie starts
+//! `frames_before` images earlier and ends `frames_after` images after the
+//! loss of contact. The sphere falls straight down column `impact_column_px`;
+//! the centre row is `z = y_s(x) − R_px + d / s` with `d` the signed depth of
+//! the sphere's lowest point below the surface (physics) and `s` the scale.
+//!
+//! Randomness: every frame's noise comes from a ChaCha8 generator seeded by
+//! `(seed, run, image number)`, the run's layout (contact phase, column,
+//! surface row, pillar phase) from `(seed, run)`, the dust from `seed` alone.
+//! Frames are rendered in parallel; the bytes do not depend on the number of
+//! threads.
+
+pub mod campaign;
+pub mod coverage;
+pub mod export;
+mod options;
+pub mod physics;
+pub mod raster;
+pub mod truth;
+
+use options::positive;
+pub use options::{Preset, RenderArgs, RenderSettings};
+
+use std::path::{Path, PathBuf};
+
+use campaign::{DropSpec, ManifestRow};
+use export::{FolderSink, FrameFormat, FrameSink, PccHeader};
+use physics::{DropParams, Trajectory};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use raster::{Raster, Scene};
+use rayon::prelude::*;
+use truth::{BounceTruth, FrameTruth, SurfaceTruth, Truth};
+
+/// Why rendering failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("render option `--{name}` = {value}: {allowed}")]
+    Invalid {
+        name: &'static str,
+        value: String,
+        allowed: String,
+    },
+    #[error("run {run}: {source}")]
+    Physics {
+        run: String,
+        #[source]
+        source: physics::PhysicsError,
+    },
+    #[error("run {run}: {source}")]
+    Raster {
+        run: String,
+        #[source]
+        source: raster::RasterError,
+    },
+    #[error(
+        "run {run}: δmax = {delta_max_mm:.3} mm reaches the pillar height h = {pillar_height_mm} mm, \
+         where the elastic-foundation model F = πEφRδ²/h no longer holds: lower the drop height"
+    )]
+    OutsideModel {
+        run: String,
+        delta_max_mm: f64,
+        pillar_height_mm: f64,
+    },
+    #[error(transparent)]
+    Export(#[from] export::ExportError),
+    #[error("{path}: cannot create folder: {source}")]
+    CreateDir {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// What one rendered drop produced.
+#[derive(Debug, Clone)]
+pub struct DropSummary {
+    pub run: String,
+    /// The run's folder.
+    pub dir: PathBuf,
+    pub frames: usize,
+    pub truth: Truth,
+}
+
+/// What a render produced.
+#[derive(Debug, Default)]
+pub struct RenderReport {
+    pub drops: Vec<DropSummary>,
+    /// Runs that failed, with the reason; the others were still rendered.
+    pub failures: Vec<(String, String)>,
+    pub manifest: Option<PathBuf>,
+}
+
+impl RenderReport {
+    pub fn frames(&self) -> usize {
+        self.drops.iter().map(|d| d.frames).sum()
+    }
+}
+
+/// Run `dropscope render`: every drop asked for, then the manifest.
+/// A drop that fails is reported and the others carry on.
+pub fn render(args: &RenderArgs) -> Result<RenderReport, RenderError> {
+    render_with_progress(args, &mut |_, _, _| {})
+}
+
+/// [`render`], calling `progress(done, total, run)` after each drop.
+pub fn render_with_progress(
+    args: &RenderArgs,
+    progress: &mut dyn FnMut(usize, usize, &str),
+) -> Result<RenderReport, RenderError> {
+    let settings = args.settings()?;
+    let drops = args.drops()?;
+    std::fs::create_dir_all(&args.out).map_err(|source| RenderError::CreateDir {
+        path: args.out.clone(),
+        source,
+    })?;
+    let mut report = RenderReport::default();
+    for (k, spec) in drops.iter().enumerate() {
+        progress(k, drops.len(), &spec.run);
+        match render_drop(spec, &settings, &args.out) {
+            Ok(d) => report.drops.push(d),
+            Err(e @ RenderError::Export(_)) | Err(e @ RenderError::CreateDir { .. }) => {
+                return Err(e)
+            }
+            Err(e) => report.failures.push((spec.run.clone(), e.to_string())),
+        }
+    }
+    if args.writes_manifest() {
+        let rows: Vec<ManifestRow> = report
+            .drops
+            .iter()
+            .map(|d| ManifestRow {
+                run: d.run.clone(),
+                path: d.run.clone(),
+                sphere_radius_mm: d.truth.sphere_radius_mm,
+                drop_height_cm: d.truth.drop_height_cm,
+                fps: d.truth.fps,
+                mm_per_px: args.manifest_scale.then_some(d.truth.mm_per_px),
+                surface: args.surface_name.clone(),
+                sphere_density_kg_m3: d.truth.sphere_density_kg_m3,
+            })
+            .collect();
+        let path = args.out.join("runs.csv");
+        let bytes = campaign::manifest_csv(&rows).map_err(|e| export::ExportError::Io {
+            path: path.clone(),
+            source: std::io::Error::other(e),
+        })?;
+        crate::io_util::write_atomic(&path, &bytes).map_err(|source| export::ExportError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        report.manifest = Some(path);
+    }
+    Ok(report)
+}
+
+/// A ChaCha8 generator for one purpose, seeded from `(seed, run, stream,
+/// index)` through FNV-1a and SplitMix64 (stable across platforms and
+/// versions, unlike `std`'s hashers).
+pub fn rng_for(seed: u64, run: &str, stream: &str, index: i64) -> ChaCha8Rng {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        // a separator so that ("ab", "c") and ("a", "bc") differ
+        h ^= 0xff;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    };
+    eat(&seed.to_le_bytes());
+    eat(run.as_bytes());
+    eat(stream.as_bytes());
+    eat(&index.to_le_bytes());
+    let mut state = h;
+    let mut key = [0u8; 32];
+    for chunk in key.chunks_mut(8) {
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        chunk.copy_from_slice(&z.to_le_bytes());
+    }
+    ChaCha8Rng::from_seed(key)
+}
+
+/// The default scale: 0.04 mm/px at R = 3 mm, +0.01 per mm of radius, so
+/// that R_px runs from 75 px (3 mm) to 87.5 px (7 mm) and a 384-row frame
+/// holds the sphere, its approach and its rebound; below 3 mm, R_px = 75.
+pub fn default_mm_per_px(radius_mm: f64) -> f64 {
+    if radius_mm >= 3.0 {
+        0.04 + 0.01 * (radius_mm - 3.0)
+    } else {
+        radius_mm / 75.0
+    }
+}
+
+/// The trigger of campaign drop `index`: 2019-06-13 10:00:00 local time
+/// (the paper's arXiv month) plus one minute per drop, in 10 ns ticks.
+fn trigger_10ns(index: usize) -> i64 {
+    let day = export::days_from_civil(2019, 6, 13);
+    (day * 86_400 + 10 * 3600 + 60 * index as i64) * 100_000_000
+}
+
+/// Sphere centres (px) at `k` instants spread over the exposure of a frame
+/// with mid-exposure `t_s` (midpoint rule), or only at `t_s` without motion blur.
+fn exposure_samples(
+    centre: &impl Fn(f64) -> (f64, f64),
+    t_s: f64,
+    exposure_s: f64,
+    motion_blur: bool,
+) -> Vec<(f64, f64)> {
+    if !motion_blur {
+        return vec![centre(t_s)];
+    }
+    // Path length over the exposure → about 0.1 px between samples.
+    let probe: Vec<f64> = (0..=16)
+        .map(|q| centre(t_s + exposure_s * (q as f64 / 16.0 - 0.5)).1)
+        .collect();
+    let path: f64 = probe.windows(2).map(|w| (w[1] - w[0]).abs()).sum();
+    let k = ((path / 0.1).ceil() as usize).clamp(1, 64);
+    (0..k)
+        .map(|q| centre(t_s + exposure_s * ((q as f64 + 0.5) / k as f64 - 0.5)))
+        .collect()
+}
+
+/// Render one drop into `<out>/<run>/`.
+pub fn render_drop(
+    spec: &DropSpec,
+    st: &RenderSettings,
+    out: &Path,
+) -> Result<DropSummary, RenderError> {
+    let run = spec.run.as_str();
+    let phys_err = |source| RenderError::Physics {
+        run: run.to_string(),
+        source,
+    };
+    let radius_m = positive("radius-mm", spec.radius_mm)? * 1e-3;
+    let height_m = positive("height-cm", spec.height_cm)? * 1e-2;
+    let frame_dt = 1.0 / st.fps;
+
+    // ---- layout, from the run's own generator
+    let mut layout = rng_for(st.seed, run, "layout", 0);
+    let contact_phase: f64 = layout.gen_range(0.0..1.0);
+    let column_offset: f64 = layout.gen_range(-1.0..1.0);
+    let row_fraction: f64 = layout.gen_range(0.0..1.0);
+    let pillar_phase_frac: f64 = layout.gen_range(0.0..1.0);
+
+    // ---- physics
+    let g = st.gravity_m_s2;
+    let v = (2.0 * g * height_m).sqrt();
+    let mut params = DropParams {
+        sphere_radius_m: radius_m,
+        sphere_density_kg_m3: st.density_kg_m3,
+        surface: st.surface,
+        gravity_m_s2: g,
+        impact_speed_m_s: v,
+        damping_n_s_m: 0.0,
+    };
+    let step = params.default_step_s(frame_dt / 100.0);
+    params.damping_n_s_m =
+        physics::damping_for_restitution(&params, st.restitution, step).map_err(phys_err)?;
+    let t_contact = contact_phase / st.fps;
+    let first = Trajectory::simulate(&params, t_contact, t_contact, step).map_err(phys_err)?;
+    let t_rebound = first.bounces()[0].t_rebound_s;
+    let n0 = -(st.frames_before as i64);
+    let n1 = (t_rebound * st.fps).ceil() as i64 + st.frames_after as i64;
+    let t_window_end = n1 as f64 / st.fps + 0.5 * st.exposure_s;
+    let traj = Trajectory::simulate(&params, t_contact, t_window_end, step).map_err(phys_err)?;
+    let b = traj.bounces()[0];
+    if b.delta_max_m >= st.surface.pillar_height_m {
+        return Err(RenderError::OutsideModel {
+            run: run.to_string(),
+            delta_max_mm: b.delta_max_m * 1e3,
+            pillar_height_mm: st.surface.pillar_height_m * 1e3,
+        });
+    }
+
+    // ---- geometry
+    let mm_per_px = st
+        .mm_per_px
+        .unwrap_or_else(|| default_mm_per_px(spec.radius_mm));
+    let m_per_px = mm_per_px * 1e-3;
+    let radius_px = spec.radius_mm / mm_per_px;
+    let surface_row_px = st
+        .surface_row_px
+        .unwrap_or((0.72 * st.height_px as f64).round() + row_fraction);
+    let impact_column_px = 0.5 * st.width_px as f64 + column_offset * st.width_px as f64 / 16.0;
+    let pillar_width_px = st.surface.pillar_width_m / m_per_px;
+    let channel_width_px = st.surface.channel_width_m / m_per_px;
+    let scene = Scene {
+        width_px: st.width_px,
+        height_px: st.height_px,
+        radius_px,
+        surface_row_px,
+        surface_slope: st.surface_slope,
+        pillar_height_px: st.surface.pillar_height_m / m_per_px,
+        pillar_width_px,
+        channel_width_px,
+        pillar_phase_px: pillar_phase_frac * (pillar_width_px + channel_width_px),
+    };
+    let y_s = scene.surface_row_at(impact_column_px);
+    let centre = |t: f64| -> (f64, f64) {
+        let (d, _) = traj.state(t);
+        (impact_column_px, y_s - radius_px + d / m_per_px)
+    };
+    let mut dust_rng = rng_for(st.seed, "", "dust", 0);
+    let raster = Raster::new(scene, st.look.clone(), &mut dust_rng).map_err(|source| {
+        RenderError::Raster {
+            run: run.to_string(),
+            source,
+        }
+    })?;
+
+    // ---- frames
+    let dir = out.join(run);
+    std::fs::create_dir_all(&dir).map_err(|source| RenderError::CreateDir {
+        path: dir.clone(),
+        source,
+    })?;
+    let numbers: Vec<i64> = (n0..=n1).collect();
+    // What the camera would state about the movie (the XML side file; a
+    // movie container such as .cine takes its header from here too).
+    let header = PccHeader {
+        description: format!("dropscope render {run} (synthetic)"),
+        first_image_no: n0,
+        image_count: numbers.len(),
+        width_px: st.width_px,
+        height_px: st.height_px,
+        bit_depth: st.look.bit_depth,
+        fps: st.fps,
+        exposure_s: st.exposure_s,
+        trigger_10ns: trigger_10ns(spec.index),
+    };
+    let mut sink: Box<dyn FrameSink> = match st.format {
+        FrameFormat::Tiff | FrameFormat::Png => {
+            Box::new(FolderSink::new(&dir, run, st.format, st.look.bit_depth))
+        }
+    };
+    for chunk in numbers.chunks(64) {
+        let frames: Vec<(i64, crate::source::Frame)> = chunk
+            .par_iter()
+            .map(|&n| {
+                let t = n as f64 / st.fps;
+                let centres = exposure_samples(&centre, t, st.exposure_s, st.look.motion_blur);
+                let mut rng = rng_for(st.seed, run, "frame", n);
+                (n, raster.frame(&centres, &mut rng))
+            })
+            .collect();
+        sink.write_batch(&frames)?;
+    }
+    sink.finish()?;
+
+    // ---- side file and truth
+    export::write_pcc_xml(&dir.join(format!("{run}.xml")), &header)?;
+
+    let frames_truth: Vec<FrameTruth> = numbers
+        .iter()
+        .map(|&n| {
+            let t = n as f64 / st.fps;
+            let (x, z) = centre(t);
+            let d = traj.state(t).0;
+            FrameTruth {
+                frame: n,
+                t_s: t,
+                x_px: x,
+                z_px: z,
+                delta_mm: d.max(0.0) * 1e3,
+                in_contact: d > 0.0,
+            }
+        })
+        .collect();
+    let second_bounce = traj
+        .bounces()
+        .get(1)
+        .filter(|s| s.t_contact_s <= t_window_end)
+        .map(|s| BounceTruth {
+            t_contact_s: s.t_contact_s,
+            t_max_s: s.t_max_s,
+            t_rebound_s: s.t_rebound_s,
+            tau_c_s: s.tau_c_s(),
+            v_impact_m_s: s.v_impact_m_s,
+            v_rebound_m_s: s.v_rebound_m_s,
+            restitution: s.restitution(),
+            delta_max_mm: s.delta_max_m * 1e3,
+        });
+    let r_mm = spec.radius_mm;
+    let dmax_mm = b.delta_max_m * 1e3;
+    let truth = Truth {
+        run: run.to_string(),
+        seed: st.seed,
+        preset: st.preset.name().to_string(),
+        sphere_radius_mm: r_mm,
+        sphere_density_kg_m3: st.density_kg_m3,
+        drop_height_cm: spec.height_cm,
+        surface: SurfaceTruth {
+            modulus_pa: st.surface.modulus_pa,
+            pillar_height_mm: st.surface.pillar_height_m * 1e3,
+            pillar_width_mm: st.surface.pillar_width_m * 1e3,
+            channel_width_mm: st.surface.channel_width_m * 1e3,
+            solid_fraction: st.surface.solid_fraction,
+        },
+        restitution_requested: st.restitution,
+        fps: st.fps,
+        exposure_s: st.exposure_s,
+        width_px: st.width_px,
+        height_px: st.height_px,
+        bit_depth: st.look.bit_depth,
+        mm_per_px,
+        radius_px,
+        surface_row_px,
+        surface_slope: st.surface_slope,
+        impact_column_px,
+        t_contact_s: b.t_contact_s,
+        t_rebound_s: b.t_rebound_s,
+        tau_c_s: b.tau_c_s(),
+        t_max_s: b.t_max_s,
+        v_impact_m_s: b.v_impact_m_s,
+        v_rebound_m_s: b.v_rebound_m_s,
+        restitution: b.restitution(),
+        delta_max_mm: dmax_mm,
+        a_max_mm: (r_mm * r_mm - (r_mm - dmax_mm).powi(2)).max(0.0).sqrt(),
+        second_bounce,
+        resting_contact_s: traj.resting_contact_s().filter(|&t| t <= t_window_end),
+        gravity_m_s2: g,
+        damping_n_s_m: params.damping_n_s_m,
+        integration_step_s: step,
+        first_image_no: n0,
+        look: st.look.clone(),
+        frames: frames_truth,
+    };
+    export::write_truth(&dir.join("truth.json"), &truth)?;
+    Ok(DropSummary {
+        run: run.to_string(),
+        dir,
+        frames: numbers.len(),
+        truth,
+    })
+}

@@ -1,0 +1,427 @@
+//! The options of `dropscope render`: the presets, the raw command-line
+//! arguments ([`RenderArgs`], clap) and their validated form
+//! ([`RenderSettings`]). Errors name the option, its value and what is allowed.
+
+use std::path::PathBuf;
+
+use serde::Serialize;
+
+use super::campaign::{self, DropSpec};
+use super::export::FrameFormat;
+use super::physics;
+use super::raster::Look;
+use super::RenderError;
+use crate::config::Surface;
+
+/// A starting set of effects; every effect can still be set on its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// Ideal pictures: 12-bit, uniform light, exact silhouette at mid-exposure,
+    /// no blur, no noise, no flicker, no dust.
+    Clean,
+    /// A good experiment: 8-bit, gentle light gradient, optical blur σ 0.7 px,
+    /// motion blur, read + shot noise, 1 % flicker, 5 dust specks.
+    Realistic,
+    /// A difficult one: strong gradient, blur σ 1.2 px, more noise and
+    /// flicker, 12 specks, a faint mirror reflection under the surface line,
+    /// a slight surface tilt.
+    Harsh,
+}
+
+impl Preset {
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Clean => "clean",
+            Preset::Realistic => "realistic",
+            Preset::Harsh => "harsh",
+        }
+    }
+
+    /// The preset's look.
+    pub fn look(self) -> Look {
+        let base = Look {
+            bit_depth: 8,
+            background_level: 0.75,
+            gradient: 0.0,
+            sphere_transmission: 0.06,
+            pillar_grey: 0.45,
+            channel_grey: 0.7,
+            base_grey: 0.55,
+            blur_sigma_px: 0.0,
+            motion_blur: false,
+            read_noise_dn: 0.0,
+            full_well_e: 0.0,
+            flicker: 0.0,
+            dust_count: 0,
+            reflection: 0.0,
+            reflection_depth_px: 6.0,
+        };
+        match self {
+            Preset::Clean => Look {
+                bit_depth: 12,
+                ..base
+            },
+            Preset::Realistic => Look {
+                gradient: 0.12,
+                blur_sigma_px: 0.7,
+                motion_blur: true,
+                read_noise_dn: 0.8,
+                full_well_e: 20_000.0,
+                flicker: 0.01,
+                dust_count: 5,
+                ..base
+            },
+            Preset::Harsh => Look {
+                gradient: 0.3,
+                blur_sigma_px: 1.2,
+                motion_blur: true,
+                read_noise_dn: 2.0,
+                full_well_e: 5_000.0,
+                flicker: 0.03,
+                dust_count: 12,
+                reflection: 0.25,
+                ..base
+            },
+        }
+    }
+
+    /// The preset's surface tilt (rows per column).
+    pub fn tilt(self) -> f64 {
+        match self {
+            Preset::Harsh => 0.004,
+            _ => 0.0,
+        }
+    }
+}
+
+/// `dropscope render`: one drop (`--radius-mm`, `--height-cm`), a list
+/// (`--drop R:H`, repeatable), or the paper's grid (`--campaign`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct RenderArgs {
+    /// Output folder; each drop gets a sub-folder named after its run.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Render the grid --radii-mm × --heights-cm (the paper's by default) and write runs.csv.
+    #[arg(long)]
+    pub campaign: bool,
+    /// Radii of the campaign grid, mm.
+    #[arg(long, value_delimiter = ',', default_values_t = campaign::PAPER_RADII_MM)]
+    pub radii_mm: Vec<f64>,
+    /// Drop heights of the campaign grid, cm.
+    #[arg(long, value_delimiter = ',', default_values_t = campaign::PAPER_HEIGHTS_CM)]
+    pub heights_cm: Vec<f64>,
+    /// Repeats of every grid point (each a new contact phase, column and noise).
+    #[arg(long, default_value_t = 1)]
+    pub repeats: usize,
+    /// Render exactly these drops, RADIUS_MM:HEIGHT_CM (repeatable or comma-separated), and write runs.csv.
+    #[arg(long = "drop", value_delimiter = ',', conflicts_with = "campaign")]
+    pub drops: Vec<String>,
+    /// Sphere radius of a single drop, mm.
+    #[arg(long, default_value_t = 4.5)]
+    pub radius_mm: f64,
+    /// Drop height of a single drop (lowest point of the sphere to the surface), cm.
+    #[arg(long, default_value_t = 12.0)]
+    pub height_cm: f64,
+    /// Seed of every random choice; the same seed gives byte-identical files.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Starting set of effects; the options below override it one by one.
+    #[arg(long, value_enum, default_value_t = Preset::Realistic)]
+    pub preset: Preset,
+    /// Frame files: tiff (uncompressed) or png.
+    #[arg(long, value_enum, default_value_t = FrameFormat::Tiff)]
+    pub format: FrameFormat,
+
+    // ---- physics
+    /// Sphere density, kg/m³.
+    #[arg(long, default_value_t = 7800.0)]
+    pub density_kg_m3: f64,
+    /// Young's modulus of the pillars, Pa.
+    #[arg(long, default_value_t = 1.6e6)]
+    pub modulus_pa: f64,
+    /// Pillar height h, mm.
+    #[arg(long, default_value_t = 3.5)]
+    pub pillar_height_mm: f64,
+    /// Pillar width b, mm.
+    #[arg(long, default_value_t = 2.5)]
+    pub pillar_width_mm: f64,
+    /// Channel width c, mm (φ = b / (b + c)).
+    #[arg(long, default_value_t = 1.5)]
+    pub channel_width_mm: f64,
+    /// Coefficient of restitution; below 1 adds linear damping solved to give it.
+    #[arg(long, default_value_t = 1.0)]
+    pub restitution: f64,
+    /// Gravity, m/s².
+    #[arg(long, default_value_t = physics::STANDARD_GRAVITY_M_S2)]
+    pub gravity_m_s2: f64,
+    /// Name of the surface written to runs.csv (a [surface.<name>] of pipeline.toml).
+    #[arg(long, default_value = "pdms")]
+    pub surface_name: String,
+
+    // ---- camera
+    /// Frame width, px.
+    #[arg(long, default_value_t = 512)]
+    pub width_px: usize,
+    /// Frame height, px.
+    #[arg(long, default_value_t = 384)]
+    pub height_px: usize,
+    /// Frames per second.
+    #[arg(long, default_value_t = 10_000.0)]
+    pub fps: f64,
+    /// Exposure time, µs.
+    #[arg(long, default_value_t = 50.0)]
+    pub exposure_us: f64,
+    /// Scale, mm/px [default: 0.04 + 0.01 per mm of R above 3 mm: R_px 75‥87.5].
+    #[arg(long)]
+    pub mm_per_px: Option<f64>,
+    /// Bits per sample, 8 or 12 [default: the preset's].
+    #[arg(long)]
+    pub bit_depth: Option<u8>,
+    /// Frames before the first contact.
+    #[arg(long, default_value_t = 30)]
+    pub frames_before: usize,
+    /// Frames after the loss of contact.
+    #[arg(long, default_value_t = 30)]
+    pub frames_after: usize,
+    /// Undeformed surface row at column 0, px [default: 0.72·height plus a random fraction].
+    #[arg(long)]
+    pub surface_row_px: Option<f64>,
+    /// Surface tilt, rows per column [default: the preset's].
+    #[arg(long)]
+    pub tilt: Option<f64>,
+
+    // ---- look (0 switches an effect off)
+    /// Illumination gradient amplitude (relative).
+    #[arg(long)]
+    pub gradient: Option<f64>,
+    /// Gaussian optical blur σ, px.
+    #[arg(long)]
+    pub blur_px: Option<f64>,
+    /// Motion blur over the exposure (true/false).
+    #[arg(long)]
+    pub motion_blur: Option<bool>,
+    /// Gaussian read noise, DN.
+    #[arg(long)]
+    pub read_noise_dn: Option<f64>,
+    /// Full-well electrons at white for Poisson shot noise.
+    #[arg(long)]
+    pub full_well_e: Option<f64>,
+    /// Relative r.m.s. frame-to-frame flicker.
+    #[arg(long)]
+    pub flicker: Option<f64>,
+    /// Number of dust specks.
+    #[arg(long)]
+    pub dust: Option<usize>,
+    /// Strength of the mirror reflection below the surface line.
+    #[arg(long)]
+    pub reflection: Option<f64>,
+    /// Background brightness at the centre, fraction of white.
+    #[arg(long)]
+    pub background_level: Option<f64>,
+    /// Light through the silhouette, fraction of the background.
+    #[arg(long)]
+    pub sphere_transmission: Option<f64>,
+
+    /// Write mm_per_px into runs.csv (by default the pipeline must measure it).
+    #[arg(long)]
+    pub manifest_scale: bool,
+}
+
+/// Validated settings shared by every drop of a render.
+#[derive(Debug, Clone)]
+pub struct RenderSettings {
+    pub preset: Preset,
+    pub look: Look,
+    pub format: FrameFormat,
+    pub seed: u64,
+    pub fps: f64,
+    pub exposure_s: f64,
+    pub width_px: usize,
+    pub height_px: usize,
+    pub mm_per_px: Option<f64>,
+    pub frames_before: usize,
+    pub frames_after: usize,
+    pub surface_row_px: Option<f64>,
+    pub surface_slope: f64,
+    pub density_kg_m3: f64,
+    pub surface: Surface,
+    pub restitution: f64,
+    pub gravity_m_s2: f64,
+}
+
+fn invalid(name: &'static str, value: impl ToString, allowed: &str) -> RenderError {
+    RenderError::Invalid {
+        name,
+        value: value.to_string(),
+        allowed: allowed.to_string(),
+    }
+}
+
+pub(super) fn positive(name: &'static str, v: f64) -> Result<f64, RenderError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(invalid(name, v, "must be a finite number > 0"))
+    }
+}
+
+impl RenderArgs {
+    /// Check the options and build the settings (errors name the option).
+    pub fn settings(&self) -> Result<RenderSettings, RenderError> {
+        let mut look = self.preset.look();
+        if let Some(b) = self.bit_depth {
+            if !matches!(b, 8 | 12) {
+                return Err(invalid("bit-depth", b, "must be 8 or 12"));
+            }
+            look.bit_depth = b;
+        }
+        let set = |target: &mut f64, v: Option<f64>, name: &'static str, max: f64| {
+            if let Some(v) = v {
+                if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                    return Err(invalid(name, v, &format!("must lie in [0, {max}]")));
+                }
+                *target = v;
+            }
+            Ok(())
+        };
+        set(&mut look.gradient, self.gradient, "gradient", 1.0)?;
+        set(&mut look.blur_sigma_px, self.blur_px, "blur-px", 20.0)?;
+        set(
+            &mut look.read_noise_dn,
+            self.read_noise_dn,
+            "read-noise-dn",
+            1e4,
+        )?;
+        set(&mut look.full_well_e, self.full_well_e, "full-well-e", 1e9)?;
+        set(&mut look.flicker, self.flicker, "flicker", 0.5)?;
+        set(&mut look.reflection, self.reflection, "reflection", 1.0)?;
+        set(
+            &mut look.background_level,
+            self.background_level,
+            "background-level",
+            1.0,
+        )?;
+        set(
+            &mut look.sphere_transmission,
+            self.sphere_transmission,
+            "sphere-transmission",
+            1.0,
+        )?;
+        if let Some(m) = self.motion_blur {
+            look.motion_blur = m;
+        }
+        if let Some(d) = self.dust {
+            if d > 1000 {
+                return Err(invalid("dust", d, "must be ≤ 1000"));
+            }
+            look.dust_count = d;
+        }
+        let fps = positive("fps", self.fps)?;
+        let exposure_s = positive("exposure-us", self.exposure_us)? / 1e6;
+        if exposure_s > 1.0 / fps {
+            return Err(invalid(
+                "exposure-us",
+                self.exposure_us,
+                "must not exceed the frame interval 1e6 / fps",
+            ));
+        }
+        for (name, v) in [("width-px", self.width_px), ("height-px", self.height_px)] {
+            if !(32..=8192).contains(&v) {
+                return Err(invalid(name, v, "must lie in 32‥8192"));
+            }
+        }
+        let mm_per_px = self
+            .mm_per_px
+            .map(|v| positive("mm-per-px", v))
+            .transpose()?;
+        let slope = self.tilt.unwrap_or(self.preset.tilt());
+        if !(slope.is_finite() && slope.abs() <= 0.2) {
+            return Err(invalid(
+                "tilt",
+                slope,
+                "must lie in [−0.2, 0.2] rows per column",
+            ));
+        }
+        if let Some(r) = self.surface_row_px {
+            if !(r.is_finite() && r > 0.0 && r < self.height_px as f64) {
+                return Err(invalid("surface-row-px", r, "must lie inside the frame"));
+            }
+        }
+        let b = positive("pillar-width-mm", self.pillar_width_mm)?;
+        let c = positive("channel-width-mm", self.channel_width_mm)?;
+        let surface = Surface {
+            modulus_pa: positive("modulus-pa", self.modulus_pa)?,
+            pillar_height_m: positive("pillar-height-mm", self.pillar_height_mm)? * 1e-3,
+            pillar_width_m: b * 1e-3,
+            channel_width_m: c * 1e-3,
+            solid_fraction: b / (b + c),
+        };
+        if !(self.restitution.is_finite() && self.restitution >= 0.05 && self.restitution <= 1.0) {
+            return Err(invalid(
+                "restitution",
+                self.restitution,
+                "must lie in [0.05, 1]",
+            ));
+        }
+        positive("gravity-m-s2", self.gravity_m_s2)?;
+        if self.repeats == 0 || self.repeats > 1000 {
+            return Err(invalid("repeats", self.repeats, "must lie in 1‥1000"));
+        }
+        Ok(RenderSettings {
+            preset: self.preset,
+            look,
+            format: self.format,
+            seed: self.seed,
+            fps,
+            exposure_s,
+            width_px: self.width_px,
+            height_px: self.height_px,
+            mm_per_px,
+            frames_before: self.frames_before,
+            frames_after: self.frames_after,
+            surface_row_px: self.surface_row_px,
+            surface_slope: slope,
+            density_kg_m3: positive("density-kg-m3", self.density_kg_m3)?,
+            surface,
+            restitution: self.restitution,
+            gravity_m_s2: self.gravity_m_s2,
+        })
+    }
+
+    /// The drops these options ask for.
+    pub fn drops(&self) -> Result<Vec<DropSpec>, RenderError> {
+        if self.campaign {
+            for (name, list) in [
+                ("radii-mm", &self.radii_mm),
+                ("heights-cm", &self.heights_cm),
+            ] {
+                if list.is_empty() || list.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                    return Err(invalid(name, format!("{list:?}"), "must be numbers > 0"));
+                }
+            }
+            Ok(campaign::grid(
+                &self.radii_mm,
+                &self.heights_cm,
+                self.repeats,
+            ))
+        } else if !self.drops.is_empty() {
+            let pairs = self
+                .drops
+                .iter()
+                .map(|d| campaign::parse_pair(d))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| invalid("drop", e, "RADIUS_MM:HEIGHT_CM"))?;
+            Ok(campaign::from_pairs(&pairs))
+        } else {
+            positive("radius-mm", self.radius_mm)?;
+            positive("height-cm", self.height_cm)?;
+            Ok(campaign::from_pairs(&[(self.radius_mm, self.height_cm)]))
+        }
+    }
+
+    /// Whether a `runs.csv` manifest is written (campaigns and drop lists).
+    pub fn writes_manifest(&self) -> bool {
+        self.campaign || !self.drops.is_empty()
+    }
+}

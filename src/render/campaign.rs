@@ -4,8 +4,6 @@
 //! 12, 25, 50} cm (Maruoka 2019, Figs. 3–4), each repeated `repeats` times, or
 //! an explicit list of `R:H` pairs. Run names read `R4.5mm_H12cm_01`.
 
-use serde::Serialize;
-
 /// The paper's sphere radii, mm.
 pub const PAPER_RADII_MM: [f64; 5] = [3.0, 4.0, 4.5, 5.0, 7.0];
 /// The paper's drop heights, cm.
@@ -78,31 +76,6 @@ pub fn parse_pair(text: &str) -> Result<(f64, f64), String> {
     Ok((num(r, "radius")?, num(h, "height")?))
 }
 
-/// One row of `runs.csv`; `path` is relative to the manifest's folder.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ManifestRow {
-    pub run: String,
-    pub path: String,
-    pub sphere_radius_mm: f64,
-    pub drop_height_cm: f64,
-    pub fps: f64,
-    /// Only written with `--manifest-scale` (otherwise the pipeline measures
-    /// the scale from the sphere, as it must for real data).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub mm_per_px: Option<f64>,
-    pub surface: String,
-    pub sphere_density_kg_m3: f64,
-}
-
-/// The manifest as CSV bytes (header + one row per run, in the given order).
-pub fn manifest_csv(rows: &[ManifestRow]) -> Result<Vec<u8>, csv::Error> {
-    let mut w = csv::Writer::from_writer(Vec::new());
-    for row in rows {
-        w.serialize(row)?;
-    }
-    w.into_inner().map_err(|e| e.into_error().into())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -126,25 +99,5 @@ mod tests {
         assert!(parse_pair("-1:3").unwrap_err().contains("radius"));
         let d = from_pairs(&[(3.0, 3.0), (3.0, 3.0)]);
         assert_eq!(d[1].run, "R3mm_H3cm_02");
-    }
-
-    #[test]
-    fn manifest_has_the_spec_columns_and_omits_the_scale_unless_asked() {
-        let row = ManifestRow {
-            run: "a".into(),
-            path: "a".into(),
-            sphere_radius_mm: 3.0,
-            drop_height_cm: 1.5,
-            fps: 10000.0,
-            mm_per_px: None,
-            surface: "pdms".into(),
-            sphere_density_kg_m3: 7800.0,
-        };
-        let text = String::from_utf8(manifest_csv(&[row]).unwrap()).unwrap();
-        assert_eq!(
-            text,
-            "run,path,sphere_radius_mm,drop_height_cm,fps,surface,sphere_density_kg_m3\n\
-             a,a,3.0,1.5,10000.0,pdms,7800.0\n"
-        );
     }
 }

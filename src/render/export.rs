@@ -48,6 +48,9 @@ pub enum FrameFormat {
     /// PNG (fast deflate, adaptive filters: smaller than `Best` on noisy
     /// frames here and 100× faster), one file per frame.
     Png,
+    /// One raw Phantom `.cine` per drop (8-bit, or 16-bit containers holding
+    /// 12-bit data), `<run>/<run>.cine`, with no XML side file.
+    Cine,
 }
 
 impl FrameFormat {
@@ -56,7 +59,17 @@ impl FrameFormat {
         match self {
             FrameFormat::Tiff => "tif",
             FrameFormat::Png => "png",
+            FrameFormat::Cine => "cine",
         }
+    }
+}
+
+/// The input path of a rendered run, relative to the campaign folder: the
+/// run folder for image sequences, the `.cine` inside it otherwise.
+pub fn run_input_path(run: &str, format: FrameFormat) -> PathBuf {
+    match format {
+        FrameFormat::Cine => Path::new(run).join(format!("{run}.cine")),
+        FrameFormat::Tiff | FrameFormat::Png => PathBuf::from(run),
     }
 }
 
@@ -90,6 +103,19 @@ pub fn encode_frame(
         )
     };
     let mut out = Vec::with_capacity(bytes.len() + 1024);
+    let format = match format {
+        FrameFormat::Cine => {
+            return Err(image::ImageError::Unsupported(
+                image::error::UnsupportedError::from_format_and_kind(
+                    image::error::ImageFormatHint::Name("cine".into()),
+                    image::error::UnsupportedErrorKind::GenericFeature(
+                        "a .cine holds the whole movie: use CineSink".into(),
+                    ),
+                ),
+            ))
+        }
+        f => f,
+    };
     match format {
         FrameFormat::Tiff => TiffEncoder::new(Cursor::new(&mut out))
             .write_image(&bytes, w as u32, h as u32, color)?,
@@ -97,6 +123,7 @@ pub fn encode_frame(
             PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Adaptive)
                 .write_image(&bytes, w as u32, h as u32, color)?
         }
+        FrameFormat::Cine => unreachable!("handled above"),
     }
     Ok(out)
 }
@@ -108,6 +135,72 @@ pub trait FrameSink: Send {
     fn write_batch(&mut self, frames: &[(i64, Frame)]) -> Result<(), ExportError>;
     /// Complete the output (a movie container writes its index here).
     fn finish(self: Box<Self>) -> Result<(), ExportError>;
+}
+
+/// The whole movie in one `.cine`, streamed frame by frame through the
+/// loader's [`CineWriter`](crate::source::cine_write::CineWriter) (written to
+/// a temporary file and moved into place by `finish`).
+pub struct CineSink {
+    path: PathBuf,
+    writer: crate::source::cine_write::CineWriter,
+}
+
+impl CineSink {
+    /// Create `path` for the movie `header` describes: 8-bit samples, or
+    /// 16-bit containers for deeper data; time stamps n/fps from the trigger.
+    pub fn create(path: &Path, header: &PccHeader) -> Result<Self, ExportError> {
+        use crate::source::cine_write::{CinePacking, CineSpec, CineWriter};
+        let spec = CineSpec {
+            width: header.width_px,
+            height: header.height_px,
+            frame_count: header.image_count,
+            packing: if header.bit_depth == 8 {
+                CinePacking::Gray8
+            } else {
+                CinePacking::Gray16
+            },
+            bit_depth: header.bit_depth,
+            fps: header.fps,
+            exposure_s: header.exposure_s,
+            first_image_no: header.first_image_no as i32,
+            trigger_unix_s: (header.trigger_10ns.div_euclid(TICKS_PER_S)) as u32,
+            timestamps_s: None,
+            ..CineSpec::default()
+        };
+        let writer = CineWriter::create(path, &spec).map_err(|e| ExportError::Encode {
+            path: path.to_path_buf(),
+            frame: header.first_image_no,
+            message: e.to_string(),
+        })?;
+        Ok(CineSink {
+            path: path.to_path_buf(),
+            writer,
+        })
+    }
+}
+
+impl FrameSink for CineSink {
+    fn write_batch(&mut self, frames: &[(i64, Frame)]) -> Result<(), ExportError> {
+        for (n, frame) in frames {
+            self.writer
+                .write_frame(frame)
+                .map_err(|e| ExportError::Encode {
+                    path: self.path.clone(),
+                    frame: *n,
+                    message: e.to_string(),
+                })?;
+        }
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>) -> Result<(), ExportError> {
+        let path = self.path.clone();
+        self.writer.finish().map_err(|e| ExportError::Encode {
+            path,
+            frame: 0,
+            message: e.to_string(),
+        })
+    }
 }
 
 /// One image file per frame in the run folder, encoded and written in parallel.

@@ -42,8 +42,9 @@ pub use options::{Preset, RenderArgs, RenderSettings};
 
 use std::path::{Path, PathBuf};
 
-use campaign::{DropSpec, ManifestRow};
-use export::{FolderSink, FrameFormat, FrameSink, PccHeader};
+use crate::manifest::ManifestRow;
+use campaign::DropSpec;
+use export::{CineSink, FolderSink, FrameFormat, FrameSink, PccHeader};
 use physics::{DropParams, Trajectory};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -150,20 +151,17 @@ pub fn render_with_progress(
             .iter()
             .map(|d| ManifestRow {
                 run: d.run.clone(),
-                path: d.run.clone(),
+                path: export::run_input_path(&d.run, args.format),
                 sphere_radius_mm: d.truth.sphere_radius_mm,
-                drop_height_cm: d.truth.drop_height_cm,
-                fps: d.truth.fps,
+                drop_height_cm: Some(d.truth.drop_height_cm),
+                fps: Some(d.truth.fps),
                 mm_per_px: args.manifest_scale.then_some(d.truth.mm_per_px),
-                surface: args.surface_name.clone(),
-                sphere_density_kg_m3: d.truth.sphere_density_kg_m3,
+                surface: Some(args.surface_name.clone()),
+                sphere_density_kg_m3: Some(d.truth.sphere_density_kg_m3),
             })
             .collect();
         let path = args.out.join("runs.csv");
-        let bytes = campaign::manifest_csv(&rows).map_err(|e| export::ExportError::Io {
-            path: path.clone(),
-            source: std::io::Error::other(e),
-        })?;
+        let bytes = crate::manifest::to_csv_bytes(&rows);
         crate::io_util::write_atomic(&path, &bytes).map_err(|source| export::ExportError::Io {
             path: path.clone(),
             source,
@@ -356,6 +354,7 @@ pub fn render_drop(
         FrameFormat::Tiff | FrameFormat::Png => {
             Box::new(FolderSink::new(&dir, run, st.format, st.look.bit_depth))
         }
+        FrameFormat::Cine => Box::new(CineSink::create(&dir.join(format!("{run}.cine")), &header)?),
     };
     for chunk in numbers.chunks(64) {
         let frames: Vec<(i64, crate::source::Frame)> = chunk
@@ -371,8 +370,10 @@ pub fn render_drop(
     }
     sink.finish()?;
 
-    // ---- side file and truth
-    export::write_pcc_xml(&dir.join(format!("{run}.xml")), &header)?;
+    // ---- side file (a .cine carries its own header) and truth
+    if st.format != FrameFormat::Cine {
+        export::write_pcc_xml(&dir.join(format!("{run}.xml")), &header)?;
+    }
 
     let frames_truth: Vec<FrameTruth> = numbers
         .iter()

@@ -24,6 +24,8 @@ enum Command {
         #[arg(long)]
         config: Option<PathBuf>,
     },
+    /// Dimensionless groups, Ψ(Ξ) and Ω(Ξ) fits, exponents and plots from a drops.csv.
+    Collapse(dropscope::collapse::CollapseArgs),
 }
 
 /// Load `--config FILE`, else `./pipeline.toml`, else the embedded default.
@@ -40,6 +42,32 @@ fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<PipelineConfig>
     })
 }
 
+/// `dropscope collapse`: exit 0 when every row was used, 1 when some were skipped.
+fn run_collapse(args: &dropscope::collapse::CollapseArgs) -> anyhow::Result<ExitCode> {
+    let cfg = load_config(args.config.as_deref())?;
+    let config_name = match &args.config {
+        Some(p) => p.display().to_string(),
+        None if std::path::Path::new("pipeline.toml").exists() => "./pipeline.toml".to_string(),
+        None => "(embedded pipeline.toml)".to_string(),
+    };
+    let s = dropscope::collapse::run(args, &cfg, &config_name)?;
+    for w in &s.warnings {
+        eprintln!("warning: {w}");
+    }
+    println!(
+        "collapse: {} drops used, {} skipped; {} files in {}",
+        s.n_used,
+        s.n_skipped,
+        s.files.len(),
+        s.out_dir.display()
+    );
+    Ok(if s.n_skipped > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<ExitCode> = match cli.command {
@@ -47,6 +75,7 @@ fn main() -> ExitCode {
             println!("{c:#?}");
             ExitCode::SUCCESS
         }),
+        Command::Collapse(args) => run_collapse(&args),
     };
     match result {
         Ok(code) => code,

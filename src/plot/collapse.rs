@@ -1,0 +1,621 @@
+//! The four collapse figures (cf. Figs. 3–4 of Maruoka 2019):
+//! `pi_vs_eta` and `tau_vs_v` (log–log, one colour and marker per sphere
+//! radius, the local power-law fit of each radius, guide slopes),
+//! `psi_vs_xi` and `omega_vs_xi` (the fitted series and the theory
+//! constants). Error bars are the first-order one-sigma errors of collapse.csv.
+
+use plotters::coord::combinators::{BindKeyPoints, LogCoord, WithKeyPoints};
+use plotters::coord::ranged1d::ValueFormatter;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::collections::BTreeMap;
+
+use super::marker::{radius_style, Marker, MarkerKind};
+use super::{render, tick, DrawResult};
+use crate::collapse::fit::{self, ExponentFit, Fits, SeriesFit};
+use crate::collapse::groups::{DropGroups, Quantity};
+use crate::collapse::CollapseError;
+
+/// Size of every collapse figure, in pixels (SVG user units).
+pub const FIGURE_SIZE: (u32, u32) = (1100, 800);
+const MARKER: i32 = 5;
+
+/// Drops of one sphere radius with its plotting style and exponent fit.
+struct RadiusSet<'a> {
+    radius_mm: f64,
+    color: RGBColor,
+    kind: MarkerKind,
+    drops: Vec<&'a DropGroups>,
+    exponent: Option<&'a ExponentFit>,
+}
+
+fn by_radius<'a>(groups: &'a [DropGroups], fits: &'a Fits) -> Vec<RadiusSet<'a>> {
+    let mut map: BTreeMap<i64, Vec<&DropGroups>> = BTreeMap::new();
+    for g in groups {
+        map.entry((g.sphere_radius_mm * 1000.0).round() as i64)
+            .or_default()
+            .push(g);
+    }
+    let mut other = 0;
+    map.into_iter()
+        .map(|(k, drops)| {
+            let radius_mm = k as f64 / 1000.0;
+            let (color, kind) = radius_style(radius_mm, other);
+            if ![3.0, 4.0, 4.5, 5.0, 7.0]
+                .iter()
+                .any(|r| (r - radius_mm).abs() < 1e-3)
+            {
+                other += 1;
+            }
+            RadiusSet {
+                radius_mm,
+                color,
+                kind,
+                drops,
+                exponent: fits
+                    .exponents
+                    .iter()
+                    .find(|e| (e.radius_mm - radius_mm).abs() < 1e-6),
+            }
+        })
+        .collect()
+}
+
+/// Tick values for a log axis over [lo, hi]: 1, 2, 5 × 10^k when that gives
+/// 4–12 labels, else every decade, else 1–9 × 10^k; and the minor grid 1–9 × 10^k.
+fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
+    let (k0, k1) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+    let pick = |mant: &[f64]| -> Vec<f64> {
+        (k0..=k1)
+            .flat_map(|k| mant.iter().map(move |m| m * 10f64.powi(k)))
+            .filter(|v| *v >= lo && *v <= hi)
+            .collect()
+    };
+    let all = pick(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+    let major = {
+        let f = pick(&[1.0, 2.0, 5.0]);
+        if (4..=12).contains(&f.len()) {
+            f
+        } else if f.len() > 12 {
+            pick(&[1.0])
+        } else {
+            all.clone()
+        }
+    };
+    (major, all)
+}
+
+/// The corner of the plot holding the fewest points (x, y normalised to
+/// [0, 1], y up), among `allowed`: where the legend hides nothing.
+fn emptiest_corner(points: &[(f64, f64)], allowed: &[SeriesLabelPosition]) -> SeriesLabelPosition {
+    let count = |p: &SeriesLabelPosition| {
+        let (left, up) = match p {
+            SeriesLabelPosition::UpperLeft => (true, true),
+            SeriesLabelPosition::UpperRight => (false, true),
+            SeriesLabelPosition::LowerLeft => (true, false),
+            _ => (false, false),
+        };
+        points
+            .iter()
+            .filter(|(x, y)| {
+                (if left { *x < 0.5 } else { *x > 0.5 }) && (if up { *y > 0.6 } else { *y < 0.4 })
+            })
+            .count()
+    };
+    let mut best = allowed[0].clone();
+    let mut best_n = count(&best);
+    for p in &allowed[1..] {
+        let n = count(p);
+        if n < best_n {
+            best = p.clone();
+            best_n = n;
+        }
+    }
+    best
+}
+
+/// Points normalised to the plot area (log or linear axes).
+fn normalised(points: &[Pt], xr: [f64; 2], yr: [f64; 2], log: bool) -> Vec<(f64, f64)> {
+    let f = |v: f64, r: [f64; 2]| {
+        if log {
+            (v.ln() - r[0].ln()) / (r[1].ln() - r[0].ln())
+        } else {
+            (v - r[0]) / (r[1] - r[0])
+        }
+    };
+    points.iter().map(|p| (f(p.0, xr), f(p.1, yr))).collect()
+}
+
+/// A lighter shade of `c` (for fitted lines, so they never hide the points).
+fn light(c: RGBColor) -> RGBColor {
+    let m = |v: u8| ((v as u16 * 5 + 255 * 3) / 8) as u8;
+    RGBColor(m(c.0), m(c.1), m(c.2))
+}
+
+/// x, y, σx, σy of one point.
+type Pt = (f64, f64, Option<f64>, Option<f64>);
+
+fn pt(x: &Quantity, y: &Quantity, xs: f64, ys: f64) -> Pt {
+    (
+        x.value * xs,
+        y.value * ys,
+        x.err().map(|e| e * xs),
+        y.err().map(|e| e * ys),
+    )
+}
+
+/// [lo, hi] of values ± errors; on a log axis the lower end stays positive.
+fn range(points: &[Pt], log: bool, extra: &[f64]) -> ([f64; 2], [f64; 2]) {
+    let mut xr = [f64::INFINITY, f64::NEG_INFINITY];
+    let mut yr = xr;
+    let grow = |r: &mut [f64; 2], v: f64, e: Option<f64>| {
+        let e = e.unwrap_or(0.0);
+        let lo = if log { (v - e).max(v * 0.5) } else { v - e };
+        r[0] = r[0].min(lo);
+        r[1] = r[1].max(v + e);
+    };
+    for &(x, y, ex, ey) in points {
+        grow(&mut xr, x, ex);
+        grow(&mut yr, y, ey);
+    }
+    for &v in extra {
+        grow(&mut yr, v, None);
+    }
+    let pad = |r: [f64; 2]| {
+        if !(r[0].is_finite() && r[1].is_finite()) {
+            return if log { [0.1, 10.0] } else { [0.0, 1.0] };
+        }
+        if log {
+            let (a, b) = (r[0].ln(), r[1].ln());
+            let m = ((b - a) * 0.08).max(0.05);
+            [(a - m).exp(), (b + m).exp()]
+        } else {
+            let m = ((r[1] - r[0]) * 0.08).max(1e-3 * r[1].abs().max(1e-9));
+            [r[0] - m, r[1] + m]
+        }
+    };
+    (pad(xr), pad(yr))
+}
+
+/// Error bars (1σ, both directions) and markers of one radius.
+fn draw_points<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    set: &RadiusSet,
+    points: &[Pt],
+    log: bool,
+    label: String,
+) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    let bar = set.color.stroke_width(1);
+    let clamp = |v: f64, e: f64| if log { (v - e).max(v * 0.5) } else { v - e };
+    let mut bars = Vec::new();
+    for &(x, y, ex, ey) in points {
+        if let Some(e) = ey.filter(|e| *e > 0.0) {
+            bars.push(PathElement::new(vec![(x, clamp(y, e)), (x, y + e)], bar));
+        }
+        if let Some(e) = ex.filter(|e| *e > 0.0) {
+            bars.push(PathElement::new(vec![(clamp(x, e), y), (x + e, y)], bar));
+        }
+    }
+    chart.draw_series(bars)?;
+    let (kind, color) = (set.kind, set.color);
+    chart
+        .draw_series(
+            points
+                .iter()
+                .map(|&(x, y, _, _)| Marker::new((x, y), kind, color, MARKER)),
+        )?
+        .label(label)
+        .legend(move |(x, y)| Marker::new((x + 10, y), kind, color, MARKER));
+    Ok(())
+}
+
+fn mesh<'a, DB, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    x_desc: &str,
+    y_desc: &str,
+    fx: &dyn Fn(&X::ValueType) -> String,
+    fy: &dyn Fn(&Y::ValueType) -> String,
+) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    X: Ranged + ValueFormatter<<X as Ranged>::ValueType>,
+    Y: Ranged + ValueFormatter<<Y as Ranged>::ValueType>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .axis_desc_style(("sans-serif", 22))
+        .label_style(("sans-serif", 17))
+        .x_label_formatter(fx)
+        .y_label_formatter(fy)
+        .light_line_style(RGBColor(235, 235, 235))
+        .bold_line_style(RGBColor(200, 200, 200))
+        .draw()?;
+    Ok(())
+}
+
+fn legend<'a, DB, CT>(chart: &mut ChartContext<'a, DB, CT>, pos: SeriesLabelPosition) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate,
+{
+    chart
+        .configure_series_labels()
+        .position(pos)
+        .background_style(WHITE.mix(0.9))
+        .border_style(RGBColor(120, 120, 120))
+        .label_font(("sans-serif", 17))
+        .margin(12)
+        .draw()?;
+    Ok(())
+}
+
+fn ci_text(v: Option<f64>, ci: Option<[f64; 2]>) -> String {
+    match (v, ci) {
+        (Some(v), Some([lo, hi])) => format!("{v:.3} [{lo:.3}, {hi:.3}]"),
+        (Some(v), None) => format!("{v:.3}"),
+        _ => "n/a".to_string(),
+    }
+}
+
+/// Fan of guide lines with the given slopes from a corner of a log–log plot
+/// (in log space: start at fraction (fx, fy) of the ranges, run `len` of the x range).
+#[allow(clippy::too_many_arguments)]
+fn guides<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    xr: [f64; 2],
+    yr: [f64; 2],
+    fx: f64,
+    fy: f64,
+    len: f64,
+    slopes: &[(f64, &str)],
+) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    let (lx0, lx1) = (xr[0].ln(), xr[1].ln());
+    let (ly0, ly1) = (yr[0].ln(), yr[1].ln());
+    let x0 = lx0 + fx * (lx1 - lx0);
+    let x1 = x0 + len * (lx1 - lx0);
+    // Start at height fy, lowered so that the steepest rising guide ends
+    // 5 % below the top.
+    let rise = slopes.iter().map(|s| s.0).fold(0.0, f64::max) * (x1 - x0);
+    let y0 = (ly0 + fy * (ly1 - ly0)).min(ly1 - 0.05 * (ly1 - ly0) - rise);
+    for &(s, label) in slopes {
+        let y1 = y0 + s * (x1 - x0);
+        let pts: Vec<(f64, f64)> = (0..=20)
+            .map(|i| {
+                let x = x0 + (x1 - x0) * i as f64 / 20.0;
+                (x.exp(), (y0 + s * (x - x0)).exp())
+            })
+            .collect();
+        chart.draw_series(DashedLineSeries::new(pts, 8, 5, BLACK.stroke_width(2)))?;
+        chart.draw_series(std::iter::once(Text::new(
+            label.to_string(),
+            ((x1 + 0.01 * (lx1 - lx0)).exp(), y1.exp()),
+            ("sans-serif", 19).into_font().color(&BLACK),
+        )))?;
+    }
+    Ok(())
+}
+
+fn title<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    text: &str,
+) -> Result<DrawingArea<DB, Shift>, Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    Ok(root.titled(text, ("sans-serif", 24))?)
+}
+
+type LogAxis = WithKeyPoints<LogCoord<f64>>;
+
+/// A log–log chart with ticks from [`log_ticks`].
+fn log_log_chart<'a, DB: DrawingBackend + 'a>(
+    area: &DrawingArea<DB, Shift>,
+    xr: [f64; 2],
+    yr: [f64; 2],
+) -> Result<ChartContext<'a, DB, Cartesian2d<LogAxis, LogAxis>>, Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    let (xm, xl) = log_ticks(xr[0], xr[1]);
+    let (ym, yl) = log_ticks(yr[0], yr[1]);
+    Ok(ChartBuilder::on(area)
+        .margin(18)
+        .x_label_area_size(60)
+        .y_label_area_size(80)
+        .build_cartesian_2d(
+            (xr[0]..xr[1])
+                .log_scale()
+                .with_key_points(xm)
+                .with_light_points(xl),
+            (yr[0]..yr[1])
+                .log_scale()
+                .with_key_points(ym)
+                .with_light_points(yl),
+        )?)
+}
+
+fn pi_vs_eta<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    let area = title(
+        root,
+        "Penetration Π = δ/R vs Cauchy number η = ρv²/E (cf. Fig. 3a)",
+    )?;
+    let pts: Vec<Vec<Pt>> = sets
+        .iter()
+        .map(|s| {
+            s.drops
+                .iter()
+                .map(|g| pt(&g.eta, &g.pi, 1.0, 1.0))
+                .collect()
+        })
+        .collect();
+    let (xr, yr) = range(&pts.concat(), true, &[]);
+    let mut chart = log_log_chart(&area, xr, yr)?;
+    mesh(
+        &mut chart,
+        "η = ρv²/E",
+        "Π = δ/R",
+        &|v| tick(*v),
+        &|v| tick(*v),
+    )?;
+    for (set, p) in sets.iter().zip(&pts) {
+        if let Some((nu, b)) = set.exponent.and_then(|e| e.nu.zip(e.nu_intercept)) {
+            let lo = p.iter().map(|q| q.0).fold(f64::INFINITY, f64::min);
+            let hi = p.iter().map(|q| q.0).fold(0.0, f64::max);
+            chart.draw_series(LineSeries::new(
+                (0..=20).map(|i| {
+                    let x = lo * (hi / lo).powf(i as f64 / 20.0);
+                    (x, (b + nu * x.ln()).exp())
+                }),
+                light(set.color).stroke_width(2),
+            ))?;
+        }
+        let e = set.exponent;
+        let label = format!(
+            "R = {} mm (n = {}): ν = {}",
+            tick(set.radius_mm),
+            set.drops.len(),
+            ci_text(e.and_then(|e| e.nu), e.and_then(|e| e.nu_ci))
+        );
+        draw_points(&mut chart, set, p, true, label)?;
+    }
+    guides(
+        &mut chart,
+        xr,
+        yr,
+        0.04,
+        0.95,
+        0.3,
+        &[(1.0 / 3.0, "1/3"), (1.0 / 6.0, "1/6")],
+    )?;
+    use SeriesLabelPosition::*;
+    let corner = emptiest_corner(
+        &normalised(&pts.concat(), xr, yr, true),
+        &[LowerRight, UpperRight, LowerLeft],
+    );
+    legend(&mut chart, corner)?;
+    Ok(())
+}
+
+fn tau_vs_v<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    let area = title(root, "Contact time τc vs impact velocity v (cf. Fig. 4a)")?;
+    let pts: Vec<Vec<Pt>> = sets
+        .iter()
+        .map(|s| {
+            s.drops
+                .iter()
+                .filter_map(|g| g.tau_c_s.map(|t| pt(&g.v_m_s, &t, 1.0, 1e3)))
+                .collect()
+        })
+        .collect();
+    let (xr, yr) = range(&pts.concat(), true, &[]);
+    // Room above the data for the guide slopes.
+    let yr = [yr[0], yr[1] * (yr[1] / yr[0]).powf(0.25)];
+    let mut chart = log_log_chart(&area, xr, yr)?;
+    mesh(
+        &mut chart,
+        "impact velocity v (m/s)",
+        "contact time τc (ms)",
+        &|v| tick(*v),
+        &|v| tick(*v),
+    )?;
+    for (set, p) in sets.iter().zip(&pts) {
+        if p.is_empty() {
+            continue;
+        }
+        if let Some((mu, b)) = set.exponent.and_then(|e| e.mu.zip(e.mu_intercept)) {
+            let lo = p.iter().map(|q| q.0).fold(f64::INFINITY, f64::min);
+            let hi = p.iter().map(|q| q.0).fold(0.0, f64::max);
+            chart.draw_series(LineSeries::new(
+                (0..=20).map(|i| {
+                    let x = lo * (hi / lo).powf(i as f64 / 20.0);
+                    (x, (b + mu * x.ln()).exp() * 1e3)
+                }),
+                light(set.color).stroke_width(2),
+            ))?;
+        }
+        let e = set.exponent;
+        let label = format!(
+            "R = {} mm (n = {}): μ = {}",
+            tick(set.radius_mm),
+            p.len(),
+            ci_text(e.and_then(|e| e.mu), e.and_then(|e| e.mu_ci))
+        );
+        draw_points(&mut chart, set, p, true, label)?;
+    }
+    guides(
+        &mut chart,
+        xr,
+        yr,
+        0.55,
+        0.95,
+        0.3,
+        &[(-1.0 / 3.0, "−1/3"), (-2.0 / 3.0, "−2/3")],
+    )?;
+    use SeriesLabelPosition::*;
+    let corner = emptiest_corner(
+        &normalised(&pts.concat(), xr, yr, true),
+        &[LowerLeft, LowerRight, UpperLeft],
+    );
+    legend(&mut chart, corner)?;
+    Ok(())
+}
+
+/// Ψ vs Ξ or Ω vs Ξ with the series and the theory constant.
+#[allow(clippy::too_many_arguments)]
+fn series_plot<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    sets: &[RadiusSet],
+    heading: &str,
+    y_desc: &str,
+    y_of: &dyn Fn(&DropGroups) -> Option<Quantity>,
+    series: Option<&SeriesFit>,
+    names: [&str; 3],
+    theory: (f64, &str),
+    crossover: Option<f64>,
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    let area = title(root, heading)?;
+    let pts: Vec<Vec<Pt>> = sets
+        .iter()
+        .map(|s| {
+            s.drops
+                .iter()
+                .filter_map(|g| y_of(g).map(|y| pt(&g.big_xi, &y, 1.0, 1.0)))
+                .collect()
+        })
+        .collect();
+    let (xr, yr) = range(&pts.concat(), false, &[theory.0]);
+    let mut chart = ChartBuilder::on(&area)
+        .margin(18)
+        .x_label_area_size(60)
+        .y_label_area_size(80)
+        .build_cartesian_2d(xr[0]..xr[1], yr[0]..yr[1])?;
+    mesh(
+        &mut chart,
+        "Ξ = ξ φ^(1/6) κ^(−1/6) η^(−1/6)",
+        y_desc,
+        &|v| tick(*v),
+        &|v| tick(*v),
+    )?;
+    chart
+        .draw_series(DashedLineSeries::new(
+            vec![(xr[0], theory.0), (xr[1], theory.0)],
+            10,
+            6,
+            RGBColor(90, 90, 90).stroke_width(2),
+        ))?
+        .label(theory.1.to_string())
+        .legend(|(x, y)| {
+            PathElement::new(
+                vec![(x, y), (x + 20, y)],
+                RGBColor(90, 90, 90).stroke_width(2),
+            )
+        });
+    if let Some(x) = crossover.filter(|x| *x > xr[0] && *x < xr[1]) {
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(x, yr[0]), (x, yr[1])],
+                3,
+                5,
+                RGBColor(120, 60, 160).stroke_width(2),
+            ))?
+            .label(format!("Ξ× = A1/A2 = {x:.3} (leading terms equal)"))
+            .legend(|(x, y)| {
+                PathElement::new(
+                    vec![(x, y), (x + 20, y)],
+                    RGBColor(120, 60, 160).stroke_width(2),
+                )
+            });
+    }
+    for (set, p) in sets.iter().zip(&pts) {
+        if p.is_empty() {
+            continue;
+        }
+        let label = format!("R = {} mm (n = {})", tick(set.radius_mm), p.len());
+        draw_points(&mut chart, set, p, false, label)?;
+    }
+    if let Some(s) = series {
+        let [lo, hi] = s.xi_range;
+        let c: Vec<f64> = s.coef.iter().map(|e| e.value).collect();
+        let pm = |k: usize| match s.coef[k].stderr {
+            Some(e) => format!("{} = {:.3} ± {:.3}", names[k], c[k], e),
+            None => format!("{} = {:.3}", names[k], c[k]),
+        };
+        chart
+            .draw_series(LineSeries::new(
+                (0..=60).map(|i| {
+                    let x = lo + (hi - lo) * i as f64 / 60.0;
+                    (x, c[0] + c[1] * x + c[2] * x * x)
+                }),
+                BLACK.stroke_width(2),
+            ))?
+            .label(format!("fit: {}, {}, {}", pm(0), pm(1), pm(2)))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+    }
+    use SeriesLabelPosition::*;
+    let mut norm = normalised(&pts.concat(), xr, yr, false);
+    // The theory line counts as occupied along its length.
+    let ty = (theory.0 - yr[0]) / (yr[1] - yr[0]);
+    norm.extend((0..20).map(|i| (i as f64 / 19.0, ty)));
+    let corner = emptiest_corner(&norm, &[UpperRight, LowerLeft, UpperLeft, LowerRight]);
+    legend(&mut chart, corner)?;
+    Ok(())
+}
+
+/// The four collapse figures as `(file name, bytes)`, SVG and PNG each.
+pub fn collapse_figures(
+    groups: &[DropGroups],
+    fits: &Fits,
+) -> Result<Vec<(String, Vec<u8>)>, CollapseError> {
+    let sets = by_radius(groups, fits);
+    let mut out = Vec::new();
+    out.extend(render!("pi_vs_eta", FIGURE_SIZE, |a| pi_vs_eta(a, &sets))?);
+    out.extend(render!("tau_vs_v", FIGURE_SIZE, |a| tau_vs_v(a, &sets))?);
+    let psi_label = format!("Ψ → 2^(1/3) = {:.4} (energy balance)", fit::psi_theory());
+    out.extend(render!("psi_vs_xi", FIGURE_SIZE, |a| series_plot(
+        a,
+        &sets,
+        "Collapse Ψ(Ξ), Ψ = Π φ^(1/3) κ^(−1/3) η^(−1/3) (Eq. 8, cf. Fig. 3b)",
+        "Ψ",
+        &|g: &DropGroups| Some(g.psi),
+        fits.psi_series.as_ref(),
+        ["A1", "A2", "A3"],
+        (fit::psi_theory(), &psi_label),
+        fits.crossover_xi.as_ref().map(|c| c.value),
+    ))?);
+    let omega_label = format!("Ω → C0 = {:.4} (energy balance)", fit::omega_theory());
+    out.extend(render!("omega_vs_xi", FIGURE_SIZE, |a| series_plot(
+        a,
+        &sets,
+        "Collapse Ω(Ξ), Ω = ω φ^(1/3) κ^(−1/3) η^(−1/3), ω = τc v/R (cf. Fig. 4b)",
+        "Ω",
+        &|g: &DropGroups| g.big_omega,
+        fits.omega_series.as_ref(),
+        ["B1", "B2", "B3"],
+        (fit::omega_theory(), &omega_label),
+        None,
+    ))?);
+    Ok(out)
+}

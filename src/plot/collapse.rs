@@ -348,76 +348,139 @@ where
         )?)
 }
 
+/// Fitted power law y = scale · exp(b) x^k over the x range of `p`.
+fn power_line<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    p: &[Pt],
+    (k, b, scale): (f64, f64, f64),
+    color: RGBColor,
+) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    let lo = p.iter().map(|q| q.0).fold(f64::INFINITY, f64::min);
+    let hi = p.iter().map(|q| q.0).fold(0.0, f64::max);
+    if !(lo > 0.0 && hi > lo) {
+        return Ok(());
+    }
+    chart.draw_series(LineSeries::new(
+        (0..=20).map(|i| {
+            let x = lo * (hi / lo).powf(i as f64 / 20.0);
+            (x, scale * (b + k * x.ln()).exp())
+        }),
+        light(color).stroke_width(2),
+    ))?;
+    Ok(())
+}
+
+/// What differs between the two log–log figures.
+struct LogLog<'s> {
+    heading: &'s str,
+    x_desc: &'s str,
+    y_desc: &'s str,
+    /// Points per radius set.
+    pts: Vec<Vec<Pt>>,
+    /// Per set: (exponent, ln prefactor, y scale) of the fitted line.
+    lines: Vec<Option<(f64, f64, f64)>>,
+    /// Legend text per set.
+    labels: Vec<String>,
+    /// Extra headroom above the data, as a fraction of the log y range.
+    headroom: f64,
+    /// Guide fan: start (fx, fy) and slopes with labels.
+    guide_at: (f64, f64),
+    guides: [(f64, &'s str); 2],
+    legend_corners: [SeriesLabelPosition; 3],
+}
+
+fn log_log<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    sets: &[RadiusSet],
+    spec: &LogLog,
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    let area = title(root, spec.heading)?;
+    let (xr, yr) = range(&spec.pts.concat(), true, &[]);
+    let yr = [yr[0], yr[1] * (yr[1] / yr[0]).powf(spec.headroom)];
+    let mut chart = log_log_chart(&area, xr, yr)?;
+    mesh(&mut chart, spec.x_desc, spec.y_desc, &|v| tick(*v), &|v| {
+        tick(*v)
+    })?;
+    // Lines first, markers last, so that no line hides a point.
+    for ((set, p), line) in sets.iter().zip(&spec.pts).zip(&spec.lines) {
+        if let Some(l) = line {
+            power_line(&mut chart, p, *l, set.color)?;
+        }
+    }
+    let (fx, fy) = spec.guide_at;
+    guides(&mut chart, xr, yr, fx, fy, 0.3, &spec.guides)?;
+    for ((set, p), label) in sets.iter().zip(&spec.pts).zip(&spec.labels) {
+        if !p.is_empty() {
+            draw_points(&mut chart, set, p, true, label.clone())?;
+        }
+    }
+    let corner = emptiest_corner(
+        &normalised(&spec.pts.concat(), xr, yr, true),
+        &spec.legend_corners,
+    );
+    legend(&mut chart, corner)?;
+    Ok(())
+}
+
 fn pi_vs_eta<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> DrawResult
 where
     DB::ErrorType: 'static,
 {
-    let area = title(
-        root,
-        "Penetration Π = δ/R vs Cauchy number η = ρv²/E (cf. Fig. 3a)",
-    )?;
-    let pts: Vec<Vec<Pt>> = sets
-        .iter()
-        .map(|s| {
-            s.drops
-                .iter()
-                .map(|g| pt(&g.eta, &g.pi, 1.0, 1.0))
-                .collect()
-        })
-        .collect();
-    let (xr, yr) = range(&pts.concat(), true, &[]);
-    let mut chart = log_log_chart(&area, xr, yr)?;
-    mesh(
-        &mut chart,
-        "η = ρv²/E",
-        "Π = δ/R",
-        &|v| tick(*v),
-        &|v| tick(*v),
-    )?;
-    for (set, p) in sets.iter().zip(&pts) {
-        if let Some((nu, b)) = set.exponent.and_then(|e| e.nu.zip(e.nu_intercept)) {
-            let lo = p.iter().map(|q| q.0).fold(f64::INFINITY, f64::min);
-            let hi = p.iter().map(|q| q.0).fold(0.0, f64::max);
-            chart.draw_series(LineSeries::new(
-                (0..=20).map(|i| {
-                    let x = lo * (hi / lo).powf(i as f64 / 20.0);
-                    (x, (b + nu * x.ln()).exp())
-                }),
-                light(set.color).stroke_width(2),
-            ))?;
-        }
-        let e = set.exponent;
-        let label = format!(
-            "R = {} mm (n = {}): ν = {}",
-            tick(set.radius_mm),
-            set.drops.len(),
-            ci_text(e.and_then(|e| e.nu), e.and_then(|e| e.nu_ci))
-        );
-        draw_points(&mut chart, set, p, true, label)?;
-    }
-    guides(
-        &mut chart,
-        xr,
-        yr,
-        0.04,
-        0.95,
-        0.3,
-        &[(1.0 / 3.0, "1/3"), (1.0 / 6.0, "1/6")],
-    )?;
     use SeriesLabelPosition::*;
-    let corner = emptiest_corner(
-        &normalised(&pts.concat(), xr, yr, true),
-        &[LowerRight, UpperRight, LowerLeft],
-    );
-    legend(&mut chart, corner)?;
-    Ok(())
+    let spec = LogLog {
+        heading: "Penetration Π = δ/R vs Cauchy number η = ρv²/E (cf. Fig. 3a)",
+        x_desc: "η = ρv²/E",
+        y_desc: "Π = δ/R",
+        pts: sets
+            .iter()
+            .map(|s| {
+                s.drops
+                    .iter()
+                    .map(|g| pt(&g.eta, &g.pi, 1.0, 1.0))
+                    .collect()
+            })
+            .collect(),
+        lines: sets
+            .iter()
+            .map(|s| {
+                s.exponent
+                    .and_then(|e| e.nu.zip(e.nu_intercept))
+                    .map(|(k, b)| (k, b, 1.0))
+            })
+            .collect(),
+        labels: sets
+            .iter()
+            .map(|s| {
+                let e = s.exponent;
+                format!(
+                    "R = {} mm (n = {}): ν = {}",
+                    tick(s.radius_mm),
+                    s.drops.len(),
+                    ci_text(e.and_then(|e| e.nu), e.and_then(|e| e.nu_ci))
+                )
+            })
+            .collect(),
+        headroom: 0.0,
+        guide_at: (0.04, 0.95),
+        guides: [(1.0 / 3.0, "1/3"), (1.0 / 6.0, "1/6")],
+        legend_corners: [LowerRight, UpperRight, LowerLeft],
+    };
+    log_log(root, sets, &spec)
 }
 
 fn tau_vs_v<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> DrawResult
 where
     DB::ErrorType: 'static,
 {
-    let area = title(root, "Contact time τc vs impact velocity v (cf. Fig. 4a)")?;
+    use SeriesLabelPosition::*;
     let pts: Vec<Vec<Pt>> = sets
         .iter()
         .map(|s| {
@@ -427,57 +490,39 @@ where
                 .collect()
         })
         .collect();
-    let (xr, yr) = range(&pts.concat(), true, &[]);
-    // Room above the data for the guide slopes.
-    let yr = [yr[0], yr[1] * (yr[1] / yr[0]).powf(0.25)];
-    let mut chart = log_log_chart(&area, xr, yr)?;
-    mesh(
-        &mut chart,
-        "impact velocity v (m/s)",
-        "contact time τc (ms)",
-        &|v| tick(*v),
-        &|v| tick(*v),
-    )?;
-    for (set, p) in sets.iter().zip(&pts) {
-        if p.is_empty() {
-            continue;
-        }
-        if let Some((mu, b)) = set.exponent.and_then(|e| e.mu.zip(e.mu_intercept)) {
-            let lo = p.iter().map(|q| q.0).fold(f64::INFINITY, f64::min);
-            let hi = p.iter().map(|q| q.0).fold(0.0, f64::max);
-            chart.draw_series(LineSeries::new(
-                (0..=20).map(|i| {
-                    let x = lo * (hi / lo).powf(i as f64 / 20.0);
-                    (x, (b + mu * x.ln()).exp() * 1e3)
-                }),
-                light(set.color).stroke_width(2),
-            ))?;
-        }
-        let e = set.exponent;
-        let label = format!(
-            "R = {} mm (n = {}): μ = {}",
-            tick(set.radius_mm),
-            p.len(),
-            ci_text(e.and_then(|e| e.mu), e.and_then(|e| e.mu_ci))
-        );
-        draw_points(&mut chart, set, p, true, label)?;
-    }
-    guides(
-        &mut chart,
-        xr,
-        yr,
-        0.55,
-        0.95,
-        0.3,
-        &[(-1.0 / 3.0, "−1/3"), (-2.0 / 3.0, "−2/3")],
-    )?;
-    use SeriesLabelPosition::*;
-    let corner = emptiest_corner(
-        &normalised(&pts.concat(), xr, yr, true),
-        &[LowerLeft, LowerRight, UpperLeft],
-    );
-    legend(&mut chart, corner)?;
-    Ok(())
+    let spec = LogLog {
+        heading: "Contact time τc vs impact velocity v (cf. Fig. 4a)",
+        x_desc: "impact velocity v (m/s)",
+        y_desc: "contact time τc (ms)",
+        lines: sets
+            .iter()
+            .map(|s| {
+                s.exponent
+                    .and_then(|e| e.mu.zip(e.mu_intercept))
+                    .map(|(k, b)| (k, b, 1e3))
+            })
+            .collect(),
+        labels: sets
+            .iter()
+            .zip(&pts)
+            .map(|(s, p)| {
+                let e = s.exponent;
+                format!(
+                    "R = {} mm (n = {}): μ = {}",
+                    tick(s.radius_mm),
+                    p.len(),
+                    ci_text(e.and_then(|e| e.mu), e.and_then(|e| e.mu_ci))
+                )
+            })
+            .collect(),
+        pts,
+        // Room above the data for the guide slopes.
+        headroom: 0.25,
+        guide_at: (0.55, 0.95),
+        guides: [(-1.0 / 3.0, "−1/3"), (-2.0 / 3.0, "−2/3")],
+        legend_corners: [LowerLeft, LowerRight, UpperLeft],
+    };
+    log_log(root, sets, &spec)
 }
 
 /// Ψ vs Ξ or Ω vs Ξ with the series and the theory constant.
@@ -549,13 +594,6 @@ where
                 )
             });
     }
-    for (set, p) in sets.iter().zip(&pts) {
-        if p.is_empty() {
-            continue;
-        }
-        let label = format!("R = {} mm (n = {})", tick(set.radius_mm), p.len());
-        draw_points(&mut chart, set, p, false, label)?;
-    }
     if let Some(s) = series {
         let [lo, hi] = s.xi_range;
         let c: Vec<f64> = s.coef.iter().map(|e| e.value).collect();
@@ -573,6 +611,13 @@ where
             ))?
             .label(format!("fit: {}, {}, {}", pm(0), pm(1), pm(2)))
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+    }
+    for (set, p) in sets.iter().zip(&pts) {
+        if p.is_empty() {
+            continue;
+        }
+        let label = format!("R = {} mm (n = {})", tick(set.radius_mm), p.len());
+        draw_points(&mut chart, set, p, false, label)?;
     }
     use SeriesLabelPosition::*;
     let mut norm = normalised(&pts.concat(), xr, yr, false);

@@ -96,6 +96,29 @@ fn eq8_dataset_recovers_its_coefficients_within_their_intervals() {
 }
 
 #[test]
+fn fixed_exponent_asymptotes_recover_their_constants() {
+    // Ψ = 1.26 for every drop (Eq. 5 with c1 = 1.26), then Ψ = 0.9 Ξ
+    // (Eq. 7 with c2 = 0.9): each constant lies in its 95 % interval.
+    let spec = SyntheticSpec::paper(20, 21);
+    let recs = eq8_dataset(&spec, [1.26, 0.0, 0.0], [3.53, 0.0, 0.0], [0.5, 1.6]);
+    let (_d, fits) = run(&recs, false);
+    let c1 = &fits["asymptotes"]["eq5_c1"]["constant"];
+    let (lo, hi) = (f(&c1["ci95"][0]), f(&c1["ci95"][1]));
+    assert!(lo <= 1.26 && 1.26 <= hi, "c1 {c1}");
+    let d1 = &fits["asymptotes"]["eq1e_d1"]["constant"];
+    let (lo, hi) = (f(&d1["ci95"][0]), f(&d1["ci95"][1]));
+    assert!(lo <= 3.53 && 3.53 <= hi, "d1 {d1}");
+    let recs = eq8_dataset(&spec, [0.0, 0.9, 0.0], [0.0, 2.8, 0.0], [0.5, 1.6]);
+    let (_d, fits) = run(&recs, false);
+    let c2 = &fits["asymptotes"]["eq7_c2"]["constant"];
+    let (lo, hi) = (f(&c2["ci95"][0]), f(&c2["ci95"][1]));
+    assert!(lo <= 0.9 && 0.9 <= hi, "c2 {c2}");
+    let d2 = &fits["asymptotes"]["eq11_d2"]["constant"];
+    let (lo, hi) = (f(&d2["ci95"][0]), f(&d2["ci95"][1]));
+    assert!(lo <= 2.8 && 2.8 <= hi, "d2 {d2}");
+}
+
+#[test]
 fn pure_power_laws_give_their_exponents() {
     // R = 3 mm: Π ∝ η^(1/6), τc ∝ v^(−2/3); R = 7 mm: Π ∝ η^(1/3), τc ∝ v^(−1/3).
     // Noise 0.1 % on v, 0.3 % on δ, a, τc: the slope's standard error is

@@ -85,35 +85,6 @@ fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
     (major, all)
 }
 
-/// The corner of the plot holding the fewest points (x, y normalised to
-/// [0, 1], y up), among `allowed`: where the legend hides nothing.
-fn emptiest_corner(points: &[(f64, f64)], allowed: &[SeriesLabelPosition]) -> SeriesLabelPosition {
-    let count = |p: &SeriesLabelPosition| {
-        let (left, up) = match p {
-            SeriesLabelPosition::UpperLeft => (true, true),
-            SeriesLabelPosition::UpperRight => (false, true),
-            SeriesLabelPosition::LowerLeft => (true, false),
-            _ => (false, false),
-        };
-        points
-            .iter()
-            .filter(|(x, y)| {
-                (if left { *x < 0.5 } else { *x > 0.5 }) && (if up { *y > 0.6 } else { *y < 0.4 })
-            })
-            .count()
-    };
-    let mut best = allowed[0].clone();
-    let mut best_n = count(&best);
-    for p in &allowed[1..] {
-        let n = count(p);
-        if n < best_n {
-            best = p.clone();
-            best_n = n;
-        }
-    }
-    best
-}
-
 /// Points normalised to the plot area (log or linear axes).
 fn normalised(points: &[Pt], xr: [f64; 2], yr: [f64; 2], log: bool) -> Vec<(f64, f64)> {
     let f = |v: f64, r: [f64; 2]| {
@@ -266,47 +237,114 @@ fn ci_text(v: Option<f64>, ci: Option<[f64; 2]>) -> String {
     }
 }
 
-/// Fan of guide lines with the given slopes from a corner of a log–log plot
-/// (in log space: start at fraction (fx, fy) of the ranges, run `len` of the x range).
-#[allow(clippy::too_many_arguments)]
-fn guides<'a, DB, CT>(
-    chart: &mut ChartContext<'a, DB, CT>,
+/// A guide line: its points (data coordinates), label and label position.
+type Guide = (Vec<(f64, f64)>, String, (f64, f64));
+
+/// Fan of guide lines with the given slopes in a log–log plot, starting at
+/// fraction (fx, fy) of the log ranges and running `len` of the x range; the
+/// start is lowered so that the steepest rising guide ends 5 % below the top.
+fn guide_lines(
     xr: [f64; 2],
     yr: [f64; 2],
-    fx: f64,
-    fy: f64,
+    (fx, fy): (f64, f64),
     len: f64,
     slopes: &[(f64, &str)],
-) -> DrawResult
+) -> Vec<Guide> {
+    let (lx0, lx1) = (xr[0].ln(), xr[1].ln());
+    let (ly0, ly1) = (yr[0].ln(), yr[1].ln());
+    let x0 = lx0 + fx * (lx1 - lx0);
+    let x1 = x0 + len * (lx1 - lx0);
+    let rise = slopes.iter().map(|s| s.0).fold(0.0, f64::max) * (x1 - x0);
+    let y0 = (ly0 + fy * (ly1 - ly0)).min(ly1 - 0.05 * (ly1 - ly0) - rise);
+    slopes
+        .iter()
+        .map(|&(s, label)| {
+            let pts = (0..=20)
+                .map(|i| {
+                    let x = x0 + (x1 - x0) * i as f64 / 20.0;
+                    (x.exp(), (y0 + s * (x - x0)).exp())
+                })
+                .collect();
+            let at = ((x1 + 0.01 * (lx1 - lx0)).exp(), (y0 + s * (x1 - x0)).exp());
+            (pts, label.to_string(), at)
+        })
+        .collect()
+}
+
+fn draw_guides<'a, DB, CT>(chart: &mut ChartContext<'a, DB, CT>, guides: &[Guide]) -> DrawResult
 where
     DB: DrawingBackend + 'a,
     DB::ErrorType: 'static,
     CT: CoordTranslate<From = (f64, f64)>,
 {
-    let (lx0, lx1) = (xr[0].ln(), xr[1].ln());
-    let (ly0, ly1) = (yr[0].ln(), yr[1].ln());
-    let x0 = lx0 + fx * (lx1 - lx0);
-    let x1 = x0 + len * (lx1 - lx0);
-    // Start at height fy, lowered so that the steepest rising guide ends
-    // 5 % below the top.
-    let rise = slopes.iter().map(|s| s.0).fold(0.0, f64::max) * (x1 - x0);
-    let y0 = (ly0 + fy * (ly1 - ly0)).min(ly1 - 0.05 * (ly1 - ly0) - rise);
-    for &(s, label) in slopes {
-        let y1 = y0 + s * (x1 - x0);
-        let pts: Vec<(f64, f64)> = (0..=20)
-            .map(|i| {
-                let x = x0 + (x1 - x0) * i as f64 / 20.0;
-                (x.exp(), (y0 + s * (x - x0)).exp())
-            })
-            .collect();
-        chart.draw_series(DashedLineSeries::new(pts, 8, 5, BLACK.stroke_width(2)))?;
+    for (pts, label, at) in guides {
+        chart.draw_series(DashedLineSeries::new(
+            pts.iter().copied(),
+            8,
+            5,
+            BLACK.stroke_width(2),
+        ))?;
         chart.draw_series(std::iter::once(Text::new(
-            label.to_string(),
-            ((x1 + 0.01 * (lx1 - lx0)).exp(), y1.exp()),
+            label.clone(),
+            *at,
             ("sans-serif", 19).into_font().color(&BLACK),
         )))?;
     }
     Ok(())
+}
+
+/// Approximate plotting-area size of a collapse figure, for legend layout.
+const PLOT_AREA_PX: (f64, f64) = (1000.0, 660.0);
+
+/// Legend box size as fractions of the plotting area (17 px DejaVu Sans:
+/// ≈ 9.5 px per character, 22 px per entry, plus the marker and margins).
+fn legend_box(labels: &[String]) -> (f64, f64) {
+    let chars = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0) as f64;
+    (
+        ((chars * 9.5 + 60.0) / PLOT_AREA_PX.0).min(0.95),
+        ((labels.len() as f64 * 22.0 + 30.0) / PLOT_AREA_PX.1).min(0.9),
+    )
+}
+
+/// Where the legend goes: the allowed corner whose legend-sized box holds
+/// no point (normalised coordinates, y up; `occupied` includes lines),
+/// else `None`.
+fn free_corner(
+    occupied: &[(f64, f64)],
+    (w, h): (f64, f64),
+    allowed: &[SeriesLabelPosition],
+) -> Option<SeriesLabelPosition> {
+    allowed
+        .iter()
+        .find(|p| {
+            let (left, up) = match p {
+                SeriesLabelPosition::UpperLeft => (true, true),
+                SeriesLabelPosition::UpperRight => (false, true),
+                SeriesLabelPosition::LowerLeft => (true, false),
+                _ => (false, false),
+            };
+            !occupied.iter().any(|&(x, y)| {
+                let in_x = if left {
+                    x < w + 0.03
+                } else {
+                    x > 1.0 - w - 0.03
+                };
+                let in_y = if up { y > 1.0 - h - 0.03 } else { y < h + 0.03 };
+                in_x && in_y
+            })
+        })
+        .cloned()
+}
+
+/// Raise the top of a y range so that a band of height fraction `h` above
+/// the current top is free for the legend (log or linear axis).
+fn with_band(yr: [f64; 2], h: f64, log: bool) -> [f64; 2] {
+    let k = 1.0 / (1.0 - h - 0.04);
+    if log {
+        [yr[0], yr[0] * (yr[1] / yr[0]).powf(k)]
+    } else {
+        [yr[0], yr[0] + (yr[1] - yr[0]) * k]
+    }
 }
 
 fn title<DB: DrawingBackend>(
@@ -391,6 +429,8 @@ struct LogLog<'s> {
     /// Guide fan: start (fx, fy) and slopes with labels.
     guide_at: (f64, f64),
     guides: [(f64, &'s str); 2],
+    /// Legend corners to try, best first; the last is used in a band
+    /// added above the data when none is free.
     legend_corners: [SeriesLabelPosition; 3],
 }
 
@@ -403,8 +443,25 @@ where
     DB::ErrorType: 'static,
 {
     let area = title(root, spec.heading)?;
-    let (xr, yr) = range(&spec.pts.concat(), true, &[]);
-    let yr = [yr[0], yr[1] * (yr[1] / yr[0]).powf(spec.headroom)];
+    let all = spec.pts.concat();
+    let (xr, yr) = range(&all, true, &[]);
+    let mut yr = [yr[0], yr[1] * (yr[1] / yr[0]).powf(spec.headroom)];
+    let lbox = legend_box(&spec.labels);
+    let occupied = |yr: [f64; 2]| {
+        let mut o = normalised(&all, xr, yr, true);
+        for (g, _, _) in guide_lines(xr, yr, spec.guide_at, 0.3, &spec.guides) {
+            let gp: Vec<Pt> = g.iter().map(|&(x, y)| (x, y, None, None)).collect();
+            o.extend(normalised(&gp, xr, yr, true));
+        }
+        o
+    };
+    let corner = match free_corner(&occupied(yr), lbox, &spec.legend_corners) {
+        Some(c) => c,
+        None => {
+            yr = with_band(yr, lbox.1, true);
+            spec.legend_corners[2].clone()
+        }
+    };
     let mut chart = log_log_chart(&area, xr, yr)?;
     mesh(&mut chart, spec.x_desc, spec.y_desc, &|v| tick(*v), &|v| {
         tick(*v)
@@ -415,17 +472,15 @@ where
             power_line(&mut chart, p, *l, set.color)?;
         }
     }
-    let (fx, fy) = spec.guide_at;
-    guides(&mut chart, xr, yr, fx, fy, 0.3, &spec.guides)?;
+    draw_guides(
+        &mut chart,
+        &guide_lines(xr, yr, spec.guide_at, 0.3, &spec.guides),
+    )?;
     for ((set, p), label) in sets.iter().zip(&spec.pts).zip(&spec.labels) {
         if !p.is_empty() {
             draw_points(&mut chart, set, p, true, label.clone())?;
         }
     }
-    let corner = emptiest_corner(
-        &normalised(&spec.pts.concat(), xr, yr, true),
-        &spec.legend_corners,
-    );
     legend(&mut chart, corner)?;
     Ok(())
 }
@@ -471,7 +526,7 @@ where
         headroom: 0.0,
         guide_at: (0.04, 0.95),
         guides: [(1.0 / 3.0, "1/3"), (1.0 / 6.0, "1/6")],
-        legend_corners: [LowerRight, UpperRight, LowerLeft],
+        legend_corners: [LowerRight, LowerLeft, UpperRight],
     };
     log_log(root, sets, &spec)
 }
@@ -541,6 +596,8 @@ fn series_plot<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
+    const THEORY: RGBColor = RGBColor(90, 90, 90);
+    const CROSS: RGBColor = RGBColor(120, 60, 160);
     let area = title(root, heading)?;
     let pts: Vec<Vec<Pt>> = sets
         .iter()
@@ -551,7 +608,67 @@ where
                 .collect()
         })
         .collect();
-    let (xr, yr) = range(&pts.concat(), false, &[theory.0]);
+    let all = pts.concat();
+    let (xr, mut yr) = range(&all, false, &[theory.0]);
+    let crossover = crossover.filter(|x| *x > xr[0] && *x < xr[1]);
+    let curve: Vec<(f64, f64)> = series
+        .map(|s| {
+            let [lo, hi] = s.xi_range;
+            let c: Vec<f64> = s.coef.iter().map(|e| e.value).collect();
+            (0..=60)
+                .map(|i| {
+                    let x = lo + (hi - lo) * i as f64 / 60.0;
+                    (x, c[0] + c[1] * x + c[2] * x * x)
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let fit_label = series.map(|s| {
+        let pm = |k: usize| match s.coef[k].stderr {
+            Some(e) => format!("{} = {:.3} ± {:.3}", names[k], s.coef[k].value, e),
+            None => format!("{} = {:.3}", names[k], s.coef[k].value),
+        };
+        format!("fit: {}, {}, {}", pm(0), pm(1), pm(2))
+    });
+    let cross_label = crossover.map(|x| format!("Ξ× = A1/A2 = {x:.3} (leading terms equal)"));
+    let mut labels = vec![theory.1.to_string()];
+    labels.extend(cross_label.clone());
+    labels.extend(fit_label.clone());
+    for (set, p) in sets.iter().zip(&pts) {
+        labels.push(format!("R = {} mm (n = {})", tick(set.radius_mm), p.len()));
+    }
+
+    // Legend: a corner free of points and lines, else a band above them.
+    use SeriesLabelPosition::*;
+    let lbox = legend_box(&labels);
+    let mut occupied = normalised(&all, xr, yr, false);
+    let extra: Vec<Pt> = (0..=40)
+        .map(|i| {
+            (
+                xr[0] + (xr[1] - xr[0]) * i as f64 / 40.0,
+                theory.0,
+                None,
+                None,
+            )
+        })
+        .chain(curve.iter().map(|&(x, y)| (x, y, None, None)))
+        .chain(crossover.into_iter().flat_map(|x| {
+            (0..=20).map(move |i| (x, yr[0] + (yr[1] - yr[0]) * i as f64 / 20.0, None, None))
+        }))
+        .collect();
+    occupied.extend(normalised(&extra, xr, yr, false));
+    let corner = match free_corner(
+        &occupied,
+        lbox,
+        &[UpperRight, UpperLeft, LowerLeft, LowerRight],
+    ) {
+        Some(c) => c,
+        None => {
+            yr = with_band(yr, lbox.1, false);
+            UpperRight
+        }
+    };
+
     let mut chart = ChartBuilder::on(&area)
         .margin(18)
         .x_label_area_size(60)
@@ -569,62 +686,34 @@ where
             vec![(xr[0], theory.0), (xr[1], theory.0)],
             10,
             6,
-            RGBColor(90, 90, 90).stroke_width(2),
+            THEORY.stroke_width(2),
         ))?
         .label(theory.1.to_string())
-        .legend(|(x, y)| {
-            PathElement::new(
-                vec![(x, y), (x + 20, y)],
-                RGBColor(90, 90, 90).stroke_width(2),
-            )
-        });
-    if let Some(x) = crossover.filter(|x| *x > xr[0] && *x < xr[1]) {
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], THEORY.stroke_width(2)));
+    if let (Some(x), Some(label)) = (crossover, cross_label) {
         chart
             .draw_series(DashedLineSeries::new(
                 vec![(x, yr[0]), (x, yr[1])],
                 3,
                 5,
-                RGBColor(120, 60, 160).stroke_width(2),
+                CROSS.stroke_width(2),
             ))?
-            .label(format!("Ξ× = A1/A2 = {x:.3} (leading terms equal)"))
-            .legend(|(x, y)| {
-                PathElement::new(
-                    vec![(x, y), (x + 20, y)],
-                    RGBColor(120, 60, 160).stroke_width(2),
-                )
-            });
+            .label(label)
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], CROSS.stroke_width(2)));
     }
-    if let Some(s) = series {
-        let [lo, hi] = s.xi_range;
-        let c: Vec<f64> = s.coef.iter().map(|e| e.value).collect();
-        let pm = |k: usize| match s.coef[k].stderr {
-            Some(e) => format!("{} = {:.3} ± {:.3}", names[k], c[k], e),
-            None => format!("{} = {:.3}", names[k], c[k]),
-        };
+    if let Some(label) = fit_label {
         chart
-            .draw_series(LineSeries::new(
-                (0..=60).map(|i| {
-                    let x = lo + (hi - lo) * i as f64 / 60.0;
-                    (x, c[0] + c[1] * x + c[2] * x * x)
-                }),
-                BLACK.stroke_width(2),
-            ))?
-            .label(format!("fit: {}, {}, {}", pm(0), pm(1), pm(2)))
+            .draw_series(LineSeries::new(curve, BLACK.stroke_width(2)))?
+            .label(label)
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
     }
+    // Markers last, so that no line hides a point.
     for (set, p) in sets.iter().zip(&pts) {
-        if p.is_empty() {
-            continue;
+        if !p.is_empty() {
+            let label = format!("R = {} mm (n = {})", tick(set.radius_mm), p.len());
+            draw_points(&mut chart, set, p, false, label)?;
         }
-        let label = format!("R = {} mm (n = {})", tick(set.radius_mm), p.len());
-        draw_points(&mut chart, set, p, false, label)?;
     }
-    use SeriesLabelPosition::*;
-    let mut norm = normalised(&pts.concat(), xr, yr, false);
-    // The theory line counts as occupied along its length.
-    let ty = (theory.0 - yr[0]) / (yr[1] - yr[0]);
-    norm.extend((0..20).map(|i| (i as f64 / 19.0, ty)));
-    let corner = emptiest_corner(&norm, &[UpperRight, LowerLeft, UpperLeft, LowerRight]);
     legend(&mut chart, corner)?;
     Ok(())
 }

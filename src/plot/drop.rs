@@ -26,10 +26,13 @@ fn span(v: impl Iterator<Item = f64>) -> [f64; 2] {
     [lo - m, hi + m]
 }
 
+/// Dashed vertical lines at contact and rebound, labelled near the top
+/// (`at_top`) or the bottom of the panel.
 fn events<'a, DB, CT>(
     chart: &mut ChartContext<'a, DB, CT>,
     d: &DropDiagnostics,
     yr: [f64; 2],
+    at_top: bool,
 ) -> DrawResult
 where
     DB: DrawingBackend + 'a,
@@ -47,7 +50,14 @@ where
             ))?;
             chart.draw_series(std::iter::once(Text::new(
                 format!(" {name}"),
-                (t_ms, yr[1] - 0.04 * (yr[1] - yr[0])),
+                (
+                    t_ms,
+                    if at_top {
+                        yr[1] - 0.04 * (yr[1] - yr[0])
+                    } else {
+                        yr[0] + 0.08 * (yr[1] - yr[0])
+                    },
+                ),
                 ("sans-serif", 16).into_font().color(&EVENT),
             )))?;
         }
@@ -115,7 +125,7 @@ where
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], FIT.stroke_width(2)));
         }
     }
-    events(&mut c, d, [zr[1], zr[0]])?;
+    events(&mut c, d, [zr[1], zr[0]], true)?;
     c.configure_series_labels()
         .position(SeriesLabelPosition::LowerRight)
         .background_style(WHITE.mix(0.9))
@@ -152,7 +162,7 @@ where
         ds.iter()
             .map(|&p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
     )?;
-    events(&mut c, d, dr)?;
+    events(&mut c, d, dr, false)?;
 
     // F(δ).
     let fs: Vec<(f64, f64)> = d

@@ -115,6 +115,7 @@ pub struct ExponentFit {
     pub mu_intercept: Option<f64>,
     /// Drops with a contact time (those in the μ fit).
     pub n_tau: usize,
+    /// True when ν and μ were both fitted with effective-variance weights.
     pub weighted: bool,
 }
 
@@ -440,8 +441,11 @@ fn exponents(
             mu_ci: None,
             mu_intercept: None,
             n_tau: tau_obs.len(),
-            weighted: true,
+            weighted: false,
         };
+        // True once a fit ran, and stays true only if every fit was weighted.
+        let mut any_fit = false;
+        let mut all_weighted = true;
         let name = format!("nu (R = {radius_mm} mm)");
         if pi_obs.len() >= 3 {
             if let Some(r) = fit_and_bootstrap(&pi_obs, 1, settings, &name, &slope, warnings) {
@@ -450,7 +454,8 @@ fn exponents(
                 e.nu_stderr = est.stderr;
                 e.nu_ci = est.ci95;
                 e.nu_intercept = Some(r.fit.coef[0]);
-                e.weighted &= r.weighted;
+                any_fit = true;
+                all_weighted &= r.weighted;
             } else {
                 warnings.push(format!("{name}: all drops at one velocity; no exponent"));
             }
@@ -468,7 +473,8 @@ fn exponents(
                 e.mu_stderr = est.stderr;
                 e.mu_ci = est.ci95;
                 e.mu_intercept = Some(r.fit.coef[0]);
-                e.weighted &= r.weighted;
+                any_fit = true;
+                all_weighted &= r.weighted;
             } else {
                 warnings.push(format!("{name}: all drops at one velocity; no exponent"));
             }
@@ -478,6 +484,7 @@ fn exponents(
                 tau_obs.len()
             ));
         }
+        e.weighted = any_fit && all_weighted;
         out.push(e);
     }
     out

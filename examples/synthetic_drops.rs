@@ -15,7 +15,8 @@ fn main() -> anyhow::Result<()> {
     );
     std::fs::create_dir_all(dir.join("tracks"))?;
     let spec = SyntheticSpec::paper(30, 1);
-    let mut recs = eq8_dataset(&spec, [1.26, -0.30, 0.05], [3.53, -0.80, 0.20], [0.5, 1.6]);
+    // A1 = 2^(1/3) and B1 = C0 (the energy balance); crossover A1/A2 = 1.4.
+    let mut recs = eq8_dataset(&spec, [1.26, 0.9, -0.15], [3.53, 1.5, -0.3], [0.5, 1.5]);
     // Tracks for the first drop of each radius, from the contact ODE; their
     // event times go into the records.
     for rec in recs

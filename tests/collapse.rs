@@ -119,6 +119,33 @@ fn fixed_exponent_asymptotes_recover_their_constants() {
 }
 
 #[test]
+fn the_crossover_splits_the_regimes_of_the_asymptotes() {
+    // Ψ = 1.26 + 0.9 Ξ − 0.15 Ξ²: the leading terms of Eq. 8 are equal at
+    // Ξ× = 1.26/0.9 = 1.4.
+    let recs = eq8_dataset(
+        &SyntheticSpec::paper(30, 8),
+        [1.26, 0.9, -0.15],
+        [3.53, 1.5, -0.3],
+        [0.5, 1.5],
+    );
+    let (_d, fits) = run(&recs, false);
+    assert_eq!(fits["n_skipped"], 0);
+    let x = &fits["crossover_xi"];
+    let (lo, hi) = (f(&x["ci95"][0]), f(&x["ci95"][1]));
+    assert!(lo <= 1.4 && 1.4 <= hi, "crossover {x}");
+    // Each asymptote is fitted on its own side of the crossover.
+    let sel5 = fits["asymptotes"]["eq5_c1"]["selection"].as_str().unwrap();
+    let sel7 = fits["asymptotes"]["eq7_c2"]["selection"].as_str().unwrap();
+    assert!(
+        sel5.starts_with("Xi < 1.") && sel7.starts_with("Xi >= 1."),
+        "{sel5} / {sel7}"
+    );
+    let n5 = fits["asymptotes"]["eq5_c1"]["n_drops"].as_u64().unwrap();
+    let n7 = fits["asymptotes"]["eq7_c2"]["n_drops"].as_u64().unwrap();
+    assert_eq!(n5 + n7, 150);
+}
+
+#[test]
 fn pure_power_laws_give_their_exponents() {
     // R = 3 mm: Π ∝ η^(1/6), τc ∝ v^(−2/3); R = 7 mm: Π ∝ η^(1/3), τc ∝ v^(−1/3).
     // Noise 0.1 % on v, 0.3 % on δ, a, τc: the slope's standard error is

@@ -297,11 +297,11 @@ where
 const PLOT_AREA_PX: (f64, f64) = (1000.0, 660.0);
 
 /// Legend box size as fractions of the plotting area (17 px DejaVu Sans:
-/// ≈ 9.5 px per character, 22 px per entry, plus the marker and margins).
+/// ≈ 7.6 px per character on average, 22 px per entry, plus the marker and margins).
 fn legend_box(labels: &[String]) -> (f64, f64) {
     let chars = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0) as f64;
     (
-        ((chars * 9.5 + 60.0) / PLOT_AREA_PX.0).min(0.95),
+        ((chars * 7.6 + 60.0) / PLOT_AREA_PX.0).min(0.95),
         ((labels.len() as f64 * 22.0 + 30.0) / PLOT_AREA_PX.1).min(0.9),
     )
 }
@@ -609,26 +609,30 @@ where
         })
         .collect();
     let all = pts.concat();
-    let (xr, mut yr) = range(&all, false, &[theory.0]);
+    // The fitted series over the data, and its extrapolation to Ξ = 0, where
+    // it is to be compared with the theory constant (A1 vs 2^(1/3), B1 vs C0).
+    let poly = |s: &SeriesFit, lo: f64, hi: f64| -> Vec<(f64, f64)> {
+        (0..=60)
+            .map(|i| {
+                let x = lo + (hi - lo) * i as f64 / 60.0;
+                let c = &s.coef;
+                (x, c[0].value + c[1].value * x + c[2].value * x * x)
+            })
+            .collect()
+    };
+    let curve = series.map_or(Vec::new(), |s| poly(s, s.xi_range[0], s.xi_range[1]));
+    let extrapolation = series.map_or(Vec::new(), |s| poly(s, 0.0, s.xi_range[0]));
+    let mut extra_y: Vec<f64> = extrapolation.iter().map(|p| p.1).collect();
+    extra_y.push(theory.0);
+    let (xr, mut yr) = range(&all, false, &extra_y);
+    let xr = [0.0, xr[1]];
     let crossover = crossover.filter(|x| *x > xr[0] && *x < xr[1]);
-    let curve: Vec<(f64, f64)> = series
-        .map(|s| {
-            let [lo, hi] = s.xi_range;
-            let c: Vec<f64> = s.coef.iter().map(|e| e.value).collect();
-            (0..=60)
-                .map(|i| {
-                    let x = lo + (hi - lo) * i as f64 / 60.0;
-                    (x, c[0] + c[1] * x + c[2] * x * x)
-                })
-                .collect()
-        })
-        .unwrap_or_default();
     let fit_label = series.map(|s| {
         let pm = |k: usize| match s.coef[k].stderr {
             Some(e) => format!("{} = {:.3} ± {:.3}", names[k], s.coef[k].value, e),
             None => format!("{} = {:.3}", names[k], s.coef[k].value),
         };
-        format!("fit: {}, {}, {}", pm(0), pm(1), pm(2))
+        format!("fit: {}, {}, {} (dashed: to Ξ = 0)", pm(0), pm(1), pm(2))
     });
     let cross_label = crossover.map(|x| format!("Ξ× = A1/A2 = {x:.3} (leading terms equal)"));
     let mut labels = vec![theory.1.to_string()];
@@ -651,7 +655,12 @@ where
                 None,
             )
         })
-        .chain(curve.iter().map(|&(x, y)| (x, y, None, None)))
+        .chain(
+            curve
+                .iter()
+                .chain(&extrapolation)
+                .map(|&(x, y)| (x, y, None, None)),
+        )
         .chain(crossover.into_iter().flat_map(|x| {
             (0..=20).map(move |i| (x, yr[0] + (yr[1] - yr[0]) * i as f64 / 20.0, None, None))
         }))
@@ -665,7 +674,11 @@ where
         Some(c) => c,
         None => {
             yr = with_band(yr, lbox.1, false);
-            UpperRight
+            // In the band only the vertical crossover line can be in the way.
+            match crossover.map(|x| (x - xr[0]) / (xr[1] - xr[0])) {
+                Some(fx) if fx > 1.0 - lbox.0 - 0.03 => UpperLeft,
+                _ => UpperRight,
+            }
         }
     };
 
@@ -702,6 +715,12 @@ where
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], CROSS.stroke_width(2)));
     }
     if let Some(label) = fit_label {
+        chart.draw_series(DashedLineSeries::new(
+            extrapolation,
+            6,
+            6,
+            BLACK.stroke_width(1),
+        ))?;
         chart
             .draw_series(LineSeries::new(curve, BLACK.stroke_width(2)))?
             .label(label)

@@ -55,8 +55,15 @@ pub fn weighted_poly_fit(x: &[f64], y: &[f64], w: Option<&[f64]>, degree: usize)
     if n != y.len() || n < p || w.is_some_and(|w| w.len() != n) {
         return None;
     }
-    // Normal equations A b = c, A = XᵀWX, c = XᵀWy. Centre nothing: the
-    // ranges met here (ln η ∈ [−6, 1], Ξ ∈ [0.3, 3]) keep A well conditioned.
+    // Normal equations A b' = c in the scaled variable x' = x / s, s = max |x|
+    // (so that powers of x' stay O(1) whatever the unit of x: seconds or
+    // Ξ alike); then b_k = b'_k / s^k and cov_kl = cov'_kl / (s^k s^l).
+    let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let scale = if scale.is_finite() && scale > 0.0 {
+        scale
+    } else {
+        1.0
+    };
     let mut a = vec![vec![0.0; p]; p];
     let mut c = vec![0.0; p];
     for i in 0..n {
@@ -66,7 +73,7 @@ pub fn weighted_poly_fit(x: &[f64], y: &[f64], w: Option<&[f64]>, degree: usize)
         }
         let mut pow = vec![1.0; p];
         for k in 1..p {
-            pow[k] = pow[k - 1] * x[i];
+            pow[k] = pow[k - 1] * x[i] / scale;
         }
         for r in 0..p {
             c[r] += wi * pow[r] * y[i];
@@ -76,8 +83,12 @@ pub fn weighted_poly_fit(x: &[f64], y: &[f64], w: Option<&[f64]>, degree: usize)
         }
     }
     let inv = invert_spd(&a)?;
+    let sk: Vec<f64> = (0..p).map(|k| scale.powi(k as i32)).collect();
     let coef: Vec<f64> = (0..p)
-        .map(|r| (0..p).map(|s| inv[r][s] * c[s]).sum())
+        .map(|r| (0..p).map(|s| inv[r][s] * c[s]).sum::<f64>() / sk[r])
+        .collect();
+    let inv: Vec<Vec<f64>> = (0..p)
+        .map(|r| (0..p).map(|s| inv[r][s] / (sk[r] * sk[s])).collect())
         .collect();
     let fit0 = LsFit {
         coef,
@@ -234,6 +245,19 @@ mod tests {
         assert!((f.slope(2.0) - (-0.3 + 0.2)).abs() < 1e-10);
         assert!(weighted_poly_fit(&[1.0, 1.0, 1.0], &[1.0, 2.0, 3.0], None, 1).is_none());
         assert!(weighted_poly_fit(&[1.0, 2.0], &[1.0, 2.0], None, 2).is_none());
+    }
+
+    #[test]
+    fn small_units_do_not_make_the_design_singular() {
+        // A free-flight parabola in seconds over 1 ms: t⁴ ~ 1e-12.
+        let t: Vec<f64> = (0..10).map(|i| i as f64 * 1e-4).collect();
+        let z: Vec<f64> = t
+            .iter()
+            .map(|t| 120.0 + 3.0e4 * t + 9.81e4 * t * t)
+            .collect();
+        let f = weighted_poly_fit(&t, &z, None, 2).unwrap();
+        assert!((f.coef[2] / 9.81e4 - 1.0).abs() < 1e-8, "{:?}", f.coef);
+        assert!((f.coef[1] / 3.0e4 - 1.0).abs() < 1e-8);
     }
 
     #[test]

@@ -39,7 +39,14 @@ where
     DB::ErrorType: 'static,
     CT: CoordTranslate<From = (f64, f64)>,
 {
-    for (t, name) in [(d.t_contact_s, "contact"), (d.t_rebound_s, "rebound")] {
+    use plotters::style::text_anchor::{HPos, Pos, VPos};
+    // Each label sits outside the contact interval: "contact" left of its
+    // line, "rebound" right of its line.
+    let sides = [
+        (d.t_contact_s, "contact ", HPos::Right),
+        (d.t_rebound_s, " rebound", HPos::Left),
+    ];
+    for (t, name, side) in sides {
         if let Some(t) = t {
             let t_ms = t * 1e3;
             chart.draw_series(DashedLineSeries::new(
@@ -49,7 +56,7 @@ where
                 EVENT.stroke_width(2),
             ))?;
             chart.draw_series(std::iter::once(Text::new(
-                format!(" {name}"),
+                name.to_string(),
                 (
                     t_ms,
                     if at_top {
@@ -58,7 +65,10 @@ where
                         yr[0] + 0.08 * (yr[1] - yr[0])
                     },
                 ),
-                ("sans-serif", 16).into_font().color(&EVENT),
+                ("sans-serif", 16)
+                    .into_font()
+                    .color(&EVENT)
+                    .pos(Pos::new(side, VPos::Center)),
             )))?;
         }
     }
@@ -125,9 +135,11 @@ where
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], FIT.stroke_width(2)));
         }
     }
-    events(&mut c, d, [zr[1], zr[0]], true)?;
+    // Near the events the sphere is far from both extremes of z: labels at the
+    // bottom, legend at the top middle (above the lowest point).
+    events(&mut c, d, [zr[1], zr[0]], false)?;
     c.configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
+        .position(SeriesLabelPosition::UpperMiddle)
         .background_style(WHITE.mix(0.9))
         .border_style(RGBColor(120, 120, 120))
         .label_font(label)

@@ -523,3 +523,28 @@ fn count_blobs(img: &image::RgbImage, name: &str) {
         assert_eq!(blobs, want, "{name}.png: blobs of {rgb:?}");
     }
 }
+
+#[test]
+fn flight_parabolas_of_a_track_have_free_fall_curvature() {
+    // The contact ODE's free flight has z̈ = g; in px with 0.05 mm/px that is
+    // 9.81 / 5e-5 = 196 200 px/s², so the parabola's t² coefficient is
+    // 98 100 px/s² before and after contact (RK4 at 1 µs steps: 1e-6 relative).
+    let s = dropscope::config::Surface::paper_pdms();
+    let (rows, t_in, t_out) = contact_track(4.5, 7800.0, 1.2, &s, 10_000.0, 0.05);
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("r.csv");
+    let mut w = csv::Writer::from_path(&p).unwrap();
+    for r in rows {
+        w.serialize(r).unwrap();
+    }
+    w.flush().unwrap();
+    let mut rec = DropRecord::failed("r", 4.5, "");
+    rec.t_contact_s = Some(t_in);
+    rec.t_rebound_s = Some(t_out);
+    let d = dropscope::collapse::diagnostics::diagnose(&rec, &s, &p).unwrap();
+    for f in [d.flight_in.unwrap(), d.flight_out.unwrap()] {
+        assert!((f.coef[2] / 98_100.0 - 1.0).abs() < 1e-6, "{:?}", f.coef);
+    }
+    let law = d.force_law.unwrap();
+    assert!((law.n.value - 2.0).abs() < 1e-9);
+}

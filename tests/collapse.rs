@@ -245,8 +245,17 @@ fn geometric_contact_radius_is_flagged_loudly() {
     for r in recs.iter_mut().take(4) {
         r.a_max_mm = None;
     }
-    let (dir, fits) = run(&recs, false);
+    let (dir, fits) = run(&recs, true);
     assert_eq!(fits["n_geometric_contact_radius"], 4);
+    // … and on the collapse figures themselves.
+    for name in ["psi_vs_xi", "omega_vs_xi"] {
+        let svg =
+            std::fs::read_to_string(dir.path().join(format!("out/plots/{name}.svg"))).unwrap();
+        assert!(
+            svg.contains("WARNING: 4 of 30 drops use the geometric contact radius"),
+            "{name}"
+        );
+    }
     assert!(fits["warnings"][0]
         .as_str()
         .unwrap()

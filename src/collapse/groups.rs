@@ -190,17 +190,15 @@ pub fn compute(
         )));
     }
     // The geometric contact radius √(R² − (R − δ)²) and its first-order error
-    // σ_a = (R − δ)/a · σ_δ (its correlation with δ is not carried: such drops
-    // are flagged as collapsing by construction anyway).
+    // σ_a = (R − δ)/a · σ_δ, used when `a_geom_mm_err` is empty (its
+    // correlation with δ is not carried: such drops are flagged as collapsing
+    // by construction anyway).
     let a_geo_calc = (r_mm * r_mm - (r_mm - delta_mm).powi(2)).sqrt();
     let geometric = |rec: &DropRecord| -> (f64, Option<f64>) {
+        let from_delta = |a: f64| rec.delta_max_mm_err.map(|e| (r_mm - delta_mm) / a * e);
         match rec.a_geom_mm.filter(|a| a.is_finite() && *a > 0.0) {
-            Some(a) => (a, rec.a_geom_mm_err),
-            None => (
-                a_geo_calc,
-                rec.delta_max_mm_err
-                    .map(|e| (r_mm - delta_mm) / a_geo_calc * e),
-            ),
+            Some(a) => (a, rec.a_geom_mm_err.or_else(|| from_delta(a))),
+            None => (a_geo_calc, from_delta(a_geo_calc)),
         }
     };
     let (a_mm, a_err, a_source) = match choice {

@@ -621,18 +621,37 @@ where
             .collect()
     };
     let curve = series.map_or(Vec::new(), |s| poly(s, s.xi_range[0], s.xi_range[1]));
-    let extrapolation = series.map_or(Vec::new(), |s| poly(s, 0.0, s.xi_range[0]));
-    let mut extra_y: Vec<f64> = extrapolation.iter().map(|p| p.1).collect();
-    extra_y.push(theory.0);
-    let (xr, mut yr) = range(&all, false, &extra_y);
-    let xr = [0.0, xr[1]];
+    // Extrapolate only when Ξ = 0 is no farther from the data than their own
+    // span, and let the axis grow for it by at most 30 % of the data's range.
+    let extrapolation = series
+        .filter(|s| s.xi_range[0] <= s.xi_range[1] - s.xi_range[0])
+        .map_or(Vec::new(), |s| poly(s, 0.0, s.xi_range[0]));
+    let (xr, yr0) = range(&all, false, &[theory.0]);
+    let span = yr0[1] - yr0[0];
+    let extra_y: Vec<f64> = extrapolation
+        .iter()
+        .map(|p| p.1)
+        .filter(|y| *y > yr0[0] - 0.3 * span && *y < yr0[1] + 0.3 * span)
+        .chain([theory.0])
+        .collect();
+    let (_, mut yr) = range(&all, false, &extra_y);
+    let xr = if extrapolation.is_empty() {
+        xr
+    } else {
+        [0.0, xr[1]]
+    };
     let crossover = crossover.filter(|x| *x > xr[0] && *x < xr[1]);
     let fit_label = series.map(|s| {
         let pm = |k: usize| match s.coef[k].stderr {
             Some(e) => format!("{} = {:.3} ± {:.3}", names[k], s.coef[k].value, e),
             None => format!("{} = {:.3}", names[k], s.coef[k].value),
         };
-        format!("fit: {}, {}, {} (dashed: to Ξ = 0)", pm(0), pm(1), pm(2))
+        let extra = if extrapolation.is_empty() {
+            ""
+        } else {
+            " (dashed: to Ξ = 0)"
+        };
+        format!("fit: {}, {}, {}{extra}", pm(0), pm(1), pm(2))
     });
     let cross_label = crossover.map(|x| format!("Ξ× = A1/A2 = {x:.3} (leading terms equal)"));
     let mut labels = vec![theory.1.to_string()];
@@ -682,8 +701,27 @@ where
         }
     };
 
+    // A geometric contact radius makes Ψ(Ξ) hold by construction (SPEC §3):
+    // say so on the figure itself, not only in fits.json.
+    let n_geo = sets
+        .iter()
+        .flat_map(|s| &s.drops)
+        .filter(|g| g.a_source.is_geometric())
+        .count();
+    if n_geo > 0 {
+        area.draw(&Text::new(
+            format!(
+                "WARNING: {n_geo} of {} drops use the geometric contact radius; for them \
+                 Ξ² = Ψ(2 − Π) by construction",
+                all.len()
+            ),
+            (100, 4),
+            ("sans-serif", 18).into_font().color(&RGBColor(200, 0, 0)),
+        ))?;
+    }
     let mut chart = ChartBuilder::on(&area)
         .margin(18)
+        .margin_top(if n_geo > 0 { 30 } else { 18 })
         .x_label_area_size(60)
         .y_label_area_size(80)
         .build_cartesian_2d(xr[0]..xr[1], yr[0]..yr[1])?;

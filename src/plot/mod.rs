@@ -6,6 +6,8 @@
 //! | --- | --- |
 //! | [`collapse`](self::collapse_figures) | Π vs η, τc vs v (log–log), Ψ vs Ξ, Ω vs Ξ |
 //! | [`drop`](self::drop_figures) | per drop: z(t), δ(t), F(δ) |
+//! | `layout` | axis ranges, log ticks, guide slopes, legend placement |
+//! | `marker` | the per-radius markers of Figs. 3–4 |
 //!
 //! Markers follow Figs. 3–4 of Maruoka 2019: R = 3 mm blue circle, 4 mm
 //! green triangle, 4.5 mm black ×, 5 mm orange diamond, 7 mm red square;
@@ -13,6 +15,7 @@
 
 mod collapse;
 mod drop;
+mod layout;
 mod marker;
 
 pub use collapse::collapse_figures;

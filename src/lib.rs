@@ -8,12 +8,15 @@
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
 //! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
+//! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits (`dropscope collapse`) |
+//! | [`plot`] | SVG + PNG figures (collapse plots, per-drop diagnostics), embedded font |
 //!
 //! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
 //! column `x` grows to the right and row `z` grows downward. Quantities carry
 //! their unit in their name (`_px`, `_mm`, `_s`, `_m_s`, `_pa`); inside the
 //! library everything is SI unless the name says otherwise.
 
+pub mod collapse;
 pub mod config;
 pub mod dataset;
 pub mod events;
@@ -23,6 +26,7 @@ pub mod kinematics;
 pub mod lsq;
 pub mod manifest;
 pub mod measure;
+pub mod plot;
 pub mod render;
 pub mod source;
 #[cfg(test)]

@@ -30,6 +30,8 @@ enum Command {
     Export(dropscope::source::cli::ExportArgs),
     /// Render synthetic drops with exact truth, as PCC-style frame folders.
     Render(Box<dropscope::render::RenderArgs>),
+    /// Dimensionless groups, Ψ(Ξ) and Ω(Ξ) fits, exponents and plots from a drops.csv.
+    Collapse(dropscope::collapse::CollapseArgs),
 }
 
 /// Load `--config FILE`, else `./pipeline.toml`, else the embedded default.
@@ -43,6 +45,32 @@ fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<PipelineConfig>
             std::path::Path::new("(embedded pipeline.toml)"),
             std::path::Path::new(""),
         )?,
+    })
+}
+
+/// `dropscope collapse`: groups, fits and plots; exit 1 when rows were skipped.
+fn run_collapse(args: &dropscope::collapse::CollapseArgs) -> anyhow::Result<ExitCode> {
+    let cfg = load_config(args.config.as_deref())?;
+    let config_name = match &args.config {
+        Some(p) => p.display().to_string(),
+        None if std::path::Path::new("pipeline.toml").exists() => "./pipeline.toml".to_string(),
+        None => "(embedded pipeline.toml)".to_string(),
+    };
+    let s = dropscope::collapse::run(args, &cfg, &config_name)?;
+    for w in &s.warnings {
+        eprintln!("warning: {w}");
+    }
+    println!(
+        "collapse: {} drops used, {} skipped; {} files in {}",
+        s.n_used,
+        s.n_skipped,
+        s.files.len(),
+        s.out_dir.display()
+    );
+    Ok(if s.n_skipped > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
     })
 }
 
@@ -91,6 +119,7 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }),
         Command::Render(args) => run_render(&args),
+        Command::Collapse(args) => run_collapse(&args),
     };
     match result {
         Ok(code) => code,

@@ -573,10 +573,17 @@ fn truth_is_self_consistent_and_matches_the_files() {
     assert!(report.failures.is_empty());
     let manifest = std::fs::read_to_string(dir.path().join("runs.csv")).unwrap();
     let mut lines = manifest.lines();
+    // The scale column stays empty unless --manifest-scale: the pipeline
+    // must measure it from the sphere, as for real data.
     assert_eq!(
         lines.next().unwrap(),
-        "run,path,sphere_radius_mm,drop_height_cm,fps,surface,sphere_density_kg_m3"
+        "run,path,sphere_radius_mm,drop_height_cm,fps,mm_per_px,surface,sphere_density_kg_m3"
     );
+    let runs = dropscope::manifest::read_manifest(&dir.path().join("runs.csv")).unwrap();
+    assert_eq!(runs.len(), 4);
+    assert!(runs
+        .iter()
+        .all(|r| r.mm_per_px.is_none() && r.path.is_dir()));
     for d in &report.drops {
         let t: Truth =
             serde_json::from_str(&std::fs::read_to_string(d.dir.join("truth.json")).unwrap())

@@ -1,5 +1,6 @@
 //! The integration tests, compiled into one binary (one module per stage).
 
 mod cli;
+mod collapse;
 mod render;
 mod source;

@@ -1,0 +1,294 @@
+//! The collapse stage (SPEC §3, issue 6): drops.csv → the dimensionless
+//! groups of every drop, the scaling fits, and the plots.
+//!
+//! | file | does |
+//! | --- | --- |
+//! | [`groups`] | Π, ξ, η, κ, ω, Ψ, Ξ, Ω (and Π', κ') per drop with first-order errors |
+//! | [`fit`] | local exponents per radius, Ψ(Ξ) and Ω(Ξ) series, fixed-exponent asymptotes, crossover, bootstrap |
+//! | [`stats`] | weighted least squares, quantiles, Γ and B |
+//! | [`diagnostics`] | per-drop flight parabolas and F = K δⁿ from `tracks/<run>.csv` |
+//! | [`output`] | `collapse.csv` and `fits.json` as bytes |
+//! | [`synthetic`] | drops with known laws (Eq. (8), pure power laws) for tests |
+//!
+//! [`run`] is the whole `dropscope collapse` command: it reads, computes,
+//! and writes `collapse.csv`, `fits.json` and `plots/` (via [`crate::plot`])
+//! in the output folder, every file through [`crate::io_util::write_atomic`].
+
+pub mod diagnostics;
+pub mod fit;
+pub mod groups;
+pub mod output;
+pub mod stats;
+pub mod synthetic;
+
+use std::path::{Path, PathBuf};
+
+use crate::config::PipelineConfig;
+use crate::dataset::{self, DatasetError};
+use groups::{ContactRadius, DropGroups, SkipReason};
+
+/// `dropscope collapse DROPS.csv [--out DIR] [--config FILE]`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CollapseArgs {
+    /// The per-drop dataset (drops.csv from `process`, or any CSV with its columns).
+    pub drops: PathBuf,
+    /// Output folder (default: the configuration's `output.dir`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// The configuration holding the `[surface.<name>]` materials
+    /// (default: ./pipeline.toml, else the embedded default).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Which contact radius enters ξ and Ξ. `geometric` makes Ψ(Ξ) hold by
+    /// construction (Ξ² = Ψ(2 − Π)); use it only to compare.
+    #[arg(long, value_enum, default_value_t = ContactRadius::Measured)]
+    pub contact_radius: ContactRadius,
+    /// Bootstrap resamples for the 95 % intervals.
+    #[arg(long, default_value_t = 2000)]
+    pub bootstrap: usize,
+    /// Seed of the bootstrap (same seed, same intervals).
+    #[arg(long, default_value_t = 20190614)]
+    pub seed: u64,
+    /// Do not draw plots (collapse.csv and fits.json only).
+    #[arg(long)]
+    pub no_plots: bool,
+}
+
+/// Why the collapse could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum CollapseError {
+    #[error(transparent)]
+    Dataset(#[from] DatasetError),
+    /// A row names a surface that the configuration does not define; the
+    /// message names the file, row, run, surface, configuration and known names.
+    #[error("{0}")]
+    UnknownSurface(String),
+    #[error("{path}: no drops in the file")]
+    Empty { path: PathBuf },
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("plot {name}: {message}")]
+    Plot { name: String, message: String },
+}
+
+/// One input row and what became of it.
+#[derive(Debug, Clone)]
+pub struct DropOutcome {
+    /// Line number in drops.csv (the header is line 1).
+    pub row: u64,
+    pub run: String,
+    pub sphere_radius_mm: f64,
+    pub surface: String,
+    pub groups: Result<DropGroups, SkipReason>,
+}
+
+/// What a run of the collapse produced (also written to disk).
+#[derive(Debug, Clone)]
+pub struct CollapseSummary {
+    pub out_dir: PathBuf,
+    pub n_used: usize,
+    pub n_skipped: usize,
+    pub fits: fit::Fits,
+    /// Every warning, also in fits.json.
+    pub warnings: Vec<String>,
+    /// Files written, relative to `out_dir`, sorted.
+    pub files: Vec<PathBuf>,
+}
+
+fn write(
+    out: &Path,
+    rel: &Path,
+    bytes: &[u8],
+    files: &mut Vec<PathBuf>,
+) -> Result<(), CollapseError> {
+    let path = out.join(rel);
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent).map_err(|source| CollapseError::Write {
+            path: parent.to_path_buf(),
+            source,
+        })?;
+    }
+    crate::io_util::write_atomic(&path, bytes).map_err(|source| CollapseError::Write {
+        path: path.clone(),
+        source,
+    })?;
+    files.push(rel.to_path_buf());
+    Ok(())
+}
+
+/// Compute the groups of every record (hard error only for an unknown surface).
+pub fn compute_groups(
+    path: &Path,
+    records: &[dataset::DropRecord],
+    cfg: &PipelineConfig,
+    config_name: &str,
+    choice: ContactRadius,
+) -> Result<Vec<DropOutcome>, CollapseError> {
+    let mut outcomes = Vec::with_capacity(records.len());
+    for (i, rec) in records.iter().enumerate() {
+        let row = i as u64 + 2;
+        let name = if rec.surface.is_empty() {
+            cfg.input.surface.clone()
+        } else {
+            rec.surface.clone()
+        };
+        let Some(surface) = cfg.surfaces.get(&name) else {
+            let known = cfg.surfaces.keys().cloned().collect::<Vec<_>>().join(", ");
+            return Err(CollapseError::UnknownSurface(format!(
+                "{}: row {row} (run `{}`): surface \"{name}\" is not a [surface.<name>] table \
+                 of the configuration {config_name} (known: {known}); add the table or fix the \
+                 `surface` column",
+                path.display(),
+                rec.run
+            )));
+        };
+        outcomes.push(DropOutcome {
+            row,
+            run: rec.run.clone(),
+            sphere_radius_mm: rec.sphere_radius_mm,
+            surface: name.clone(),
+            groups: groups::compute(rec, &name, surface, choice),
+        });
+    }
+    Ok(outcomes)
+}
+
+/// Run the collapse stage: read `args.drops`, write everything into the
+/// output folder. `config_name` names the configuration in messages.
+pub fn run(
+    args: &CollapseArgs,
+    cfg: &PipelineConfig,
+    config_name: &str,
+) -> Result<CollapseSummary, CollapseError> {
+    let records = dataset::read_csv(&args.drops)?;
+    if records.is_empty() {
+        return Err(CollapseError::Empty {
+            path: args.drops.clone(),
+        });
+    }
+    let outcomes = compute_groups(&args.drops, &records, cfg, config_name, args.contact_radius)?;
+    let used: Vec<DropGroups> = outcomes
+        .iter()
+        .filter_map(|o| o.groups.as_ref().ok().cloned())
+        .collect();
+    let settings = fit::FitSettings {
+        resamples: args.bootstrap,
+        seed: args.seed,
+    };
+    let fits = fit::fit_all(&used, settings);
+
+    let mut warnings = Vec::new();
+    let n_geo = used.iter().filter(|g| g.a_source.is_geometric()).count();
+    if n_geo > 0 {
+        let runs: Vec<&str> = used
+            .iter()
+            .filter(|g| g.a_source.is_geometric())
+            .map(|g| g.run.as_str())
+            .take(5)
+            .collect();
+        warnings.push(format!(
+            "GEOMETRIC CONTACT RADIUS: {n_geo} of {} drops use a = sqrt(R^2 - (R - delta)^2) \
+             (requested, a_max_mm missing, or a_max_mm equal to it; e.g. {}). For them \
+             Xi^2 = Psi (2 - Pi) holds by construction, so their collapse of Psi(Xi) is not an \
+             experimental result (SPEC §3)",
+            used.len(),
+            runs.join(", ")
+        ));
+    }
+    let n_skipped = outcomes.len() - used.len();
+    if n_skipped > 0 {
+        warnings.push(format!(
+            "{n_skipped} of {} rows skipped (listed under `skipped`)",
+            outcomes.len()
+        ));
+    }
+    warnings.extend(fits.warnings.iter().cloned());
+
+    // Per-drop diagnostics where tracks/<run>.csv exists beside drops.csv.
+    let tracks_dir = args.drops.parent().unwrap_or(Path::new("")).join("tracks");
+    let mut diags = Vec::new();
+    for (rec, o) in records.iter().zip(&outcomes) {
+        // A run name that is not a plain file name never reaches outside tracks/.
+        if crate::plot::file_stem(&rec.run) != rec.run {
+            continue;
+        }
+        let p = tracks_dir.join(format!("{}.csv", rec.run));
+        if rec.status == dataset::DropStatus::Failed || !p.is_file() {
+            continue;
+        }
+        let surface = &cfg.surfaces[&o.surface];
+        match diagnostics::diagnose(rec, surface, &p) {
+            Ok(d) => diags.push(d),
+            Err(e) => warnings.push(format!("track not used: {e}")),
+        }
+    }
+    let force_laws: Vec<_> = diags.iter().filter_map(|d| d.force_law.clone()).collect();
+
+    let names: std::collections::BTreeSet<&str> = used.iter().map(|g| g.surface.as_str()).collect();
+    let surfaces = names
+        .into_iter()
+        .map(|n| {
+            let s = &cfg.surfaces[n];
+            output::SurfaceUsed {
+                name: n.to_string(),
+                modulus_pa: s.modulus_pa,
+                pillar_height_m: s.pillar_height_m,
+                solid_fraction: s.solid_fraction,
+            }
+        })
+        .collect();
+    let prov = output::Provenance {
+        dropscope_version: env!("CARGO_PKG_VERSION"),
+        drops_csv: args.drops.display().to_string(),
+        contact_radius: match args.contact_radius {
+            ContactRadius::Measured => "measured",
+            ContactRadius::Geometric => "geometric",
+        },
+        bootstrap_resamples: args.bootstrap,
+        seed: args.seed,
+        surfaces,
+    };
+
+    let out_dir = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
+    let mut files = Vec::new();
+    write(
+        &out_dir,
+        Path::new("collapse.csv"),
+        &output::collapse_csv(&outcomes),
+        &mut files,
+    )?;
+    write(
+        &out_dir,
+        Path::new("fits.json"),
+        &output::fits_json(&prov, &outcomes, &fits, &force_laws, &warnings),
+        &mut files,
+    )?;
+    if !args.no_plots {
+        for (name, bytes) in crate::plot::collapse_figures(&used, &fits)? {
+            write(&out_dir, &Path::new("plots").join(name), &bytes, &mut files)?;
+        }
+        for d in &diags {
+            for (name, bytes) in crate::plot::drop_figures(d)? {
+                write(
+                    &out_dir,
+                    &Path::new("plots").join("drops").join(name),
+                    &bytes,
+                    &mut files,
+                )?;
+            }
+        }
+    }
+    files.sort();
+    Ok(CollapseSummary {
+        out_dir,
+        n_used: used.len(),
+        n_skipped,
+        fits,
+        warnings,
+        files,
+    })
+}

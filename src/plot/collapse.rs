@@ -1,0 +1,655 @@
+//! The four collapse figures (cf. Figs. 3–4 of Maruoka 2019):
+//! `pi_vs_eta` and `tau_vs_v` (log–log, one colour and marker per sphere
+//! radius, the local power-law fit of each radius, guide slopes),
+//! `psi_vs_xi` and `omega_vs_xi` (the fitted series and the theory
+//! constants). Error bars are the first-order one-sigma errors of collapse.csv.
+
+use plotters::coord::combinators::{BindKeyPoints, LogCoord, WithKeyPoints};
+use plotters::coord::ranged1d::ValueFormatter;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::collections::BTreeMap;
+
+use super::layout::{
+    free_corner, guide_lines, legend_box, log_ticks, normalised, range, with_band, Guide, Pt,
+};
+use super::marker::{radius_style, Marker, MarkerKind};
+use super::{render, tick, DrawResult};
+use crate::collapse::fit::{self, ExponentFit, Fits, SeriesFit};
+use crate::collapse::groups::{DropGroups, Quantity};
+use crate::collapse::CollapseError;
+
+/// Size of every collapse figure, in pixels (SVG user units).
+pub const FIGURE_SIZE: (u32, u32) = (1100, 800);
+const MARKER: i32 = 5;
+
+/// Drops of one sphere radius with its plotting style and exponent fit.
+struct RadiusSet<'a> {
+    radius_mm: f64,
+    color: RGBColor,
+    kind: MarkerKind,
+    drops: Vec<&'a DropGroups>,
+    exponent: Option<&'a ExponentFit>,
+}
+
+fn by_radius<'a>(groups: &'a [DropGroups], fits: &'a Fits) -> Vec<RadiusSet<'a>> {
+    let mut map: BTreeMap<i64, Vec<&DropGroups>> = BTreeMap::new();
+    for g in groups {
+        map.entry((g.sphere_radius_mm * 1000.0).round() as i64)
+            .or_default()
+            .push(g);
+    }
+    let mut other = 0;
+    map.into_iter()
+        .map(|(k, drops)| {
+            let radius_mm = k as f64 / 1000.0;
+            let (color, kind) = radius_style(radius_mm, other);
+            if ![3.0, 4.0, 4.5, 5.0, 7.0]
+                .iter()
+                .any(|r| (r - radius_mm).abs() < 1e-3)
+            {
+                other += 1;
+            }
+            RadiusSet {
+                radius_mm,
+                color,
+                kind,
+                drops,
+                exponent: fits
+                    .exponents
+                    .iter()
+                    .find(|e| (e.radius_mm - radius_mm).abs() < 1e-6),
+            }
+        })
+        .collect()
+}
+
+/// A lighter shade of `c` (for fitted lines, so they never hide the points).
+fn light(c: RGBColor) -> RGBColor {
+    let m = |v: u8| ((v as u16 * 5 + 255 * 3) / 8) as u8;
+    RGBColor(m(c.0), m(c.1), m(c.2))
+}
+
+fn pt(x: &Quantity, y: &Quantity, xs: f64, ys: f64) -> Pt {
+    (
+        x.value * xs,
+        y.value * ys,
+        x.err().map(|e| e * xs),
+        y.err().map(|e| e * ys),
+    )
+}
+
+/// Error bars (1σ, both directions) and markers of one radius.
+fn draw_points<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    set: &RadiusSet,
+    points: &[Pt],
+    log: bool,
+    label: String,
+) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    let bar = set.color.stroke_width(1);
+    let clamp = |v: f64, e: f64| if log { (v - e).max(v * 0.5) } else { v - e };
+    let mut bars = Vec::new();
+    for &(x, y, ex, ey) in points {
+        if let Some(e) = ey.filter(|e| *e > 0.0) {
+            bars.push(PathElement::new(vec![(x, clamp(y, e)), (x, y + e)], bar));
+        }
+        if let Some(e) = ex.filter(|e| *e > 0.0) {
+            bars.push(PathElement::new(vec![(clamp(x, e), y), (x + e, y)], bar));
+        }
+    }
+    chart.draw_series(bars)?;
+    let (kind, color) = (set.kind, set.color);
+    chart
+        .draw_series(
+            points
+                .iter()
+                .map(|&(x, y, _, _)| Marker::new((x, y), kind, color, MARKER)),
+        )?
+        .label(label)
+        .legend(move |(x, y)| Marker::new((x + 10, y), kind, color, MARKER));
+    Ok(())
+}
+
+fn mesh<'a, DB, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    x_desc: &str,
+    y_desc: &str,
+    fx: &dyn Fn(&X::ValueType) -> String,
+    fy: &dyn Fn(&Y::ValueType) -> String,
+) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    X: Ranged + ValueFormatter<<X as Ranged>::ValueType>,
+    Y: Ranged + ValueFormatter<<Y as Ranged>::ValueType>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .axis_desc_style(("sans-serif", 22))
+        .label_style(("sans-serif", 17))
+        .x_label_formatter(fx)
+        .y_label_formatter(fy)
+        .light_line_style(RGBColor(235, 235, 235))
+        .bold_line_style(RGBColor(200, 200, 200))
+        .draw()?;
+    Ok(())
+}
+
+fn legend<'a, DB, CT>(chart: &mut ChartContext<'a, DB, CT>, pos: SeriesLabelPosition) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate,
+{
+    chart
+        .configure_series_labels()
+        .position(pos)
+        .background_style(WHITE.mix(0.9))
+        .border_style(RGBColor(120, 120, 120))
+        .label_font(("sans-serif", 17))
+        .margin(12)
+        .draw()?;
+    Ok(())
+}
+
+fn ci_text(v: Option<f64>, ci: Option<[f64; 2]>) -> String {
+    match (v, ci) {
+        (Some(v), Some([lo, hi])) => format!("{v:.3} [{lo:.3}, {hi:.3}]"),
+        (Some(v), None) => format!("{v:.3}"),
+        _ => "n/a".to_string(),
+    }
+}
+
+fn draw_guides<'a, DB, CT>(chart: &mut ChartContext<'a, DB, CT>, guides: &[Guide]) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    for (pts, label, at) in guides {
+        chart.draw_series(DashedLineSeries::new(
+            pts.iter().copied(),
+            8,
+            5,
+            BLACK.stroke_width(2),
+        ))?;
+        chart.draw_series(std::iter::once(Text::new(
+            label.clone(),
+            *at,
+            ("sans-serif", 19).into_font().color(&BLACK),
+        )))?;
+    }
+    Ok(())
+}
+
+fn title<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    text: &str,
+) -> Result<DrawingArea<DB, Shift>, Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    Ok(root.titled(text, ("sans-serif", 24))?)
+}
+
+type LogAxis = WithKeyPoints<LogCoord<f64>>;
+
+/// A log–log chart with ticks from [`log_ticks`].
+fn log_log_chart<'a, DB: DrawingBackend + 'a>(
+    area: &DrawingArea<DB, Shift>,
+    xr: [f64; 2],
+    yr: [f64; 2],
+) -> Result<ChartContext<'a, DB, Cartesian2d<LogAxis, LogAxis>>, Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    let (xm, xl) = log_ticks(xr[0], xr[1]);
+    let (ym, yl) = log_ticks(yr[0], yr[1]);
+    Ok(ChartBuilder::on(area)
+        .margin(18)
+        .x_label_area_size(60)
+        .y_label_area_size(80)
+        .build_cartesian_2d(
+            (xr[0]..xr[1])
+                .log_scale()
+                .with_key_points(xm)
+                .with_light_points(xl),
+            (yr[0]..yr[1])
+                .log_scale()
+                .with_key_points(ym)
+                .with_light_points(yl),
+        )?)
+}
+
+/// Fitted power law y = scale · exp(b) x^k over the x range of `p`.
+fn power_line<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    p: &[Pt],
+    (k, b, scale): (f64, f64, f64),
+    color: RGBColor,
+) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    let lo = p.iter().map(|q| q.0).fold(f64::INFINITY, f64::min);
+    let hi = p.iter().map(|q| q.0).fold(0.0, f64::max);
+    if !(lo > 0.0 && hi > lo) {
+        return Ok(());
+    }
+    chart.draw_series(LineSeries::new(
+        (0..=20).map(|i| {
+            let x = lo * (hi / lo).powf(i as f64 / 20.0);
+            (x, scale * (b + k * x.ln()).exp())
+        }),
+        light(color).stroke_width(2),
+    ))?;
+    Ok(())
+}
+
+/// What differs between the two log–log figures.
+struct LogLog<'s> {
+    heading: &'s str,
+    x_desc: &'s str,
+    y_desc: &'s str,
+    /// Points per radius set.
+    pts: Vec<Vec<Pt>>,
+    /// Per set: (exponent, ln prefactor, y scale) of the fitted line.
+    lines: Vec<Option<(f64, f64, f64)>>,
+    /// Legend text per set.
+    labels: Vec<String>,
+    /// Extra headroom above the data, as a fraction of the log y range.
+    headroom: f64,
+    /// Guide fan: start (fx, fy) and slopes with labels.
+    guide_at: (f64, f64),
+    guides: [(f64, &'s str); 2],
+    /// Legend corners to try, best first; the last is used in a band
+    /// added above the data when none is free.
+    legend_corners: [SeriesLabelPosition; 3],
+}
+
+fn log_log<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    sets: &[RadiusSet],
+    spec: &LogLog,
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    let area = title(root, spec.heading)?;
+    let all = spec.pts.concat();
+    let (xr, yr) = range(&all, true, &[]);
+    let mut yr = [yr[0], yr[1] * (yr[1] / yr[0]).powf(spec.headroom)];
+    let lbox = legend_box(&spec.labels);
+    let occupied = |yr: [f64; 2]| {
+        let mut o = normalised(&all, xr, yr, true);
+        for (g, _, _) in guide_lines(xr, yr, spec.guide_at, 0.3, &spec.guides) {
+            let gp: Vec<Pt> = g.iter().map(|&(x, y)| (x, y, None, None)).collect();
+            o.extend(normalised(&gp, xr, yr, true));
+        }
+        o
+    };
+    let corner = match free_corner(&occupied(yr), lbox, &spec.legend_corners) {
+        Some(c) => c,
+        None => {
+            yr = with_band(yr, lbox.1, true);
+            spec.legend_corners[2].clone()
+        }
+    };
+    let mut chart = log_log_chart(&area, xr, yr)?;
+    mesh(&mut chart, spec.x_desc, spec.y_desc, &|v| tick(*v), &|v| {
+        tick(*v)
+    })?;
+    // Lines first, markers last, so that no line hides a point.
+    for ((set, p), line) in sets.iter().zip(&spec.pts).zip(&spec.lines) {
+        if let Some(l) = line {
+            power_line(&mut chart, p, *l, set.color)?;
+        }
+    }
+    draw_guides(
+        &mut chart,
+        &guide_lines(xr, yr, spec.guide_at, 0.3, &spec.guides),
+    )?;
+    for ((set, p), label) in sets.iter().zip(&spec.pts).zip(&spec.labels) {
+        if !p.is_empty() {
+            draw_points(&mut chart, set, p, true, label.clone())?;
+        }
+    }
+    legend(&mut chart, corner)?;
+    Ok(())
+}
+
+fn pi_vs_eta<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    use SeriesLabelPosition::*;
+    let spec = LogLog {
+        heading: "Penetration Π = δ/R vs Cauchy number η = ρv²/E (cf. Fig. 3a)",
+        x_desc: "η = ρv²/E",
+        y_desc: "Π = δ/R",
+        pts: sets
+            .iter()
+            .map(|s| {
+                s.drops
+                    .iter()
+                    .map(|g| pt(&g.eta, &g.pi, 1.0, 1.0))
+                    .collect()
+            })
+            .collect(),
+        lines: sets
+            .iter()
+            .map(|s| {
+                s.exponent
+                    .and_then(|e| e.nu.zip(e.nu_intercept))
+                    .map(|(k, b)| (k, b, 1.0))
+            })
+            .collect(),
+        labels: sets
+            .iter()
+            .map(|s| {
+                let e = s.exponent;
+                format!(
+                    "R = {} mm (n = {}): ν = {}",
+                    tick(s.radius_mm),
+                    s.drops.len(),
+                    ci_text(e.and_then(|e| e.nu), e.and_then(|e| e.nu_ci))
+                )
+            })
+            .collect(),
+        headroom: 0.0,
+        guide_at: (0.04, 0.95),
+        guides: [(1.0 / 3.0, "1/3"), (1.0 / 6.0, "1/6")],
+        legend_corners: [LowerRight, LowerLeft, UpperRight],
+    };
+    log_log(root, sets, &spec)
+}
+
+fn tau_vs_v<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    use SeriesLabelPosition::*;
+    let pts: Vec<Vec<Pt>> = sets
+        .iter()
+        .map(|s| {
+            s.drops
+                .iter()
+                .filter_map(|g| g.tau_c_s.map(|t| pt(&g.v_m_s, &t, 1.0, 1e3)))
+                .collect()
+        })
+        .collect();
+    let spec = LogLog {
+        heading: "Contact time τc vs impact velocity v (cf. Fig. 4a)",
+        x_desc: "impact velocity v (m/s)",
+        y_desc: "contact time τc (ms)",
+        lines: sets
+            .iter()
+            .map(|s| {
+                s.exponent
+                    .and_then(|e| e.mu.zip(e.mu_intercept))
+                    .map(|(k, b)| (k, b, 1e3))
+            })
+            .collect(),
+        labels: sets
+            .iter()
+            .zip(&pts)
+            .map(|(s, p)| {
+                let e = s.exponent;
+                format!(
+                    "R = {} mm (n = {}): μ = {}",
+                    tick(s.radius_mm),
+                    p.len(),
+                    ci_text(e.and_then(|e| e.mu), e.and_then(|e| e.mu_ci))
+                )
+            })
+            .collect(),
+        pts,
+        // Room above the data for the guide slopes.
+        headroom: 0.25,
+        guide_at: (0.55, 0.95),
+        guides: [(-1.0 / 3.0, "−1/3"), (-2.0 / 3.0, "−2/3")],
+        legend_corners: [LowerLeft, LowerRight, UpperLeft],
+    };
+    log_log(root, sets, &spec)
+}
+
+/// Ψ vs Ξ or Ω vs Ξ with the series and the theory constant.
+#[allow(clippy::too_many_arguments)]
+fn series_plot<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    sets: &[RadiusSet],
+    heading: &str,
+    y_desc: &str,
+    y_of: &dyn Fn(&DropGroups) -> Option<Quantity>,
+    series: Option<&SeriesFit>,
+    names: [&str; 3],
+    theory: (f64, &str),
+    crossover: Option<f64>,
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    const THEORY: RGBColor = RGBColor(90, 90, 90);
+    const CROSS: RGBColor = RGBColor(120, 60, 160);
+    let area = title(root, heading)?;
+    let pts: Vec<Vec<Pt>> = sets
+        .iter()
+        .map(|s| {
+            s.drops
+                .iter()
+                .filter_map(|g| y_of(g).map(|y| pt(&g.big_xi, &y, 1.0, 1.0)))
+                .collect()
+        })
+        .collect();
+    let all = pts.concat();
+    // The fitted series over the data, and its extrapolation to Ξ = 0, where
+    // it is to be compared with the theory constant (A1 vs 2^(1/3), B1 vs C0).
+    let poly = |s: &SeriesFit, lo: f64, hi: f64| -> Vec<(f64, f64)> {
+        (0..=60)
+            .map(|i| {
+                let x = lo + (hi - lo) * i as f64 / 60.0;
+                let c = &s.coef;
+                (x, c[0].value + c[1].value * x + c[2].value * x * x)
+            })
+            .collect()
+    };
+    let curve = series.map_or(Vec::new(), |s| poly(s, s.xi_range[0], s.xi_range[1]));
+    // Extrapolate only when Ξ = 0 is no farther from the data than their own
+    // span, and let the axis grow for it by at most 30 % of the data's range.
+    let extrapolation = series
+        .filter(|s| s.xi_range[0] <= s.xi_range[1] - s.xi_range[0])
+        .map_or(Vec::new(), |s| poly(s, 0.0, s.xi_range[0]));
+    let (xr, yr0) = range(&all, false, &[theory.0]);
+    let span = yr0[1] - yr0[0];
+    let extra_y: Vec<f64> = extrapolation
+        .iter()
+        .map(|p| p.1)
+        .filter(|y| *y > yr0[0] - 0.3 * span && *y < yr0[1] + 0.3 * span)
+        .chain([theory.0])
+        .collect();
+    let (_, mut yr) = range(&all, false, &extra_y);
+    let xr = if extrapolation.is_empty() {
+        xr
+    } else {
+        [0.0, xr[1]]
+    };
+    let crossover = crossover.filter(|x| *x > xr[0] && *x < xr[1]);
+    let fit_label = series.map(|s| {
+        let pm = |k: usize| match s.coef[k].stderr {
+            Some(e) => format!("{} = {:.3} ± {:.3}", names[k], s.coef[k].value, e),
+            None => format!("{} = {:.3}", names[k], s.coef[k].value),
+        };
+        let extra = if extrapolation.is_empty() {
+            ""
+        } else {
+            " (dashed: to Ξ = 0)"
+        };
+        format!("fit: {}, {}, {}{extra}", pm(0), pm(1), pm(2))
+    });
+    let cross_label = crossover.map(|x| format!("Ξ× = A1/A2 = {x:.3} (leading terms equal)"));
+    let mut labels = vec![theory.1.to_string()];
+    labels.extend(cross_label.clone());
+    labels.extend(fit_label.clone());
+    for (set, p) in sets.iter().zip(&pts) {
+        labels.push(format!("R = {} mm (n = {})", tick(set.radius_mm), p.len()));
+    }
+
+    // Legend: a corner free of points and lines, else a band above them.
+    use SeriesLabelPosition::*;
+    let lbox = legend_box(&labels);
+    let mut occupied = normalised(&all, xr, yr, false);
+    let extra: Vec<Pt> = (0..=40)
+        .map(|i| {
+            (
+                xr[0] + (xr[1] - xr[0]) * i as f64 / 40.0,
+                theory.0,
+                None,
+                None,
+            )
+        })
+        .chain(
+            curve
+                .iter()
+                .chain(&extrapolation)
+                .map(|&(x, y)| (x, y, None, None)),
+        )
+        .chain(crossover.into_iter().flat_map(|x| {
+            (0..=20).map(move |i| (x, yr[0] + (yr[1] - yr[0]) * i as f64 / 20.0, None, None))
+        }))
+        .collect();
+    occupied.extend(normalised(&extra, xr, yr, false));
+    let corner = match free_corner(
+        &occupied,
+        lbox,
+        &[UpperRight, UpperLeft, LowerLeft, LowerRight],
+    ) {
+        Some(c) => c,
+        None => {
+            yr = with_band(yr, lbox.1, false);
+            // In the band only the vertical crossover line can be in the way.
+            match crossover.map(|x| (x - xr[0]) / (xr[1] - xr[0])) {
+                Some(fx) if fx > 1.0 - lbox.0 - 0.03 => UpperLeft,
+                _ => UpperRight,
+            }
+        }
+    };
+
+    // A geometric contact radius makes Ψ(Ξ) hold by construction (SPEC §3):
+    // say so on the figure itself, not only in fits.json.
+    let n_geo = sets
+        .iter()
+        .flat_map(|s| &s.drops)
+        .filter(|g| g.a_source.is_geometric())
+        .count();
+    if n_geo > 0 {
+        area.draw(&Text::new(
+            format!(
+                "WARNING: {n_geo} of {} drops use the geometric contact radius; for them \
+                 Ξ² = Ψ(2 − Π) by construction",
+                all.len()
+            ),
+            (100, 4),
+            ("sans-serif", 18).into_font().color(&RGBColor(200, 0, 0)),
+        ))?;
+    }
+    let mut chart = ChartBuilder::on(&area)
+        .margin(18)
+        .margin_top(if n_geo > 0 { 30 } else { 18 })
+        .x_label_area_size(60)
+        .y_label_area_size(80)
+        .build_cartesian_2d(xr[0]..xr[1], yr[0]..yr[1])?;
+    mesh(
+        &mut chart,
+        "Ξ = ξ φ^(1/6) κ^(−1/6) η^(−1/6)",
+        y_desc,
+        &|v| tick(*v),
+        &|v| tick(*v),
+    )?;
+    chart
+        .draw_series(DashedLineSeries::new(
+            vec![(xr[0], theory.0), (xr[1], theory.0)],
+            10,
+            6,
+            THEORY.stroke_width(2),
+        ))?
+        .label(theory.1.to_string())
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], THEORY.stroke_width(2)));
+    if let (Some(x), Some(label)) = (crossover, cross_label) {
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(x, yr[0]), (x, yr[1])],
+                3,
+                5,
+                CROSS.stroke_width(2),
+            ))?
+            .label(label)
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], CROSS.stroke_width(2)));
+    }
+    if let Some(label) = fit_label {
+        chart.draw_series(DashedLineSeries::new(
+            extrapolation,
+            6,
+            6,
+            BLACK.stroke_width(1),
+        ))?;
+        chart
+            .draw_series(LineSeries::new(curve, BLACK.stroke_width(2)))?
+            .label(label)
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+    }
+    // Markers last, so that no line hides a point.
+    for (set, p) in sets.iter().zip(&pts) {
+        if !p.is_empty() {
+            let label = format!("R = {} mm (n = {})", tick(set.radius_mm), p.len());
+            draw_points(&mut chart, set, p, false, label)?;
+        }
+    }
+    legend(&mut chart, corner)?;
+    Ok(())
+}
+
+/// The four collapse figures as `(file name, bytes)`, SVG and PNG each.
+pub fn collapse_figures(
+    groups: &[DropGroups],
+    fits: &Fits,
+) -> Result<Vec<(String, Vec<u8>)>, CollapseError> {
+    let sets = by_radius(groups, fits);
+    let mut out = Vec::new();
+    out.extend(render!("pi_vs_eta", FIGURE_SIZE, |a| pi_vs_eta(a, &sets))?);
+    out.extend(render!("tau_vs_v", FIGURE_SIZE, |a| tau_vs_v(a, &sets))?);
+    let psi_label = format!("Ψ → 2^(1/3) = {:.4} (energy balance)", fit::psi_theory());
+    out.extend(render!("psi_vs_xi", FIGURE_SIZE, |a| series_plot(
+        a,
+        &sets,
+        "Collapse Ψ(Ξ), Ψ = Π φ^(1/3) κ^(−1/3) η^(−1/3) (Eq. 8, cf. Fig. 3b)",
+        "Ψ",
+        &|g: &DropGroups| Some(g.psi),
+        fits.psi_series.as_ref(),
+        ["A1", "A2", "A3"],
+        (fit::psi_theory(), &psi_label),
+        fits.crossover_xi.as_ref().map(|c| c.value),
+    ))?);
+    let omega_label = format!("Ω → C0 = {:.4} (energy balance)", fit::omega_theory());
+    out.extend(render!("omega_vs_xi", FIGURE_SIZE, |a| series_plot(
+        a,
+        &sets,
+        "Collapse Ω(Ξ), Ω = ω φ^(1/3) κ^(−1/3) η^(−1/3), ω = τc v/R (cf. Fig. 4b)",
+        "Ω",
+        &|g: &DropGroups| g.big_omega,
+        fits.omega_series.as_ref(),
+        ["B1", "B2", "B3"],
+        (fit::omega_theory(), &omega_label),
+        None,
+    ))?);
+    Ok(out)
+}

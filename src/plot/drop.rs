@@ -1,0 +1,256 @@
+//! Per-drop diagnostics from `tracks/<run>.csv`: one figure, three panels —
+//! z(t) with the free-flight parabolas and the contact / rebound events,
+//! δ(t), and F(δ) with the fitted F = K δⁿ and the model F = (πEφR/h) δ².
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::{file_stem, render, tick, DrawResult};
+use crate::collapse::diagnostics::DropDiagnostics;
+use crate::collapse::CollapseError;
+
+/// Size of a per-drop figure in pixels.
+pub const DROP_FIGURE_SIZE: (u32, u32) = (1650, 560);
+
+const EVENT: RGBColor = RGBColor(200, 0, 0);
+const FIT: RGBColor = RGBColor(0, 110, 220);
+
+fn span(v: impl Iterator<Item = f64>) -> [f64; 2] {
+    let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+        (a.min(x), b.max(x))
+    });
+    if !(lo.is_finite() && hi.is_finite()) {
+        return [0.0, 1.0];
+    }
+    let m = ((hi - lo) * 0.06).max(1e-9 + hi.abs() * 1e-3);
+    [lo - m, hi + m]
+}
+
+/// Dashed vertical lines at contact and rebound, labelled near the top
+/// (`at_top`) or the bottom of the panel.
+fn events<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    d: &DropDiagnostics,
+    yr: [f64; 2],
+    at_top: bool,
+) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    use plotters::style::text_anchor::{HPos, Pos, VPos};
+    // Each label sits outside the contact interval: "contact" left of its
+    // line, "rebound" right of its line.
+    let sides = [
+        (d.t_contact_s, "contact ", HPos::Right),
+        (d.t_rebound_s, " rebound", HPos::Left),
+    ];
+    for (t, name, side) in sides {
+        if let Some(t) = t {
+            let t_ms = t * 1e3;
+            chart.draw_series(DashedLineSeries::new(
+                vec![(t_ms, yr[0]), (t_ms, yr[1])],
+                6,
+                4,
+                EVENT.stroke_width(2),
+            ))?;
+            chart.draw_series(std::iter::once(Text::new(
+                name.to_string(),
+                (
+                    t_ms,
+                    if at_top {
+                        yr[1] - 0.04 * (yr[1] - yr[0])
+                    } else {
+                        yr[0] + 0.08 * (yr[1] - yr[0])
+                    },
+                ),
+                ("sans-serif", 16)
+                    .into_font()
+                    .color(&EVENT)
+                    .pos(Pos::new(side, VPos::Center)),
+            )))?;
+        }
+    }
+    Ok(())
+}
+
+fn panels<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    let root = root.titled(
+        &format!("Drop {}: trajectory, penetration, force", d.run),
+        ("sans-serif", 24),
+    )?;
+    let cols = root.split_evenly((1, 3));
+    let t_range = span(d.rows.iter().map(|r| r.t_s * 1e3));
+    let label = ("sans-serif", 16);
+    let desc = ("sans-serif", 19);
+
+    // z(t): rows grow downward, so the axis is reversed (up on the page is up in the lab).
+    let zs: Vec<(f64, f64)> = d
+        .rows
+        .iter()
+        .filter_map(|r| r.z_px.map(|z| (r.t_s * 1e3, z)))
+        .collect();
+    let zr = span(zs.iter().map(|p| p.1));
+    let mut c = ChartBuilder::on(&cols[0])
+        .margin(14)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(t_range[0]..t_range[1], zr[1]..zr[0])?;
+    c.configure_mesh()
+        .x_desc("t (ms)")
+        .y_desc("centre row z (px, downward)")
+        .axis_desc_style(desc)
+        .label_style(label)
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| tick(*v))
+        .light_line_style(RGBColor(238, 238, 238))
+        .draw()?;
+    c.draw_series(
+        zs.iter()
+            .map(|&p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
+    )?
+    .label("track")
+    .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
+    for (i, f) in [&d.flight_in, &d.flight_out].into_iter().enumerate() {
+        let Some(f) = f else { continue };
+        // Drawn from the first frame used to the event it was fitted for.
+        let (a, b) = if i == 0 {
+            (f.t_range_s[0], f.t0_s)
+        } else {
+            (f.t0_s, f.t_range_s[1])
+        };
+        let s = c.draw_series(LineSeries::new(
+            (0..=40).map(|k| {
+                let t = a + (b - a) * k as f64 / 40.0;
+                (t * 1e3, f.eval(t))
+            }),
+            FIT.stroke_width(2),
+        ))?;
+        if i == 0 {
+            s.label("free-flight parabolas")
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], FIT.stroke_width(2)));
+        }
+    }
+    // Near the events the sphere is far from both extremes of z: labels at the
+    // bottom, legend at the top middle (above the lowest point).
+    events(&mut c, d, [zr[1], zr[0]], false)?;
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::UpperMiddle)
+        .background_style(WHITE.mix(0.9))
+        .border_style(RGBColor(120, 120, 120))
+        .label_font(label)
+        .draw()?;
+
+    // δ(t).
+    let ds: Vec<(f64, f64)> = d
+        .rows
+        .iter()
+        .filter_map(|r| r.delta_mm.map(|v| (r.t_s * 1e3, v)))
+        .collect();
+    let dr = span(ds.iter().map(|p| p.1).chain([0.0]));
+    let mut c = ChartBuilder::on(&cols[1])
+        .margin(14)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(t_range[0]..t_range[1], dr[0]..dr[1])?;
+    c.configure_mesh()
+        .x_desc("t (ms)")
+        .y_desc("penetration δ (mm)")
+        .axis_desc_style(desc)
+        .label_style(label)
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| tick(*v))
+        .light_line_style(RGBColor(238, 238, 238))
+        .draw()?;
+    c.draw_series(LineSeries::new(
+        vec![(t_range[0], 0.0), (t_range[1], 0.0)],
+        RGBColor(150, 150, 150).stroke_width(1),
+    ))?;
+    c.draw_series(
+        ds.iter()
+            .map(|&p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
+    )?;
+    events(&mut c, d, dr, false)?;
+
+    // F(δ).
+    let fs: Vec<(f64, f64)> = d
+        .rows
+        .iter()
+        .filter(|r| r.in_contact)
+        .filter_map(|r| r.delta_mm.zip(r.force_n))
+        .collect();
+    let xr = span(fs.iter().map(|p| p.0).chain([0.0]));
+    let mut y_all: Vec<f64> = fs.iter().map(|p| p.1).chain([0.0]).collect();
+    if let Some(l) = &d.force_law {
+        y_all.push(l.model_k_n_per_mm2 * xr[1].powi(2));
+        y_all.push(l.k_n_per_mm_pow_n.value * xr[1].max(0.0).powf(l.n.value));
+    }
+    let fr = span(y_all.into_iter());
+    let mut c = ChartBuilder::on(&cols[2])
+        .margin(14)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(xr[0]..xr[1], fr[0]..fr[1])?;
+    c.configure_mesh()
+        .x_desc("penetration δ (mm)")
+        .y_desc("contact force F (N)")
+        .axis_desc_style(desc)
+        .label_style(label)
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| tick(*v))
+        .light_line_style(RGBColor(238, 238, 238))
+        .draw()?;
+    c.draw_series(
+        fs.iter()
+            .map(|&p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
+    )?
+    .label("F = m(g − d²z/dt²), contact frames")
+    .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
+    if let Some(l) = &d.force_law {
+        let (k, n) = (l.k_n_per_mm_pow_n.value, l.n.value);
+        let top = fs.iter().map(|p| p.0).fold(0.0, f64::max);
+        let curve = |kk: f64, nn: f64| {
+            (0..=50).map(move |i| {
+                let x = top * i as f64 / 50.0;
+                (x, kk * x.powf(nn))
+            })
+        };
+        let se = l.n.stderr.map_or(String::new(), |e| format!(" ± {e:.2}"));
+        c.draw_series(LineSeries::new(curve(k, n), FIT.stroke_width(2)))?
+            .label(format!(
+                "fit F = K δ^n: n = {n:.2}{se}, K = {} N/mm^n",
+                tick(k)
+            ))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], FIT.stroke_width(2)));
+        let km = l.model_k_n_per_mm2;
+        c.draw_series(DashedLineSeries::new(
+            curve(km, 2.0),
+            8,
+            5,
+            RGBColor(90, 90, 90).stroke_width(2),
+        ))?
+        .label(format!("model πEφR/h · δ²: K = {} N/mm²", tick(km)))
+        .legend(|(x, y)| {
+            PathElement::new(
+                vec![(x, y), (x + 20, y)],
+                RGBColor(90, 90, 90).stroke_width(2),
+            )
+        });
+    }
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.9))
+        .border_style(RGBColor(120, 120, 120))
+        .label_font(label)
+        .draw()?;
+    Ok(())
+}
+
+/// The diagnostics figure of one drop as `(file name, bytes)`, SVG and PNG.
+pub fn drop_figures(d: &DropDiagnostics) -> Result<Vec<(String, Vec<u8>)>, CollapseError> {
+    render!(&file_stem(&d.run), DROP_FIGURE_SIZE, |a| panels(a, d))
+}

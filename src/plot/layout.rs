@@ -1,0 +1,201 @@
+//! Layout arithmetic of the collapse figures, free of any drawing: axis
+//! ranges and log ticks, guide-slope fans, and where a legend fits without
+//! hiding a point. Coordinates "normalised" run 0..1 across the plotting
+//! area, y upward.
+
+use plotters::prelude::SeriesLabelPosition;
+
+/// Tick values for a log axis over [lo, hi]: 1, 2, 5 × 10^k when that gives
+/// 4–12 labels, else every decade, else 1–9 × 10^k; and the minor grid 1–9 × 10^k.
+pub(super) fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
+    let (k0, k1) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+    let pick = |mant: &[f64]| -> Vec<f64> {
+        (k0..=k1)
+            .flat_map(|k| mant.iter().map(move |m| m * 10f64.powi(k)))
+            .filter(|v| *v >= lo && *v <= hi)
+            .collect()
+    };
+    let all = pick(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+    let major = {
+        let f = pick(&[1.0, 2.0, 5.0]);
+        if (4..=12).contains(&f.len()) {
+            f
+        } else if f.len() > 12 {
+            pick(&[1.0])
+        } else {
+            all.clone()
+        }
+    };
+    (major, all)
+}
+
+/// Points normalised to the plot area (log or linear axes).
+pub(super) fn normalised(points: &[Pt], xr: [f64; 2], yr: [f64; 2], log: bool) -> Vec<(f64, f64)> {
+    let f = |v: f64, r: [f64; 2]| {
+        if log {
+            (v.ln() - r[0].ln()) / (r[1].ln() - r[0].ln())
+        } else {
+            (v - r[0]) / (r[1] - r[0])
+        }
+    };
+    points.iter().map(|p| (f(p.0, xr), f(p.1, yr))).collect()
+}
+
+/// x, y, σx, σy of one point.
+pub(super) type Pt = (f64, f64, Option<f64>, Option<f64>);
+
+/// [lo, hi] of values ± errors; on a log axis the lower end stays positive.
+pub(super) fn range(points: &[Pt], log: bool, extra: &[f64]) -> ([f64; 2], [f64; 2]) {
+    let mut xr = [f64::INFINITY, f64::NEG_INFINITY];
+    let mut yr = xr;
+    let grow = |r: &mut [f64; 2], v: f64, e: Option<f64>| {
+        let e = e.unwrap_or(0.0);
+        let lo = if log { (v - e).max(v * 0.5) } else { v - e };
+        r[0] = r[0].min(lo);
+        r[1] = r[1].max(v + e);
+    };
+    for &(x, y, ex, ey) in points {
+        grow(&mut xr, x, ex);
+        grow(&mut yr, y, ey);
+    }
+    for &v in extra {
+        grow(&mut yr, v, None);
+    }
+    let pad = |r: [f64; 2]| {
+        if !(r[0].is_finite() && r[1].is_finite()) {
+            return if log { [0.1, 10.0] } else { [0.0, 1.0] };
+        }
+        if log {
+            let (a, b) = (r[0].ln(), r[1].ln());
+            let m = ((b - a) * 0.08).max(0.05);
+            [(a - m).exp(), (b + m).exp()]
+        } else {
+            let m = ((r[1] - r[0]) * 0.08).max(1e-3 * r[1].abs().max(1e-9));
+            [r[0] - m, r[1] + m]
+        }
+    };
+    (pad(xr), pad(yr))
+}
+
+/// A guide line: its points (data coordinates), label and label position.
+pub(super) type Guide = (Vec<(f64, f64)>, String, (f64, f64));
+
+/// Fan of guide lines with the given slopes in a log–log plot, starting at
+/// fraction (fx, fy) of the log ranges and running `len` of the x range; the
+/// start is lowered so that the steepest rising guide ends 5 % below the top.
+pub(super) fn guide_lines(
+    xr: [f64; 2],
+    yr: [f64; 2],
+    (fx, fy): (f64, f64),
+    len: f64,
+    slopes: &[(f64, &str)],
+) -> Vec<Guide> {
+    let (lx0, lx1) = (xr[0].ln(), xr[1].ln());
+    let (ly0, ly1) = (yr[0].ln(), yr[1].ln());
+    let x0 = lx0 + fx * (lx1 - lx0);
+    let x1 = x0 + len * (lx1 - lx0);
+    let rise = slopes.iter().map(|s| s.0).fold(0.0, f64::max) * (x1 - x0);
+    let y0 = (ly0 + fy * (ly1 - ly0)).min(ly1 - 0.05 * (ly1 - ly0) - rise);
+    slopes
+        .iter()
+        .map(|&(s, label)| {
+            let pts = (0..=20)
+                .map(|i| {
+                    let x = x0 + (x1 - x0) * i as f64 / 20.0;
+                    (x.exp(), (y0 + s * (x - x0)).exp())
+                })
+                .collect();
+            let at = ((x1 + 0.01 * (lx1 - lx0)).exp(), (y0 + s * (x1 - x0)).exp());
+            (pts, label.to_string(), at)
+        })
+        .collect()
+}
+
+/// Approximate plotting-area size of a collapse figure, for legend layout.
+pub(super) const PLOT_AREA_PX: (f64, f64) = (1000.0, 660.0);
+
+/// Legend box size as fractions of the plotting area (17 px DejaVu Sans:
+/// ≈ 7.6 px per character on average, 22 px per entry, plus the marker and margins).
+pub(super) fn legend_box(labels: &[String]) -> (f64, f64) {
+    let chars = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0) as f64;
+    (
+        ((chars * 7.6 + 60.0) / PLOT_AREA_PX.0).min(0.95),
+        ((labels.len() as f64 * 22.0 + 30.0) / PLOT_AREA_PX.1).min(0.9),
+    )
+}
+
+/// Where the legend goes: the allowed corner whose legend-sized box holds
+/// no point (normalised coordinates, y up; `occupied` includes lines),
+/// else `None`.
+pub(super) fn free_corner(
+    occupied: &[(f64, f64)],
+    (w, h): (f64, f64),
+    allowed: &[SeriesLabelPosition],
+) -> Option<SeriesLabelPosition> {
+    allowed
+        .iter()
+        .find(|p| {
+            let (left, up) = match p {
+                SeriesLabelPosition::UpperLeft => (true, true),
+                SeriesLabelPosition::UpperRight => (false, true),
+                SeriesLabelPosition::LowerLeft => (true, false),
+                _ => (false, false),
+            };
+            !occupied.iter().any(|&(x, y)| {
+                let in_x = if left {
+                    x < w + 0.03
+                } else {
+                    x > 1.0 - w - 0.03
+                };
+                let in_y = if up { y > 1.0 - h - 0.03 } else { y < h + 0.03 };
+                in_x && in_y
+            })
+        })
+        .cloned()
+}
+
+/// Raise the top of a y range so that a band of height fraction `h` above
+/// the current top is free for the legend (log or linear axis).
+pub(super) fn with_band(yr: [f64; 2], h: f64, log: bool) -> [f64; 2] {
+    let k = 1.0 / (1.0 - h - 0.04);
+    if log {
+        [yr[0], yr[0] * (yr[1] / yr[0]).powf(k)]
+    } else {
+        [yr[0], yr[0] + (yr[1] - yr[0]) * k]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn log_ticks_are_round_numbers_inside_the_range() {
+        let (major, minor) = log_ticks(0.0011, 0.06);
+        let want = [0.002, 0.005, 0.01, 0.02, 0.05];
+        assert_eq!(major.len(), want.len(), "{major:?}");
+        for (m, w) in major.iter().zip(want) {
+            assert!((m / w - 1.0).abs() < 1e-12, "{major:?}");
+        }
+        assert!(minor.len() > major.len());
+        // A narrow range falls back to 1–9 × 10^k: τc from 1.5 to 6 ms.
+        let (major, _) = log_ticks(1.5, 6.5);
+        assert_eq!(major, vec![2.0, 3.0, 4.0, 5.0, 6.0]);
+    }
+
+    #[test]
+    fn the_legend_goes_where_there_is_no_point() {
+        use SeriesLabelPosition::*;
+        // Points along the rising diagonal: the upper-left and lower-right are free.
+        let pts: Vec<(f64, f64)> = (0..50)
+            .map(|i| (i as f64 / 49.0, i as f64 / 49.0))
+            .collect();
+        let c = free_corner(&pts, (0.3, 0.2), &[UpperRight, UpperLeft, LowerRight]);
+        assert_eq!(c, Some(UpperLeft));
+        // A box as wide as the plot fits nowhere.
+        assert_eq!(
+            free_corner(&pts, (0.95, 0.5), &[UpperRight, UpperLeft]),
+            None
+        );
+    }
+}

@@ -1,0 +1,164 @@
+//! Plots as bytes: every figure is drawn twice from one description, as SVG
+//! (text left to the viewer's sans-serif) and as PNG (text rasterised from
+//! the embedded DejaVu Sans, so no system font is needed).
+//!
+//! | file | figures |
+//! | --- | --- |
+//! | [`collapse`](self::collapse_figures) | Π vs η, τc vs v (log–log), Ψ vs Ξ, Ω vs Ξ |
+//! | [`drop`](self::drop_figures) | per drop: z(t), δ(t), F(δ) |
+//! | `layout` | axis ranges, log ticks, guide slopes, legend placement |
+//! | `marker` | the per-radius markers of Figs. 3–4 |
+//!
+//! Markers follow Figs. 3–4 of Maruoka 2019: R = 3 mm blue circle, 4 mm
+//! green triangle, 4.5 mm black ×, 5 mm orange diamond, 7 mm red square;
+//! other radii get further colour/marker pairs in order of size.
+
+mod collapse;
+mod drop;
+mod layout;
+mod marker;
+
+pub use collapse::collapse_figures;
+pub use drop::drop_figures;
+pub use marker::{radius_style, Marker, MarkerKind};
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::sync::Once;
+
+use crate::collapse::CollapseError;
+
+/// The error type of the drawing functions (plotters' errors, boxed).
+pub(crate) type DrawResult = Result<(), Box<dyn std::error::Error>>;
+
+/// Register DejaVu Sans as plotters' "sans-serif" (all styles fall back to
+/// regular, bold and oblique are registered). Idempotent.
+pub fn register_fonts() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        let fonts: [(FontStyle, &'static [u8]); 3] = [
+            (FontStyle::Normal, dejavu::sans::regular()),
+            (FontStyle::Bold, dejavu::sans::bold()),
+            (FontStyle::Oblique, dejavu::sans::oblique()),
+        ];
+        for (style, bytes) in fonts {
+            // The font is compiled in; failing to parse it is a build defect.
+            if plotters::style::register_font("sans-serif", style, bytes).is_err() {
+                panic!("the embedded DejaVu Sans font could not be parsed");
+            }
+        }
+    });
+}
+
+/// Draw `draw` into an SVG string and an RGB PNG of `size` pixels, and
+/// return `[(stem.svg, bytes), (stem.png, bytes)]`.
+pub(crate) fn render_both<F1, F2>(
+    stem: &str,
+    size: (u32, u32),
+    draw_svg: F1,
+    draw_png: F2,
+) -> Result<Vec<(String, Vec<u8>)>, CollapseError>
+where
+    F1: FnOnce(&DrawingArea<SVGBackend, Shift>) -> DrawResult,
+    F2: FnOnce(&DrawingArea<BitMapBackend, Shift>) -> DrawResult,
+{
+    register_fonts();
+    let perr = |e: Box<dyn std::error::Error>| CollapseError::Plot {
+        name: stem.to_string(),
+        message: e.to_string(),
+    };
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| perr(e.into()))?;
+        draw_svg(&root).map_err(perr)?;
+        root.present().map_err(|e| perr(e.into()))?;
+    }
+    let mut rgb = vec![255u8; size.0 as usize * size.1 as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| perr(e.into()))?;
+        draw_png(&root).map_err(perr)?;
+        root.present().map_err(|e| perr(e.into()))?;
+    }
+    let mut png = Vec::new();
+    {
+        use image::ImageEncoder;
+        image::codecs::png::PngEncoder::new(&mut png)
+            .write_image(&rgb, size.0, size.1, image::ExtendedColorType::Rgb8)
+            .map_err(|e| perr(e.into()))?;
+    }
+    Ok(vec![
+        (format!("{stem}.svg"), svg.into_bytes()),
+        (format!("{stem}.png"), png),
+    ])
+}
+
+/// Draw with one generic function into both formats.
+macro_rules! render {
+    ($stem:expr, $size:expr, $f:expr) => {
+        $crate::plot::render_both($stem, $size, |a| $f(a), |a| $f(a))
+    };
+}
+pub(crate) use render;
+
+/// A tick label: plain decimals between 0.001 and 10 000, else "m·10^k"
+/// written as "me-k" would be; we write the decimal with up to 3 significant
+/// digits, or `1e-4` style for very small or large values.
+pub(crate) fn tick(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    let a = v.abs();
+    if (1e-3..1e4).contains(&a) {
+        let digits = (2 - a.log10().floor() as i32).max(0) as usize;
+        let s = format!("{v:.digits$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    } else {
+        format!("{v:.1e}").replace(".0e", "e")
+    }
+}
+
+/// A run name made safe as a file name (path separators and the like → `_`).
+pub fn file_stem(run: &str) -> String {
+    let s: String = run
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() || s.starts_with('.') {
+        format!("_{s}")
+    } else {
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_read_like_numbers() {
+        assert_eq!(tick(0.01), "0.01");
+        assert_eq!(tick(0.025), "0.025");
+        assert_eq!(tick(2.0), "2");
+        assert_eq!(tick(1.25), "1.25");
+        assert_eq!(tick(100.0), "100");
+        assert_eq!(tick(1e-5), "1e-5");
+    }
+
+    #[test]
+    fn run_names_cannot_escape_the_plot_folder() {
+        assert_eq!(file_stem("../etc/passwd"), "_.._etc_passwd");
+        assert_eq!(file_stem("R3_h10_07"), "R3_h10_07");
+    }
+}

@@ -1177,3 +1177,22 @@ fn a_folder_holding_a_real_pcc_export_reads_its_xml() {
         assert_eq!(*v, img.get_pixel(c as u32, r as u32).0[0]);
     }
 }
+
+#[test]
+fn reading_into_a_non_contiguous_view_gives_the_same_rows() {
+    // The caller's buffer may be a window of a wider array (rows not back to back).
+    for file in [
+        "pims/cine_781.cine",
+        "cinefiles-jl/8bpp.cine",
+        "cinefiles-jl/dt_test.cine",
+    ] {
+        let mut src = open_default(&sample(file)).unwrap();
+        let (h, w) = (src.meta().height, src.meta().width);
+        let full = read_all(src.as_mut(), 1);
+        let mut wide = Frame::zeros((h, w + 3));
+        let mut view = wide.slice_mut(s![.., 1..w + 1]);
+        src.read_rows_into(1, 0, &mut view).unwrap();
+        assert_eq!(wide.slice(s![.., 1..w + 1]), full, "{file}");
+        assert!(wide.column(0).iter().all(|&v| v == 0));
+    }
+}

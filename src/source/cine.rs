@@ -830,8 +830,10 @@ impl FrameSource for CineSource {
 /// Read `dst.len()` bytes into `dst`, seen as rows of `row_bytes`; with
 /// `reverse` the file's first row goes to `dst`'s last row (bottom-up
 /// storage): the rows are read in chunks of ~64 KiB into the cache-resident
-/// `chunk` and copied to their places (measured faster than one vectored
-/// read per row or an in-place swap).
+/// `chunk` and copied to their places. (A vectored read with one buffer per
+/// row and a read followed by an in-place row swap measured the same within
+/// this machine's noise; a memory map was slower, its page faults costing
+/// more than the copy it saves.)
 fn read_rows(
     file: &mut File,
     dst: &mut [u8],

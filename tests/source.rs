@@ -1140,3 +1140,59 @@ fn eight_bit_rows_padded_to_4_bytes_are_read() {
     let mut src = open_default(&padded).unwrap();
     assert_eq!(read_all(src.as_mut(), 0), frame);
 }
+
+#[test]
+fn a_folder_holding_a_real_pcc_export_reads_its_xml() {
+    // PCC's own first-frame export of 12bpp.cine, named as a sequence file.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        sample("cinefiles-jl/12bpp.tif"),
+        dir.path().join("12bpp_-100.tif"),
+    )
+    .unwrap();
+    std::fs::copy(
+        sample("cinefiles-jl/12bpp.xml"),
+        dir.path().join("12bpp.xml"),
+    )
+    .unwrap();
+    let mut src = open_default(dir.path()).unwrap();
+    let m = src.meta().clone();
+    assert_eq!((m.frame_count, m.width, m.height), (1, 128, 16));
+    assert_eq!((m.first_frame, m.fps), (-100, 10000.0));
+    assert!((m.exposure_s.unwrap() - 99e-6).abs() < 1e-12);
+    // The XML says RealBPP 12 but the TIFF holds values up to 5440 (scaled
+    // to 16 bits by PCC): bit_depth is the container's, with a warning.
+    assert_eq!(m.bit_depth, 16);
+    assert!(m.details.warnings.iter().any(|w| w.contains("RealBPP 12")));
+    // Its time equals the cine's tag-1002 time of image −100 (50 ns).
+    let cine = open_default(&sample("cinefiles-jl/12bpp.cine")).unwrap();
+    let t_cine = cine.meta().timestamps_s.as_ref().unwrap()[0];
+    assert!((m.timestamps_s.as_ref().unwrap()[0] - t_cine).abs() < 5e-8);
+    // Pixels: exactly what the image crate decodes.
+    let f = read_all(src.as_mut(), 0);
+    let img = image::open(sample("cinefiles-jl/12bpp.tif"))
+        .unwrap()
+        .into_luma16();
+    for ((r, c), v) in f.indexed_iter() {
+        assert_eq!(*v, img.get_pixel(c as u32, r as u32).0[0]);
+    }
+}
+
+#[test]
+fn reading_into_a_non_contiguous_view_gives_the_same_rows() {
+    // The caller's buffer may be a window of a wider array (rows not back to back).
+    for file in [
+        "pims/cine_781.cine",
+        "cinefiles-jl/8bpp.cine",
+        "cinefiles-jl/dt_test.cine",
+    ] {
+        let mut src = open_default(&sample(file)).unwrap();
+        let (h, w) = (src.meta().height, src.meta().width);
+        let full = read_all(src.as_mut(), 1);
+        let mut wide = Frame::zeros((h, w + 3));
+        let mut view = wide.slice_mut(s![.., 1..w + 1]);
+        src.read_rows_into(1, 0, &mut view).unwrap();
+        assert_eq!(wide.slice(s![.., 1..w + 1]), full, "{file}");
+        assert!(wide.column(0).iter().all(|&v| v == 0));
+    }
+}

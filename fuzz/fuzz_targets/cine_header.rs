@@ -15,7 +15,11 @@ fuzz_target!(|data: &[u8]| {
         return;
     }
     for p10 in [P10Mode::Raw, P10Mode::Linear] {
-        let opts = OpenOptions { apply_flips: true, p10, ..OpenOptions::default() };
+        let opts = OpenOptions {
+            apply_flips: true,
+            p10,
+            ..OpenOptions::default()
+        };
         if let Ok(mut src) = cine::CineSource::open(&path, &opts) {
             let (h, w, n) = (src.meta().height, src.meta().width, src.meta().frame_count);
             if h * w > 1 << 22 {

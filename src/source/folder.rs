@@ -30,7 +30,7 @@ use ndarray::{s, ArrayViewMut2};
 
 use super::pcc_xml::{self, PccXml};
 use super::{
-    check_band, fill_row, fill_rows, FrameSource, OpenOptions, SourceDetails, SourceError,
+    check_band, fill_row, fill_rows, Frame, FrameSource, OpenOptions, SourceDetails, SourceError,
     SourceMeta,
 };
 
@@ -148,6 +148,8 @@ pub struct FolderSource {
     meta: SourceMeta,
     files: Vec<PathBuf>,
     kind: ImageKind,
+    /// Bits per sample of the files (8 or 16).
+    container_bits: u8,
     scratch: Scratch,
     row_scratch: Vec<u16>,
     u16_scratch: Vec<u16>,
@@ -356,14 +358,41 @@ impl FolderSource {
             },
         };
         scratch.read_whole = true;
-        Ok(FolderSource {
+        let mut src = FolderSource {
             meta,
             files,
             kind,
+            container_bits: first.bits,
             scratch,
             row_scratch: Vec::new(),
             u16_scratch: Vec::new(),
-        })
+        };
+        src.check_real_bpp()?;
+        Ok(src)
+    }
+
+    /// PCC's 16-bit TIFF exports hold values scaled to 0‥65535 while their
+    /// XML still says RealBPP 12 (it describes the camera data): when frame
+    /// 0 holds a value above `2^RealBPP − 1`, the bit depth is the
+    /// container's and a warning says why.
+    fn check_real_bpp(&mut self) -> Result<(), SourceError> {
+        let bits = self.meta.bit_depth;
+        let container = self.container_bits;
+        if bits >= container {
+            return Ok(());
+        }
+        let mut f = Frame::zeros((self.meta.height, self.meta.width));
+        self.read_into(0, &mut f)?;
+        let max = f.iter().copied().max().unwrap_or(0);
+        if u32::from(max) >= 1 << bits {
+            self.meta.bit_depth = container;
+            self.meta.details.warnings.push(format!(
+                "frame 0 holds {max}, above the XML's RealBPP {bits} range: \
+                 the frames are scaled to {container} bits (a PCC 16-bit export), \
+                 bit_depth set to {container}"
+            ));
+        }
+        Ok(())
     }
 
     /// The frame files in index order.

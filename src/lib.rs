@@ -7,6 +7,7 @@
 //! | [`config`] | `pipeline.toml` → validated [`config::PipelineConfig`] in SI units |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
 //! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
+//! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //!
 //! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
@@ -16,5 +17,6 @@
 
 pub mod config;
 pub mod dataset;
+pub mod detect;
 pub mod io_util;
 pub mod source;

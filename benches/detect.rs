@@ -54,7 +54,7 @@ fn scene(disk: Option<(f64, f64, f64)>) -> Scene {
         height: H,
         background: 200.0,
         vignetting: 0.1,
-        sphere: 40.0,
+        sphere_transmission: 0.2,
         disk,
         band: Some(band()),
         blur_px: 1.0,
@@ -114,7 +114,17 @@ fn surface() -> SurfaceLine {
     }
 }
 
-/// Frames per second over `rounds` passes through `cases` on `threads` threads.
+/// CPU time this thread has run, from `/proc/thread-self/schedstat` (first
+/// field, ns); `None` where the file does not exist.
+fn thread_cpu_s() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: f64 = text.split_whitespace().next()?.parse().ok()?;
+    Some(ns * 1e-9)
+}
+
+/// Rates over `rounds` passes through `cases` on `threads` threads:
+/// `(frames per wall second, frames per CPU second per thread)`. The second
+/// is what a core delivers when it is not shared with other processes.
 fn time(
     cases: &[Case],
     bg: &Background,
@@ -122,37 +132,51 @@ fn time(
     hold: bool,
     threads: usize,
     rounds: usize,
-) -> f64 {
+) -> (f64, f64) {
     let s = surface();
     let start = Instant::now();
-    std::thread::scope(|scope| {
-        for t in 0..threads {
-            let s = &s;
-            scope.spawn(move || {
-                let mut scratch = EdgeScratch::default();
-                let mut sink = 0.0;
-                for _ in 0..rounds {
-                    for c in cases.iter().skip(t).step_by(threads) {
-                        let band = Band::frame(&c.frame).expect("band");
-                        let hold_r = hold.then_some(c.truth.r_px);
-                        if let Ok(f) = measure_circle(
-                            &band,
-                            bg,
-                            &c.predicted,
-                            Some(s),
-                            hold_r,
-                            params,
-                            &mut scratch,
-                        ) {
-                            sink += f.z_px;
+    let cpu: Vec<f64> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                let s = &s;
+                scope.spawn(move || {
+                    let cpu0 = thread_cpu_s();
+                    let mut scratch = EdgeScratch::default();
+                    let mut sink = 0.0;
+                    for _ in 0..rounds {
+                        for c in cases.iter().skip(t).step_by(threads) {
+                            let band = Band::frame(&c.frame).expect("band");
+                            let hold_r = hold.then_some(c.truth.r_px);
+                            if let Ok(f) = measure_circle(
+                                &band,
+                                bg,
+                                &c.predicted,
+                                Some(s),
+                                hold_r,
+                                params,
+                                &mut scratch,
+                            ) {
+                                sink += f.z_px;
+                            }
                         }
                     }
-                }
-                std::hint::black_box(sink);
-            });
-        }
+                    std::hint::black_box(sink);
+                    match (cpu0, thread_cpu_s()) {
+                        (Some(a), Some(b)) => b - a,
+                        _ => f64::NAN,
+                    }
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("bench thread"))
+            .collect()
     });
-    (cases.len() * rounds) as f64 / start.elapsed().as_secs_f64()
+    let frames = (cases.len() * rounds) as f64;
+    let wall = frames / start.elapsed().as_secs_f64();
+    let per_core = frames / cpu.iter().sum::<f64>();
+    (wall, per_core)
 }
 
 fn accuracy(cases: &[Case], bg: &Background, params: &EdgeParams, hold: bool) -> String {
@@ -161,6 +185,7 @@ fn accuracy(cases: &[Case], bg: &Background, params: &EdgeParams, hold: bool) ->
     let mut ez = Vec::new();
     let mut covered = 0;
     let mut points = 0;
+    let mut iterations = 0;
     for c in cases {
         let band = Band::frame(&c.frame).expect("band");
         let hold_r = hold.then_some(c.truth.r_px);
@@ -179,6 +204,7 @@ fn accuracy(cases: &[Case], bg: &Background, params: &EdgeParams, hold: bool) ->
                     covered += 1;
                 }
                 points += f.inliers;
+                iterations += f.iterations;
                 ez.push(e.abs());
             }
             Err(e) => println!("  fit failed: {e}"),
@@ -187,18 +213,35 @@ fn accuracy(cases: &[Case], bg: &Background, params: &EdgeParams, hold: bool) ->
     ez.sort_by(f64::total_cmp);
     let q = |p: f64| ez[((ez.len() - 1) as f64 * p).round() as usize];
     format!(
-        "z error median {:.4} px, 95th {:.4} px, max {:.4} px; |e| ≤ 2σ_z in {:.0} %; {:.0} edge points/frame",
+        "z error median {:.4} px, 95th {:.4} px, max {:.4} px; |e| ≤ 2σ_z in {:.0} %; {:.0} edge points/frame, {:.1} IRLS iterations/fit",
         q(0.5),
         q(0.95),
         q(1.0),
         100.0 * covered as f64 / ez.len() as f64,
-        points as f64 / ez.len() as f64
+        points as f64 / ez.len() as f64,
+        iterations as f64 / ez.len() as f64
     )
 }
 
 fn main() {
     let mut rng = ChaCha8Rng::seed_from_u64(2024);
     let bg = background(&mut rng);
+    // `cargo bench --bench detect -- profile`: only the in-cache loop, for
+    // perf stat / perf record.
+    if std::env::args().any(|a| a == "profile") {
+        let cases = make_cases(60.0, 1, &mut rng);
+        for (spacing_px, half_window) in [(2.0, 6), (3.0, 6), (2.0, 5), (3.0, 5)] {
+            let params = EdgeParams {
+                spacing_px,
+                half_window,
+                ..EdgeParams::default()
+            };
+            let (wall, cpu) = time(&cases, &bg, &params, true, 1, 50_000);
+            println!("profile: R = 60 px, radius held, spacing {spacing_px} px, window ±{half_window}, one frame in cache: {wall:.0} wall / {cpu:.0} cpu frames/s");
+        }
+        return;
+    }
+    println!("wall = frames per elapsed second (the machine may be shared); cpu = frames per second of thread CPU time");
     for r in [60.0, 100.0] {
         let cases = make_cases(r, 64, &mut rng);
         for passes in [1, 2] {
@@ -207,17 +250,16 @@ fn main() {
                     passes,
                     ..EdgeParams::default()
                 };
-                let rounds = 200;
-                // Warm-up.
-                time(&cases, &bg, &params, hold, 1, 5);
-                let one = time(&cases, &bg, &params, hold, 1, rounds);
-                let two = time(&cases, &bg, &params, hold, 2, rounds);
+                let rounds = 100;
+                time(&cases, &bg, &params, hold, 1, 5); // warm-up
+                let (hot_wall, hot_cpu) = time(&cases[..1], &bg, &params, hold, 1, rounds * 64);
+                let (one_wall, one_cpu) = time(&cases, &bg, &params, hold, 1, rounds);
+                let (two_wall, two_cpu) = time(&cases, &bg, &params, hold, 2, rounds);
                 println!(
-                    "R = {r:>3} px, passes {passes}, radius {}: 1 thread {:>7.0} frames/s ({:.1} µs/frame), 2 threads {:>7.0} frames/s",
+                    "R = {r:>3} px, passes ≤ {passes}, radius {}: 1 thread {one_wall:>6.0} wall / {one_cpu:>6.0} cpu frames/s ({:.1} µs cpu/frame); 2 threads {two_wall:>6.0} wall / {:>6.0} cpu frames/s; one frame in cache {hot_wall:>6.0} wall / {hot_cpu:>6.0} cpu",
                     if hold { "held" } else { "free" },
-                    one,
-                    1e6 / one,
-                    two
+                    1e6 / one_cpu,
+                    2.0 * two_cpu,
                 );
                 println!("  {}", accuracy(&cases, &bg, &params, hold));
             }

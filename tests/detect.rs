@@ -3,9 +3,17 @@
 //! vignetting, 8-bit quantisation and seeded Gaussian noise, at many
 //! fractional centre positions.
 //!
-//! The "realistic" look used throughout: background 200 (8-bit), sphere 40,
-//! 10 % vignetting, optics blur σ = 1.0 px, noise σ = 2 levels, flicker gain
-//! ±3 % per frame, background from 8 sphere-free frames.
+//! The "realistic" look used throughout: background 200 (8-bit), sphere
+//! transmission 0.2, 10 % vignetting, optics blur σ = 1.0 px, noise σ = 2
+//! levels, flicker gain ±3 % per frame, background from 8 sphere-free
+//! frames; the prediction handed to the measurement is the truth moved by up
+//! to ±1.5 px in each coordinate (and ±1 px in radius).
+//!
+//! Tolerances: the accuracy tests assert the issue's targets (centre row
+//! median ≤ 0.02 px and 95th percentile ≤ 0.06 px in free flight, 0.03 /
+//! 0.08 px on the arc above the surface, R error ≤ 0.02 px, |e| ≤ 2σ in
+//! ≥ 90 % of frames). Measured values are 3–5× better (see the README), so
+//! a failure means a real regression, not an unlucky seed.
 
 use dropscope::detect::background::{Background, GainRegion};
 use dropscope::detect::circle::{fit_circle, Circle, FitOptions, FitScratch};
@@ -24,13 +32,20 @@ struct Look {
     blur_px: f64,
     noise: f64,
     flicker: f64,
+    /// 8 or 12; the background is 200 (8-bit) or 3200 (12-bit).
+    bits: u8,
 }
 
 const REALISTIC: Look = Look {
     blur_px: 1.0,
     noise: 2.0,
     flicker: 0.03,
+    bits: 8,
 };
+
+fn max_level(look: Look) -> u16 {
+    ((1u32 << look.bits) - 1) as u16
+}
 
 fn gauss(rng: &mut ChaCha8Rng) -> f64 {
     // Box–Muller.
@@ -49,9 +64,9 @@ fn scene(
     Scene {
         width: w,
         height: h,
-        background: 200.0,
+        background: if look.bits == 8 { 200.0 } else { 3200.0 },
         vignetting: 0.1,
-        sphere: 40.0,
+        sphere_transmission: 0.2,
         disk,
         band,
         blur_px: look.blur_px,
@@ -62,7 +77,7 @@ fn shoot(s: &Scene, look: Look, rng: &mut ChaCha8Rng) -> Frame {
     let img = s.render();
     let gain = 1.0 + look.flicker * (2.0 * rng.gen::<f64>() - 1.0);
     let noise = look.noise;
-    synth::quantize(&img, gain, 255, || noise * gauss(rng))
+    synth::quantize(&img, gain, max_level(look), || noise * gauss(rng))
 }
 
 fn background(s: &Scene, look: Look, rng: &mut ChaCha8Rng) -> Background {
@@ -74,7 +89,7 @@ fn background(s: &Scene, look: Look, rng: &mut ChaCha8Rng) -> Background {
     let frames: Vec<Frame> = (0..8)
         .map(|_| {
             let gain = 1.0 + look.flicker * (2.0 * rng.gen::<f64>() - 1.0);
-            synth::quantize(&img, gain, 255, || look.noise * gauss(rng))
+            synth::quantize(&img, gain, max_level(look), || look.noise * gauss(rng))
         })
         .collect();
     let views: Vec<_> = frames.iter().map(|f| f.view()).collect();
@@ -204,39 +219,329 @@ fn summary(name: &str, t: &[Trial]) -> (f64, f64) {
     (m50, m95)
 }
 
-#[test]
-fn explore() {
-    let mut rng = ChaCha8Rng::seed_from_u64(1);
-    for r in [30.0, 60.0, 100.0] {
+fn run_trials(
+    seed: u64,
+    radii: &[f64],
+    per_radius: usize,
+    contact: bool,
+    hold: bool,
+    dust: usize,
+) -> Vec<Trial> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut out = Vec::new();
+    for &r in radii {
         let size = (2 * r as usize + 60, 2 * r as usize + 60);
         let mut bg = None;
-        let trials: Vec<Trial> = (0..60)
-            .map(|_| {
-                let c = (
-                    size.0 as f64 / 2.0 + rng.gen_range(-3.0..3.0),
-                    size.1 as f64 / 2.0 + rng.gen_range(-3.0..3.0),
-                    r + rng.gen::<f64>(),
-                );
-                trial(&mut rng, REALISTIC, size, c, None, false, 0, &mut bg)
-            })
-            .collect();
-        summary(&format!("free R={r}"), &trials);
-        // arc only
-        let mut bg = None;
-        let yline = size.1 as f64 / 2.0 + 0.37;
-        let band = pillar_band(yline, 0.004);
-        let trials: Vec<Trial> = (0..60)
-            .map(|_| {
-                let delta = rng.gen_range(0.0..0.3 * r);
-                let cx = size.0 as f64 / 2.0 + rng.gen_range(-3.0..3.0);
-                let c = (
-                    cx,
-                    band.row0_px + band.slope * cx - r + delta,
-                    r + rng.gen::<f64>(),
-                );
-                trial(&mut rng, REALISTIC, size, c, Some(band), false, 0, &mut bg)
-            })
-            .collect();
-        summary(&format!("arc R={r}"), &trials);
+        let band = contact.then(|| pillar_band(size.1 as f64 / 2.0 + 0.37, 0.004));
+        for _ in 0..per_radius {
+            let cx = size.0 as f64 / 2.0 + rng.gen_range(-3.0..3.0);
+            let r_true = r + rng.gen::<f64>();
+            let cz = match band {
+                // Lowest point from on the line to 0.3 R below it.
+                Some(b) => b.row0_px + b.slope * cx - r_true + rng.gen_range(0.0..0.3 * r),
+                None => size.1 as f64 / 2.0 + rng.gen_range(-3.0..3.0),
+            };
+            out.push(trial(
+                &mut rng,
+                REALISTIC,
+                size,
+                (cx, cz, r_true),
+                band,
+                hold,
+                dust,
+                &mut bg,
+            ));
+        }
+    }
+    out
+}
+
+#[test]
+fn free_flight_centre_and_radius_meet_the_issue_targets() {
+    let t = run_trials(11, &[30.0, 60.0, 100.0], 40, false, false, 0);
+    let (m50, m95) = summary("free flight, radius free", &t);
+    assert!(
+        m50 <= 0.02 && m95 <= 0.06,
+        "centre row median {m50}, 95th {m95}"
+    );
+    let ex: Vec<f64> = t.iter().map(|t| t.err_x).collect();
+    assert!(pct_abs(&ex, 50.0) <= 0.02 && pct_abs(&ex, 95.0) <= 0.06);
+    // Radius: mean over frames (the calibration averages many frames) and
+    // the single-frame 95th percentile.
+    let er: Vec<f64> = t.iter().map(|t| t.err_r).collect();
+    let mean_r = er.iter().sum::<f64>() / er.len() as f64;
+    assert!(mean_r.abs() <= 0.02, "mean R error {mean_r}");
+    assert!(
+        pct_abs(&er, 95.0) <= 0.06,
+        "R error 95th {}",
+        pct_abs(&er, 95.0)
+    );
+}
+
+#[test]
+fn arc_above_the_surface_meets_the_contact_targets() {
+    for hold in [false, true] {
+        let t = run_trials(12 + hold as u64, &[30.0, 60.0, 100.0], 40, true, hold, 0);
+        let (m50, m95) = summary(&format!("arc only, radius held {hold}"), &t);
+        assert!(
+            m50 <= 0.03 && m95 <= 0.08,
+            "hold {hold}: median {m50}, 95th {m95}"
+        );
+    }
+}
+
+#[test]
+fn dust_on_the_edge_is_rejected() {
+    // Eight dark 2×2 specks per frame on or just outside the edge, not in
+    // the background (dust moving with the air). Without rejection each
+    // would pull its edge point by up to ~1 px.
+    let t = run_trials(13, &[40.0, 80.0], 40, false, false, 8);
+    let (m50, m95) = summary("free flight with dust", &t);
+    assert!(m50 <= 0.02 && m95 <= 0.06, "median {m50}, 95th {m95}");
+}
+
+#[test]
+fn centre_uncertainty_is_honest() {
+    let mut t = run_trials(14, &[30.0, 60.0, 100.0], 30, false, false, 0);
+    t.extend(run_trials(15, &[30.0, 60.0, 100.0], 30, true, true, 0));
+    let covered = t
+        .iter()
+        .filter(|t| t.err_z.abs() <= 2.0 * t.sigma_z)
+        .count();
+    let frac = covered as f64 / t.len() as f64;
+    println!(
+        "|e_z| ≤ 2σ_z in {:.1} % of {} frames",
+        100.0 * frac,
+        t.len()
+    );
+    // ≥ 90 % (a Gaussian gives 95.4 %); and σ not inflated beyond use:
+    // at most 98 % inside 1σ... i.e. the typical |e|/σ is not tiny.
+    assert!(frac >= 0.90, "{frac}");
+    let mut ratio: Vec<f64> = t.iter().map(|t| t.err_z.abs() / t.sigma_z).collect();
+    ratio.sort_by(f64::total_cmp);
+    let med = ratio[ratio.len() / 2];
+    assert!(med > 0.3, "median |e|/σ = {med}: σ is overstated");
+}
+
+#[test]
+fn no_pixel_locking_across_fractional_positions() {
+    // 12-bit, noiseless, light blur (the worst case for locking: sharp
+    // edges and no noise to dither them); 200 centres stepping through a
+    // pixel in z (and an incommensurate step in x). The mean error in each
+    // of 10 bins of the fractional row must stay within 0.005 px (a quarter
+    // of the median target); measured ≤ 0.002.
+    let look = Look {
+        blur_px: 0.6,
+        noise: 0.0,
+        flicker: 0.0,
+        bits: 12,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(16);
+    let mut bg = None;
+    let mut bins = [(0.0, 0usize); 10];
+    let mut bins_x = [(0.0, 0usize); 10];
+    for k in 0..200 {
+        let c = (70.0 + 0.0137 * k as f64, 65.0 + 0.005 * k as f64, 40.123);
+        let t = trial(&mut rng, look, (140, 140), c, None, false, 0, &mut bg);
+        let b = ((t.frac_z * 10.0) as usize).min(9);
+        bins[b].0 += t.err_z;
+        bins[b].1 += 1;
+        let bx = ((c.0.rem_euclid(1.0) * 10.0) as usize).min(9);
+        bins_x[bx].0 += t.err_x;
+        bins_x[bx].1 += 1;
+    }
+    for (name, bins) in [("z", bins), ("x", bins_x)] {
+        let means: Vec<f64> = bins.iter().map(|(s, n)| s / (*n).max(1) as f64).collect();
+        println!("{name} bin means: {means:+.4?}");
+        assert!(bins.iter().all(|(_, n)| *n > 0));
+        assert!(means.iter().all(|m| m.abs() <= 0.005), "{name}: {means:?}");
+    }
+}
+
+#[test]
+fn no_curved_edge_bias_under_heavy_blur() {
+    // Blur σ = 2 px on a small disk (R = 25 px): the ½-level contour and the
+    // gradient peak sit σ_eff²/2R ≈ 0.08 px inside the true edge. The radial
+    // area estimator must stay within 0.01 px (measured ≈ 0.002).
+    let look = Look {
+        blur_px: 2.0,
+        noise: 0.0,
+        flicker: 0.0,
+        bits: 12,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    let mut bg = None;
+    let mut sum = 0.0;
+    for k in 0..20 {
+        let c = (50.0 + 0.07 * k as f64, 50.0 + 0.031 * k as f64, 25.0);
+        let t = trial(&mut rng, look, (100, 100), c, None, false, 0, &mut bg);
+        sum += t.err_r;
+        assert!(t.err_z.abs() < 0.005 && t.err_x.abs() < 0.005);
+    }
+    let mean = sum / 20.0;
+    assert!(mean.abs() <= 0.01, "mean radius error {mean}");
+}
+
+#[test]
+fn surface_line_with_tilt_is_found_to_003_px() {
+    for (row0, slope) in [(280.37, 0.0), (271.81, 0.012), (300.05, -0.0075)] {
+        let mut rng = ChaCha8Rng::seed_from_u64(18);
+        let s = scene(512, 384, REALISTIC, None, Some(pillar_band(row0, slope)));
+        let bg = background(&s, REALISTIC, &mut rng);
+        let line = fit_surface(&bg, &SurfaceParams::default()).unwrap();
+        for x in [0.0, 256.0, 511.0] {
+            let err = line.row_at(x) - (row0 + slope * x);
+            println!(
+                "surface ({row0}, {slope}) at column {x}: error {err:+.4} px, σ {:.4} px, {} columns",
+                line.sigma_row_at(x),
+                line.n_used
+            );
+            // 0.03 px: the issue's target for the surface row.
+            assert!(err.abs() <= 0.03, "{err}");
+        }
+        assert!(
+            (line.slope - slope).abs() <= 1e-4,
+            "slope {} vs {slope}",
+            line.slope
+        );
+    }
+}
+
+#[test]
+fn coarse_detection_finds_a_sphere_entering_through_the_top() {
+    let mut rng = ChaCha8Rng::seed_from_u64(19);
+    let truth = (250.3, -22.6, 60.4); // only the lowest 38 px are in the frame
+    let s = scene(
+        512,
+        384,
+        REALISTIC,
+        Some(truth),
+        Some(pillar_band(300.2, 0.0)),
+    );
+    let bg = background(&s, REALISTIC, &mut rng);
+    let frame = shoot(&s, REALISTIC, &mut rng);
+    let band = Band::frame(&frame).unwrap();
+    let gain = bg.gain(&band).unwrap().gain;
+    let surface = fit_surface(&bg, &SurfaceParams::default()).unwrap();
+    let mut scratch = CoarseScratch::default();
+    let c = detect_coarse(
+        &band,
+        &bg,
+        gain,
+        Some(&surface),
+        &CoarseParams::default(),
+        &mut scratch,
+    )
+    .unwrap()
+    .expect("the sphere is in the frame");
+    assert!(c.touches_top);
+    // Coarse: within 1 px (it only has to put the normals' windows on the edge).
+    assert!((c.circle.x_px - truth.0).abs() < 1.0, "{c:?}");
+    assert!((c.circle.z_px - truth.1).abs() < 1.0, "{c:?}");
+    assert!((c.circle.r_px - truth.2).abs() < 1.0, "{c:?}");
+    let mut es = EdgeScratch::default();
+    let fit = measure_circle(
+        &band,
+        &bg,
+        &c.circle,
+        Some(&surface),
+        None,
+        &EdgeParams::default(),
+        &mut es,
+    )
+    .unwrap();
+    // A 100° arc only: the arc-only tolerance (0.08 px, the 95th percentile target).
+    assert!((fit.z_px - truth.1).abs() < 0.08, "{fit:?}");
+    assert!((fit.r_px - truth.2).abs() < 0.08, "{fit:?}");
+}
+
+#[test]
+fn coarse_detection_sees_nothing_in_an_empty_frame_and_finds_a_sphere_in_contact() {
+    let mut rng = ChaCha8Rng::seed_from_u64(20);
+    let band_look = pillar_band(300.2, 0.003);
+    let empty = scene(512, 384, REALISTIC, None, Some(band_look));
+    let bg = background(&empty, REALISTIC, &mut rng);
+    let surface = fit_surface(&bg, &SurfaceParams::default()).unwrap();
+    let mut scratch = CoarseScratch::default();
+    let frame = shoot(&empty, REALISTIC, &mut rng);
+    let band = Band::frame(&frame).unwrap();
+    let gain = bg.gain(&band).unwrap().gain;
+    let none = detect_coarse(
+        &band,
+        &bg,
+        gain,
+        Some(&surface),
+        &CoarseParams::default(),
+        &mut scratch,
+    )
+    .unwrap();
+    assert!(none.is_none(), "{none:?}");
+    // In contact: the lowest 12 px hidden in the pillar band.
+    let truth = (240.7, 300.2 + 0.003 * 240.7 - 70.0 + 12.0, 70.0);
+    let s = scene(512, 384, REALISTIC, Some(truth), Some(band_look));
+    let frame = shoot(&s, REALISTIC, &mut rng);
+    let band = Band::frame(&frame).unwrap();
+    let gain = bg.gain(&band).unwrap().gain;
+    let c = detect_coarse(
+        &band,
+        &bg,
+        gain,
+        Some(&surface),
+        &CoarseParams::default(),
+        &mut scratch,
+    )
+    .unwrap()
+    .expect("sphere");
+    assert!(!c.touches_top);
+    assert!(
+        (c.circle.z_px - truth.1).abs() < 1.0 && (c.circle.r_px - truth.2).abs() < 1.0,
+        "{c:?}"
+    );
+}
+
+#[test]
+fn robust_fit_rejects_a_mirror_image_arc() {
+    // A glossy surface mirrors the sphere: an arc of a circle reflected about
+    // the surface line, 25 % as many points as the real arc. The robust fit
+    // must ignore it (weights 0) and recover the circle from the real points.
+    let c = Circle {
+        x_px: 200.3,
+        z_px: 150.7,
+        r_px: 70.2,
+    };
+    let surface_z = 150.7 + 70.2 - 10.0;
+    let mut pts = Vec::new();
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    for k in 0..120 {
+        let a = std::f64::consts::PI * (1.0 + k as f64 / 120.0); // upper half
+        pts.push(EdgePoint {
+            x_px: c.x_px + c.r_px * a.cos() + 0.02 * gauss(&mut rng),
+            z_px: c.z_px + c.r_px * a.sin() + 0.02 * gauss(&mut rng),
+            weight: 1.0,
+        });
+    }
+    for k in 0..30 {
+        let a = 0.35 + 2.4 * k as f64 / 30.0; // lower arc, mirrored
+        let z = c.z_px + c.r_px * a.sin();
+        pts.push(EdgePoint {
+            x_px: c.x_px + c.r_px * a.cos(),
+            z_px: 2.0 * surface_z - z,
+            weight: 1.0,
+        });
+    }
+    let mut s = FitScratch::default();
+    let f = fit_circle(&pts, None, &FitOptions::default(), &mut s).unwrap();
+    assert!(
+        (f.z_px - c.z_px).abs() < 0.02 && (f.x_px - c.x_px).abs() < 0.02,
+        "{f:?}"
+    );
+    // Where the mirrored arc crosses the true circle a mirror point lies on
+    // it and is rightly kept; every other mirror point gets weight 0.
+    for (p, &w) in pts[120..].iter().zip(&s.weights[120..]) {
+        let d = (p.x_px - c.x_px).hypot(p.z_px - c.z_px) - c.r_px;
+        assert!(
+            w == 0.0 || d.abs() < 0.1,
+            "mirror point {p:?} kept with weight {w}"
+        );
     }
 }

@@ -21,6 +21,9 @@
 //! parameters — the usual asymptotic covariance of a (robust) least-squares
 //! estimate; it assumes independent point errors.
 
+// Small fixed-size matrix code reads best with explicit indices.
+#![allow(clippy::needless_range_loop)]
+
 use super::edges::EdgePoint;
 use super::DetectError;
 
@@ -85,6 +88,8 @@ pub struct CircleFit {
     pub n_used: usize,
     /// Points with non-zero final weight.
     pub inliers: usize,
+    /// IRLS iterations taken.
+    pub iterations: usize,
 }
 
 impl CircleFit {
@@ -114,17 +119,27 @@ pub struct FitOptions {
     pub min_scale_px: f64,
     /// Fewest inliers for a valid fit.
     pub min_points: usize,
+    /// Iterations stop once no parameter moves by more than this (px).
+    pub tolerance_px: f64,
+    /// Standard deviation (px) of an error shared by all points along their
+    /// radii (e.g. from the sphere's level or the frame's gain). A free radius
+    /// absorbs it; with the radius held it moves the centre, and its share
+    /// `σ_b² v vᵀ` is added to the covariance, `v` the fit's response to a
+    /// unit radial shift of every point.
+    pub radial_sigma_px: f64,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
             hold_radius: None,
-            huber_iterations: 3,
+            huber_iterations: 2,
             max_iterations: 30,
             tukey_c: 4.685,
             min_scale_px: 1e-3,
             min_points: 6,
+            tolerance_px: 1e-5,
+            radial_sigma_px: 0.0,
         }
     }
 }
@@ -135,6 +150,7 @@ pub struct FitScratch {
     /// Final weight of each point (0 = rejected), in the order given.
     pub weights: Vec<f64>,
     residuals: Vec<f64>,
+    units: Vec<(f64, f64)>,
     work: Vec<f64>,
 }
 
@@ -316,110 +332,31 @@ fn inverse_spd<const N: usize>(a: &[[f64; N]; N]) -> Option<[[f64; N]; N]> {
     Some(inv)
 }
 
-/// Weighted normal equations of the orthogonal residuals around `c`:
-/// returns `(JᵀWJ, JᵀWd, Σw d², Σw)`; `N = 3` fits `(x, z, r)`, `N = 2` only
-/// the centre (with `r` fixed).
-fn normal_equations<const N: usize>(
-    points: &[EdgePoint],
-    weights: &[f64],
-    c: &Circle,
-) -> ([[f64; N]; N], [f64; N], f64, f64) {
-    let mut jtj = [[0.0; N]; N];
-    let mut jtd = [0.0; N];
-    let (mut ss, mut sw) = (0.0, 0.0);
-    for (p, &w) in points.iter().zip(weights) {
-        if w <= 0.0 {
-            continue;
-        }
-        let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
-        let rho = (dx * dx + dz * dz).sqrt();
-        if rho == 0.0 {
-            continue;
-        }
-        let d = rho - c.r_px;
-        // ∂d/∂x = −dx/ρ, ∂d/∂z = −dz/ρ, ∂d/∂r = −1.
-        let j3 = [-dx / rho, -dz / rho, -1.0];
-        for i in 0..N {
-            jtd[i] += w * j3[i] * d;
-            for k in 0..=i {
-                jtj[i][k] += w * j3[i] * j3[k];
-            }
-        }
-        ss += w * d * d;
-        sw += w;
-    }
-    for i in 0..N {
-        for k in i + 1..N {
-            jtj[i][k] = jtj[k][i];
-        }
-    }
-    (jtj, jtd, ss, sw)
-}
-
-/// Weighted sum of squared residuals of `c`.
-fn cost(points: &[EdgePoint], weights: &[f64], c: &Circle) -> f64 {
-    points
-        .iter()
-        .zip(weights)
-        .filter(|(_, &w)| w > 0.0)
-        .map(|(p, &w)| {
-            let d = (p.x_px - c.x_px).hypot(p.z_px - c.z_px) - c.r_px;
-            w * d * d
-        })
-        .sum()
-}
-
-/// One Levenberg–Marquardt minimisation of the weighted orthogonal distances
-/// with fixed weights, from `c`.
-fn lm_refine<const N: usize>(points: &[EdgePoint], weights: &[f64], mut c: Circle) -> Circle {
-    let mut lambda = 1e-3;
-    let mut current = cost(points, weights, &c);
-    for _ in 0..20 {
-        let (jtj, jtd, _, _) = normal_equations::<N>(points, weights, &c);
-        let mut a = jtj;
-        for (i, row) in a.iter_mut().enumerate() {
-            row[i] += lambda * jtj[i][i].max(1e-12);
-        }
-        let mut rhs = jtd;
-        for v in rhs.iter_mut() {
-            *v = -*v;
-        }
-        let Some(step) = solve_spd(&a, &rhs) else {
-            break;
-        };
-        let mut trial = c;
-        trial.x_px += step[0];
-        trial.z_px += step[1];
-        if N == 3 {
-            trial.r_px += step[2];
-        }
-        let trial_cost = cost(points, weights, &trial);
-        if trial_cost <= current {
-            let small = step.iter().all(|s| s.abs() < 1e-10);
-            c = trial;
-            current = trial_cost;
-            lambda = (lambda * 0.1).max(1e-9);
-            if small {
-                break;
-            }
-        } else {
-            lambda *= 10.0;
-            if lambda > 1e6 {
-                break;
-            }
-        }
-    }
-    c
+/// The sums of an IRLS iteration, kept for the covariance.
+#[derive(Debug, Default, Clone, Copy)]
+struct LastSums {
+    jtj: [[f64; 3]; 3],
+    /// `JᵀW·1`: the normal equations' response to a uniform radial shift.
+    jtw1: [f64; 3],
+    /// `Σ w d²`, `Σ w`, and the plain `Σ d²` and count over points with w > 0.
+    ss: f64,
+    sw: f64,
+    ss_unweighted: f64,
+    n_in: usize,
 }
 
 /// Robust geometric circle fit to `points` (their `weight` multiplies the
 /// robust weight), starting from `start` or, without one, from [`hyper_fit`].
 ///
-/// IRLS: residual scale `s = max(1.4826·MAD, min_scale_px)`; Huber weights
-/// `min(1, 1.345 s / |d|)` for the first iterations, then Tukey's biweight
-/// `(1 − (d / (c s))²)²` for `|d| < c s`, else 0; each iteration a
-/// Levenberg–Marquardt solve with those weights. Stops when the centre moves
-/// less than 1e-7 px. Final weights are left in `scratch.weights`.
+/// IRLS: each iteration computes the residuals `dᵢ`, their scale
+/// `s = max(1.4826·MAD, min_scale_px)` and weights — Huber's
+/// `min(1, 1.345 s / |d|)` for the first `huber_iterations`, then Tukey's
+/// biweight `(1 − (d / (c s))²)²` for `|d| < c s`, else 0 — and takes one
+/// Gauss–Newton step on the weighted normal equations (with a tiny
+/// Levenberg damping, 1e-9 of the diagonal, for safety). Stops when no
+/// parameter moves by more than `tolerance_px`. The cost is a few passes over the points per iteration, with
+/// no allocation once `scratch` has grown. Final weights are left in
+/// `scratch.weights`.
 pub fn fit_circle(
     points: &[EdgePoint],
     start: Option<Circle>,
@@ -435,55 +372,106 @@ pub fn fit_circle(
     if let Some(r) = opts.hold_radius {
         c.r_px = r;
     }
+    let held = opts.hold_radius.is_some();
     scratch.weights.clear();
-    scratch
-        .weights
-        .extend(points.iter().map(|p| p.weight.max(0.0)));
+    scratch.weights.resize(n, 0.0);
     scratch.residuals.clear();
     scratch.residuals.resize(n, 0.0);
-    let held = opts.hold_radius.is_some();
-    for it in 0..opts.max_iterations {
-        // Residuals and their robust scale (over points with a prior weight).
+    scratch.units.clear();
+    scratch.units.resize(n, (0.0, 0.0));
+    let mut iterations = 0;
+    let mut last = LastSums::default();
+    for it in 0..opts.max_iterations.max(1) {
+        iterations = it + 1;
+        // Pass 1: residuals, unit vectors from the centre, robust scale.
         scratch.work.clear();
         for (i, p) in points.iter().enumerate() {
-            let d = (p.x_px - c.x_px).hypot(p.z_px - c.z_px) - c.r_px;
+            let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
+            let rho = (dx * dx + dz * dz).sqrt();
+            let d = rho - c.r_px;
             scratch.residuals[i] = d;
+            scratch.units[i] = if rho > 0.0 {
+                (dx / rho, dz / rho)
+            } else {
+                (0.0, 0.0)
+            };
             if p.weight > 0.0 {
                 scratch.work.push(d.abs());
             }
         }
-        let s = (1.4826 * median(&mut scratch.work)).max(opts.min_scale_px);
         let huber = it < opts.huber_iterations;
+        let s = (1.4826 * median(&mut scratch.work)).max(opts.min_scale_px);
+        // Pass 2: weights and the weighted normal equations.
+        let mut jtj = [[0.0; 3]; 3];
+        let mut jtd = [0.0; 3];
+        let (mut ss, mut sw, mut ss_unweighted, mut n_in) = (0.0, 0.0, 0.0, 0usize);
+        let mut jtw1 = [0.0; 3];
         for (i, p) in points.iter().enumerate() {
-            let d = scratch.residuals[i].abs();
+            let d = scratch.residuals[i];
+            let a = d.abs();
             let w = if huber {
                 let k = 1.345 * s;
-                if d <= k {
+                if a <= k {
                     1.0
                 } else {
-                    k / d
+                    k / a
                 }
             } else {
-                let u = d / (opts.tukey_c * s);
+                let u = a / (opts.tukey_c * s);
                 if u < 1.0 {
                     (1.0 - u * u).powi(2)
                 } else {
                     0.0
                 }
-            };
-            scratch.weights[i] = w * p.weight.max(0.0);
+            } * p.weight.max(0.0);
+            scratch.weights[i] = w;
+            if w > 0.0 {
+                ss += w * d * d;
+                sw += w;
+                ss_unweighted += d * d;
+                n_in += 1;
+                // ∂d/∂x = −uₓ, ∂d/∂z = −u_z, ∂d/∂r = −1.
+                let (ux, uz) = scratch.units[i];
+                let j3 = [-ux, -uz, -1.0];
+                for a in 0..3 {
+                    jtw1[a] += w * j3[a];
+                    jtd[a] += w * j3[a] * d;
+                    for b in 0..=a {
+                        jtj[a][b] += w * j3[a] * j3[b];
+                    }
+                }
+            }
         }
-        let next = if held {
-            lm_refine::<2>(points, &scratch.weights, c)
-        } else {
-            lm_refine::<3>(points, &scratch.weights, c)
+        for a in 0..3 {
+            for b in a + 1..3 {
+                jtj[a][b] = jtj[b][a];
+            }
+        }
+        last = LastSums {
+            jtj,
+            jtw1,
+            ss,
+            sw,
+            ss_unweighted,
+            n_in,
         };
-        let moved = (next.x_px - c.x_px)
-            .abs()
-            .max((next.z_px - c.z_px).abs())
-            .max((next.r_px - c.r_px).abs());
-        c = next;
-        if !huber && moved < 1e-7 {
+        for (a, row) in jtj.iter_mut().enumerate() {
+            row[a] *= 1.0 + 1e-9;
+        }
+        let step = if held {
+            let m2 = [[jtj[0][0], jtj[0][1]], [jtj[1][0], jtj[1][1]]];
+            solve_spd(&m2, &[-jtd[0], -jtd[1]]).map(|s| [s[0], s[1], 0.0])
+        } else {
+            solve_spd(&jtj, &jtd.map(|v| -v))
+        };
+        let Some(step) = step.filter(|s| s.iter().all(|v| v.is_finite())) else {
+            break;
+        };
+        c.x_px += step[0];
+        c.z_px += step[1];
+        c.r_px += step[2];
+        let moved = step.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if !huber && moved < opts.tolerance_px {
             break;
         }
     }
@@ -502,31 +490,40 @@ pub fn fit_circle(
             needed: opts.min_points.max(p + 1),
         });
     }
-    let (mut ss_in, mut n_in) = (0.0, 0usize);
-    for (p, &w) in points.iter().zip(&scratch.weights) {
-        if w > 0.0 {
-            let d = (p.x_px - c.x_px).hypot(p.z_px - c.z_px) - c.r_px;
-            ss_in += d * d;
-            n_in += 1;
-        }
-    }
-    let residual_px = (ss_in / n_in as f64).sqrt();
+    // Residual and covariance from the last iteration's sums: its step was
+    // below `tolerance_px`, so they hold at the solution to that accuracy.
+    let residual_px = (last.ss_unweighted / last.n_in.max(1) as f64).sqrt();
     let degenerate = || DetectError::Degenerate {
         what: WHAT,
         reason: "singular normal matrix (points on too short an arc?)".into(),
     };
+    let jtj = last.jtj;
+    let sb2 = opts.radial_sigma_px * opts.radial_sigma_px;
     let cov = if held {
-        let (jtj, _, ss, sw) = normal_equations::<2>(points, &scratch.weights, &c);
-        let s2 = ss / (sw - 2.0).max(1.0);
-        let inv = inverse_spd(&jtj).ok_or_else(degenerate)?;
-        let inv = inv.map(|row| row.map(|v| v * s2));
-        Covariance::CentreOnly(inv)
+        let s2 = last.ss / (last.sw - 2.0).max(1.0);
+        let m2 = [[jtj[0][0], jtj[0][1]], [jtj[1][0], jtj[1][1]]];
+        let inv = inverse_spd(&m2).ok_or_else(degenerate)?;
+        // Response of the centre to a unit outward shift of every point:
+        // v = −(JᵀWJ)⁻¹ JᵀW·1.
+        let g = [last.jtw1[0], last.jtw1[1]];
+        let v = [
+            -(inv[0][0] * g[0] + inv[0][1] * g[1]),
+            -(inv[1][0] * g[0] + inv[1][1] * g[1]),
+        ];
+        let mut cov = inv.map(|row| row.map(|x| x * s2));
+        for a in 0..2 {
+            for b in 0..2 {
+                cov[a][b] += sb2 * v[a] * v[b];
+            }
+        }
+        Covariance::CentreOnly(cov)
     } else {
-        let (jtj, _, ss, sw) = normal_equations::<3>(points, &scratch.weights, &c);
-        let s2 = ss / (sw - 3.0).max(1.0);
+        let s2 = last.ss / (last.sw - 3.0).max(1.0);
         let inv = inverse_spd(&jtj).ok_or_else(degenerate)?;
-        let inv = inv.map(|row| row.map(|v| v * s2));
-        Covariance::Full(inv)
+        let mut cov = inv.map(|row| row.map(|x| x * s2));
+        // A free radius absorbs a uniform shift: it adds σ_b² to var(r) only.
+        cov[2][2] += sb2;
+        Covariance::Full(cov)
     };
     Ok(CircleFit {
         x_px: c.x_px,
@@ -536,6 +533,7 @@ pub fn fit_circle(
         residual_px,
         n_used: n,
         inliers,
+        iterations,
     })
 }
 

@@ -213,7 +213,7 @@ pub fn first_appearance<'a>(
     scratch: &mut CoarseScratch,
 ) -> Result<Option<(usize, Coarse)>, DetectError> {
     for (k, band) in frames.into_iter().enumerate() {
-        let gain = bg.gain(&band)?;
+        let gain = bg.gain(&band)?.gain;
         if let Some(c) = detect_coarse(&band, bg, gain, surface, params, scratch)? {
             return Ok(Some((k, c)));
         }

@@ -2,29 +2,41 @@
 //!
 //! # Method: the radial area (moment) estimator
 //!
-//! Along the ray from the predicted centre `c` in direction `u`, samples are
-//! taken at unit spacing `t_j = r − w + j` (`j = 0..=2w`) by bilinear
-//! interpolation of the frame `I` and of the background `B`, at full bit
-//! depth. With the frame's flicker gain `g` and the sphere's level `S` (the
-//! median of the innermost samples over all normals), the sphere's share of
-//! each sample is `P_j = (g·B_j − I_j) / (g·B_j − S)`: 1 inside, 0 outside.
-//! The edge radius is then
+//! The sphere is a backlit silhouette: where it covers a pixel fully, the
+//! pixel shows `τ·g·B` — the background `B` times the frame's flicker gain
+//! `g` times the sphere's (small) transmission `τ`. So the sphere's share of
+//! a pixel's area is `P = (1 − I/(g·B)) / (1 − τ)`: 1 inside, 0 outside,
+//! exact under area sampling and any linear blur.
+//!
+//! Along the ray from the predicted centre `c` in direction `u`, the frame is
+//! sampled by bilinear interpolation at unit spacing `t_j = r − w + j`
+//! (`j = 0..=2w`), at full bit depth. `1/(g·B)` is interpolated linearly
+//! between its values at the window's ends (the light varies slowly; a
+//! 13-px window sees it as linear to 1e-5). `τ` is the trimmed mean of
+//! `I/(g·B)` over ~256 pixels inside `r − 2w`, clear of the blurred
+//! transition: a `τ` off by `ε` moves every edge outward by `ε·w/(1 − τ)`,
+//! which a free radius absorbs but a held radius on a short arc turns into
+//! a centre error, so it is averaged well. The edge radius is then
 //!
 //! `t_e² = t_a² + 2 Σ_j P_j t_j`,   `t_a = t_0 − ½`,
 //!
 //! the midpoint rule for `t_e² = t_a² + 2∫ P(t) t dt`. For a disk of radius `R`
 //! under any rotationally symmetric blur, `∫₀^∞ P(ρ) ρ dρ = R²/2` exactly
-//! (blur preserves the disk's area), so `t_e = R` with no curved-edge bias:
-//! the ½-level contour and the gradient peak of a blurred disk both lie at
-//! `R − σ²/2R` (σ the blur), which this estimator does not share. A ray
+//! (blur preserves the disk's area), so `t_e = R`: no curved-edge bias. (The
+//! ½-level contour and the gradient peak of a Gaussian-blurred disk both lie
+//! at `R − σ²/2R`; this estimator does not share that bias.) Vertical motion
+//! blur over a travel `L` moves the sides in by `L²/24R` only (0.01 px for
+//! `L` = 4 px, `R` = 70 px) and leaves the centre at mid-exposure. A ray
 //! through a centre off by `e` shifts `t_e` by `−e·u` (what the circle fit
 //! needs) plus `O(e σ²/R²)`, negligible after one refinement pass.
 //!
-//! Because the estimator integrates the profile instead of locating a peak
-//! between samples, it has no pixel locking for a straight axis-aligned
-//! edge: the sum of linearly interpolated samples at unit spacing does not
-//! depend on their phase. Residual phase structure for oblique normals is
-//! measured in the tests.
+//! Because `P` enters linearly, the sum is accumulated while sampling:
+//! `Σ P_j t_j = (Σ t_j − Σ q_j t_j)/(1 − τ)` with `q_j = I_j/(g·B_j)`, so no
+//! sample is stored. Because the estimator integrates the profile instead of
+//! locating a peak between samples, it has no pixel locking for an
+//! axis-aligned edge (a sum of linearly interpolated samples at unit spacing
+//! does not depend on their phase); the residual phase structure for oblique
+//! normals is measured in the tests.
 //!
 //! # What is used
 //!
@@ -32,17 +44,17 @@
 //! (and one pixel from the frame's border, for the interpolation), above the
 //! surface line minus `surface_margin_px` (the part below is hidden by
 //! pillars and, near contact, may dip or mirror the sphere), when the
-//! contrast `g·B − S` is at least `min_contrast` of `g·B` everywhere on it,
-//! and when the window holds the edge (`P` > ½ at its inner end and < ½ at
-//! its outer end).
+//! sphere's contrast `1 − τ` is at least `min_contrast`, and when the window
+//! holds the edge (`P` > ½ at its inner end and < ½ at its outer end).
 //!
 //! # Cost
 //!
-//! `normals × (2w + 1)` pairs of bilinear samples: proportional to the
-//! perimeter, independent of the frame size. All buffers live in
-//! [`EdgeScratch`], reused from frame to frame.
+//! `normals × (2w + 1)` bilinear samples of the frame and two of the
+//! background per normal: proportional to the perimeter, independent of the
+//! frame size. All buffers live in [`EdgeScratch`], reused from frame to
+//! frame.
 
-use super::background::Background;
+use super::background::{Background, FrameGain};
 use super::circle::{fit_circle, Circle, CircleFit, FitOptions, FitScratch};
 use super::surface::SurfaceLine;
 use super::{Band, DetectError};
@@ -61,9 +73,10 @@ pub struct EdgePoint {
 /// Settings of [`edge_points`] and [`measure_circle`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EdgeParams {
-    /// Arc length between neighbouring normals (px). 2 px keeps neighbouring
-    /// windows on mostly different pixels, so point errors are nearly
-    /// independent (the covariance assumes it).
+    /// Arc length between neighbouring normals (px). 3 px keeps neighbouring
+    /// windows on different pixels, so point errors are nearly independent
+    /// (the covariance assumes it); 2 px gives ~20 % smaller errors for 50 %
+    /// more time.
     pub spacing_px: f64,
     /// At most this many normals around the full circle.
     pub max_normals: usize,
@@ -73,24 +86,41 @@ pub struct EdgeParams {
     pub half_window: usize,
     /// Windows must stay this far above the surface line (px).
     pub surface_margin_px: f64,
-    /// Smallest sphere contrast `(g·B − S) / (g·B)` on a window.
+    /// Smallest sphere contrast `1 − τ` (τ the sphere's transmission).
     pub min_contrast: f64,
-    /// Edge-and-fit passes in [`measure_circle`]; each re-centres the normals
-    /// on the previous fit.
+    /// At most this many edge-and-fit passes in [`measure_circle`]; each
+    /// re-centres the normals on the previous fit.
     pub passes: usize,
+    /// A further pass is made only when the last fit moved the centre or the
+    /// radius by more than this (px) from where the normals were centred.
+    pub recentre_px: f64,
 }
 
 impl Default for EdgeParams {
     fn default() -> Self {
         EdgeParams {
-            spacing_px: 2.0,
-            max_normals: 256,
+            spacing_px: 3.0,
+            max_normals: 192,
             half_window: 6,
             surface_margin_px: 2.0,
-            min_contrast: 0.15,
+            min_contrast: 0.3,
             passes: 2,
+            recentre_px: 0.5,
         }
     }
+}
+
+/// Per-normal sums gathered while sampling.
+#[derive(Debug, Clone, Copy)]
+struct NormalSums {
+    /// Direction (cos, sin).
+    c: f64,
+    s: f64,
+    /// `Σ q_j t_j` with `q = I/(g·B)`.
+    qt: f64,
+    /// `q` at the window's inner and outer ends.
+    q_in: f64,
+    q_out: f64,
 }
 
 /// Reusable buffers: one per thread, reused for every frame.
@@ -98,14 +128,14 @@ impl Default for EdgeParams {
 pub struct EdgeScratch {
     /// The edge points of the last call.
     pub points: Vec<EdgePoint>,
-    /// Frame samples, `2w + 1` per accepted normal.
-    frame_samples: Vec<f32>,
-    /// Background samples, same layout.
-    bg_samples: Vec<f32>,
-    /// Direction (cos, sin) of each accepted normal.
-    dirs: Vec<(f64, f64)>,
-    /// Work buffer for the sphere level's median.
-    inner: Vec<f64>,
+    normals: Vec<NormalSums>,
+    /// Directions (cos, sin) of all `table.len()` normals around the circle.
+    table: Vec<(f64, f64)>,
+    /// Work buffer for the transmission.
+    levels: Vec<f64>,
+    /// Standard deviation (px) of the error shared by all points of the last
+    /// call along their radii, from the uncertainty of τ and of the gain.
+    pub radial_sigma_px: f64,
     /// The circle fit's buffers.
     pub fit: FitScratch,
 }
@@ -117,12 +147,13 @@ pub struct EdgeScratch {
 pub fn edge_points<'s>(
     band: &Band,
     bg: &Background,
-    gain: f64,
+    frame_gain: FrameGain,
     predicted: &Circle,
     surface: Option<&SurfaceLine>,
     params: &EdgeParams,
     scratch: &'s mut EdgeScratch,
 ) -> Result<&'s [EdgePoint], DetectError> {
+    let gain = frame_gain.gain;
     if band.width != bg.width || band.row0 + band.nrows > bg.height {
         return Err(DetectError::ShapeMismatch {
             width: band.width,
@@ -135,11 +166,10 @@ pub fn edge_points<'s>(
     let m = 2 * w + 1;
     let (cx, cz, r) = (predicted.x_px, predicted.z_px, predicted.r_px);
     scratch.points.clear();
-    scratch.frame_samples.clear();
-    scratch.bg_samples.clear();
-    scratch.dirs.clear();
-    scratch.inner.clear();
-    if !(r.is_finite() && r > w as f64 + 1.0 && cx.is_finite() && cz.is_finite()) {
+    scratch.normals.clear();
+    scratch.levels.clear();
+    scratch.radial_sigma_px = 0.0;
+    if !(r.is_finite() && r > w as f64 + 1.0 && cx.is_finite() && cz.is_finite() && gain > 0.0) {
         return Ok(&scratch.points);
     }
     let circumference = std::f64::consts::TAU * r;
@@ -147,6 +177,7 @@ pub fn edge_points<'s>(
         .clamp(8, params.max_normals.max(8));
     let t0 = r - w as f64;
     let t1 = r + w as f64;
+    let tl = r - 2.0 * w as f64;
     // Valid rows for interpolation: the band, one pixel in from the frame's edges.
     let z_lo = (band.row0 as f64).max(1.0);
     let z_hi = ((band.row0 + band.nrows) as f64 - 1.0).min(bg.height as f64 - 2.0);
@@ -159,72 +190,206 @@ pub fn edge_points<'s>(
         };
         inside && above
     };
-    for k in 0..n {
-        let theta = std::f64::consts::TAU * k as f64 / n as f64;
-        let (s, c) = theta.sin_cos();
-        if !(visible(cx + t0 * c, cz + t0 * s) && visible(cx + t1 * c, cz + t1 * s)) {
+    if scratch.table.len() != n {
+        scratch.table.clear();
+        scratch.table.extend((0..n).map(|k| {
+            let (s, c) = (std::f64::consts::TAU * k as f64 / n as f64).sin_cos();
+            (c, s)
+        }));
+    }
+    let row0 = band.row0 as f64;
+    let last_j = (m - 1) as f64;
+    for &(c, s) in &scratch.table {
+        let (xa, za) = (cx + t0 * c, cz + t0 * s);
+        let (xb, zb) = (cx + t1 * c, cz + t1 * s);
+        if !(visible(xa, za) && visible(xb, zb)) {
             continue;
         }
-        for j in 0..m {
-            let t = t0 + j as f64;
-            let (x, z) = (cx + t * c, cz + t * s);
-            // Inside by the checks above (the window is a segment, the
-            // region convex), so the fallbacks are never taken.
-            let fi = band.bilinear(x, z).unwrap_or(f64::NAN);
-            let fb = bg.bilinear(x, z).unwrap_or(f64::NAN);
-            scratch.frame_samples.push(fi as f32);
-            scratch.bg_samples.push(fb as f32);
+        // 1/(g·B) at the ends, linear in between.
+        let (Some(ba), Some(bb)) = (bg.bilinear(xa, za), bg.bilinear(xb, zb)) else {
+            continue;
+        };
+        if !(ba > 0.0 && bb > 0.0) {
+            continue;
         }
-        scratch.dirs.push((c, s));
+        let (ia, ib) = (1.0 / (gain * ba), 1.0 / (gain * bb));
+        let di = (ib - ia) / last_j;
+        // The window is a segment inside the (convex) visible region, so
+        // every sample's four neighbours are inside the band.
+        let z0 = za - row0;
+        let mut qt = 0.0;
+        let mut q_in = 0.0;
+        let mut q_out = 0.0;
+        for j in 0..m {
+            let jf = j as f64;
+            let v = lerp_u16(band.data, band.width, xa + jf * c, z0 + jf * s) as f64;
+            let q = v * (ia + jf * di);
+            qt += q * (t0 + jf);
+            if j == 0 {
+                q_in = q;
+            }
+            q_out = q;
+        }
+        scratch.normals.push(NormalSums {
+            c,
+            s,
+            qt,
+            q_in,
+            q_out,
+        });
     }
-    if scratch.dirs.is_empty() {
+    if scratch.normals.is_empty() {
         return Ok(&scratch.points);
     }
-    // The sphere's level: median over normals of the two innermost samples.
-    for win in scratch.frame_samples.chunks_exact(m) {
-        scratch.inner.push(0.5 * (win[0] as f64 + win[1] as f64));
+    let (tau, sigma_tau) = transmission(
+        band,
+        bg,
+        gain,
+        predicted,
+        tl,
+        surface,
+        params,
+        &mut scratch.levels,
+    )
+    .unwrap_or_else(|| {
+        // Too little of the sphere's inside is visible: the windows'
+        // innermost samples stand for it.
+        scratch.levels.clear();
+        scratch
+            .levels
+            .extend(scratch.normals.iter().map(|n| n.q_in));
+        let mid = scratch.levels.len() / 2;
+        let tau = *scratch.levels.select_nth_unstable_by(mid, f64::total_cmp).1;
+        let spread: f64 = scratch.levels.iter().map(|q| (q - tau).abs()).sum::<f64>()
+            / scratch.levels.len() as f64;
+        (tau, 1.25 * spread / (scratch.levels.len() as f64).sqrt())
+    });
+    let contrast = 1.0 - tau;
+    if !(contrast >= params.min_contrast && contrast > 0.0) {
+        return Ok(&scratch.points);
     }
-    let mid = scratch.inner.len() / 2;
-    let sphere = *scratch.inner.select_nth_unstable_by(mid, f64::total_cmp).1;
+    // Errors shared by every point: τ and the gain move all edges along
+    // their radii by (w + ½)/(1 − τ) times their relative error.
+    let rel_gain = frame_gain.sigma / gain;
+    scratch.radial_sigma_px =
+        (w as f64 + 0.5) / contrast * (sigma_tau * sigma_tau + rel_gain * rel_gain).sqrt();
     let ta = t0 - 0.5;
-    'normals: for (k, &(c, s)) in scratch.dirs.iter().enumerate() {
-        let fi = &scratch.frame_samples[k * m..(k + 1) * m];
-        let fb = &scratch.bg_samples[k * m..(k + 1) * m];
-        let mut area = 0.0;
-        let mut first = 0.0;
-        let mut last = 0.0;
-        for j in 0..m {
-            let gb = gain * fb[j] as f64;
-            let den = gb - sphere;
-            if !(den >= params.min_contrast * gb && den > 0.0) {
-                continue 'normals;
-            }
-            let p = (gb - fi[j] as f64) / den;
-            if j == 0 {
-                first = p;
-            }
-            last = p;
-            area += p * (t0 + j as f64);
-        }
-        if !(first > 0.5 && last < 0.5) {
+    // Σ t_j over the window.
+    let sum_t = m as f64 * r;
+    for nrm in &scratch.normals {
+        let p_in = (1.0 - nrm.q_in) / contrast;
+        let p_out = (1.0 - nrm.q_out) / contrast;
+        if !(p_in > 0.5 && p_out < 0.5) {
             continue;
         }
+        let area = (sum_t - nrm.qt) / contrast;
         let te2 = ta * ta + 2.0 * area;
         if !(te2 > 0.0) {
             continue;
         }
         let te = te2.sqrt();
         scratch.points.push(EdgePoint {
-            x_px: cx + te * c,
-            z_px: cz + te * s,
+            x_px: cx + te * nrm.c,
+            z_px: cz + te * nrm.s,
             weight: 1.0,
         });
     }
     Ok(&scratch.points)
 }
 
-/// Edge points and a robust circle fit, `params.passes` times, each pass
-/// re-centring the normals on the previous fit. With `hold_radius` the radius
+/// Fewest interior pixels for [`transmission`] to be trusted.
+const MIN_INTERIOR: usize = 32;
+/// Interior pixels aimed at by [`transmission`].
+const TARGET_INTERIOR: f64 = 256.0;
+
+/// The sphere's transmission τ and its standard error: the trimmed mean of `I/(g·B)` over about
+/// [`TARGET_INTERIOR`] pixels on a square grid inside radius `r_in` (clear of
+/// the blurred edge), above the surface line minus the margin and inside
+/// the band. An error `ε` in τ moves every edge by about `ε·w/(1−τ)`, so it
+/// is averaged over many pixels (noise 2/200 per pixel → ε ≈ 6e-4 → 0.005
+/// px). `None` when fewer than [`MIN_INTERIOR`] pixels qualify (a sphere
+/// just entering the frame).
+#[allow(clippy::too_many_arguments)]
+fn transmission(
+    band: &Band,
+    bg: &Background,
+    gain: f64,
+    c: &Circle,
+    r_in: f64,
+    surface: Option<&SurfaceLine>,
+    params: &EdgeParams,
+    values: &mut Vec<f64>,
+) -> Option<(f64, f64)> {
+    values.clear();
+    if r_in <= 1.0 {
+        return None;
+    }
+    let step = ((std::f64::consts::PI * r_in * r_in / TARGET_INTERIOR).sqrt()).max(1.0);
+    let n = (r_in / step).floor() as i64;
+    let z_end = band.row0 + band.nrows;
+    for a in -n..=n {
+        let z = c.z_px + a as f64 * step;
+        let zi = z.round();
+        if zi < band.row0 as f64 || zi >= z_end as f64 {
+            continue;
+        }
+        let i = zi as usize;
+        for b in -n..=n {
+            let x = c.x_px + b as f64 * step;
+            if (x - c.x_px).powi(2) + (z - c.z_px).powi(2) > r_in * r_in {
+                continue;
+            }
+            let xj = x.round();
+            if xj < 0.0 || xj >= band.width as f64 {
+                continue;
+            }
+            let j = xj as usize;
+            if let Some(s) = surface {
+                if zi >= s.row_at(xj) - params.surface_margin_px {
+                    continue;
+                }
+            }
+            let b_val = bg.at(i, j) as f64;
+            if b_val > 0.0 {
+                let v = band.data[(i - band.row0) * band.width + j] as f64;
+                values.push(v / (gain * b_val));
+            }
+        }
+    }
+    if values.len() < MIN_INTERIOR {
+        return None;
+    }
+    // Trimmed mean: drop the lowest and highest eighth (dust, glints).
+    values.sort_unstable_by(f64::total_cmp);
+    let cut = values.len() / 8;
+    let kept = &values[cut..values.len() - cut];
+    let k = kept.len() as f64;
+    let mean = kept.iter().sum::<f64>() / k;
+    // Standard error; the trimmed spread understates σ of a Gaussian by
+    // ~1.5× for a 25 % trim, hence the factor.
+    let var = kept.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (k - 1.0).max(1.0);
+    Some((mean, 1.5 * (var / k).sqrt()))
+}
+
+/// Bilinear interpolation of row-major `data` (`width` columns) at column
+/// `x`, local row `z`; both ≥ 0 with their right and lower neighbours inside
+/// (the caller checks the window first).
+#[inline(always)]
+fn lerp_u16(data: &[u16], width: usize, x: f64, z: f64) -> f32 {
+    let (j, i) = (x as usize, z as usize);
+    let (fx, fz) = ((x - j as f64) as f32, (z - i as f64) as f32);
+    let k = i * width + j;
+    let quad = &data[k..k + width + 2];
+    let (a, b) = (quad[0] as f32, quad[1] as f32);
+    let (c, d) = (quad[width] as f32, quad[width + 1] as f32);
+    let t = a + fx * (b - a);
+    let u = c + fx * (d - c);
+    t + fz * (u - t)
+}
+
+/// Edge points and a robust circle fit, up to `params.passes` times, each
+/// pass re-centring the normals on the previous fit, until a fit lands
+/// within `params.recentre_px` of the circle its normals were centred on. With `hold_radius` the radius
 /// is held at that value (after calibration) and only the centre is fitted.
 pub fn measure_circle(
     band: &Band,
@@ -236,7 +401,7 @@ pub fn measure_circle(
     scratch: &mut EdgeScratch,
 ) -> Result<CircleFit, DetectError> {
     let gain = bg.gain(band)?;
-    let opts = FitOptions {
+    let mut opts = FitOptions {
         hold_radius,
         ..FitOptions::default()
     };
@@ -247,9 +412,17 @@ pub fn measure_circle(
     let mut fit = None;
     for _ in 0..params.passes.max(1) {
         edge_points(band, bg, gain, &circle, surface, params, scratch)?;
+        opts.radial_sigma_px = scratch.radial_sigma_px;
         let f = fit_circle(&scratch.points, Some(circle), &opts, &mut scratch.fit)?;
+        let moved = (f.x_px - circle.x_px)
+            .abs()
+            .max((f.z_px - circle.z_px).abs())
+            .max((f.r_px - circle.r_px).abs());
         circle = f.circle();
         fit = Some(f);
+        if moved <= params.recentre_px {
+            break;
+        }
     }
     fit.ok_or(DetectError::TooFewPoints {
         what: "circle measurement",

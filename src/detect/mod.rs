@@ -23,6 +23,9 @@
 //! convention; a view of a band of rows carries its first row (`row0`) so
 //! that coordinates stay those of the whole frame.
 
+// `!(x > 0.0)` is meant throughout: it rejects NaN as well as non-positive values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod background;
 pub mod circle;
 pub mod coarse;

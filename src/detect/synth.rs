@@ -1,5 +1,5 @@
-//! Exact synthetic scenes for testing detection: an anti-aliased dark disk in
-//! front of a bright background, and a (tilted) dark pillar band in front of
+//! Exact synthetic scenes for testing detection: an anti-aliased dark disk
+//! (a backlit silhouette of transmission τ) in front of a bright background, and a (tilted) dark pillar band in front of
 //! both, with pixel values the exact area means of the scene (pixel
 //! convention in [`super`]).
 //!
@@ -26,8 +26,9 @@ pub struct Scene {
     /// Relative change of the background from the centre to a corner
     /// (vignetting, `1 − v·ρ²/ρ_corner²`).
     pub vignetting: f64,
-    /// The sphere's level.
-    pub sphere: f64,
+    /// The sphere's transmission τ: fully covered pixels show `τ·background`
+    /// (a backlit silhouette).
+    pub sphere_transmission: f64,
     /// The sphere's circle: centre column, centre row, radius (px).
     pub disk: Option<(f64, f64, f64)>,
     /// The pillar band: everything below `row = row0 + slope · column`.
@@ -117,7 +118,7 @@ impl Scene {
             let mut val = bg;
             if let Some((cx, cz, r)) = self.disk {
                 let c = disk_coverage(cx, cz, r, i, j);
-                val = bg * (1.0 - c) + self.sphere * c;
+                val = bg * (1.0 - c + self.sphere_transmission * c);
             }
             if let Some(b) = &self.band {
                 let c = band_coverage(b.row0_px, b.slope, i, j);

@@ -19,4 +19,5 @@ pub mod config;
 pub mod dataset;
 pub mod detect;
 pub mod io_util;
+pub mod render;
 pub mod source;

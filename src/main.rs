@@ -24,6 +24,8 @@ enum Command {
         #[arg(long)]
         config: Option<PathBuf>,
     },
+    /// Render synthetic drops with exact truth, as PCC-style frame folders.
+    Render(Box<dropscope::render::RenderArgs>),
 }
 
 /// Load `--config FILE`, else `./pipeline.toml`, else the embedded default.
@@ -40,6 +42,34 @@ fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<PipelineConfig>
     })
 }
 
+/// `dropscope render`: render, then one summary line (with the speed) on stderr.
+fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> {
+    let start = std::time::Instant::now();
+    let report = dropscope::render::render(args)?;
+    let secs = start.elapsed().as_secs_f64();
+    for (run, reason) in &report.failures {
+        eprintln!("error: {reason}");
+        eprintln!("  (run {run} was not rendered)");
+    }
+    let frames = report.frames();
+    eprintln!(
+        "rendered {} drops, {frames} frames into {} in {secs:.2} s ({:.0} frames/s){}",
+        report.drops.len(),
+        args.out.display(),
+        frames as f64 / secs.max(1e-9),
+        report
+            .manifest
+            .as_ref()
+            .map(|m| format!("; manifest {}", m.display()))
+            .unwrap_or_default()
+    );
+    Ok(if report.failures.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<ExitCode> = match cli.command {
@@ -47,6 +77,7 @@ fn main() -> ExitCode {
             println!("{c:#?}");
             ExitCode::SUCCESS
         }),
+        Command::Render(args) => run_render(&args),
     };
     match result {
         Ok(code) => code,

@@ -12,6 +12,7 @@ fn help_lists_the_built_subcommands() {
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("check-config"), "{text}");
+    assert!(text.contains("render"), "{text}");
 }
 
 #[test]

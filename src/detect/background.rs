@@ -112,6 +112,100 @@ impl Background {
         })
     }
 
+    /// Build from frames in which the sphere may already be in view (a
+    /// movie that starts with the sphere in the picture, so there are no
+    /// sphere-free frames). Three passes:
+    ///
+    /// 1. the per-pixel maximum of `I_f / g_f` over the frames: background
+    ///    wherever the sphere uncovered the pixel at least once (biased up by
+    ///    about two noise σ, harmless for a coarse threshold); pixels covered
+    ///    in every frame (darker than half their row's 90th percentile) are
+    ///    filled along their row;
+    /// 2. in each frame, the sphere's coarse circle against that maximum
+    ///    ([`super::coarse::detect_coarse`]); the pixels within
+    ///    `r + pad_px` of it are "covered" in that frame;
+    /// 3. the per-pixel median of `I_f / g_f` over the frames in which the
+    ///    pixel is not covered. Pixels covered in every frame (the core of a
+    ///    slow sphere's path) are filled along their row by linear
+    ///    interpolation between the nearest filled pixels: the light varies
+    ///    slowly, and inside the sphere `B` only enters as `τ·B` with τ small.
+    ///
+    /// The gains come from the reference strips, which the sphere must not
+    /// cross. Frames where no sphere is found count as sphere-free.
+    pub fn from_frames_with_sphere(
+        frames: &[ArrayView2<u16>],
+        region: GainRegion,
+        coarse: &super::coarse::CoarseParams,
+        pad_px: f64,
+    ) -> Result<Self, DetectError> {
+        // Pass 1: the maximum (and the gains) via an all-frames "background".
+        let mut bg = Self::from_frames(frames, region)?;
+        let (h, w) = (bg.height, bg.width);
+        for (i, v) in bg.levels.iter_mut().enumerate() {
+            let (r, c) = (i / w, i % w);
+            *v = frames
+                .iter()
+                .zip(&bg.gains)
+                .map(|(f, g)| f[[r, c]] as f64 / g)
+                .fold(0.0, f64::max) as f32;
+        }
+        // Pixels the sphere covers in every frame stay dark in the maximum:
+        // those below half their row's 90th percentile are refilled along
+        // the row, so that the sphere is darker than this background in
+        // every frame, whole.
+        let mut sorted = vec![0f32; w];
+        for r in 0..h {
+            let row = &mut bg.levels[r * w..(r + 1) * w];
+            sorted.copy_from_slice(row);
+            let k = (w * 9) / 10;
+            let p90 = *sorted.select_nth_unstable_by(k.min(w - 1), f32::total_cmp).1;
+            for v in row.iter_mut() {
+                if *v < 0.5 * p90 {
+                    *v = f32::NAN;
+                }
+            }
+            fill_row(row);
+        }
+        // Pass 2: coarse circles.
+        let mut scratch = super::coarse::CoarseScratch::default();
+        let mut circles = Vec::with_capacity(frames.len());
+        for (f, &g) in frames.iter().zip(&bg.gains) {
+            let band = Band::new(f.view(), 0)?;
+            let c = super::coarse::detect_coarse(&band, &bg, g, None, coarse, &mut scratch)?;
+            circles.push(c.map(|c| c.circle));
+        }
+        // Pass 3: per-pixel median over uncovered frames, then row fill.
+        let mut values = Vec::with_capacity(frames.len());
+        let mut levels = vec![f32::NAN; w * h];
+        for r in 0..h {
+            for c in 0..w {
+                values.clear();
+                for ((f, &g), circle) in frames.iter().zip(&bg.gains).zip(&circles) {
+                    let covered = circle.is_some_and(|k| {
+                        let d2 = (c as f64 - k.x_px).powi(2) + (r as f64 - k.z_px).powi(2);
+                        d2 < (k.r_px + pad_px).powi(2)
+                    });
+                    if !covered {
+                        values.push(f[[r, c]] as f64 / g);
+                    }
+                }
+                if !values.is_empty() {
+                    values.sort_unstable_by(f64::total_cmp);
+                    let n = values.len();
+                    let med = if n % 2 == 1 {
+                        values[n / 2]
+                    } else {
+                        0.5 * (values[n / 2 - 1] + values[n / 2])
+                    };
+                    levels[r * w + c] = med as f32;
+                }
+            }
+            fill_row(&mut levels[r * w..(r + 1) * w]);
+        }
+        bg.levels = levels;
+        Ok(bg)
+    }
+
     /// The background level at a pixel.
     #[inline]
     pub fn at(&self, row: usize, col: usize) -> f32 {
@@ -195,6 +289,37 @@ impl Background {
 pub struct FrameGain {
     pub gain: f64,
     pub sigma: f64,
+}
+
+/// Replace the NaN runs of a row by linear interpolation between their
+/// neighbours (or the nearest value at the row's ends); a row of NaN only
+/// becomes 0.
+fn fill_row(row: &mut [f32]) {
+    let n = row.len();
+    let mut j = 0;
+    while j < n {
+        if !row[j].is_nan() {
+            j += 1;
+            continue;
+        }
+        let start = j;
+        while j < n && row[j].is_nan() {
+            j += 1;
+        }
+        let left = (start > 0).then(|| row[start - 1]);
+        let right = (j < n).then(|| row[j]);
+        for k in start..j {
+            row[k] = match (left, right) {
+                (Some(a), Some(b)) => {
+                    let f = (k + 1 - start) as f32 / (j + 1 - start) as f32;
+                    a + f * (b - a)
+                }
+                (Some(a), None) => a,
+                (None, Some(b)) => b,
+                (None, None) => 0.0,
+            };
+        }
+    }
 }
 
 /// The reference columns: `0..strip` and `width − strip..width`, every `step`-th.

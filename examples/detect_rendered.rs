@@ -89,7 +89,15 @@ fn run(dir: &Path, pool: &mut Pool) -> anyhow::Result<()> {
         .collect::<Result<_, _>>()?;
     let views: Vec<_> = frames.iter().map(|f| f.view()).collect();
     let coarse = CoarseParams::default();
-    let bg = Background::from_frames_with_sphere(&views, GainRegion::default(), &coarse, 10.0)?;
+    // DETECT_BG_FRAMES=N: the background from the first N frames (they must
+    // be free of the sphere); otherwise from all frames, sphere in view.
+    let bg = match std::env::var("DETECT_BG_FRAMES")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+    {
+        Some(n) => Background::from_frames(&views[..n.min(views.len())], GainRegion::default())?,
+        None => Background::from_frames_with_sphere(&views, GainRegion::default(), &coarse, 6.0)?,
+    };
     let surface = fit_surface(&bg, &SurfaceParams::default())?;
     let xi = truth.impact_column_px;
     let s_err = surface.row_at(xi) - (truth.surface_row_px + truth.surface_slope * xi);
@@ -106,7 +114,13 @@ fn run(dir: &Path, pool: &mut Pool) -> anyhow::Result<()> {
     );
     pool.surface.push(s_err);
 
-    let params = EdgeParams::default();
+    let mut params = EdgeParams::default();
+    if let Some(m) = std::env::var("DETECT_MARGIN_PX")
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        params.surface_margin_px = m;
+    }
     let mut es = EdgeScratch::default();
     let mut cs = CoarseScratch::default();
     // Pass 1: radius free, prediction = previous centre + previous velocity.
@@ -127,7 +141,9 @@ fn run(dir: &Path, pool: &mut Pool) -> anyhow::Result<()> {
                 detect_coarse(&band, &bg, g, Some(&surface), &coarse, &mut cs)?.map(|c| c.circle)
             }
         };
-        let fit = predicted.and_then(|p| measure_circle(&band, &bg, &p, Some(&surface), None, &params, &mut es).ok());
+        let fit = predicted.and_then(|p| {
+            measure_circle(&band, &bg, &p, Some(&surface), None, &params, &mut es).ok()
+        });
         if fit.is_none() {
             println!("  frame {k}: no fit");
         }
@@ -165,7 +181,11 @@ fn run(dir: &Path, pool: &mut Pool) -> anyhow::Result<()> {
         .map(|f| f.r_px)
         .collect();
     radii.sort_by(f64::total_cmp);
-    let r_px = if radii.is_empty() { truth.radius_px } else { radii[radii.len() / 2] };
+    let r_px = if radii.is_empty() {
+        truth.radius_px
+    } else {
+        radii[radii.len() / 2]
+    };
     println!(
         "  R_px {:.4} from {} full-circle frames: error {:+.4} px",
         r_px,
@@ -181,7 +201,15 @@ fn run(dir: &Path, pool: &mut Pool) -> anyhow::Result<()> {
     for ((f, fit1), t) in frames.iter().zip(&fits).zip(&truth.frames) {
         let Some(fit1) = fit1 else { continue };
         let band = Band::frame(f)?;
-        let Ok(fit) = measure_circle(&band, &bg, &fit1.circle(), Some(&surface), Some(r_px), &params, &mut es) else {
+        let Ok(fit) = measure_circle(
+            &band,
+            &bg,
+            &fit1.circle(),
+            Some(&surface),
+            Some(r_px),
+            &params,
+            &mut es,
+        ) else {
             continue;
         };
         let ez = fit.z_px - t.z_px;
@@ -220,7 +248,10 @@ fn main() -> anyhow::Result<()> {
     println!("  {}", line("free flight z (R held)", &pool.free_z));
     println!("  {}", line("free flight x (R held)", &pool.free_x));
     println!("  {}", line("in contact z (R held) ", &pool.contact_z));
-    println!("  {}", line("in contact z (R free) ", &pool.contact_z_free_r));
+    println!(
+        "  {}",
+        line("in contact z (R free) ", &pool.contact_z_free_r)
+    );
     println!("  {}", line("R_px", &pool.radius));
     println!("  {}", line("surface row at impact column", &pool.surface));
     println!(

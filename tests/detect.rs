@@ -545,3 +545,218 @@ fn robust_fit_rejects_a_mirror_image_arc() {
         );
     }
 }
+
+#[test]
+fn background_is_recovered_when_the_sphere_is_in_every_frame() {
+    // A slow drop: the sphere moves 40 px over 24 frames, so its path's core
+    // is covered in every frame. Against the exact sphere-free light, the
+    // background must be right to 1 % around the sphere's edges (where edge
+    // profiles take their zero) — noise σ 2 on 200 gives ~0.5 % per frame,
+    // and the median of the uncovered frames or the quadratic fill does
+    // better.
+    let mut rng = ChaCha8Rng::seed_from_u64(22);
+    let band = pillar_band(300.4, 0.002);
+    let empty = scene(512, 384, REALISTIC, None, Some(band));
+    let truth = empty.render();
+    let frames: Vec<Frame> = (0..24)
+        .map(|k| {
+            let s = scene(
+                512,
+                384,
+                REALISTIC,
+                Some((250.3, 150.0 + 40.0 * k as f64 / 23.0, 75.0)),
+                Some(band),
+            );
+            shoot(&s, REALISTIC, &mut rng)
+        })
+        .collect();
+    let views: Vec<_> = frames.iter().map(|f| f.view()).collect();
+    let bg = Background::from_frames_with_sphere(
+        &views,
+        GainRegion::default(),
+        &CoarseParams::default(),
+        6.0,
+    )
+    .unwrap();
+    // The gains are relative to frame 0; compare shapes, not levels (the
+    // ratio of the means over a sphere-free block).
+    let (mut st, mut sb) = (0.0, 0.0);
+    for i in 0..40 {
+        for j in 0..40 {
+            st += truth[[i, j]];
+            sb += bg.at(i, j) as f64;
+        }
+    }
+    let k = st / sb;
+    for zc in [150.0, 190.0] {
+        for dr in [-6.0, 0.0, 6.0] {
+            let mut rel = Vec::new();
+            for a in 0..360 {
+                let t = (a as f64).to_radians();
+                let (x, z) = (250.3 + (75.0 + dr) * t.cos(), zc + (75.0 + dr) * t.sin());
+                if z >= 296.0 {
+                    continue;
+                }
+                let (i, j) = (z.round() as usize, x.round() as usize);
+                rel.push((bg.at(i, j) as f64 * k - truth[[i, j]]) / truth[[i, j]]);
+            }
+            let mean = rel.iter().sum::<f64>() / rel.len() as f64;
+            let rms = (rel.iter().map(|v| v * v).sum::<f64>() / rel.len() as f64).sqrt();
+            println!("ring centre {zc} radius 75{dr:+}: mean {mean:+.4}, rms {rms:.4}");
+            // Systematic part (what biases edges): ≤ 0.3 %. Scatter: one
+            // frame's noise is 1 %, a median of several less.
+            assert!(
+                mean.abs() <= 0.003 && rms <= 0.012,
+                "mean {mean}, rms {rms}"
+            );
+        }
+    }
+}
+
+#[test]
+fn rendered_drop_meets_the_issue_targets() {
+    // A drop from `dropscope render` (the realistic preset: 8-bit, light
+    // gradient, blur σ 0.7 px, motion blur, shot and read noise, flicker,
+    // static dust), everything found from the images: background with the
+    // sphere in view from the first frame, surface line, coarse circle,
+    // per-frame sub-pixel circle, R_px from the full-circle frames, then
+    // the centre with R_px held. Targets of issue 4.
+    let dir = tempfile::tempdir().unwrap();
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .args([
+            "render",
+            "--drop",
+            "4:8",
+            "--preset",
+            "realistic",
+            "--format",
+            "png",
+        ])
+        .args([
+            "--width-px",
+            "384",
+            "--height-px",
+            "288",
+            "--restitution",
+            "0.9",
+            "--seed",
+            "7",
+        ])
+        .arg("--out")
+        .arg(dir.path())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let run_dir = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.join("truth.json").exists())
+        .expect("a run folder");
+    let truth: dropscope::render::truth::Truth =
+        serde_json::from_slice(&std::fs::read(run_dir.join("truth.json")).unwrap()).unwrap();
+    let frames: Vec<Frame> = truth
+        .frames
+        .iter()
+        .map(|f| {
+            let name = dropscope::render::export::frame_file_name(
+                &truth.run,
+                f.frame,
+                dropscope::render::export::FrameFormat::Png,
+            );
+            let img = image::open(run_dir.join(name)).unwrap().to_luma8();
+            let (w, h) = (img.width() as usize, img.height() as usize);
+            Frame::from_shape_vec((h, w), img.into_raw().into_iter().map(u16::from).collect())
+                .unwrap()
+        })
+        .collect();
+    let views: Vec<_> = frames.iter().map(|f| f.view()).collect();
+    let coarse = CoarseParams::default();
+    let bg =
+        Background::from_frames_with_sphere(&views, GainRegion::default(), &coarse, 6.0).unwrap();
+    let surface = fit_surface(&bg, &SurfaceParams::default()).unwrap();
+    let xi = truth.impact_column_px;
+    let s_err = surface.row_at(xi) - (truth.surface_row_px + truth.surface_slope * xi);
+    // Surface row at the impact column: the issue's 0.03 px (measured ~0.002).
+    assert!(s_err.abs() <= 0.03, "surface error {s_err}");
+
+    let params = EdgeParams::default();
+    let mut es = EdgeScratch::default();
+    let mut cs = CoarseScratch::default();
+    let mut fits = Vec::new();
+    let mut prev: Option<Circle> = None;
+    for f in &frames {
+        let band = Band::frame(f).unwrap();
+        let predicted = prev.or_else(|| {
+            let g = bg.gain(&band).unwrap().gain;
+            detect_coarse(&band, &bg, g, Some(&surface), &coarse, &mut cs)
+                .unwrap()
+                .map(|c| c.circle)
+        });
+        let fit = predicted.and_then(|p| {
+            measure_circle(&band, &bg, &p, Some(&surface), None, &params, &mut es).ok()
+        });
+        prev = fit.map(|f| f.circle());
+        fits.push(fit);
+    }
+    let clear = params.half_window as f64 + 2.0;
+    let mut radii: Vec<f64> = fits
+        .iter()
+        .flatten()
+        .filter(|f| {
+            f.z_px - f.r_px > clear
+                && f.z_px + f.r_px < surface.row_at(f.x_px) - params.surface_margin_px - clear
+        })
+        .map(|f| f.r_px)
+        .collect();
+    assert!(radii.len() >= 5, "only {} full-circle frames", radii.len());
+    radii.sort_by(f64::total_cmp);
+    let r_px = radii[radii.len() / 2];
+    // R_px: the issue's 0.02 px (measured ~0.001).
+    assert!(
+        (r_px - truth.radius_px).abs() <= 0.02,
+        "R_px {r_px} vs {}",
+        truth.radius_px
+    );
+
+    let (mut free, mut contact, mut covered, mut n) = (Vec::new(), Vec::new(), 0, 0);
+    for ((f, fit1), t) in frames.iter().zip(&fits).zip(&truth.frames) {
+        let fit1 = fit1.expect("every frame measured");
+        let band = Band::frame(f).unwrap();
+        let fit = measure_circle(
+            &band,
+            &bg,
+            &fit1.circle(),
+            Some(&surface),
+            Some(r_px),
+            &params,
+            &mut es,
+        )
+        .unwrap();
+        let e = fit.z_px - t.z_px;
+        n += 1;
+        if e.abs() <= 2.0 * fit.cov.sigma_z_px() {
+            covered += 1;
+        }
+        if t.in_contact {
+            contact.push(e);
+        } else {
+            free.push(e);
+        }
+    }
+    let (f50, f95) = (pct_abs(&free, 50.0), pct_abs(&free, 95.0));
+    let (c50, c95) = (pct_abs(&contact, 50.0), pct_abs(&contact, 95.0));
+    let cover = covered as f64 / n as f64;
+    println!(
+        "rendered R 4 mm H 8 cm: free flight z median {f50:.4} 95th {f95:.4} ({} frames); contact z median {c50:.4} 95th {c95:.4} ({} frames); R_px error {:+.4}; surface {:+.4}; 2σ coverage {:.1} %",
+        free.len(),
+        contact.len(),
+        r_px - truth.radius_px,
+        s_err,
+        100.0 * cover
+    );
+    assert!(f50 <= 0.02 && f95 <= 0.06, "free flight {f50} / {f95}");
+    assert!(c50 <= 0.03 && c95 <= 0.08, "contact {c50} / {c95}");
+    // ≥ 90 % over the three fixture drops (93 %); one drop of ~90 frames
+    // has a binomial spread of ±3 %, hence 85 % here.
+    assert!(cover >= 0.85, "2σ coverage {cover}");
+}

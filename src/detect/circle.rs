@@ -278,9 +278,9 @@ fn median(v: &mut [f64]) -> f64 {
     *m
 }
 
-/// Solve the symmetric positive definite system `A x = b` (n ≤ 3) by
+/// Solve the symmetric positive definite system `A x = b` (small n) by
 /// Cholesky; `None` when `A` is not positive definite.
-fn solve_spd<const N: usize>(a: &[[f64; N]; N], b: &[f64; N]) -> Option<[f64; N]> {
+pub(crate) fn solve_spd<const N: usize>(a: &[[f64; N]; N], b: &[f64; N]) -> Option<[f64; N]> {
     let mut l = [[0.0; N]; N];
     for i in 0..N {
         for j in 0..=i {

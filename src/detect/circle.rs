@@ -332,6 +332,10 @@ fn inverse_spd<const N: usize>(a: &[[f64; N]; N]) -> Option<[[f64; N]; N]> {
     Some(inv)
 }
 
+/// Once an IRLS step moves no parameter by more than this (px), the
+/// residual scale is held for the remaining iterations.
+const FREEZE_SCALE_PX: f64 = 1e-3;
+
 /// The sums of an IRLS iteration, kept for the covariance.
 #[derive(Debug, Default, Clone, Copy)]
 struct LastSums {
@@ -349,7 +353,8 @@ struct LastSums {
 /// robust weight), starting from `start` or, without one, from [`hyper_fit`].
 ///
 /// IRLS: each iteration computes the residuals `dᵢ`, their scale
-/// `s = max(1.4826·MAD, min_scale_px)` and weights — Huber's
+/// `s = max(1.4826·MAD, min_scale_px)` (held once a step moves less than
+/// 1e-3 px) and weights — Huber's
 /// `min(1, 1.345 s / |d|)` for the first `huber_iterations`, then Tukey's
 /// biweight `(1 − (d / (c s))²)²` for `|d| < c s`, else 0 — and takes one
 /// Gauss–Newton step on the weighted normal equations (with a tiny
@@ -381,6 +386,8 @@ pub fn fit_circle(
     scratch.units.resize(n, (0.0, 0.0));
     let mut iterations = 0;
     let mut last = LastSums::default();
+    let mut scale: Option<f64> = None;
+    let mut last_step = f64::INFINITY;
     for it in 0..opts.max_iterations.max(1) {
         iterations = it + 1;
         // Pass 1: residuals, unit vectors from the centre, robust scale.
@@ -399,8 +406,13 @@ pub fn fit_circle(
                 scratch.work.push(d.abs());
             }
         }
+        // The scale follows the fit while it still moves by more than
+        // `FREEZE_SCALE_PX`, then is held (one median less per iteration).
         let huber = it < opts.huber_iterations;
-        let s = (1.4826 * median(&mut scratch.work)).max(opts.min_scale_px);
+        if scale.is_none() || last_step > FREEZE_SCALE_PX || huber {
+            scale = Some((1.4826 * median(&mut scratch.work)).max(opts.min_scale_px));
+        }
+        let s = scale.unwrap_or(opts.min_scale_px);
         // Pass 2: weights and the weighted normal equations.
         let mut jtj = [[0.0; 3]; 3];
         let mut jtd = [0.0; 3];
@@ -471,6 +483,7 @@ pub fn fit_circle(
         c.z_px += step[1];
         c.r_px += step[2];
         let moved = step.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        last_step = moved;
         if !huber && moved < opts.tolerance_px {
             break;
         }

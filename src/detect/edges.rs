@@ -216,13 +216,20 @@ pub fn edge_points<'s>(
         let di = (ib - ia) / last_j;
         // The window is a segment inside the (convex) visible region, so
         // every sample's four neighbours are inside the band.
+        // Positions in 16.16 fixed point (1.5e-5 px steps): integer and
+        // fractional parts by shifts instead of float conversions.
         let z0 = za - row0;
+        let mut xf = (xa * FIX) as i64;
+        let mut zf = (z0 * FIX) as i64;
+        let (dxf, dzf) = ((c * FIX) as i64, (s * FIX) as i64);
         let mut qt = 0.0;
         let mut q_in = 0.0;
         let mut q_out = 0.0;
         for j in 0..m {
             let jf = j as f64;
-            let v = lerp_u16(band.data, band.width, xa + jf * c, z0 + jf * s) as f64;
+            let v = lerp_fixed(band.data, band.width, xf, zf) as f64;
+            xf += dxf;
+            zf += dzf;
             let q = v * (ia + jf * di);
             qt += q * (t0 + jf);
             if j == 0 {
@@ -326,26 +333,28 @@ fn transmission(
     }
     let step = ((std::f64::consts::PI * r_in * r_in / TARGET_INTERIOR).sqrt()).max(1.0);
     let n = (r_in / step).floor() as i64;
-    let z_end = band.row0 + band.nrows;
+    let (z_lo, z_end) = (band.row0 as f64, (band.row0 + band.nrows) as f64);
     for a in -n..=n {
         let z = c.z_px + a as f64 * step;
-        let zi = z.round();
-        if zi < band.row0 as f64 || zi >= z_end as f64 {
+        // Nearest row (z + ½ truncated; the range check keeps it ≥ 0).
+        let zr = z + 0.5;
+        if zr < z_lo || zr >= z_end {
             continue;
         }
-        let i = zi as usize;
+        let i = zr as usize;
+        let dz2 = (z - c.z_px) * (z - c.z_px);
         for b in -n..=n {
             let x = c.x_px + b as f64 * step;
-            if (x - c.x_px).powi(2) + (z - c.z_px).powi(2) > r_in * r_in {
+            if (x - c.x_px) * (x - c.x_px) + dz2 > r_in * r_in {
                 continue;
             }
-            let xj = x.round();
-            if xj < 0.0 || xj >= band.width as f64 {
+            let xr = x + 0.5;
+            if xr < 0.0 || xr >= band.width as f64 {
                 continue;
             }
-            let j = xj as usize;
+            let j = xr as usize;
             if let Some(s) = surface {
-                if zi >= s.row_at(xj) - params.surface_margin_px {
+                if (i as f64) >= s.row_at(j as f64) - params.surface_margin_px {
                     continue;
                 }
             }
@@ -359,10 +368,13 @@ fn transmission(
     if values.len() < MIN_INTERIOR {
         return None;
     }
-    // Trimmed mean: drop the lowest and highest eighth (dust, glints).
-    values.sort_unstable_by(f64::total_cmp);
-    let cut = values.len() / 8;
-    let kept = &values[cut..values.len() - cut];
+    // Trimmed mean: drop the lowest and highest eighth (dust, glints); two
+    // selections instead of a sort.
+    let len = values.len();
+    let cut = len / 8;
+    values.select_nth_unstable_by(len - 1 - cut, f64::total_cmp);
+    values[..len - cut].select_nth_unstable_by(cut, f64::total_cmp);
+    let kept = &values[cut..len - cut];
     let k = kept.len() as f64;
     let mean = kept.iter().sum::<f64>() / k;
     // Standard error; the trimmed spread understates σ of a Gaussian by
@@ -371,13 +383,17 @@ fn transmission(
     Some((mean, 1.5 * (var / k).sqrt()))
 }
 
-/// Bilinear interpolation of row-major `data` (`width` columns) at column
-/// `x`, local row `z`; both ≥ 0 with their right and lower neighbours inside
-/// (the caller checks the window first).
+/// Fixed-point scale of sample positions: 16 fractional bits.
+const FIX: f64 = 65536.0;
+
+/// Bilinear interpolation of row-major `data` (`width` columns) at the
+/// 16.16 fixed-point column `x` and local row `z`, both ≥ 0 with their right
+/// and lower neighbours inside (the caller checks the window first).
 #[inline(always)]
-fn lerp_u16(data: &[u16], width: usize, x: f64, z: f64) -> f32 {
-    let (j, i) = (x as usize, z as usize);
-    let (fx, fz) = ((x - j as f64) as f32, (z - i as f64) as f32);
+fn lerp_fixed(data: &[u16], width: usize, x: i64, z: i64) -> f32 {
+    let (j, i) = ((x >> 16) as usize, (z >> 16) as usize);
+    const INV: f32 = 1.0 / 65536.0;
+    let (fx, fz) = ((x & 0xffff) as f32 * INV, (z & 0xffff) as f32 * INV);
     let k = i * width + j;
     let quad = &data[k..k + width + 2];
     let (a, b) = (quad[0] as f32, quad[1] as f32);

@@ -760,3 +760,29 @@ fn rendered_drop_meets_the_issue_targets() {
     // has a binomial spread of ±3 %, hence 85 % here.
     assert!(cover >= 0.85, "2σ coverage {cover}");
 }
+
+#[test]
+fn detect_settings_come_from_pipeline_toml() {
+    let text = "[detect]\nsurface_row_px = 300.25\nsurface_slope = 0.004\ncontact_margin_px = 3.5\nedge_half_window_px = 8\nedge_spacing_px = 2.0\n";
+    let cfg = dropscope::config::PipelineConfig::from_toml_str(
+        text,
+        std::path::Path::new("p.toml"),
+        std::path::Path::new(""),
+    )
+    .unwrap();
+    let p = EdgeParams::from_config(&cfg.detect);
+    assert_eq!(p.half_window, 8);
+    assert_eq!(p.spacing_px, 2.0);
+    assert_eq!(p.surface_margin_px, 3.5);
+    let line = SurfaceLine::from_config(&cfg.detect).expect("the override");
+    assert!((line.row_at(100.0) - 300.65).abs() < 1e-12);
+    assert_eq!(line.sigma_row_at(100.0), 0.0);
+    let none = dropscope::config::PipelineConfig::from_toml_str(
+        "",
+        std::path::Path::new("p.toml"),
+        std::path::Path::new(""),
+    )
+    .unwrap();
+    assert!(SurfaceLine::from_config(&none.detect).is_none());
+    assert_eq!(EdgeParams::from_config(&none.detect), EdgeParams::default());
+}

@@ -123,6 +123,18 @@ struct NormalSums {
     q_out: f64,
 }
 
+impl EdgeParams {
+    /// The settings of `[detect]` in pipeline.toml, defaults for the rest.
+    pub fn from_config(cfg: &crate::config::DetectConfig) -> Self {
+        EdgeParams {
+            spacing_px: cfg.edge_spacing_px,
+            half_window: cfg.edge_half_window_px,
+            surface_margin_px: cfg.contact_margin_px,
+            ..EdgeParams::default()
+        }
+    }
+}
+
 /// Reusable buffers: one per thread, reused for every frame.
 #[derive(Debug, Default, Clone)]
 pub struct EdgeScratch {

@@ -56,6 +56,10 @@ struct Pool {
     free_x: Vec<f64>,
     covered: usize,
     total: usize,
+    /// Free-flight and contact frames with |e_z| ≤ 2σ_z, and |e_z|/σ_z.
+    covered_free: usize,
+    covered_contact: usize,
+    ratio: Vec<f64>,
     radius: Vec<f64>,
     surface: Vec<f64>,
 }
@@ -215,8 +219,15 @@ fn run(dir: &Path, pool: &mut Pool) -> anyhow::Result<()> {
         let ez = fit.z_px - t.z_px;
         let ex = fit.x_px - t.x_px;
         pool.total += 1;
-        if ez.abs() <= 2.0 * fit.cov.sigma_z_px() {
+        let inside = ez.abs() <= 2.0 * fit.cov.sigma_z_px();
+        pool.ratio.push(ez / fit.cov.sigma_z_px());
+        if inside {
             pool.covered += 1;
+            if t.in_contact {
+                pool.covered_contact += 1;
+            } else {
+                pool.covered_free += 1;
+            }
         }
         if t.in_contact {
             contact_z.push(ez);
@@ -255,9 +266,12 @@ fn main() -> anyhow::Result<()> {
     println!("  {}", line("R_px", &pool.radius));
     println!("  {}", line("surface row at impact column", &pool.surface));
     println!(
-        "  |e_z| ≤ 2σ_z in {:.1} % of {} frames",
+        "  |e_z| ≤ 2σ_z in {:.1} % of {} frames ({:.1} % in free flight, {:.1} % in contact); rms of e_z/σ_z {:.2}",
         100.0 * pool.covered as f64 / pool.total.max(1) as f64,
-        pool.total
+        pool.total,
+        100.0 * pool.covered_free as f64 / pool.free_z.len().max(1) as f64,
+        100.0 * pool.covered_contact as f64 / pool.contact_z.len().max(1) as f64,
+        (pool.ratio.iter().map(|r| r * r).sum::<f64>() / pool.ratio.len().max(1) as f64).sqrt()
     );
     Ok(())
 }

@@ -16,10 +16,13 @@
 //!   pillar edges and a mirror image get weight 0). The scale is
 //!   1.4826·MAD of the residuals. With `hold_radius` only the centre is fitted.
 //!
-//! Covariance: `σ̂²·(JᵀWJ)⁻¹` at the solution, `σ̂² = Σwᵢdᵢ² / (Σwᵢ − p)`,
-//! where `J` is the Jacobian of the residuals and `p` the number of fitted
-//! parameters — the usual asymptotic covariance of a (robust) least-squares
-//! estimate; it assumes independent point errors.
+//! Covariance: the M-estimator sandwich `A⁻¹BA⁻¹·n/(n − p)` at the solution,
+//! `A = Σ ψ'(dᵢ) jᵢjᵢᵀ`, `B = Σ ψ(dᵢ)² jᵢjᵢᵀ` (Huber 1967), `j` the gradient of the
+//! residuals and `p` the number of fitted parameters — the asymptotic
+//! covariance of a robust least-squares estimate (the plain `σ̂²(JᵀWJ)⁻¹`
+//! understates it under Tukey weights); it assumes independent point errors.
+//! Errors shared by all points along their radii (`radial_sigma_px`) are
+//! added through the fit's response to a uniform radial shift.
 
 // Small fixed-size matrix code reads best with explicit indices.
 #![allow(clippy::needless_range_loop)]
@@ -332,6 +335,32 @@ fn inverse_spd<const N: usize>(a: &[[f64; N]; N]) -> Option<[[f64; N]; N]> {
     Some(inv)
 }
 
+/// The M-estimator ("sandwich") covariance `A⁻¹ B A⁻¹ · n/(n − p)` with
+/// `A = Σ ψ'(d) j jᵀ` (given inverted) and `B = Σ ψ(d)² j jᵀ`, ψ(d) = w·d
+/// (Huber 1967): honest under robust weights, where `σ̂²(JᵀWJ)⁻¹`
+/// understates the spread.
+fn sandwich<const N: usize>(
+    a_inv: &[[f64; N]; N],
+    b: &[[f64; N]; N],
+    n: usize,
+    p: usize,
+) -> [[f64; N]; N] {
+    let scale = n as f64 / (n as f64 - p as f64).max(1.0);
+    let mut tmp = [[0.0; N]; N];
+    for i in 0..N {
+        for j in 0..N {
+            tmp[i][j] = (0..N).map(|k| a_inv[i][k] * b[k][j]).sum();
+        }
+    }
+    let mut out = [[0.0; N]; N];
+    for i in 0..N {
+        for j in 0..N {
+            out[i][j] = scale * (0..N).map(|k| tmp[i][k] * a_inv[k][j]).sum::<f64>();
+        }
+    }
+    out
+}
+
 /// Once an IRLS step moves no parameter by more than this (px), the
 /// residual scale is held for the remaining iterations.
 const FREEZE_SCALE_PX: f64 = 1e-3;
@@ -339,12 +368,15 @@ const FREEZE_SCALE_PX: f64 = 1e-3;
 /// The sums of an IRLS iteration, kept for the covariance.
 #[derive(Debug, Default, Clone, Copy)]
 struct LastSums {
+    /// `JᵀWJ`, the fallback when `bread` is not positive definite.
     jtj: [[f64; 3]; 3],
-    /// `JᵀW·1`: the normal equations' response to a uniform radial shift.
+    /// `Σ ψ'(d) j jᵀ`: the outer parts of the sandwich covariance.
+    bread: [[f64; 3]; 3],
+    /// `Σ w² d² j jᵀ`: the middle of the sandwich covariance.
+    meat: [[f64; 3]; 3],
+    /// `Σ ψ'(d) j`: the estimating equations' response to a uniform radial shift.
     jtw1: [f64; 3],
-    /// `Σ w d²`, `Σ w`, and the plain `Σ d²` and count over points with w > 0.
-    ss: f64,
-    sw: f64,
+    /// The plain `Σ d²` and count over points with w > 0.
     ss_unweighted: f64,
     n_in: usize,
 }
@@ -416,40 +448,47 @@ pub fn fit_circle(
         // Pass 2: weights and the weighted normal equations.
         let mut jtj = [[0.0; 3]; 3];
         let mut jtd = [0.0; 3];
-        let (mut ss, mut sw, mut ss_unweighted, mut n_in) = (0.0, 0.0, 0.0, 0usize);
+        let (mut ss_unweighted, mut n_in) = (0.0, 0usize);
         let mut jtw1 = [0.0; 3];
+        let mut meat = [[0.0; 3]; 3];
+        let mut bread = [[0.0; 3]; 3];
         for (i, p) in points.iter().enumerate() {
             let d = scratch.residuals[i];
             let a = d.abs();
-            let w = if huber {
+            // Weight w = ψ(d)/d and slope ψ'(d) of the ρ-function.
+            let prior = p.weight.max(0.0);
+            let (w, dpsi) = if huber {
                 let k = 1.345 * s;
                 if a <= k {
-                    1.0
+                    (1.0, 1.0)
                 } else {
-                    k / a
+                    (k / a, 0.0)
                 }
             } else {
                 let u = a / (opts.tukey_c * s);
                 if u < 1.0 {
-                    (1.0 - u * u).powi(2)
+                    let q = 1.0 - u * u;
+                    (q * q, q * (1.0 - 5.0 * u * u))
                 } else {
-                    0.0
+                    (0.0, 0.0)
                 }
-            } * p.weight.max(0.0);
+            };
+            let (w, dpsi) = (w * prior, dpsi * prior);
             scratch.weights[i] = w;
             if w > 0.0 {
-                ss += w * d * d;
-                sw += w;
                 ss_unweighted += d * d;
                 n_in += 1;
                 // ∂d/∂x = −uₓ, ∂d/∂z = −u_z, ∂d/∂r = −1.
                 let (ux, uz) = scratch.units[i];
                 let j3 = [-ux, -uz, -1.0];
+                let wd2 = w * w * d * d;
                 for a in 0..3 {
-                    jtw1[a] += w * j3[a];
+                    jtw1[a] += dpsi * j3[a];
                     jtd[a] += w * j3[a] * d;
                     for b in 0..=a {
                         jtj[a][b] += w * j3[a] * j3[b];
+                        meat[a][b] += wd2 * j3[a] * j3[b];
+                        bread[a][b] += dpsi * j3[a] * j3[b];
                     }
                 }
             }
@@ -457,13 +496,15 @@ pub fn fit_circle(
         for a in 0..3 {
             for b in a + 1..3 {
                 jtj[a][b] = jtj[b][a];
+                meat[a][b] = meat[b][a];
+                bread[a][b] = bread[b][a];
             }
         }
         last = LastSums {
             jtj,
+            bread,
+            meat,
             jtw1,
-            ss,
-            sw,
             ss_unweighted,
             n_in,
         };
@@ -510,20 +551,24 @@ pub fn fit_circle(
         what: WHAT,
         reason: "singular normal matrix (points on too short an arc?)".into(),
     };
-    let jtj = last.jtj;
+    // A = Σψ'jjᵀ; where many residuals sit on Tukey's descending part it
+    // may fail to be positive definite: then JᵀWJ stands in.
+    let bread_ok = inverse_spd(&last.bread).is_some();
+    let jtj = if bread_ok { last.bread } else { last.jtj };
     let sb2 = opts.radial_sigma_px * opts.radial_sigma_px;
+    let meat = last.meat;
     let cov = if held {
-        let s2 = last.ss / (last.sw - 2.0).max(1.0);
         let m2 = [[jtj[0][0], jtj[0][1]], [jtj[1][0], jtj[1][1]]];
+        let b2 = [[meat[0][0], meat[0][1]], [meat[1][0], meat[1][1]]];
         let inv = inverse_spd(&m2).ok_or_else(degenerate)?;
+        let mut cov = sandwich(&inv, &b2, last.n_in, 2);
         // Response of the centre to a unit outward shift of every point:
-        // v = −(JᵀWJ)⁻¹ JᵀW·1.
+        // v = −A⁻¹ Σψ'(d) j.
         let g = [last.jtw1[0], last.jtw1[1]];
         let v = [
             -(inv[0][0] * g[0] + inv[0][1] * g[1]),
             -(inv[1][0] * g[0] + inv[1][1] * g[1]),
         ];
-        let mut cov = inv.map(|row| row.map(|x| x * s2));
         for a in 0..2 {
             for b in 0..2 {
                 cov[a][b] += sb2 * v[a] * v[b];
@@ -531,9 +576,8 @@ pub fn fit_circle(
         }
         Covariance::CentreOnly(cov)
     } else {
-        let s2 = last.ss / (last.sw - 3.0).max(1.0);
         let inv = inverse_spd(&jtj).ok_or_else(degenerate)?;
-        let mut cov = inv.map(|row| row.map(|x| x * s2));
+        let mut cov = sandwich(&inv, &meat, last.n_in, 3);
         // A free radius absorbs a uniform shift: it adds σ_b² to var(r) only.
         cov[2][2] += sb2;
         Covariance::Full(cov)

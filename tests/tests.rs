@@ -2,5 +2,6 @@
 
 mod cli;
 mod collapse;
+mod detect;
 mod render;
 mod source;

@@ -20,16 +20,19 @@
 pub mod collapse;
 pub mod config;
 pub mod dataset;
+pub mod detect;
 pub mod events;
 pub mod force;
-pub mod detect;
 pub mod io_util;
 pub mod kinematics;
 pub mod lsq;
 pub mod manifest;
 pub mod measure;
+pub mod overlay;
 pub mod plot;
+pub mod process;
 pub mod render;
 pub mod source;
 #[cfg(test)]
 mod test_support;
+pub mod track;

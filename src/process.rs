@@ -176,7 +176,11 @@ fn try_process_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<RunOutcome, St
         surface: surface_name,
     };
     let mut rows = track_rows(&tr);
-    let m = measure_drop(&info, &points, &geom, &EventConfig::default())
+    let event_cfg = EventConfig {
+        exposure_s: meta.exposure_s.unwrap_or(0.0),
+        ..EventConfig::default()
+    };
+    let m = measure_drop(&info, &points, &geom, &event_cfg)
         .map_err(|e| format!("{}: {e}", run.path.display()))?;
     annotate_track(&mut rows, &m, &geom);
     let mut record = m.record;

@@ -97,15 +97,15 @@ pub enum TrackError {
         #[source]
         source: DetectError,
     },
-    #[error("background: {0}")]
+    #[error("no sphere found: no backlit background to measure against ({0})")]
     Background(DetectError),
-    #[error("surface line: {0} (set detect.surface_row_px in pipeline.toml to give it)")]
+    #[error("no sphere found: no surface line in the background ({0}); if the surface is out of view, set detect.surface_row_px in pipeline.toml")]
     Surface(DetectError),
     #[error("no sphere found in any of the {frames} frames")]
     NoSphere { frames: usize },
-    #[error("the sphere's whole circle is clear of the frame border and of the surface in only {found} frames (at least 3 needed to measure R_px)")]
+    #[error("no sphere found whole: its circle is clear of the frame border and of the surface in only {found} frames (at least 3 needed to measure R_px)")]
     NoCalibration { found: usize },
-    #[error("only {0} frames: too short a movie to track")]
+    #[error("only {0} frames: too short a movie to find a drop in")]
     TooShort(usize),
 }
 
@@ -128,7 +128,10 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         samples.push(f);
     }
     let views: Vec<_> = samples.iter().map(|f| f.view()).collect();
+    // With the sphere masked out of each sample; if no circle can be fitted
+    // to any dark group (no sphere in these frames), the plain median.
     let bg = Background::from_frames_with_sphere(&views, GainRegion::default(), &st.coarse, 6.0)
+        .or_else(|_| Background::from_frames(&views, GainRegion::default()))
         .map_err(TrackError::Background)?;
     drop(samples);
     let (surface, surface_from_config) = match &st.surface_override {

@@ -19,7 +19,7 @@ use dropscope::detect::circle::Circle;
 use dropscope::detect::coarse::{detect_coarse, CoarseParams, CoarseScratch};
 use dropscope::detect::edges::{measure_circle, EdgeParams, EdgeScratch};
 use dropscope::detect::surface::{fit_surface, SurfaceParams};
-use dropscope::detect::Band;
+use dropscope::detect::{overlay, Band};
 use dropscope::render::truth::Truth;
 use dropscope::source::Frame;
 use std::path::{Path, PathBuf};
@@ -218,6 +218,25 @@ fn run(dir: &Path, pool: &mut Pool) -> anyhow::Result<()> {
         };
         let ez = fit.z_px - t.z_px;
         let ex = fit.x_px - t.x_px;
+        // DETECT_OVERLAY=DIR: a 4× overlay of the deepest frame.
+        if let Some(out) = std::env::var_os("DETECT_OVERLAY") {
+            if t.delta_mm > 0.0 && t.delta_mm >= truth.delta_max_mm * 0.999 {
+                let c = fit.circle();
+                let view = overlay::OverlayView::around(&band, &c, 12.0, 4);
+                let img = overlay::overlay(
+                    &band,
+                    truth.bit_depth,
+                    &view,
+                    &es.points,
+                    Some(&c),
+                    Some(&surface),
+                );
+                let path =
+                    Path::new(&out).join(format!("{}_frame{}_overlay.png", truth.run, t.frame));
+                dropscope::io_util::write_atomic(&path, &overlay::encode_png(&img)?)?;
+                println!("  overlay: {}", path.display());
+            }
+        }
         pool.total += 1;
         let inside = ez.abs() <= 2.0 * fit.cov.sigma_z_px();
         pool.ratio.push(ez / fit.cov.sigma_z_px());

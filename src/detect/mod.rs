@@ -11,6 +11,7 @@
 //! | [`coarse`] | the sphere's first appearance and a coarse circle (also when it enters through the top) |
 //! | [`edges`] | sub-pixel edge points along normals to a predicted circle |
 //! | [`circle`] | algebraic (hyper) start, robust geometric refinement, covariance, radius-held variant |
+//! | [`overlay`] | a picture of one frame's detection (frame, edge points, circle, surface line) |
 //! | [`synth`] | exact anti-aliased test scenes (disk, tilted pillar band) with known truth |
 //!
 //! # Pixel convention
@@ -30,6 +31,7 @@ pub mod background;
 pub mod circle;
 pub mod coarse;
 pub mod edges;
+pub mod overlay;
 pub mod surface;
 pub mod synth;
 

@@ -59,7 +59,7 @@ fn scene(
     h: usize,
     look: Look,
     disk: Option<(f64, f64, f64)>,
-    band: Option<synth::Band>,
+    band: Option<synth::PillarBand>,
 ) -> Scene {
     Scene {
         width: w,
@@ -96,8 +96,8 @@ fn background(s: &Scene, look: Look, rng: &mut ChaCha8Rng) -> Background {
     Background::from_frames(&views, GainRegion::default()).unwrap()
 }
 
-fn pillar_band(row0: f64, slope: f64) -> synth::Band {
-    synth::Band {
+fn pillar_band(row0: f64, slope: f64) -> synth::PillarBand {
+    synth::PillarBand {
         row0_px: row0,
         slope,
         pillar_level: 60.0,
@@ -132,7 +132,7 @@ fn trial(
     look: Look,
     size: (usize, usize),
     truth: (f64, f64, f64),
-    band: Option<synth::Band>,
+    band: Option<synth::PillarBand>,
     hold: bool,
     dust: usize,
     bg_cache: &mut Option<Background>,

@@ -37,8 +37,8 @@ struct Case {
     predicted: Circle,
 }
 
-fn band() -> synth::Band {
-    synth::Band {
+fn band() -> synth::PillarBand {
+    synth::PillarBand {
         row0_px: 330.0,
         slope: 0.004,
         pillar_level: 60.0,

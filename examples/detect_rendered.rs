@@ -19,7 +19,7 @@ use dropscope::detect::circle::Circle;
 use dropscope::detect::coarse::{detect_coarse, CoarseParams, CoarseScratch};
 use dropscope::detect::edges::{measure_circle, EdgeParams, EdgeScratch};
 use dropscope::detect::surface::{fit_surface, SurfaceParams};
-use dropscope::detect::Band;
+use dropscope::detect::{calibrate, overlay, Band};
 use dropscope::render::truth::Truth;
 use dropscope::source::Frame;
 use std::path::{Path, PathBuf};
@@ -174,30 +174,25 @@ fn run(dir: &Path, pool: &mut Pool) -> anyhow::Result<()> {
         fits.push(fit);
     }
     // Calibration: frames whose whole circle (plus the window) is clear.
-    let w = params.half_window as f64 + 2.0;
-    let mut radii: Vec<f64> = fits
-        .iter()
-        .flatten()
-        .filter(|f| {
-            f.z_px - f.r_px > w
-                && f.z_px + f.r_px < surface.row_at(f.x_px) - params.surface_margin_px - w
-        })
-        .map(|f| f.r_px)
-        .collect();
-    radii.sort_by(f64::total_cmp);
-    let r_px = if radii.is_empty() {
-        truth.radius_px
-    } else {
-        radii[radii.len() / 2]
-    };
-    println!(
-        "  R_px {:.4} from {} full-circle frames: error {:+.4} px",
-        r_px,
-        radii.len(),
-        r_px - truth.radius_px
-    );
-    if !radii.is_empty() {
-        pool.radius.push(r_px - truth.radius_px);
+    let free: Vec<_> = fits.iter().flatten().copied().collect();
+    let (h, w) = frames[0].dim();
+    let cal = calibrate::calibrate_radius(&free, w, h, Some(&surface), &params, 3);
+    let r_px = cal.map_or(truth.radius_px, |c| c.r_px);
+    match cal {
+        Some(c) => {
+            let s = calibrate::scale(truth.sphere_radius_mm, &c, None);
+            println!(
+                "  R_px {:.4} ± {:.4} from {} full-circle frames: error {:+.4} px; scale {:.6} mm/px (truth {})",
+                c.r_px,
+                c.sigma_px,
+                c.frames,
+                c.r_px - truth.radius_px,
+                s.mm_per_px,
+                truth.mm_per_px
+            );
+            pool.radius.push(c.r_px - truth.radius_px);
+        }
+        None => println!("  too few full-circle frames: R_px from truth"),
     }
     // Pass 2: radius held.
     let mut free_z = Vec::new();
@@ -218,6 +213,25 @@ fn run(dir: &Path, pool: &mut Pool) -> anyhow::Result<()> {
         };
         let ez = fit.z_px - t.z_px;
         let ex = fit.x_px - t.x_px;
+        // DETECT_OVERLAY=DIR: a 4× overlay of the deepest frame.
+        if let Some(out) = std::env::var_os("DETECT_OVERLAY") {
+            if t.delta_mm > 0.0 && t.delta_mm >= truth.delta_max_mm * 0.999 {
+                let c = fit.circle();
+                let view = overlay::OverlayView::around(&band, &c, 12.0, 4);
+                let img = overlay::overlay(
+                    &band,
+                    truth.bit_depth,
+                    &view,
+                    &es.points,
+                    Some(&c),
+                    Some(&surface),
+                );
+                let path =
+                    Path::new(&out).join(format!("{}_frame{}_overlay.png", truth.run, t.frame));
+                dropscope::io_util::write_atomic(&path, &overlay::encode_png(&img)?)?;
+                println!("  overlay: {}", path.display());
+            }
+        }
         pool.total += 1;
         let inside = ez.abs() <= 2.0 * fit.cov.sigma_z_px();
         pool.ratio.push(ez / fit.cov.sigma_z_px());

@@ -59,7 +59,7 @@ fn scene(
     h: usize,
     look: Look,
     disk: Option<(f64, f64, f64)>,
-    band: Option<synth::Band>,
+    band: Option<synth::PillarBand>,
 ) -> Scene {
     Scene {
         width: w,
@@ -96,8 +96,8 @@ fn background(s: &Scene, look: Look, rng: &mut ChaCha8Rng) -> Background {
     Background::from_frames(&views, GainRegion::default()).unwrap()
 }
 
-fn pillar_band(row0: f64, slope: f64) -> synth::Band {
-    synth::Band {
+fn pillar_band(row0: f64, slope: f64) -> synth::PillarBand {
+    synth::PillarBand {
         row0_px: row0,
         slope,
         pillar_level: 60.0,
@@ -132,7 +132,7 @@ fn trial(
     look: Look,
     size: (usize, usize),
     truth: (f64, f64, f64),
-    band: Option<synth::Band>,
+    band: Option<synth::PillarBand>,
     hold: bool,
     dust: usize,
     bg_cache: &mut Option<Background>,
@@ -699,19 +699,12 @@ fn rendered_drop_meets_the_issue_targets() {
         prev = fit.map(|f| f.circle());
         fits.push(fit);
     }
-    let clear = params.half_window as f64 + 2.0;
-    let mut radii: Vec<f64> = fits
-        .iter()
-        .flatten()
-        .filter(|f| {
-            f.z_px - f.r_px > clear
-                && f.z_px + f.r_px < surface.row_at(f.x_px) - params.surface_margin_px - clear
-        })
-        .map(|f| f.r_px)
-        .collect();
-    assert!(radii.len() >= 5, "only {} full-circle frames", radii.len());
-    radii.sort_by(f64::total_cmp);
-    let r_px = radii[radii.len() / 2];
+    let free: Vec<_> = fits.iter().flatten().copied().collect();
+    let (h, w) = frames[0].dim();
+    let cal =
+        dropscope::detect::calibrate::calibrate_radius(&free, w, h, Some(&surface), &params, 5)
+            .expect("at least 5 full-circle frames");
+    let r_px = cal.r_px;
     // R_px: the issue's 0.02 px (measured ~0.001).
     assert!(
         (r_px - truth.radius_px).abs() <= 0.02,

@@ -11,6 +11,8 @@
 //! | [`coarse`] | the sphere's first appearance and a coarse circle (also when it enters through the top) |
 //! | [`edges`] | sub-pixel edge points along normals to a predicted circle |
 //! | [`circle`] | algebraic (hyper) start, robust geometric refinement, covariance, radius-held variant |
+//! | [`calibrate`] | R_px from the full-circle frames; the scale and its check against the manifest |
+//! | [`overlay`] | a picture of one frame's detection (frame, edge points, circle, surface line) |
 //! | [`synth`] | exact anti-aliased test scenes (disk, tilted pillar band) with known truth |
 //!
 //! # Pixel convention
@@ -27,9 +29,11 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod background;
+pub mod calibrate;
 pub mod circle;
 pub mod coarse;
 pub mod edges;
+pub mod overlay;
 pub mod surface;
 pub mod synth;
 

@@ -32,7 +32,7 @@ pub struct Scene {
     /// The sphere's circle: centre column, centre row, radius (px).
     pub disk: Option<(f64, f64, f64)>,
     /// The pillar band: everything below `row = row0 + slope · column`.
-    pub band: Option<Band>,
+    pub band: Option<PillarBand>,
     /// Gaussian blur of the optics (px, standard deviation); 0 = none.
     pub blur_px: f64,
 }
@@ -40,7 +40,7 @@ pub struct Scene {
 /// The pillar band's look: top line and a column-periodic level (pillars
 /// and the darker gaps between pillar rows).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Band {
+pub struct PillarBand {
     /// Row of the top line at column 0.
     pub row0_px: f64,
     /// Rows per column.
@@ -54,7 +54,7 @@ pub struct Band {
     pub solid_fraction: f64,
 }
 
-impl Band {
+impl PillarBand {
     fn level(&self, x: f64) -> f64 {
         let phase = (x / self.period_px).rem_euclid(1.0);
         if phase < self.solid_fraction {

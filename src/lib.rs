@@ -28,7 +28,6 @@ pub mod kinematics;
 pub mod lsq;
 pub mod manifest;
 pub mod measure;
-pub mod overlay;
 pub mod plot;
 pub mod process;
 pub mod render;

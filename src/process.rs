@@ -6,6 +6,9 @@
 
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus, TrackRow};
+use crate::detect::calibrate::{scale, RadiusCalibration};
+use crate::detect::overlay::{encode_png, overlay, OverlayView};
+use crate::detect::Band;
 use crate::events::{EventConfig, Geometry, TrackPoint};
 use crate::manifest::RunSpec;
 use crate::measure::{annotate_track, measure_drop, DropInfo};
@@ -13,6 +16,9 @@ use crate::source::{open, Frame, OpenOptions};
 use crate::track::{edge_points_of, track, Track, TrackSettings};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
+
+/// Enlargement of the overlay crop around the sphere at maximum penetration.
+const OVERLAY_ZOOM: u32 = 3;
 
 /// The command line of `dropscope process`.
 #[derive(Debug, clap::Args)]
@@ -137,21 +143,18 @@ fn try_process_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<RunOutcome, St
         track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
 
     // Scale: given (manifest, then configuration), checked against the sphere.
-    let measured_scale = run.sphere_radius_mm / tr.radius_px;
-    let mut warnings = Vec::new();
-    let (mm_per_px, from_radius) = match run.mm_per_px.or(cfg.camera.mm_per_px) {
-        Some(s) => {
-            let off = measured_scale / s - 1.0;
-            if off.abs() > 0.01 {
-                warnings.push(format!(
-                    "the given scale {s} mm/px and the sphere's {measured_scale:.6} mm/px differ by {:+.2} %",
-                    off * 100.0
-                ));
-            }
-            (s, false)
-        }
-        None => (measured_scale, true),
-    };
+    let given = run.mm_per_px.or(cfg.camera.mm_per_px);
+    let sc = scale(
+        run.sphere_radius_mm,
+        &RadiusCalibration {
+            r_px: tr.radius_px,
+            sigma_px: tr.radius_err_px,
+            frames: tr.radius_frames,
+        },
+        given,
+    );
+    let warnings: Vec<String> = sc.warning.into_iter().collect();
+    let (mm_per_px, from_radius) = (sc.mm_per_px, given.is_none());
     let xs: Vec<f64> = tr
         .frames
         .iter()
@@ -204,7 +207,17 @@ fn try_process_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<RunOutcome, St
         let mut frame = Frame::zeros((meta.height, meta.width));
         source.read_into(ft.index, &mut frame).ok()?;
         let c = ft.held?.circle();
-        crate::overlay::overlay_png(&frame, meta.bit_depth, &c, &pts, &tr.surface).ok()
+        let band = Band::frame(&frame).ok()?;
+        let view = OverlayView::around(&band, &c, 12.0, OVERLAY_ZOOM);
+        encode_png(&overlay(
+            &band,
+            meta.bit_depth,
+            &view,
+            &pts,
+            Some(&c),
+            Some(&tr.surface),
+        ))
+        .ok()
     });
     Ok(RunOutcome {
         record,

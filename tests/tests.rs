@@ -3,5 +3,6 @@
 mod cli;
 mod collapse;
 mod detect;
+mod process;
 mod render;
 mod source;

@@ -108,6 +108,12 @@ pub struct RawDetect {
     pub surface_slope: Option<f64>,
     /// Edge points closer than this to the surface line are not used (px).
     pub contact_margin_px: Option<f64>,
+    /// Samples each side of the predicted edge along every normal (1 px
+    /// apart); must cover the blurred edge (±3σ of the optics, half the
+    /// motion-blur travel) plus the prediction error.
+    pub edge_half_window_px: Option<usize>,
+    /// Arc length between neighbouring normals (px).
+    pub edge_spacing_px: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -185,6 +191,10 @@ pub struct DetectConfig {
     pub surface_row_px: Option<f64>,
     pub surface_slope: f64,
     pub contact_margin_px: f64,
+    /// Half-width of the edge window along each normal (samples, 1 px apart).
+    pub edge_half_window_px: usize,
+    /// Arc length between neighbouring normals (px).
+    pub edge_spacing_px: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -323,6 +333,22 @@ impl RawConfig {
                 "must be a finite tilt in rows per column, |slope| ≤ 0.2",
             ));
         }
+        let edge_half_window_px = self.detect.edge_half_window_px.unwrap_or(6);
+        if !(3..=30).contains(&edge_half_window_px) {
+            return Err(c.invalid(
+                "detect.edge_half_window_px",
+                edge_half_window_px,
+                "must be an integer from 3 to 30",
+            ));
+        }
+        let edge_spacing_px = self.detect.edge_spacing_px.unwrap_or(3.0);
+        if !(edge_spacing_px.is_finite() && (1.0..=20.0).contains(&edge_spacing_px)) {
+            return Err(c.invalid(
+                "detect.edge_spacing_px",
+                edge_spacing_px,
+                "must be a number of px from 1 to 20",
+            ));
+        }
         if let Some(r) = self.detect.surface_row_px {
             if !r.is_finite() {
                 return Err(c.invalid("detect.surface_row_px", r, "must be a finite row"));
@@ -346,6 +372,8 @@ impl RawConfig {
                 surface_row_px: self.detect.surface_row_px,
                 surface_slope,
                 contact_margin_px,
+                edge_half_window_px,
+                edge_spacing_px,
             },
             output: OutputConfig {
                 dir: resolve(self.output.dir.unwrap_or_else(|| PathBuf::from("out"))),
@@ -390,6 +418,8 @@ mod tests {
                 "1.5",
             ),
             ("[detect]\nbackground_frames = 0\n", "detect.background_frames", "0"),
+            ("[detect]\nedge_half_window_px = 2\n", "detect.edge_half_window_px", "2"),
+            ("[detect]\nedge_spacing_px = 0.5\n", "detect.edge_spacing_px", "0.5"),
         ];
         for (text, key, value) in cases {
             let e = parse(text).unwrap_err().to_string();

@@ -87,6 +87,11 @@ pub struct EventConfig {
     /// Wider windows average more noise but bias the quartic: on a 24-frame
     /// contact, 0.5 gives −4·10⁻⁴ relative, 0.75 about −5·10⁻⁵.
     pub peak_fraction: f64,
+    /// Exposure time T of a frame. A frame shows the silhouette averaged over
+    /// its exposure, so a measured position is the mean of z over
+    /// [t − T/2, t + T/2] = z(t) + z̈(t)·T²/24 + O(T⁴). The peak values are
+    /// corrected by that term (0 switches the correction off).
+    pub exposure_s: f64,
 }
 
 impl Default for EventConfig {
@@ -96,6 +101,7 @@ impl Default for EventConfig {
             flight_margin_px: 1.0,
             min_flight_frames: 5,
             peak_fraction: 0.75,
+            exposure_s: 0.0,
         }
     }
 }

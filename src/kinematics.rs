@@ -76,8 +76,11 @@ pub fn kinematics(
     ev: &Events,
     geom: &Geometry,
     sphere: &SphereParams,
+    exposure_s: f64,
 ) -> Result<Kinematics, EventError> {
     let r_mm = sphere.radius_m * 1e3;
+    // Exposure averaging (see `EventConfig::exposure_s`): value − value''·T²/24.
+    let blur = exposure_s * exposure_s / 24.0;
     // Half-width of the silhouette at the line around the peak, where measured.
     let hw_fit = half_width_fit(track, ev);
 
@@ -165,7 +168,7 @@ pub fn kinematics(
             ev.peak.t_max_s - 1e-3,
             ev.peak.t_max_s + 1e-3,
         );
-        let delta_px = peak.eval(t_max) + r_px - y_s;
+        let delta_px = peak.eval(t_max) - peak.deriv2(t_max) * blur + r_px - y_s;
         let delta_mm = delta_px * s_mm;
         let a_geom_mm = (r_mm * r_mm - (r_mm - delta_mm).powi(2)).max(0.0).sqrt();
         let a_mm = match (lay.hw, &hw_fit) {
@@ -236,7 +239,17 @@ pub fn kinematics(
         restitution: m(5),
         delta_max_m: m(6),
         a_geom_m: m(7),
-        a_max_m: hw_fit.as_ref().map(|_| m(8)),
+        // The free-radius circle at the peak fits a silhouette smeared over
+        // the positions of the exposure, |z̈|·T²/8 apart; the radius absorbs
+        // up to that range, which is added to a_max's error as a systematic term.
+        a_max_m: hw_fit.as_ref().map(|_| {
+            let mut a = m(8);
+            let smear_m = ev.peak.poly.deriv2(base[9]).abs() * exposure_s * exposure_s / 8.0
+                * geom.mm_per_px
+                * 1e-3;
+            a.err = a.err.hypot(smear_m);
+            a
+        }),
         t_max_s: base[9],
         g_fit_m_s2: [g_fit(&ev.pre), g_fit(&ev.post)],
     })
@@ -275,7 +288,7 @@ mod tests {
         let geom = geometry();
         let tr = track(&drop, &geom, 0.0, 1);
         let ev = find_events(&tr, &geom, &EventConfig::default()).unwrap_or_else(|e| panic!("{e}"));
-        let k = kinematics(&tr, &ev, &geom, &sphere()).unwrap();
+        let k = kinematics(&tr, &ev, &geom, &sphere(), 0.0).unwrap();
         // Flight parabolas are exact, so the events are exact to rounding.
         assert!(
             (k.t_contact_s.value - drop.t0).abs() < 1e-9,
@@ -311,7 +324,7 @@ mod tests {
             let tr = track(&drop, &geom, sigma, seed);
             let ev =
                 find_events(&tr, &geom, &EventConfig::default()).unwrap_or_else(|e| panic!("{e}"));
-            let k = kinematics(&tr, &ev, &geom, &sphere()).unwrap();
+            let k = kinematics(&tr, &ev, &geom, &sphere(), 0.0).unwrap();
             let checks = [
                 (k.delta_max_m, drop.delta_max),
                 (k.tau_c_s, drop.t_r - drop.t0),

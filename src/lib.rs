@@ -7,6 +7,7 @@
 //! | [`config`] | `pipeline.toml` → validated [`config::PipelineConfig`] in SI units |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
 //! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
+//! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits (`dropscope collapse`) |
 //! | [`plot`] | SVG + PNG figures (collapse plots, per-drop diagnostics), embedded font |
@@ -19,6 +20,7 @@
 pub mod collapse;
 pub mod config;
 pub mod dataset;
+pub mod detect;
 pub mod events;
 pub mod force;
 pub mod io_util;
@@ -27,7 +29,9 @@ pub mod lsq;
 pub mod manifest;
 pub mod measure;
 pub mod plot;
+pub mod process;
 pub mod render;
 pub mod source;
 #[cfg(test)]
 mod test_support;
+pub mod track;

@@ -32,6 +32,8 @@ enum Command {
     Render(Box<dropscope::render::RenderArgs>),
     /// Dimensionless groups, Ψ(Ξ) and Ω(Ξ) fits, exponents and plots from a drops.csv.
     Collapse(dropscope::collapse::CollapseArgs),
+    /// Measure drops: per-drop dataset (drops.csv), tracks and overlays.
+    Process(dropscope::process::ProcessArgs),
 }
 
 /// Load `--config FILE`, else `./pipeline.toml`, else the embedded default.
@@ -45,6 +47,40 @@ fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<PipelineConfig>
             std::path::Path::new("(embedded pipeline.toml)"),
             std::path::Path::new(""),
         )?,
+    })
+}
+
+/// `dropscope process`: every run in parallel; exit 1 when some runs failed.
+fn run_process(args: &dropscope::process::ProcessArgs) -> anyhow::Result<ExitCode> {
+    use dropscope::dataset::DropStatus;
+    let cfg = load_config(args.config.as_deref())?;
+    let runs = match &args.manifest {
+        Some(m) => dropscope::manifest::read_manifest(m)?,
+        None => dropscope::process::runs_from_inputs(&args.inputs, args.radius_mm, &cfg)?,
+    };
+    let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
+    let start = std::time::Instant::now();
+    let records = dropscope::process::process_all(&runs, &cfg, &out, &|r| match r.status {
+        DropStatus::Failed => eprintln!("{}: failed: {}", r.run, r.reason),
+        DropStatus::Warning => eprintln!("{}: measured, with warnings: {}", r.run, r.reason),
+        DropStatus::Ok => eprintln!("{}: measured", r.run),
+    })?;
+    let failed = records
+        .iter()
+        .filter(|r| r.status == DropStatus::Failed)
+        .count();
+    eprintln!(
+        "{} runs: {} measured, {} failed, in {:.2} s; results in {}",
+        records.len(),
+        records.len() - failed,
+        failed,
+        start.elapsed().as_secs_f64(),
+        out.display()
+    );
+    Ok(if failed > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
     })
 }
 
@@ -120,6 +156,7 @@ fn main() -> ExitCode {
         }),
         Command::Render(args) => run_render(&args),
         Command::Collapse(args) => run_collapse(&args),
+        Command::Process(args) => run_process(&args),
     };
     match result {
         Ok(code) => code,

@@ -41,7 +41,7 @@ pub fn measure_drop(
         density_kg_m3: info.sphere_density_kg_m3,
     };
     let ev = find_events(track, geom, cfg)?;
-    let kin = kinematics(track, &ev, geom, &sphere)?;
+    let kin = kinematics(track, &ev, geom, &sphere, cfg.exposure_s)?;
     let law = fit_force_law(track, &ev, geom, &sphere, cfg.g_m_s2);
     let table = force_table(
         track,

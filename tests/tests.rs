@@ -2,5 +2,7 @@
 
 mod cli;
 mod collapse;
+mod detect;
+mod process;
 mod render;
 mod source;

@@ -1,0 +1,222 @@
+//! Coarse detection: is the sphere in the frame, and roughly where.
+//!
+//! A pixel is "sphere" when it is darker than the flicker-corrected
+//! background by more than `threshold · g·B` and lies above the surface line
+//! minus the margin (the pillar band is dark too). The largest 4-connected
+//! group of such pixels is the sphere candidate; groups smaller than
+//! `min_area_px` (dust) are ignored. Its outline — every pixel of the group
+//! next to a non-group pixel that is itself inside the frame and above the
+//! surface — gives boundary points placed at the linear-interpolated
+//! threshold crossing between the two pixels, and a robust circle fit
+//! ([`fit_circle`]) through them gives the coarse circle. Boundary points
+//! along the frame's border are not edges and are not used, so a sphere
+//! entering through the top, only partly visible, is fitted on its visible
+//! arc. The coarse circle is accurate to a fraction of a pixel (the
+//! threshold is not at half contrast); [`super::edges::measure_circle`]
+//! refines it.
+
+use super::background::Background;
+use super::circle::{fit_circle, Circle, FitOptions, FitScratch};
+use super::edges::EdgePoint;
+use super::surface::SurfaceLine;
+use super::{Band, DetectError};
+
+/// Settings of [`detect_coarse`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CoarseParams {
+    /// Relative darkening `(g·B − I)/(g·B)` that marks a sphere pixel.
+    pub threshold: f64,
+    /// Fewest pixels of a sphere candidate.
+    pub min_area_px: usize,
+    /// Pixels closer than this above the surface line are not searched (px).
+    pub surface_margin_px: f64,
+}
+
+impl Default for CoarseParams {
+    fn default() -> Self {
+        CoarseParams {
+            threshold: 0.3,
+            min_area_px: 50,
+            surface_margin_px: 2.0,
+        }
+    }
+}
+
+/// A coarse sphere detection.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Coarse {
+    /// The coarse circle (frame pixels).
+    pub circle: Circle,
+    /// Pixels in the sphere's group.
+    pub area_px: usize,
+    /// The group touches the top row of the band (the sphere is entering).
+    pub touches_top: bool,
+    /// Boundary points used for the circle.
+    pub boundary_points: usize,
+}
+
+/// Reusable buffers of [`detect_coarse`].
+#[derive(Debug, Default, Clone)]
+pub struct CoarseScratch {
+    /// Per pixel: 0 background, 1 dark, 2.. group label.
+    labels: Vec<u32>,
+    stack: Vec<usize>,
+    points: Vec<EdgePoint>,
+    fit: FitScratch,
+}
+
+/// Find the sphere in `band` (see the module doc); `Ok(None)` when there is
+/// no dark group of at least `min_area_px` pixels.
+pub fn detect_coarse(
+    band: &Band,
+    bg: &Background,
+    gain: f64,
+    surface: Option<&SurfaceLine>,
+    params: &CoarseParams,
+    scratch: &mut CoarseScratch,
+) -> Result<Option<Coarse>, DetectError> {
+    let (h, w) = (band.nrows, band.width);
+    if w != bg.width || band.row0 + h > bg.height {
+        return Err(DetectError::ShapeMismatch {
+            width: w,
+            height: band.row0 + h,
+            bg_width: bg.width,
+            bg_height: bg.height,
+        });
+    }
+    let searchable = |i: usize, j: usize| -> bool {
+        let z = (band.row0 + i) as f64;
+        match surface {
+            Some(s) => z < s.row_at(j as f64) - params.surface_margin_px,
+            None => true,
+        }
+    };
+    let darkening = |i: usize, j: usize| -> (f64, f64) {
+        let gb = gain * bg.at(band.row0 + i, j) as f64;
+        (gb - band.data[i * w + j] as f64, params.threshold * gb)
+    };
+    scratch.labels.clear();
+    scratch.labels.resize(h * w, 0);
+    for i in 0..h {
+        for j in 0..w {
+            let (d, thr) = darkening(i, j);
+            if d > thr && searchable(i, j) {
+                scratch.labels[i * w + j] = 1;
+            }
+        }
+    }
+    // Label 4-connected groups; keep the largest.
+    let mut best = (0u32, 0usize);
+    let mut next = 2u32;
+    for start in 0..h * w {
+        if scratch.labels[start] != 1 {
+            continue;
+        }
+        let label = next;
+        next += 1;
+        let mut size = 0;
+        scratch.stack.clear();
+        scratch.stack.push(start);
+        scratch.labels[start] = label;
+        while let Some(k) = scratch.stack.pop() {
+            size += 1;
+            let (i, j) = (k / w, k % w);
+            let mut visit = |kk: usize| {
+                if scratch.labels[kk] == 1 {
+                    scratch.labels[kk] = label;
+                    scratch.stack.push(kk);
+                }
+            };
+            if i > 0 {
+                visit(k - w);
+            }
+            if i + 1 < h {
+                visit(k + w);
+            }
+            if j > 0 {
+                visit(k - 1);
+            }
+            if j + 1 < w {
+                visit(k + 1);
+            }
+        }
+        if size > best.1 {
+            best = (label, size);
+        }
+    }
+    let (label, area) = best;
+    if area < params.min_area_px.max(1) {
+        return Ok(None);
+    }
+    // Outline points at the threshold crossing towards each outside neighbour.
+    scratch.points.clear();
+    let mut touches_top = false;
+    for i in 0..h {
+        for j in 0..w {
+            if scratch.labels[i * w + j] != label {
+                continue;
+            }
+            if i == 0 {
+                touches_top = true;
+            }
+            let (d_in, thr_in) = darkening(i, j);
+            let neighbours = [
+                (i.wrapping_sub(1), j, 0.0, -1.0),
+                (i + 1, j, 0.0, 1.0),
+                (i, j.wrapping_sub(1), -1.0, 0.0),
+                (i, j + 1, 1.0, 0.0),
+            ];
+            for (ni, nj, dx, dz) in neighbours {
+                if ni >= h || nj >= w || scratch.labels[ni * w + nj] == label {
+                    continue;
+                }
+                if !searchable(ni, nj) {
+                    continue;
+                }
+                let (d_out, thr_out) = darkening(ni, nj);
+                let a = d_in - thr_in;
+                let b = d_out - thr_out;
+                let f = if a - b > 0.0 {
+                    (a / (a - b)).clamp(0.0, 1.0)
+                } else {
+                    0.5
+                };
+                scratch.points.push(EdgePoint {
+                    x_px: j as f64 + f * dx,
+                    z_px: (band.row0 + i) as f64 + f * dz,
+                    weight: 1.0,
+                });
+            }
+        }
+    }
+    let fit = fit_circle(
+        &scratch.points,
+        None,
+        &FitOptions::default(),
+        &mut scratch.fit,
+    )?;
+    Ok(Some(Coarse {
+        circle: fit.circle(),
+        area_px: area,
+        touches_top,
+        boundary_points: scratch.points.len(),
+    }))
+}
+
+/// The first of `frames` (with its index) in which [`detect_coarse`] finds
+/// the sphere, each frame's gain measured on its own reference strips.
+pub fn first_appearance<'a>(
+    frames: impl IntoIterator<Item = Band<'a>>,
+    bg: &Background,
+    surface: Option<&SurfaceLine>,
+    params: &CoarseParams,
+    scratch: &mut CoarseScratch,
+) -> Result<Option<(usize, Coarse)>, DetectError> {
+    for (k, band) in frames.into_iter().enumerate() {
+        let gain = bg.gain(&band)?.gain;
+        if let Some(c) = detect_coarse(&band, bg, gain, surface, params, scratch)? {
+            return Ok(Some((k, c)));
+        }
+    }
+    Ok(None)
+}

@@ -1,0 +1,460 @@
+//! Sub-pixel edge points of the sphere along normals to a predicted circle.
+//!
+//! # Method: the radial area (moment) estimator
+//!
+//! The sphere is a backlit silhouette: where it covers a pixel fully, the
+//! pixel shows `τ·g·B` — the background `B` times the frame's flicker gain
+//! `g` times the sphere's (small) transmission `τ`. So the sphere's share of
+//! a pixel's area is `P = (1 − I/(g·B)) / (1 − τ)`: 1 inside, 0 outside,
+//! exact under area sampling and any linear blur.
+//!
+//! Along the ray from the predicted centre `c` in direction `u`, the frame is
+//! sampled by bilinear interpolation at unit spacing `t_j = r − w + j`
+//! (`j = 0..=2w`), at full bit depth. `1/(g·B)` is interpolated linearly
+//! between its values at the window's ends (the light varies slowly; a
+//! 13-px window sees it as linear to 1e-5). `τ` is the trimmed mean of
+//! `I/(g·B)` over ~256 pixels inside `r − 2w`, clear of the blurred
+//! transition: a `τ` off by `ε` moves every edge outward by `ε·w/(1 − τ)`,
+//! which a free radius absorbs but a held radius on a short arc turns into
+//! a centre error, so it is averaged well. The edge radius is then
+//!
+//! `t_e² = t_a² + 2 Σ_j P_j t_j`,   `t_a = t_0 − ½`,
+//!
+//! the midpoint rule for `t_e² = t_a² + 2∫ P(t) t dt`. For a disk of radius `R`
+//! under any rotationally symmetric blur, `∫₀^∞ P(ρ) ρ dρ = R²/2` exactly
+//! (blur preserves the disk's area), so `t_e = R`: no curved-edge bias. (The
+//! ½-level contour and the gradient peak of a Gaussian-blurred disk both lie
+//! at `R − σ²/2R`; this estimator does not share that bias.) Vertical motion
+//! blur over a travel `L` moves the sides in by `L²/24R` only (0.01 px for
+//! `L` = 4 px, `R` = 70 px) and leaves the centre at mid-exposure. A ray
+//! through a centre off by `e` shifts `t_e` by `−e·u` (what the circle fit
+//! needs) plus `O(e σ²/R²)`, negligible after one refinement pass.
+//!
+//! Because `P` enters linearly, the sum is accumulated while sampling:
+//! `Σ P_j t_j = (Σ t_j − Σ q_j t_j)/(1 − τ)` with `q_j = I_j/(g·B_j)`, so no
+//! sample is stored. Because the estimator integrates the profile instead of
+//! locating a peak between samples, it has no pixel locking for an
+//! axis-aligned edge (a sum of linearly interpolated samples at unit spacing
+//! does not depend on their phase); the residual phase structure for oblique
+//! normals is measured in the tests.
+//!
+//! # What is used
+//!
+//! A normal is used only when its whole window lies inside the band of rows
+//! (and one pixel from the frame's border, for the interpolation), above the
+//! surface line minus `surface_margin_px` (the part below is hidden by
+//! pillars and, near contact, may dip or mirror the sphere), when the
+//! sphere's contrast `1 − τ` is at least `min_contrast`, and when the window
+//! holds the edge (`P` > ½ at its inner end and < ½ at its outer end).
+//!
+//! # Cost
+//!
+//! `normals × (2w + 1)` bilinear samples of the frame and two of the
+//! background per normal: proportional to the perimeter, independent of the
+//! frame size. All buffers live in [`EdgeScratch`], reused from frame to
+//! frame.
+
+use super::background::{Background, FrameGain};
+use super::circle::{fit_circle, Circle, CircleFit, FitOptions, FitScratch};
+use super::surface::SurfaceLine;
+use super::{Band, DetectError};
+
+/// One sub-pixel edge point of the silhouette, in frame pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EdgePoint {
+    /// Column (px).
+    pub x_px: f64,
+    /// Row (px, grows downward).
+    pub z_px: f64,
+    /// Relative weight in fits (> 0; 0 excludes the point).
+    pub weight: f64,
+}
+
+/// Settings of [`edge_points`] and [`measure_circle`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EdgeParams {
+    /// Arc length between neighbouring normals (px). 3 px keeps neighbouring
+    /// windows on different pixels, so point errors are nearly independent
+    /// (the covariance assumes it); 2 px gives ~20 % smaller errors for 50 %
+    /// more time.
+    pub spacing_px: f64,
+    /// At most this many normals around the full circle.
+    pub max_normals: usize,
+    /// Half-width `w` of the window along each normal (samples each side of
+    /// the predicted edge, 1 px apart). It must cover the blurred transition
+    /// (±3σ of the blur) plus the prediction error.
+    pub half_window: usize,
+    /// Windows must stay this far above the surface line (px).
+    pub surface_margin_px: f64,
+    /// Smallest sphere contrast `1 − τ` (τ the sphere's transmission).
+    pub min_contrast: f64,
+    /// At most this many edge-and-fit passes in [`measure_circle`]; each
+    /// re-centres the normals on the previous fit.
+    pub passes: usize,
+    /// A further pass is made only when the last fit moved the centre or the
+    /// radius by more than this (px) from where the normals were centred.
+    pub recentre_px: f64,
+}
+
+impl Default for EdgeParams {
+    fn default() -> Self {
+        EdgeParams {
+            spacing_px: 3.0,
+            max_normals: 192,
+            half_window: 6,
+            surface_margin_px: 2.0,
+            min_contrast: 0.3,
+            passes: 2,
+            recentre_px: 0.5,
+        }
+    }
+}
+
+/// Per-normal sums gathered while sampling.
+#[derive(Debug, Clone, Copy)]
+struct NormalSums {
+    /// Direction (cos, sin).
+    c: f64,
+    s: f64,
+    /// `Σ q_j t_j` with `q = I/(g·B)`.
+    qt: f64,
+    /// `q` at the window's inner and outer ends.
+    q_in: f64,
+    q_out: f64,
+}
+
+impl EdgeParams {
+    /// The settings of `[detect]` in pipeline.toml, defaults for the rest.
+    pub fn from_config(cfg: &crate::config::DetectConfig) -> Self {
+        EdgeParams {
+            spacing_px: cfg.edge_spacing_px,
+            half_window: cfg.edge_half_window_px,
+            surface_margin_px: cfg.contact_margin_px,
+            ..EdgeParams::default()
+        }
+    }
+}
+
+/// Reusable buffers: one per thread, reused for every frame.
+#[derive(Debug, Default, Clone)]
+pub struct EdgeScratch {
+    /// The edge points of the last call.
+    pub points: Vec<EdgePoint>,
+    normals: Vec<NormalSums>,
+    /// Directions (cos, sin) of all `table.len()` normals around the circle.
+    table: Vec<(f64, f64)>,
+    /// Work buffer for the transmission.
+    levels: Vec<f64>,
+    /// Standard deviation (px) of the error shared by all points of the last
+    /// call along their radii, from the uncertainty of τ and of the gain.
+    pub radial_sigma_px: f64,
+    /// The circle fit's buffers.
+    pub fit: FitScratch,
+}
+
+/// Sub-pixel edge points around `predicted` in `band` (see the module doc).
+/// `gain` is the frame's flicker gain ([`Background::gain`]); `surface`, when
+/// given, hides everything below its line minus the margin. The points are
+/// left in `scratch.points` and returned.
+pub fn edge_points<'s>(
+    band: &Band,
+    bg: &Background,
+    frame_gain: FrameGain,
+    predicted: &Circle,
+    surface: Option<&SurfaceLine>,
+    params: &EdgeParams,
+    scratch: &'s mut EdgeScratch,
+) -> Result<&'s [EdgePoint], DetectError> {
+    let gain = frame_gain.gain;
+    if band.width != bg.width || band.row0 + band.nrows > bg.height {
+        return Err(DetectError::ShapeMismatch {
+            width: band.width,
+            height: band.row0 + band.nrows,
+            bg_width: bg.width,
+            bg_height: bg.height,
+        });
+    }
+    let w = params.half_window;
+    let m = 2 * w + 1;
+    let (cx, cz, r) = (predicted.x_px, predicted.z_px, predicted.r_px);
+    scratch.points.clear();
+    scratch.normals.clear();
+    scratch.levels.clear();
+    scratch.radial_sigma_px = 0.0;
+    if !(r.is_finite() && r > w as f64 + 1.0 && cx.is_finite() && cz.is_finite() && gain > 0.0) {
+        return Ok(&scratch.points);
+    }
+    let circumference = std::f64::consts::TAU * r;
+    let n = ((circumference / params.spacing_px.max(0.5)).round() as usize)
+        .clamp(8, params.max_normals.max(8));
+    let t0 = r - w as f64;
+    let t1 = r + w as f64;
+    let tl = r - 2.0 * w as f64;
+    // Valid rows for interpolation: the band, one pixel in from the frame's edges.
+    let z_lo = (band.row0 as f64).max(1.0);
+    let z_hi = ((band.row0 + band.nrows) as f64 - 1.0).min(bg.height as f64 - 2.0);
+    let x_hi = band.width as f64 - 2.0;
+    let visible = |x: f64, z: f64| -> bool {
+        let inside = x >= 1.0 && x <= x_hi && z >= z_lo && z < z_hi;
+        let above = match surface {
+            Some(s) => z < s.row_at(x) - params.surface_margin_px,
+            None => true,
+        };
+        inside && above
+    };
+    if scratch.table.len() != n {
+        scratch.table.clear();
+        scratch.table.extend((0..n).map(|k| {
+            let (s, c) = (std::f64::consts::TAU * k as f64 / n as f64).sin_cos();
+            (c, s)
+        }));
+    }
+    let row0 = band.row0 as f64;
+    let last_j = (m - 1) as f64;
+    for &(c, s) in &scratch.table {
+        let (xa, za) = (cx + t0 * c, cz + t0 * s);
+        let (xb, zb) = (cx + t1 * c, cz + t1 * s);
+        if !(visible(xa, za) && visible(xb, zb)) {
+            continue;
+        }
+        // 1/(g·B) at the ends, linear in between.
+        let (Some(ba), Some(bb)) = (bg.bilinear(xa, za), bg.bilinear(xb, zb)) else {
+            continue;
+        };
+        if !(ba > 0.0 && bb > 0.0) {
+            continue;
+        }
+        let (ia, ib) = (1.0 / (gain * ba), 1.0 / (gain * bb));
+        let di = (ib - ia) / last_j;
+        // The window is a segment inside the (convex) visible region, so
+        // every sample's four neighbours are inside the band.
+        // Positions in 16.16 fixed point (1.5e-5 px steps): integer and
+        // fractional parts by shifts instead of float conversions.
+        let z0 = za - row0;
+        let mut xf = (xa * FIX) as i64;
+        let mut zf = (z0 * FIX) as i64;
+        let (dxf, dzf) = ((c * FIX) as i64, (s * FIX) as i64);
+        let mut qt = 0.0;
+        let mut q_in = 0.0;
+        let mut q_out = 0.0;
+        for j in 0..m {
+            let jf = j as f64;
+            let v = lerp_fixed(band.data, band.width, xf, zf) as f64;
+            xf += dxf;
+            zf += dzf;
+            let q = v * (ia + jf * di);
+            qt += q * (t0 + jf);
+            if j == 0 {
+                q_in = q;
+            }
+            q_out = q;
+        }
+        scratch.normals.push(NormalSums {
+            c,
+            s,
+            qt,
+            q_in,
+            q_out,
+        });
+    }
+    if scratch.normals.is_empty() {
+        return Ok(&scratch.points);
+    }
+    let (tau, sigma_tau) = transmission(
+        band,
+        bg,
+        gain,
+        predicted,
+        tl,
+        surface,
+        params,
+        &mut scratch.levels,
+    )
+    .unwrap_or_else(|| {
+        // Too little of the sphere's inside is visible: the windows'
+        // innermost samples stand for it.
+        scratch.levels.clear();
+        scratch
+            .levels
+            .extend(scratch.normals.iter().map(|n| n.q_in));
+        let mid = scratch.levels.len() / 2;
+        let tau = *scratch.levels.select_nth_unstable_by(mid, f64::total_cmp).1;
+        let spread: f64 = scratch.levels.iter().map(|q| (q - tau).abs()).sum::<f64>()
+            / scratch.levels.len() as f64;
+        (tau, 1.25 * spread / (scratch.levels.len() as f64).sqrt())
+    });
+    let contrast = 1.0 - tau;
+    if !(contrast >= params.min_contrast && contrast > 0.0) {
+        return Ok(&scratch.points);
+    }
+    // Errors shared by every point: τ and the gain move all edges along
+    // their radii by (w + ½)/(1 − τ) times their relative error.
+    let rel_gain = frame_gain.sigma / gain;
+    scratch.radial_sigma_px =
+        (w as f64 + 0.5) / contrast * (sigma_tau * sigma_tau + rel_gain * rel_gain).sqrt();
+    let ta = t0 - 0.5;
+    // Σ t_j over the window.
+    let sum_t = m as f64 * r;
+    for nrm in &scratch.normals {
+        let p_in = (1.0 - nrm.q_in) / contrast;
+        let p_out = (1.0 - nrm.q_out) / contrast;
+        if !(p_in > 0.5 && p_out < 0.5) {
+            continue;
+        }
+        let area = (sum_t - nrm.qt) / contrast;
+        let te2 = ta * ta + 2.0 * area;
+        if !(te2 > 0.0) {
+            continue;
+        }
+        let te = te2.sqrt();
+        scratch.points.push(EdgePoint {
+            x_px: cx + te * nrm.c,
+            z_px: cz + te * nrm.s,
+            weight: 1.0,
+        });
+    }
+    Ok(&scratch.points)
+}
+
+/// Fewest interior pixels for [`transmission`] to be trusted.
+const MIN_INTERIOR: usize = 32;
+/// Interior pixels aimed at by [`transmission`].
+const TARGET_INTERIOR: f64 = 256.0;
+
+/// The sphere's transmission τ and its standard error: the trimmed mean of `I/(g·B)` over about
+/// [`TARGET_INTERIOR`] pixels on a square grid inside radius `r_in` (clear of
+/// the blurred edge), above the surface line minus the margin and inside
+/// the band. An error `ε` in τ moves every edge by about `ε·w/(1−τ)`, so it
+/// is averaged over many pixels (noise 2/200 per pixel → ε ≈ 6e-4 → 0.005
+/// px). `None` when fewer than [`MIN_INTERIOR`] pixels qualify (a sphere
+/// just entering the frame).
+#[allow(clippy::too_many_arguments)]
+fn transmission(
+    band: &Band,
+    bg: &Background,
+    gain: f64,
+    c: &Circle,
+    r_in: f64,
+    surface: Option<&SurfaceLine>,
+    params: &EdgeParams,
+    values: &mut Vec<f64>,
+) -> Option<(f64, f64)> {
+    values.clear();
+    if r_in <= 1.0 {
+        return None;
+    }
+    let step = ((std::f64::consts::PI * r_in * r_in / TARGET_INTERIOR).sqrt()).max(1.0);
+    let n = (r_in / step).floor() as i64;
+    let (z_lo, z_end) = (band.row0 as f64, (band.row0 + band.nrows) as f64);
+    for a in -n..=n {
+        let z = c.z_px + a as f64 * step;
+        // Nearest row (z + ½ truncated; the range check keeps it ≥ 0).
+        let zr = z + 0.5;
+        if zr < z_lo || zr >= z_end {
+            continue;
+        }
+        let i = zr as usize;
+        let dz2 = (z - c.z_px) * (z - c.z_px);
+        for b in -n..=n {
+            let x = c.x_px + b as f64 * step;
+            if (x - c.x_px) * (x - c.x_px) + dz2 > r_in * r_in {
+                continue;
+            }
+            let xr = x + 0.5;
+            if xr < 0.0 || xr >= band.width as f64 {
+                continue;
+            }
+            let j = xr as usize;
+            if let Some(s) = surface {
+                if (i as f64) >= s.row_at(j as f64) - params.surface_margin_px {
+                    continue;
+                }
+            }
+            let b_val = bg.at(i, j) as f64;
+            if b_val > 0.0 {
+                let v = band.data[(i - band.row0) * band.width + j] as f64;
+                values.push(v / (gain * b_val));
+            }
+        }
+    }
+    if values.len() < MIN_INTERIOR {
+        return None;
+    }
+    // Trimmed mean: drop the lowest and highest eighth (dust, glints); two
+    // selections instead of a sort.
+    let len = values.len();
+    let cut = len / 8;
+    values.select_nth_unstable_by(len - 1 - cut, f64::total_cmp);
+    values[..len - cut].select_nth_unstable_by(cut, f64::total_cmp);
+    let kept = &values[cut..len - cut];
+    let k = kept.len() as f64;
+    let mean = kept.iter().sum::<f64>() / k;
+    // Standard error; the trimmed spread understates σ of a Gaussian by
+    // ~1.5× for a 25 % trim, hence the factor.
+    let var = kept.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (k - 1.0).max(1.0);
+    Some((mean, 1.5 * (var / k).sqrt()))
+}
+
+/// Fixed-point scale of sample positions: 16 fractional bits.
+const FIX: f64 = 65536.0;
+
+/// Bilinear interpolation of row-major `data` (`width` columns) at the
+/// 16.16 fixed-point column `x` and local row `z`, both ≥ 0 with their right
+/// and lower neighbours inside (the caller checks the window first).
+#[inline(always)]
+fn lerp_fixed(data: &[u16], width: usize, x: i64, z: i64) -> f32 {
+    let (j, i) = ((x >> 16) as usize, (z >> 16) as usize);
+    const INV: f32 = 1.0 / 65536.0;
+    let (fx, fz) = ((x & 0xffff) as f32 * INV, (z & 0xffff) as f32 * INV);
+    let k = i * width + j;
+    let quad = &data[k..k + width + 2];
+    let (a, b) = (quad[0] as f32, quad[1] as f32);
+    let (c, d) = (quad[width] as f32, quad[width + 1] as f32);
+    let t = a + fx * (b - a);
+    let u = c + fx * (d - c);
+    t + fz * (u - t)
+}
+
+/// Edge points and a robust circle fit, up to `params.passes` times, each
+/// pass re-centring the normals on the previous fit, until a fit lands
+/// within `params.recentre_px` of the circle its normals were centred on. With `hold_radius` the radius
+/// is held at that value (after calibration) and only the centre is fitted.
+pub fn measure_circle(
+    band: &Band,
+    bg: &Background,
+    predicted: &Circle,
+    surface: Option<&SurfaceLine>,
+    hold_radius: Option<f64>,
+    params: &EdgeParams,
+    scratch: &mut EdgeScratch,
+) -> Result<CircleFit, DetectError> {
+    let gain = bg.gain(band)?;
+    let mut opts = FitOptions {
+        hold_radius,
+        ..FitOptions::default()
+    };
+    let mut circle = *predicted;
+    if let Some(r) = hold_radius {
+        circle.r_px = r;
+    }
+    let mut fit = None;
+    for _ in 0..params.passes.max(1) {
+        edge_points(band, bg, gain, &circle, surface, params, scratch)?;
+        opts.radial_sigma_px = scratch.radial_sigma_px;
+        let f = fit_circle(&scratch.points, Some(circle), &opts, &mut scratch.fit)?;
+        let moved = (f.x_px - circle.x_px)
+            .abs()
+            .max((f.z_px - circle.z_px).abs())
+            .max((f.r_px - circle.r_px).abs());
+        circle = f.circle();
+        fit = Some(f);
+        if moved <= params.recentre_px {
+            break;
+        }
+    }
+    fit.ok_or(DetectError::TooFewPoints {
+        what: "circle measurement",
+        found: 0,
+        needed: 1,
+    })
+}

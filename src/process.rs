@@ -1,0 +1,354 @@
+//! `dropscope process`: every run → track → events → kinematics → one row
+//! of `drops.csv`, `tracks/<run>.csv` and an overlay at maximum penetration
+//! (`plots/overlays/<run>.png`). Runs are processed in parallel; a run that
+//! cannot be measured gets a `failed` row with its reason and never stops
+//! the others. Every file is written whole or not at all.
+
+use crate::config::PipelineConfig;
+use crate::dataset::{DropRecord, DropStatus, TrackRow};
+use crate::detect::calibrate::{scale, RadiusCalibration};
+use crate::detect::overlay::{encode_png, overlay, OverlayView};
+use crate::detect::Band;
+use crate::events::{EventConfig, Geometry, TrackPoint};
+use crate::manifest::RunSpec;
+use crate::measure::{annotate_track, measure_drop, DropInfo};
+use crate::source::{open, Frame, OpenOptions};
+use crate::track::{edge_points_of, track, Track, TrackSettings};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// Enlargement of the overlay crop around the sphere at maximum penetration.
+const OVERLAY_ZOOM: u32 = 3;
+
+/// The command line of `dropscope process`.
+#[derive(Debug, clap::Args)]
+pub struct ProcessArgs {
+    /// Run folders (PCC exports) or `.cine` files, one drop each.
+    #[arg(required_unless_present = "manifest", conflicts_with = "manifest")]
+    pub inputs: Vec<PathBuf>,
+    /// A runs.csv manifest (SPEC §4) instead of INPUTs.
+    #[arg(long)]
+    pub manifest: Option<PathBuf>,
+    /// Output folder (default: the configuration's output.dir).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// The configuration file (default: ./pipeline.toml, else the embedded default).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Sphere radius for INPUTs (default: the configuration's sphere.radius_mm).
+    #[arg(long)]
+    pub radius_mm: Option<f64>,
+}
+
+/// The outcome of one run.
+#[derive(Debug, Clone)]
+pub struct RunOutcome {
+    pub record: DropRecord,
+    pub track: Vec<TrackRow>,
+    /// PNG bytes of the overlay at maximum penetration.
+    pub overlay: Option<Vec<u8>>,
+}
+
+/// Why the command could not run at all (a bad run is a row, not this).
+#[derive(Debug, thiserror::Error)]
+pub enum ProcessError {
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{0}")]
+    Usage(String),
+}
+
+/// The runs named on the command line: each INPUT one run named after its
+/// folder or file stem, with the radius from `--radius-mm` or the configuration.
+pub fn runs_from_inputs(
+    inputs: &[PathBuf],
+    radius_mm: Option<f64>,
+    cfg: &PipelineConfig,
+) -> Result<Vec<RunSpec>, ProcessError> {
+    let r = radius_mm
+        .or(cfg.sphere.radius_m.map(|r| r * 1e3))
+        .ok_or_else(|| {
+            ProcessError::Usage(
+                "no sphere radius: give --radius-mm, set sphere.radius_mm in pipeline.toml, or use a --manifest"
+                    .into(),
+            )
+        })?;
+    if !(r.is_finite() && r > 0.0) {
+        return Err(ProcessError::Usage(format!(
+            "--radius-mm {r}: must be a number greater than 0"
+        )));
+    }
+    Ok(inputs
+        .iter()
+        .map(|p| RunSpec {
+            run: p
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| p.display().to_string()),
+            path: p.clone(),
+            sphere_radius_mm: r,
+            drop_height_cm: None,
+            fps: None,
+            mm_per_px: None,
+            surface: None,
+            sphere_density_kg_m3: None,
+        })
+        .collect())
+}
+
+/// Process one run; never fails: problems become a `failed` record.
+pub fn process_run(run: &RunSpec, cfg: &PipelineConfig) -> RunOutcome {
+    match try_process_run(run, cfg) {
+        Ok(o) => o,
+        Err(reason) => {
+            let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, reason);
+            record.surface = run
+                .surface
+                .clone()
+                .unwrap_or_else(|| cfg.input.surface.clone());
+            record.sphere_density_kg_m3 =
+                run.sphere_density_kg_m3.unwrap_or(cfg.sphere.density_kg_m3);
+            RunOutcome {
+                record,
+                track: Vec::new(),
+                overlay: None,
+            }
+        }
+    }
+}
+
+fn try_process_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<RunOutcome, String> {
+    let surface_name = run
+        .surface
+        .clone()
+        .unwrap_or_else(|| cfg.input.surface.clone());
+    if !cfg.surfaces.contains_key(&surface_name) {
+        return Err(format!(
+            "surface `{surface_name}` is not defined in pipeline.toml (known: {})",
+            cfg.surfaces.keys().cloned().collect::<Vec<_>>().join(", ")
+        ));
+    }
+    let options = OpenOptions {
+        fps_fallback: run.fps.or(cfg.camera.fps),
+        ..OpenOptions::default()
+    };
+    let mut source = open(&run.path, &options).map_err(|e| e.to_string())?;
+    let meta = source.meta().clone();
+    let settings = TrackSettings::from_config(&cfg.detect);
+    let tr =
+        track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
+
+    // Scale: given (manifest, then configuration), checked against the sphere.
+    let given = run.mm_per_px.or(cfg.camera.mm_per_px);
+    let sc = scale(
+        run.sphere_radius_mm,
+        &RadiusCalibration {
+            r_px: tr.radius_px,
+            sigma_px: tr.radius_err_px,
+            frames: tr.radius_frames,
+        },
+        given,
+    );
+    let warnings: Vec<String> = sc.warning.into_iter().collect();
+    let (mm_per_px, from_radius) = (sc.mm_per_px, given.is_none());
+    let xs: Vec<f64> = tr
+        .frames
+        .iter()
+        .filter_map(|f| f.held.map(|h| h.x_px))
+        .collect();
+    let x_mid = xs.iter().sum::<f64>() / xs.len().max(1) as f64;
+    let geom = Geometry {
+        surface_row_px: tr.surface.row0_px,
+        surface_slope: tr.surface.slope,
+        surface_row_err_px: tr.surface.sigma_row_at(x_mid),
+        radius_px: tr.radius_px,
+        radius_err_px: tr.radius_err_px,
+        mm_per_px,
+        mm_per_px_err: 0.0,
+        scale_from_radius: from_radius,
+    };
+    let points = track_points(&tr, &geom);
+    let info = DropInfo {
+        run: run.run.clone(),
+        sphere_radius_mm: run.sphere_radius_mm,
+        sphere_density_kg_m3: run.sphere_density_kg_m3.unwrap_or(cfg.sphere.density_kg_m3),
+        surface: surface_name,
+    };
+    let mut rows = track_rows(&tr);
+    let event_cfg = EventConfig {
+        exposure_s: meta.exposure_s.unwrap_or(0.0),
+        ..EventConfig::default()
+    };
+    let m = measure_drop(&info, &points, &geom, &event_cfg)
+        .map_err(|e| format!("{}: {e}", run.path.display()))?;
+    annotate_track(&mut rows, &m, &geom);
+    let mut record = m.record;
+    if !warnings.is_empty() {
+        record.status = DropStatus::Warning;
+        let mut all = warnings;
+        if !record.reason.is_empty() {
+            all.push(record.reason.clone());
+        }
+        record.reason = all.join("; ");
+    }
+
+    // The overlay at the frame nearest the maximum penetration.
+    let overlay = record.t_max_s.and_then(|t_max| {
+        let ft = tr
+            .frames
+            .iter()
+            .filter(|f| f.held.is_some())
+            .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
+        let pts = edge_points_of(source.as_mut(), &tr, ft, &settings).ok()?;
+        let mut frame = Frame::zeros((meta.height, meta.width));
+        source.read_into(ft.index, &mut frame).ok()?;
+        let c = ft.held?.circle();
+        let band = Band::frame(&frame).ok()?;
+        let view = OverlayView::around(&band, &c, 12.0, OVERLAY_ZOOM);
+        encode_png(&overlay(
+            &band,
+            meta.bit_depth,
+            &view,
+            &pts,
+            Some(&c),
+            Some(&tr.surface),
+        ))
+        .ok()
+    });
+    Ok(RunOutcome {
+        record,
+        track: rows,
+        overlay,
+    })
+}
+
+/// The held-radius fits as event-stage points, with the contact half-width
+/// from the free-radius fit where its circle crosses the surface line.
+fn track_points(tr: &Track, geom: &Geometry) -> Vec<TrackPoint> {
+    tr.frames
+        .iter()
+        .filter(|f| !f.flags.contains(&"partial"))
+        .filter_map(|f| {
+            let h = f.held?;
+            let (hw, hw_err) = match f.free {
+                Some(fr) => half_width(&fr, geom),
+                None => (None, None),
+            };
+            Some(TrackPoint {
+                frame: f.frame,
+                t_s: f.t_s,
+                x_px: h.x_px,
+                z_px: h.z_px,
+                sigma_z_px: h.cov.sigma_z_px().max(1e-4),
+                half_width_px: hw,
+                sigma_half_width_px: hw_err,
+            })
+        })
+        .collect()
+}
+
+/// a = √(r² − d²), d = y_s(x) − z, and its σ from the fit's covariance.
+fn half_width(f: &crate::detect::CircleFit, geom: &Geometry) -> (Option<f64>, Option<f64>) {
+    let d = geom.surface_row_at(f.x_px) - f.z_px;
+    if d.abs() >= f.r_px {
+        return (None, None);
+    }
+    let a = (f.r_px * f.r_px - d * d).sqrt();
+    let err = match f.cov {
+        crate::detect::Covariance::Full(c) => {
+            let (gr, gz) = (f.r_px / a, d / a);
+            (gr * gr * c[2][2] + gz * gz * c[1][1] + 2.0 * gr * gz * c[1][2])
+                .max(0.0)
+                .sqrt()
+        }
+        crate::detect::Covariance::CentreOnly(_) => return (Some(a), None),
+    };
+    (Some(a), Some(err.max(1e-4)))
+}
+
+fn track_rows(tr: &Track) -> Vec<TrackRow> {
+    tr.frames
+        .iter()
+        .map(|f| {
+            let fit = f.held.or(f.free);
+            TrackRow {
+                frame: f.frame,
+                t_s: f.t_s,
+                x_px: fit.map(|c| c.x_px),
+                z_px: fit.map(|c| c.z_px),
+                r_px: fit.map(|c| c.r_px),
+                residual_px: fit.map(|c| c.residual_px),
+                edge_points: fit.map(|c| c.inliers).unwrap_or(0),
+                in_contact: false,
+                delta_mm: None,
+                sigma_z_px: fit.map(|c| c.cov.sigma_z_px()),
+                force_n: None,
+                flags: f.flags.join(" "),
+            }
+        })
+        .collect()
+}
+
+/// Track rows as CSV bytes.
+pub fn track_csv(rows: &[TrackRow]) -> Vec<u8> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for r in rows {
+        w.serialize(r)
+            .expect("serialising a track row into memory cannot fail");
+    }
+    w.into_inner().expect("flushing into memory cannot fail")
+}
+
+/// Process `runs` in parallel and write `drops.csv`, `tracks/` and
+/// `plots/overlays/` into `out`. Returns the records in the runs' order.
+pub fn process_all(
+    runs: &[RunSpec],
+    cfg: &PipelineConfig,
+    out: &Path,
+    progress: &(dyn Fn(&DropRecord) + Sync),
+) -> Result<Vec<DropRecord>, ProcessError> {
+    let write = |path: PathBuf, bytes: &[u8]| -> Result<(), ProcessError> {
+        if let Some(d) = path.parent() {
+            std::fs::create_dir_all(d).map_err(|source| ProcessError::Write {
+                path: d.to_path_buf(),
+                source,
+            })?;
+        }
+        crate::io_util::write_atomic(&path, bytes)
+            .map_err(|source| ProcessError::Write { path, source })
+    };
+    let outcomes: Vec<RunOutcome> = runs
+        .par_iter()
+        .map(|r| {
+            let o = process_run(r, cfg);
+            progress(&o.record);
+            o
+        })
+        .collect();
+    for o in &outcomes {
+        if !o.track.is_empty() {
+            write(
+                out.join("tracks").join(format!("{}.csv", o.record.run)),
+                &track_csv(&o.track),
+            )?;
+        }
+        if let Some(png) = &o.overlay {
+            write(
+                out.join("plots")
+                    .join("overlays")
+                    .join(format!("{}.png", o.record.run)),
+                png,
+            )?;
+        }
+    }
+    let records: Vec<DropRecord> = outcomes.into_iter().map(|o| o.record).collect();
+    write(
+        out.join("drops.csv"),
+        &crate::dataset::to_csv_bytes(&records),
+    )?;
+    Ok(records)
+}

@@ -5,18 +5,28 @@
 //! | module | stage |
 //! | --- | --- |
 //! | [`config`] | `pipeline.toml` → validated [`config::PipelineConfig`] in SI units |
+//! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
-//! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
 //! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
-//! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
+//! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
+//! | [`events`] | contact onset, peak and loss of contact from the track |
+//! | [`kinematics`] | v, δ, a, τc, e with jointly propagated errors |
+//! | [`force`] | F(δ) table and the trajectory-fitted contact law |
+//! | [`measure`] | one drop from track to record |
+//! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
+//! | [`process`] | `dropscope process`: runs in parallel → drops.csv, tracks, overlays |
 //! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits (`dropscope collapse`) |
+//! | [`batch`] | the main job (`dropscope run`): process then collapse |
+//! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | SVG + PNG figures (collapse plots, per-drop diagnostics), embedded font |
+//! | [`lsq`], [`io_util`] | weighted least squares; atomic writes |
 //!
 //! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
 //! column `x` grows to the right and row `z` grows downward. Quantities carry
 //! their unit in their name (`_px`, `_mm`, `_s`, `_m_s`, `_pa`); inside the
 //! library everything is SI unless the name says otherwise.
 
+pub mod batch;
 pub mod collapse;
 pub mod config;
 pub mod dataset;

@@ -12,12 +12,16 @@ use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
 #[derive(Debug, Parser)]
 #[command(name = "dropscope", version, about, long_about = None)]
 struct Cli {
+    /// Without a subcommand: the main job (`run`) on ./pipeline.toml.
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// The main job: every run of the configured manifest → process → collapse
+    /// (what `dropscope` with no argument does).
+    Run(dropscope::batch::RunArgs),
     /// Validate a pipeline.toml and print the resolved configuration.
     CheckConfig {
         /// The configuration file (default: ./pipeline.toml, else the embedded default).
@@ -47,6 +51,58 @@ fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<PipelineConfig>
             std::path::Path::new("(embedded pipeline.toml)"),
             std::path::Path::new(""),
         )?,
+    })
+}
+
+/// The name of the configuration in messages.
+fn config_name(path: Option<&std::path::Path>) -> String {
+    match path {
+        Some(p) => p.display().to_string(),
+        None if std::path::Path::new("pipeline.toml").exists() => "./pipeline.toml".to_string(),
+        None => "(embedded pipeline.toml)".to_string(),
+    }
+}
+
+/// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
+fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
+    use dropscope::dataset::DropStatus;
+    let cfg = load_config(args.config.as_deref())?;
+    let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
+    let start = std::time::Instant::now();
+    let job =
+        dropscope::batch::run_job(
+            &cfg,
+            &config_name(args.config.as_deref()),
+            &out,
+            &|r| match r.status {
+                DropStatus::Failed => eprintln!("{}: failed: {}", r.run, r.reason),
+                DropStatus::Warning => {
+                    eprintln!("{}: measured, with warnings: {}", r.run, r.reason)
+                }
+                DropStatus::Ok => eprintln!("{}: measured", r.run),
+            },
+        )?;
+    for w in &job.collapse_warnings {
+        eprintln!("warning: {w}");
+    }
+    let failed = job.failed();
+    eprintln!(
+        "{} runs: {} measured, {} failed; collapse {}; {:.2} s; results in {}",
+        job.records.len(),
+        job.records.len() - failed,
+        failed,
+        if job.collapsed {
+            "done"
+        } else {
+            "skipped (no measured drop)"
+        },
+        start.elapsed().as_secs_f64(),
+        out.display()
+    );
+    Ok(if failed > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
     })
 }
 
@@ -87,12 +143,7 @@ fn run_process(args: &dropscope::process::ProcessArgs) -> anyhow::Result<ExitCod
 /// `dropscope collapse`: groups, fits and plots; exit 1 when rows were skipped.
 fn run_collapse(args: &dropscope::collapse::CollapseArgs) -> anyhow::Result<ExitCode> {
     let cfg = load_config(args.config.as_deref())?;
-    let config_name = match &args.config {
-        Some(p) => p.display().to_string(),
-        None if std::path::Path::new("pipeline.toml").exists() => "./pipeline.toml".to_string(),
-        None => "(embedded pipeline.toml)".to_string(),
-    };
-    let s = dropscope::collapse::run(args, &cfg, &config_name)?;
+    let s = dropscope::collapse::run(args, &cfg, &config_name(args.config.as_deref()))?;
     for w in &s.warnings {
         eprintln!("warning: {w}");
     }
@@ -142,7 +193,11 @@ fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> 
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result: anyhow::Result<ExitCode> = match cli.command {
+    let command = cli
+        .command
+        .unwrap_or_else(|| Command::Run(dropscope::batch::RunArgs::default()));
+    let result: anyhow::Result<ExitCode> = match command {
+        Command::Run(args) => run_main_job(&args),
         Command::CheckConfig { config } => load_config(config.as_deref()).map(|c| {
             println!("{c:#?}");
             ExitCode::SUCCESS

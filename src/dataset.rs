@@ -85,6 +85,11 @@ pub struct DropRecord {
     pub force_exponent: Option<f64>,
     #[serde(default)]
     pub force_exponent_err: Option<f64>,
+    /// K fitted with n held at 2 (N/m²): compare with π E φ R / h.
+    #[serde(default)]
+    pub force_k2_n_m2: Option<f64>,
+    #[serde(default)]
+    pub force_k2_n_m2_err: Option<f64>,
     /// Linear damping c of F = K·δⁿ + c·δ̇.
     #[serde(default)]
     pub damping_n_s_m: Option<f64>,
@@ -138,6 +143,8 @@ impl DropRecord {
             force_k_si_err: None,
             force_exponent: None,
             force_exponent_err: None,
+            force_k2_n_m2: None,
+            force_k2_n_m2_err: None,
             damping_n_s_m: None,
             damping_n_s_m_err: None,
             status: DropStatus::Failed,

@@ -123,6 +123,8 @@ pub fn measure_drop(
         force_k_si_err: law.as_ref().map(|l| l.k.err),
         force_exponent: law.as_ref().map(|l| l.n.value),
         force_exponent_err: law.as_ref().map(|l| l.n.err),
+        force_k2_n_m2: law.as_ref().map(|l| l.k_at_n2.value),
+        force_k2_n_m2_err: law.as_ref().map(|l| l.k_at_n2.err),
         damping_n_s_m: law.as_ref().map(|l| l.damping_n_s_m.value),
         damping_n_s_m_err: law.as_ref().map(|l| l.damping_n_s_m.err),
         status: if warnings.is_empty() {

@@ -162,8 +162,12 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
             source.read_into(i, &mut buf)?;
             let band = Band::frame(&buf).map_err(|e| detect_err(number, e))?;
             let gain = bg.gain(&band).map_err(|e| detect_err(number, e))?.gain;
-            let found = detect_coarse(&band, &bg, gain, Some(&surface), &st.coarse, &mut cs)
-                .map_err(|e| detect_err(number, e))?;
+            let found = if anything_dark(&buf, &bg, gain, &surface) {
+                detect_coarse(&band, &bg, gain, Some(&surface), &st.coarse, &mut cs)
+                    .map_err(|e| detect_err(number, e))?
+            } else {
+                None
+            };
             if found.is_some() && !history.is_empty() {
                 flags.push("recovered");
             }
@@ -254,6 +258,31 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         frames,
         background: bg,
     })
+}
+
+/// Grid step (px) of the quick look for a dark object before the coarse search.
+const QUICK_STEP_PX: usize = 6;
+
+/// Whether at least three points of a sparse grid above the surface line are
+/// darker than half their background: a sphere of radius ≥ 10 px always
+/// covers several. Saves the full coarse search on frames without a sphere.
+fn anything_dark(frame: &Frame, bg: &Background, gain: f64, surface: &SurfaceLine) -> bool {
+    let (h, w) = frame.dim();
+    let mut dark = 0;
+    for i in (QUICK_STEP_PX / 2..h).step_by(QUICK_STEP_PX) {
+        for j in (QUICK_STEP_PX / 2..w).step_by(QUICK_STEP_PX) {
+            if i as f64 > surface.row_at(j as f64) - 2.0 {
+                continue;
+            }
+            if (frame[[i, j]] as f64) < 0.5 * gain * bg.at(i, j) as f64 {
+                dark += 1;
+                if dark >= 3 {
+                    return true;
+                }
+            }
+        }
+    }
+    false
 }
 
 fn detect_err(frame: i64, source: DetectError) -> TrackError {

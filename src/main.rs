@@ -63,6 +63,16 @@ fn config_name(path: Option<&std::path::Path>) -> String {
     }
 }
 
+/// One line per finished run on stderr.
+fn print_run_status(r: &dropscope::dataset::DropRecord) {
+    use dropscope::dataset::DropStatus;
+    match r.status {
+        DropStatus::Failed => eprintln!("{}: failed: {}", r.run, r.reason),
+        DropStatus::Warning => eprintln!("{}: measured, with warnings: {}", r.run, r.reason),
+        DropStatus::Ok => eprintln!("{}: measured", r.run),
+    }
+}
+
 /// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
 fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     use dropscope::dataset::DropStatus;
@@ -116,11 +126,7 @@ fn run_process(args: &dropscope::process::ProcessArgs) -> anyhow::Result<ExitCod
     };
     let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
     let start = std::time::Instant::now();
-    let records = dropscope::process::process_all(&runs, &cfg, &out, &|r| match r.status {
-        DropStatus::Failed => eprintln!("{}: failed: {}", r.run, r.reason),
-        DropStatus::Warning => eprintln!("{}: measured, with warnings: {}", r.run, r.reason),
-        DropStatus::Ok => eprintln!("{}: measured", r.run),
-    })?;
+    let records = dropscope::process::process_all(&runs, &cfg, &out, &print_run_status)?;
     let failed = records
         .iter()
         .filter(|r| r.status == DropStatus::Failed)

@@ -58,21 +58,43 @@ impl FrameSource for MemorySource {
         row0: usize,
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), SourceError> {
-        let f = self.frames.get(index).ok_or(SourceError::FrameOutOfRange {
-            path: self.meta.path.clone(),
-            index,
-            count: self.frames.len(),
-        })?;
-        let (n, w) = out.dim();
-        if row0 + n > self.meta.height || w != self.meta.width {
-            return Err(SourceError::RowsOutOfRange {
-                path: self.meta.path.clone(),
-                row0,
-                row_end: row0 + n,
-                height: self.meta.height,
-            });
-        }
+        super::check_band(&self.meta, index, row0, out)?;
+        let (n, f) = (out.nrows(), &self.frames[index]);
         out.assign(&f.slice(s![row0..row0 + n, ..]));
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn movie() -> MemorySource {
+        let meta = SourceMeta {
+            width: 4,
+            height: 3,
+            bit_depth: 8,
+            fps: 1000.0,
+            frame_numbers: vec![0, 1],
+            ..SourceMeta::default()
+        };
+        let frames = (0..2)
+            .map(|k| Frame::from_shape_fn((3, 4), |(i, j)| (100 * k + 10 * i + j) as u16))
+            .collect();
+        MemorySource::new(meta, frames).unwrap()
+    }
+
+    #[test]
+    fn bands_are_the_frames_rows_and_out_of_range_is_an_error() {
+        let mut m = movie();
+        assert_eq!(m.meta().frame_count, 2);
+        let mut band = Frame::zeros((2, 4));
+        m.read_rows_into(1, 1, &mut band.view_mut()).unwrap();
+        assert_eq!(band[[0, 0]], 110);
+        assert_eq!(band[[1, 3]], 123);
+        assert!(m.read_rows_into(2, 0, &mut band.view_mut()).is_err());
+        assert!(m.read_rows_into(0, 2, &mut band.view_mut()).is_err());
+        let wrong = MemorySource::new(m.meta().clone(), vec![Frame::zeros((2, 2))]);
+        assert!(wrong.unwrap_err().to_string().contains("3×4"));
     }
 }

@@ -42,6 +42,11 @@ pub struct ForceLaw {
     pub k_n_per_mm_pow_n: Estimate,
     /// The model's K = π E φ R / h in N/mm² (for n = 2).
     pub model_k_n_per_mm2: f64,
+    /// Where the law comes from: `trajectory` (the fit of the equation of
+    /// motion that `process` wrote to drops.csv, free of smoothing bias) or
+    /// `table` (a fit of the track's F(δ) table here, for drops.csv files
+    /// without those columns).
+    pub source: &'static str,
 }
 
 /// One drop's track and what was fitted to it.
@@ -111,6 +116,30 @@ pub fn force_law(run: &str, rows: &[TrackRow], model_k_n_per_mm2: f64) -> Option
             ci95: None,
         },
         model_k_n_per_mm2,
+        source: "table",
+    })
+}
+
+/// The law `process` fitted to the trajectory, from the record, with K
+/// converted to N/mmⁿ (F = K_SI·(δ_mm·10⁻³)ⁿ).
+fn record_force_law(rec: &DropRecord, n_points: usize, model_k_n_per_mm2: f64) -> Option<ForceLaw> {
+    let (n, k) = (rec.force_exponent?, rec.force_k_si?);
+    let to_mm = 1e-3f64.powf(n);
+    Some(ForceLaw {
+        run: rec.run.clone(),
+        n_points,
+        n: Estimate {
+            value: n,
+            stderr: rec.force_exponent_err,
+            ci95: None,
+        },
+        k_n_per_mm_pow_n: Estimate {
+            value: k * to_mm,
+            stderr: rec.force_k_si_err.map(|e| e * to_mm),
+            ci95: None,
+        },
+        model_k_n_per_mm2,
+        source: "trajectory",
     })
 }
 
@@ -142,7 +171,8 @@ pub fn diagnose(
         track_path: track_path.to_path_buf(),
         flight_in: t_in.and_then(|t| flight(&before, t)),
         flight_out: t_out.and_then(|t| flight(&after, t)),
-        force_law: force_law(&rec.run, &rows, model_k),
+        force_law: record_force_law(rec, rows.iter().filter(|r| r.in_contact).count(), model_k)
+            .or_else(|| force_law(&rec.run, &rows, model_k)),
         t_contact_s: t_in,
         t_rebound_s: t_out,
         rows,

@@ -219,10 +219,22 @@ where
                 (x, kk * x.powf(nn))
             })
         };
-        let se = l.n.stderr.map_or(String::new(), |e| format!(" ± {e:.2}"));
+        let se = l.n.stderr.map_or(String::new(), |e| {
+            if e < 0.01 {
+                format!(" ± {e:.4}")
+            } else {
+                format!(" ± {e:.2}")
+            }
+        });
         c.draw_series(LineSeries::new(curve(k, n), FIT.stroke_width(2)))?
             .label(format!(
-                "fit F = K δ^n: n = {n:.2}{se}, K = {} N/mm^n",
+                "{} fit: n = {}{se}, K = {} N/mm^n",
+                l.source,
+                if l.n.stderr.is_some_and(|e| e < 0.01) {
+                    format!("{n:.4}")
+                } else {
+                    format!("{n:.2}")
+                },
                 tick(k)
             ))
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], FIT.stroke_width(2)));

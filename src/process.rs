@@ -82,13 +82,19 @@ pub fn runs_from_inputs(
             "--radius-mm {r}: must be a number greater than 0"
         )));
     }
-    Ok(inputs
-        .iter()
-        .map(|p| RunSpec {
-            run: p
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| p.display().to_string()),
+    // Names must be unique (they name the output files): a repeated folder
+    // name from another parent gets `_2`, `_3`, ….
+    let mut runs: Vec<RunSpec> = Vec::with_capacity(inputs.len());
+    for p in inputs {
+        let base = crate::source::input_name(p);
+        let mut run = base.clone();
+        let mut k = 1;
+        while runs.iter().any(|r| r.run == run) {
+            k += 1;
+            run = format!("{base}_{k}");
+        }
+        runs.push(RunSpec {
+            run,
             path: p.clone(),
             sphere_radius_mm: r,
             drop_height_cm: None,
@@ -96,8 +102,9 @@ pub fn runs_from_inputs(
             mm_per_px: None,
             surface: None,
             sphere_density_kg_m3: None,
-        })
-        .collect())
+        });
+    }
+    Ok(runs)
 }
 
 /// Process one run; never fails: problems become a `failed` record.
@@ -351,4 +358,30 @@ pub fn process_all(
         &crate::dataset::to_csv_bytes(&records),
     )?;
     Ok(records)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn input_runs_get_unique_names_and_need_a_radius() {
+        let cfg = PipelineConfig::from_toml_str(
+            crate::config::EMBEDDED_DEFAULT,
+            Path::new("pipeline.toml"),
+            Path::new(""),
+        )
+        .unwrap();
+        let inputs = [PathBuf::from("a/drop.cine"), PathBuf::from("b/drop.cine")];
+        let runs = runs_from_inputs(&inputs, Some(3.0), &cfg).unwrap();
+        assert_eq!(runs[0].run, "drop");
+        assert_eq!(runs[1].run, "drop_2");
+        let e = runs_from_inputs(&inputs, None, &cfg)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("--radius-mm") && e.contains("sphere.radius_mm"),
+            "{e}"
+        );
+    }
 }

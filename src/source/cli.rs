@@ -227,11 +227,7 @@ pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
     let range = parse_frame_range(&args.frames, meta.frame_count)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let stem = args
-        .input
-        .file_stem()
-        .map(|s| s.to_string_lossy().to_string())
-        .unwrap_or_else(|| "frame".into());
+    let stem = super::input_name(&args.input);
     let mut frame = Frame::zeros((meta.height, meta.width));
     let mut written = Vec::new();
     for i in range {

@@ -19,6 +19,19 @@ mod p10_lut;
 mod packing;
 pub mod pcc_xml;
 
+/// The name of an input, for run names and file names: a folder's whole name
+/// (run folders such as `R4.5mm_H12cm_01` hold dots that are no extension),
+/// a file's name without its extension (`drop_07.cine` → `drop_07`).
+pub fn input_name(path: &Path) -> String {
+    let name = if path.is_dir() {
+        path.file_name()
+    } else {
+        path.file_stem()
+    };
+    name.map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.display().to_string())
+}
+
 /// One grey frame, shape `(height, width)`, rows top-down, values as stored.
 pub type Frame = Array2<u16>;
 
@@ -298,4 +311,21 @@ pub enum SourceError {
         index: usize,
         reason: String,
     },
+}
+
+#[cfg(test)]
+mod name_tests {
+    use super::input_name;
+
+    #[test]
+    fn folder_names_keep_their_dots_and_files_lose_their_extension() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("R4.5mm_H12cm_01");
+        std::fs::create_dir(&run).unwrap();
+        assert_eq!(input_name(&run), "R4.5mm_H12cm_01");
+        assert_eq!(
+            input_name(&dir.path().join("R4.5mm_H12cm_01.cine")),
+            "R4.5mm_H12cm_01"
+        );
+    }
 }

@@ -126,7 +126,13 @@ fn run_process(args: &dropscope::process::ProcessArgs) -> anyhow::Result<ExitCod
     };
     let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
     let start = std::time::Instant::now();
-    let records = dropscope::process::process_all(&runs, &cfg, &out, &print_run_status)?;
+    let records = dropscope::process::process_all_with_overlays(
+        &runs,
+        &cfg,
+        &out,
+        &args.overlay_frames,
+        &print_run_status,
+    )?;
     let failed = records
         .iter()
         .filter(|r| r.status == DropStatus::Failed)

@@ -38,6 +38,10 @@ pub struct ProcessArgs {
     /// Sphere radius for INPUTs (default: the configuration's sphere.radius_mm).
     #[arg(long)]
     pub radius_mm: Option<f64>,
+    /// Also draw the overlay of these camera image numbers (comma-separated,
+    /// e.g. `-5,0,12`) for every run: plots/overlays/<run>_<number>.png.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub overlay_frames: Vec<i64>,
 }
 
 /// The outcome of one run.
@@ -47,6 +51,8 @@ pub struct RunOutcome {
     pub track: Vec<TrackRow>,
     /// PNG bytes of the overlay at maximum penetration.
     pub overlay: Option<Vec<u8>>,
+    /// Overlays of the frames asked for: (image number, PNG bytes).
+    pub frame_overlays: Vec<(i64, Vec<u8>)>,
 }
 
 /// Why the command could not run at all (a bad run is a row, not this).
@@ -108,8 +114,8 @@ pub fn runs_from_inputs(
 }
 
 /// Process one run; never fails: problems become a `failed` record.
-pub fn process_run(run: &RunSpec, cfg: &PipelineConfig) -> RunOutcome {
-    match try_process_run(run, cfg) {
+pub fn process_run(run: &RunSpec, cfg: &PipelineConfig, overlay_frames: &[i64]) -> RunOutcome {
+    match try_process_run(run, cfg, overlay_frames) {
         Ok(o) => o,
         Err(reason) => {
             let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, reason);
@@ -123,12 +129,17 @@ pub fn process_run(run: &RunSpec, cfg: &PipelineConfig) -> RunOutcome {
                 record,
                 track: Vec::new(),
                 overlay: None,
+                frame_overlays: Vec::new(),
             }
         }
     }
 }
 
-fn try_process_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<RunOutcome, String> {
+fn try_process_run(
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+    overlay_frames: &[i64],
+) -> Result<RunOutcome, String> {
     let surface_name = run
         .surface
         .clone()
@@ -203,17 +214,12 @@ fn try_process_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<RunOutcome, St
         record.reason = all.join("; ");
     }
 
-    // The overlay at the frame nearest the maximum penetration.
-    let overlay = record.t_max_s.and_then(|t_max| {
-        let ft = tr
-            .frames
-            .iter()
-            .filter(|f| f.held.is_some())
-            .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
+    // The overlay at the frame nearest the maximum penetration, and those asked for.
+    let mut draw = |ft: &crate::track::FrameTrack| -> Option<Vec<u8>> {
         let pts = edge_points_of(source.as_mut(), &tr, ft, &settings).ok()?;
         let mut frame = Frame::zeros((meta.height, meta.width));
         source.read_into(ft.index, &mut frame).ok()?;
-        let c = ft.held?.circle();
+        let c = ft.held.or(ft.free)?.circle();
         let band = Band::frame(&frame).ok()?;
         let view = OverlayView::around(&band, &c, 12.0, OVERLAY_ZOOM);
         encode_png(&overlay(
@@ -225,11 +231,27 @@ fn try_process_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<RunOutcome, St
             Some(&tr.surface),
         ))
         .ok()
+    };
+    let overlay = record.t_max_s.and_then(|t_max| {
+        let ft = tr
+            .frames
+            .iter()
+            .filter(|f| f.held.is_some())
+            .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
+        draw(ft)
     });
+    let frame_overlays = overlay_frames
+        .iter()
+        .filter_map(|&n| {
+            let ft = tr.frames.iter().find(|f| f.frame == n)?;
+            draw(ft).map(|png| (n, png))
+        })
+        .collect();
     Ok(RunOutcome {
         record,
         track: rows,
         overlay,
+        frame_overlays,
     })
 }
 
@@ -318,6 +340,18 @@ pub fn process_all(
     out: &Path,
     progress: &(dyn Fn(&DropRecord) + Sync),
 ) -> Result<Vec<DropRecord>, ProcessError> {
+    process_all_with_overlays(runs, cfg, out, &[], progress)
+}
+
+/// [`process_all`], also drawing the overlays of the image numbers
+/// `overlay_frames` of every run (`plots/overlays/<run>_<number>.png`).
+pub fn process_all_with_overlays(
+    runs: &[RunSpec],
+    cfg: &PipelineConfig,
+    out: &Path,
+    overlay_frames: &[i64],
+    progress: &(dyn Fn(&DropRecord) + Sync),
+) -> Result<Vec<DropRecord>, ProcessError> {
     let write = |path: PathBuf, bytes: &[u8]| -> Result<(), ProcessError> {
         if let Some(d) = path.parent() {
             std::fs::create_dir_all(d).map_err(|source| ProcessError::Write {
@@ -331,7 +365,7 @@ pub fn process_all(
     let outcomes: Vec<RunOutcome> = runs
         .par_iter()
         .map(|r| {
-            let o = process_run(r, cfg);
+            let o = process_run(r, cfg, overlay_frames);
             progress(&o.record);
             o
         })
@@ -343,13 +377,12 @@ pub fn process_all(
                 &track_csv(&o.track),
             )?;
         }
+        let overlays = out.join("plots").join("overlays");
         if let Some(png) = &o.overlay {
-            write(
-                out.join("plots")
-                    .join("overlays")
-                    .join(format!("{}.png", o.record.run)),
-                png,
-            )?;
+            write(overlays.join(format!("{}.png", o.record.run)), png)?;
+        }
+        for (n, png) in &o.frame_overlays {
+            write(overlays.join(format!("{}_{n}.png", o.record.run)), png)?;
         }
     }
     let records: Vec<DropRecord> = outcomes.into_iter().map(|o| o.record).collect();

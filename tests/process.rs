@@ -192,3 +192,30 @@ fn outputs_are_byte_identical_across_runs_and_thread_counts() {
         assert!(a == b, "{rel} differs between 1 and 2 threads");
     }
 }
+
+/// Overlays of any frame on request: one PNG per asked image number that
+/// the run holds (numbers it does not hold are skipped).
+#[test]
+fn overlays_of_requested_frames_are_drawn() {
+    let runs = dropscope::process::runs_from_inputs(
+        &[root().join("fixtures/R7mm_H50cm_01")],
+        Some(7.0),
+        &config(),
+    )
+    .unwrap();
+    let out = tempfile::tempdir().unwrap();
+    dropscope::process::process_all_with_overlays(
+        &runs,
+        &config(),
+        out.path(),
+        &[-25, 0, 999],
+        &|_| {},
+    )
+    .unwrap();
+    let dir = out.path().join("plots/overlays");
+    for n in [-25, 0] {
+        let img = image::open(dir.join(format!("R7mm_H50cm_01_{n}.png"))).unwrap();
+        assert!(img.width() > 100, "frame {n}");
+    }
+    assert!(!dir.join("R7mm_H50cm_01_999.png").exists());
+}

@@ -107,7 +107,7 @@ pub enum TrackError {
     Surface(DetectError),
     #[error("no sphere found in any of the {frames} frames")]
     NoSphere { frames: usize },
-    #[error("no sphere found whole: its circle is clear of the frame border and of the surface in only {found} frames (at least 3 needed to measure R_px)")]
+    #[error("no sphere found whole: its circle is clear of the frame border and of the surface in {found} frame(s) only (at least 3 needed to measure R_px)")]
     NoCalibration { found: usize },
     #[error("only {0} frames: too short a movie to find a drop in")]
     TooShort(usize),

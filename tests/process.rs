@@ -120,20 +120,32 @@ fn real_phantom_samples_give_no_sphere_rows_not_numbers() {
     }
 }
 
-/// A manifest mixing a good run with a missing folder, an empty folder and a
-/// corrupt cine: the good run is measured, each bad one has a row naming its
-/// problem, and the command exits 1.
+/// A manifest mixing a good run with a missing folder, an empty folder, a
+/// corrupt cine and a sphere that never lands: the good run is measured,
+/// each bad one has a row naming its problem, and the command exits 1.
 #[test]
 fn bad_runs_get_rows_and_never_stop_the_good_ones() {
     let dir = tempfile::tempdir().unwrap();
     let good = root().join("fixtures/R4.5mm_H12cm_01");
     std::fs::create_dir(dir.path().join("empty")).unwrap();
     std::fs::write(dir.path().join("broken.cine"), b"CI not really a cine").unwrap();
+    // The same drop cut four frames before contact: the sphere never lands.
+    let cut = dir.path().join("never_lands");
+    std::fs::create_dir(&cut).unwrap();
+    std::fs::copy(
+        good.join("R4.5mm_H12cm_01.xml"),
+        cut.join("R4.5mm_H12cm_01.xml"),
+    )
+    .unwrap();
+    for n in 4..=30 {
+        let name = format!("R4.5mm_H12cm_01_-{n:06}.png");
+        std::fs::copy(good.join(&name), cut.join(&name)).unwrap();
+    }
     let manifest = dir.path().join("runs.csv");
     std::fs::write(
         &manifest,
         format!(
-            "run,path,sphere_radius_mm\ngood,{},4.5\nmissing,nowhere,4.5\nempty,empty,4.5\nbroken,broken.cine,4.5\n",
+            "run,path,sphere_radius_mm\ngood,{},4.5\nmissing,nowhere,4.5\nempty,empty,4.5\nbroken,broken.cine,4.5\nnever_lands,never_lands,4.5\n",
             good.display()
         ),
     )

@@ -8,6 +8,7 @@ use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::{read_manifest, RunSpec};
 use crate::process::process_all;
+use crate::source::folder::ImageKind;
 use std::path::{Path, PathBuf};
 
 /// The command line of `dropscope run`.
@@ -63,15 +64,15 @@ impl JobSummary {
     }
 }
 
-const FRAME_EXTENSIONS: [&str; 7] = ["tif", "tiff", "png", "bmp", "jpg", "jpeg", "xml"];
-
 fn is_frame_folder(dir: &Path) -> bool {
     std::fs::read_dir(dir).is_ok_and(|entries| {
         entries.flatten().any(|e| {
             e.path()
                 .extension()
                 .and_then(|x| x.to_str())
-                .is_some_and(|x| FRAME_EXTENSIONS.contains(&x.to_ascii_lowercase().as_str()))
+                .is_some_and(|x| {
+                    ImageKind::from_extension(x).is_some() || x.eq_ignore_ascii_case("xml")
+                })
         })
     })
 }

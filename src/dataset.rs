@@ -205,16 +205,22 @@ pub enum DatasetError {
     },
 }
 
-/// Serialise records as CSV bytes (header row first). Floats are written with
-/// Rust's shortest round-trip formatting, so the same records always give the
-/// same bytes.
-pub fn to_csv_bytes(records: &[DropRecord]) -> Vec<u8> {
+/// Serialise rows as CSV bytes, the header from the first row's field names.
+/// Floats are written with Rust's shortest round-trip formatting, so the same
+/// rows always give the same bytes. Every CSV dropscope writes goes through
+/// here (drops.csv, tracks, the manifest).
+pub fn csv_bytes<T: Serialize>(rows: impl IntoIterator<Item = T>) -> Vec<u8> {
     let mut w = csv::Writer::from_writer(Vec::new());
-    for r in records {
+    for r in rows {
         w.serialize(r)
-            .expect("serialising a DropRecord into memory cannot fail");
+            .expect("serialising plain rows into memory cannot fail");
     }
     w.into_inner().expect("flushing into memory cannot fail")
+}
+
+/// `drops.csv` as bytes (see [`csv_bytes`]).
+pub fn to_csv_bytes(records: &[DropRecord]) -> Vec<u8> {
+    csv_bytes(records)
 }
 
 /// Write `drops.csv` whole or not at all.

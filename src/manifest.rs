@@ -141,12 +141,7 @@ fn csv_message(e: &csv::Error) -> String {
 
 /// Serialise manifest rows (used by `render --campaign`).
 pub fn to_csv_bytes(rows: &[ManifestRow]) -> Vec<u8> {
-    let mut w = csv::Writer::from_writer(Vec::new());
-    for r in rows {
-        w.serialize(r)
-            .expect("serialising a manifest row into memory cannot fail");
-    }
-    w.into_inner().expect("flushing into memory cannot fail")
+    crate::dataset::csv_bytes(rows)
 }
 
 #[cfg(test)]

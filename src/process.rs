@@ -324,12 +324,7 @@ fn track_rows(tr: &Track) -> Vec<TrackRow> {
 
 /// Track rows as CSV bytes.
 pub fn track_csv(rows: &[TrackRow]) -> Vec<u8> {
-    let mut w = csv::Writer::from_writer(Vec::new());
-    for r in rows {
-        w.serialize(r)
-            .expect("serialising a track row into memory cannot fail");
-    }
-    w.into_inner().expect("flushing into memory cannot fail")
+    crate::dataset::csv_bytes(rows)
 }
 
 /// Process `runs` in parallel and write `drops.csv`, `tracks/` and

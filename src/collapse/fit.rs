@@ -421,6 +421,22 @@ fn exponents(
             .push(g);
     }
     let slope = |f: &LsFit| vec![f.coef[1]];
+    // The slope of one log–log fit with its bootstrap, or a warning saying why not.
+    let mut exponent = |obs: &[Obs], what: &str, name: &str| -> Option<(Estimate, f64, bool)> {
+        if obs.len() < 3 {
+            warnings.push(format!(
+                "{name}: {} {what}, need 3 for an exponent",
+                obs.len()
+            ));
+            return None;
+        }
+        let Some(r) = fit_and_bootstrap(obs, 1, settings, name, &slope, warnings) else {
+            warnings.push(format!("{name}: all drops at one velocity; no exponent"));
+            return None;
+        };
+        let est = r.estimate(0, r.fit.coef[1], r.fit.stderr(1), settings.resamples);
+        Some((est, r.fit.coef[0], r.weighted))
+    };
     let mut out = Vec::new();
     for (key, gs) in by_r {
         let radius_mm = key as f64 / 1000.0;
@@ -443,48 +459,31 @@ fn exponents(
             n_tau: tau_obs.len(),
             weighted: false,
         };
-        // True once a fit ran, and stays true only if every fit was weighted.
-        let mut any_fit = false;
-        let mut all_weighted = true;
-        let name = format!("nu (R = {radius_mm} mm)");
-        if pi_obs.len() >= 3 {
-            if let Some(r) = fit_and_bootstrap(&pi_obs, 1, settings, &name, &slope, warnings) {
-                let est = r.estimate(0, r.fit.coef[1], r.fit.stderr(1), settings.resamples);
-                e.nu = Some(est.value);
-                e.nu_stderr = est.stderr;
-                e.nu_ci = est.ci95;
-                e.nu_intercept = Some(r.fit.coef[0]);
-                any_fit = true;
-                all_weighted &= r.weighted;
-            } else {
-                warnings.push(format!("{name}: all drops at one velocity; no exponent"));
-            }
-        } else {
-            warnings.push(format!(
-                "{name}: {} drops, need 3 for an exponent",
-                pi_obs.len()
-            ));
+        // Each exponent: (estimate, intercept, weighted) when its fit ran.
+        let nu = exponent(&pi_obs, "drops", &format!("nu (R = {radius_mm} mm)"));
+        let mu = exponent(
+            &tau_obs,
+            "drops with a contact time",
+            &format!("mu (R = {radius_mm} mm)"),
+        );
+        if let Some((est, intercept, _)) = &nu {
+            e.nu = Some(est.value);
+            e.nu_stderr = est.stderr;
+            e.nu_ci = est.ci95;
+            e.nu_intercept = Some(*intercept);
         }
-        let name = format!("mu (R = {radius_mm} mm)");
-        if tau_obs.len() >= 3 {
-            if let Some(r) = fit_and_bootstrap(&tau_obs, 1, settings, &name, &slope, warnings) {
-                let est = r.estimate(0, r.fit.coef[1], r.fit.stderr(1), settings.resamples);
-                e.mu = Some(est.value);
-                e.mu_stderr = est.stderr;
-                e.mu_ci = est.ci95;
-                e.mu_intercept = Some(r.fit.coef[0]);
-                any_fit = true;
-                all_weighted &= r.weighted;
-            } else {
-                warnings.push(format!("{name}: all drops at one velocity; no exponent"));
-            }
-        } else {
-            warnings.push(format!(
-                "{name}: {} drops with a contact time, need 3 for an exponent",
-                tau_obs.len()
-            ));
+        if let Some((est, intercept, _)) = &mu {
+            e.mu = Some(est.value);
+            e.mu_stderr = est.stderr;
+            e.mu_ci = est.ci95;
+            e.mu_intercept = Some(*intercept);
         }
-        e.weighted = any_fit && all_weighted;
+        // Weighted only when a fit ran and every fit that ran was weighted.
+        let ran: Vec<bool> = [&nu, &mu]
+            .iter()
+            .filter_map(|f| f.as_ref().map(|f| f.2))
+            .collect();
+        e.weighted = !ran.is_empty() && ran.iter().all(|&w| w);
         out.push(e);
     }
     out

@@ -3,9 +3,6 @@
 //!
 //! Degenerate cases are guarded and reported as `None`, never as NaN.
 
-// Small dense matrices read best with explicit indices.
-#![allow(clippy::needless_range_loop)]
-
 /// Result of a (weighted) linear least-squares fit `y ≈ Σ_k b_k x^k`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LsFit {
@@ -44,122 +41,58 @@ impl LsFit {
     }
 }
 
-/// Weighted least squares of `y` on `1, x, …, x^degree` by the normal
-/// equations, solved with a Cholesky factorisation. `w` are the weights
-/// (1/σ²); `None` means all equal. Returns `None` when fewer points than
-/// parameters, a weight is not finite and positive, or the design matrix is
-/// (numerically) singular, e.g. all `x` equal.
+/// Weighted least squares of `y` on `1, x, …, x^degree` (through
+/// [`crate::lsq::weighted_lsq`], a QR solve). `w` are the weights (1/σ²);
+/// `None` means all equal. Returns `None` when fewer points than parameters,
+/// a weight or value is not finite (weights also positive), or the design
+/// matrix is (numerically) singular, e.g. all `x` equal.
 pub fn weighted_poly_fit(x: &[f64], y: &[f64], w: Option<&[f64]>, degree: usize) -> Option<LsFit> {
     let n = x.len();
     let p = degree + 1;
     if n != y.len() || n < p || w.is_some_and(|w| w.len() != n) {
         return None;
     }
-    // Normal equations A b' = c in the scaled variable x' = x / s, s = max |x|
-    // (so that powers of x' stay O(1) whatever the unit of x: seconds or
-    // Ξ alike); then b_k = b'_k / s^k and cov_kl = cov'_kl / (s^k s^l).
+    if x.iter().chain(y).any(|v| !v.is_finite()) {
+        return None;
+    }
+    // Fitted in the scaled variable x' = x / s, s = max |x| (powers of x'
+    // stay O(1) whatever the unit of x: seconds or Ξ alike); then
+    // b_k = b'_k / s^k and cov_kl = cov'_kl / (s^k s^l).
     let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let scale = if scale.is_finite() && scale > 0.0 {
         scale
     } else {
         1.0
     };
-    let mut a = vec![vec![0.0; p]; p];
-    let mut c = vec![0.0; p];
-    for i in 0..n {
-        let wi = w.map_or(1.0, |w| w[i]);
-        if !(wi.is_finite() && wi > 0.0 && x[i].is_finite() && y[i].is_finite()) {
-            return None;
-        }
-        let mut pow = vec![1.0; p];
-        for k in 1..p {
-            pow[k] = pow[k - 1] * x[i] / scale;
-        }
-        for r in 0..p {
-            c[r] += wi * pow[r] * y[i];
-            for s in 0..p {
-                a[r][s] += wi * pow[r] * pow[s];
-            }
-        }
-    }
-    let inv = invert_spd(&a)?;
-    let sk: Vec<f64> = (0..p).map(|k| scale.powi(k as i32)).collect();
-    let coef: Vec<f64> = (0..p)
-        .map(|r| (0..p).map(|s| inv[r][s] * c[s]).sum::<f64>() / sk[r])
-        .collect();
-    let inv: Vec<Vec<f64>> = (0..p)
-        .map(|r| (0..p).map(|s| inv[r][s] / (sk[r] * sk[s])).collect())
-        .collect();
-    let fit0 = LsFit {
-        coef,
-        cov: None,
-        chi2_red: None,
+    let design = nalgebra::DMatrix::from_fn(n, p, |i, k| (x[i] / scale).powi(k as i32));
+    let sigma: Vec<f64> = match w {
+        Some(w) => w.iter().map(|wi| 1.0 / wi.sqrt()).collect(),
+        None => vec![1.0; n],
     };
-    if n == p {
-        return Some(fit0);
+    let fit = crate::lsq::weighted_lsq(&design, y, &sigma)?;
+    let sk: Vec<f64> = (0..p).map(|k| scale.powi(k as i32)).collect();
+    let coef: Vec<f64> = (0..p).map(|r| fit.coef[r] / sk[r]).collect();
+    if fit.dof == 0 {
+        return Some(LsFit {
+            coef,
+            cov: None,
+            chi2_red: None,
+        });
     }
-    let chi2: f64 = (0..n)
-        .map(|i| {
-            let r = y[i] - fit0.eval(x[i]);
-            w.map_or(1.0, |w| w[i]) * r * r
+    // Covariance scaled by the reduced χ² (see `LsFit::cov`).
+    let chi2_red = fit.chi2_red();
+    let cov = (0..p)
+        .map(|r| {
+            (0..p)
+                .map(|c| fit.cov[(r, c)] * chi2_red / (sk[r] * sk[c]))
+                .collect()
         })
-        .sum();
-    let chi2_red = chi2 / (n - p) as f64;
-    let cov = inv
-        .iter()
-        .map(|row| row.iter().map(|v| v * chi2_red).collect())
         .collect();
     Some(LsFit {
+        coef,
         cov: Some(cov),
         chi2_red: Some(chi2_red),
-        ..fit0
     })
-}
-
-/// Inverse of a small symmetric positive-definite matrix by Cholesky.
-/// `None` when a pivot falls below 1e-12 of the largest diagonal element.
-fn invert_spd(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
-    let p = a.len();
-    let scale = a
-        .iter()
-        .enumerate()
-        .map(|(i, r)| r[i].abs())
-        .fold(0.0, f64::max);
-    if !(scale.is_finite() && scale > 0.0) {
-        return None;
-    }
-    // Cholesky A = L Lᵀ.
-    let mut l = vec![vec![0.0; p]; p];
-    for i in 0..p {
-        for j in 0..=i {
-            let s: f64 = a[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            if i == j {
-                if s <= 1e-12 * scale {
-                    return None;
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
-    }
-    // Solve L Lᵀ X = I column by column.
-    let mut inv = vec![vec![0.0; p]; p];
-    for col in 0..p {
-        let mut z = vec![0.0; p];
-        for i in 0..p {
-            let e = if i == col { 1.0 } else { 0.0 };
-            z[i] = (e - (0..i).map(|k| l[i][k] * z[k]).sum::<f64>()) / l[i][i];
-        }
-        let mut xv = vec![0.0; p];
-        for i in (0..p).rev() {
-            xv[i] = (z[i] - (i + 1..p).map(|k| l[k][i] * xv[k]).sum::<f64>()) / l[i][i];
-        }
-        for i in 0..p {
-            inv[i][col] = xv[i];
-        }
-    }
-    Some(inv)
 }
 
 /// The `q`-quantile (0 ≤ q ≤ 1) of already sorted values, by linear

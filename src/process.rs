@@ -13,7 +13,7 @@ use crate::events::{EventConfig, Geometry, TrackPoint};
 use crate::manifest::RunSpec;
 use crate::measure::{annotate_track, measure_drop, DropInfo};
 use crate::source::{open, Frame, OpenOptions};
-use crate::track::{edge_points_of, track, Track, TrackSettings};
+use crate::track::{edge_points_in, track, Track, TrackSettings};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -216,9 +216,9 @@ fn try_process_run(
 
     // The overlay at the frame nearest the maximum penetration, and those asked for.
     let mut draw = |ft: &crate::track::FrameTrack| -> Option<Vec<u8>> {
-        let pts = edge_points_of(source.as_mut(), &tr, ft, &settings).ok()?;
         let mut frame = Frame::zeros((meta.height, meta.width));
         source.read_into(ft.index, &mut frame).ok()?;
+        let pts = edge_points_in(&frame, &tr, ft, &settings);
         let c = ft.held.or(ft.free)?.circle();
         let band = Band::frame(&frame).ok()?;
         let view = OverlayView::around(&band, &c, 12.0, OVERLAY_ZOOM);

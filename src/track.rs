@@ -347,29 +347,30 @@ fn measure_in_band(
     Ok(measure_circle(&band, bg, p, Some(surface), hold, &st.edge, es).ok())
 }
 
-/// The edge points of the held-radius fit of one frame (for overlays).
-pub fn edge_points_of(
-    source: &mut dyn FrameSource,
+/// The edge points of the held-radius fit of one frame (for overlays), from
+/// that whole frame already read by the caller.
+pub fn edge_points_in(
+    frame: &Frame,
     track: &Track,
     ft: &FrameTrack,
     st: &TrackSettings,
-) -> Result<Vec<EdgePoint>, TrackError> {
-    let Some(f) = ft.held.or(ft.free) else {
-        return Ok(Vec::new());
+) -> Vec<EdgePoint> {
+    let (Some(f), Ok(band)) = (ft.held.or(ft.free), Band::frame(frame)) else {
+        return Vec::new();
     };
-    let meta = source.meta();
-    let mut buf = Frame::zeros((meta.height, meta.width));
     let mut es = EdgeScratch::default();
-    measure_in_band(
-        source,
-        ft.index,
-        &mut buf,
+    let fit = measure_circle(
+        &band,
         &track.background,
         &f.circle(),
-        &track.surface,
+        Some(&track.surface),
         Some(track.radius_px),
-        st,
+        &st.edge,
         &mut es,
-    )?;
-    Ok(es.points.clone())
+    );
+    if fit.is_ok() {
+        es.points
+    } else {
+        Vec::new()
+    }
 }

@@ -31,6 +31,8 @@ pub enum BatchError {
     Process(#[from] crate::process::ProcessError),
     #[error(transparent)]
     Collapse(#[from] crate::collapse::CollapseError),
+    #[error(transparent)]
+    Report(#[from] crate::report::ReportError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -150,6 +152,7 @@ pub fn run_job(
     } else {
         (false, Vec::new())
     };
+    crate::report::write_report(out, config_name, &records)?;
     Ok(JobSummary {
         records,
         out: out.to_path_buf(),

@@ -17,6 +17,7 @@
 //! | [`process`] | `dropscope process`: runs in parallel → drops.csv, tracks, overlays |
 //! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits (`dropscope collapse`) |
 //! | [`batch`] | the main job (`dropscope run`): process then collapse |
+//! | [`report`] | `report.html`: counts, collapse plots, fits and every drop on one self-contained page |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | SVG + PNG figures (collapse plots, per-drop diagnostics), embedded font |
 //! | [`lsq`], [`io_util`] | weighted least squares; atomic writes |
@@ -41,6 +42,7 @@ pub mod measure;
 pub mod plot;
 pub mod process;
 pub mod render;
+pub mod report;
 pub mod source;
 #[cfg(test)]
 mod test_support;

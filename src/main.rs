@@ -38,6 +38,15 @@ enum Command {
     Collapse(dropscope::collapse::CollapseArgs),
     /// Measure drops: per-drop dataset (drops.csv), tracks and overlays.
     Process(dropscope::process::ProcessArgs),
+    /// Write report.html from an output folder's drops.csv, collapse files and plots.
+    Report {
+        /// The output folder (default: the configuration's output.dir).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The configuration file (default: ./pipeline.toml, else the embedded default).
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
 }
 
 /// Load `--config FILE`, else `./pipeline.toml`, else the embedded default.
@@ -203,6 +212,16 @@ fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> 
     })
 }
 
+/// `dropscope report`: report.html from what the main job left in a folder.
+fn run_report(out: Option<PathBuf>, config: Option<PathBuf>) -> anyhow::Result<ExitCode> {
+    let cfg = load_config(config.as_deref())?;
+    let out = out.unwrap_or_else(|| cfg.output.dir.clone());
+    let records = dropscope::dataset::read_csv(&out.join("drops.csv"))?;
+    let path = dropscope::report::write_report(&out, &config_name(config.as_deref()), &records)?;
+    println!("report: {}", path.display());
+    Ok(ExitCode::SUCCESS)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let command = cli
@@ -224,6 +243,7 @@ fn main() -> ExitCode {
         Command::Render(args) => run_render(&args),
         Command::Collapse(args) => run_collapse(&args),
         Command::Process(args) => run_process(&args),
+        Command::Report { out, config } => run_report(out, config),
     };
     match result {
         Ok(code) => code,

@@ -1,0 +1,360 @@
+//! The fits section: `fits.json` as the collapse wrote it, laid out as
+//! tables (nothing is recomputed here). The document is read as untyped
+//! JSON so that a field missing from an older or hand-edited file shows as
+//! "—" instead of hiding the whole section.
+
+use serde_json::Value;
+use std::fmt::Write;
+
+use super::html::{escape, num, pm};
+
+const NONE: &str = "—";
+
+fn f(v: &Value, key: &str) -> Option<f64> {
+    v.get(key).and_then(Value::as_f64)
+}
+
+fn s<'a>(v: &'a Value, key: &str) -> &'a str {
+    v.get(key).and_then(Value::as_str).unwrap_or("")
+}
+
+fn interval(ci: Option<&Value>) -> String {
+    match ci.and_then(Value::as_array).map(|a| a.as_slice()) {
+        Some([lo, hi]) => match (lo.as_f64(), hi.as_f64()) {
+            (Some(lo), Some(hi)) => {
+                format!(" <span class=\"ci\">95 % [{}, {}]</span>", num(lo), num(hi))
+            }
+            _ => String::new(),
+        },
+        _ => String::new(),
+    }
+}
+
+/// An `Estimate` {value, stderr, ci95} as one cell's content.
+fn estimate(e: Option<&Value>) -> String {
+    let Some(e) = e.filter(|e| !e.is_null()) else {
+        return NONE.into();
+    };
+    match f(e, "value") {
+        Some(v) => format!("{}{}", pm(v, f(e, "stderr")), interval(e.get("ci95"))),
+        None => NONE.into(),
+    }
+}
+
+fn opt_num(x: Option<f64>) -> String {
+    x.map_or_else(|| NONE.into(), num)
+}
+
+fn yes_no(v: &Value, key: &str) -> &'static str {
+    match v.get(key).and_then(Value::as_bool) {
+        Some(true) => "yes",
+        Some(false) => "no",
+        None => NONE,
+    }
+}
+
+/// One series (Ψ or Ω) as a table row.
+fn series_row(
+    out: &mut String,
+    doc: &Value,
+    key: &str,
+    names: [&str; 3],
+    symbol: &str,
+    theory: (&str, Option<f64>, Option<f64>),
+) {
+    let (theory_name, theory_value, z) = theory;
+    let theory_cell = format!(
+        "{theory_name} = {}{}",
+        opt_num(theory_value),
+        z.map_or_else(String::new, |z| format!(
+            "; {names0} − theory = {} σ",
+            num(z),
+            names0 = names[0]
+        ))
+    );
+    let s_ = &doc[key];
+    if s_.is_null() {
+        let _ = write!(
+            out,
+            "<tr><th>{symbol}</th><td colspan=\"6\" class=\"missing\">not fitted \
+             (see the warnings below)</td><td>{theory_cell}</td></tr>"
+        );
+        return;
+    }
+    let range = match s_
+        .get("xi_range")
+        .and_then(Value::as_array)
+        .map(|a| a.as_slice())
+    {
+        Some([lo, hi]) => format!("{} – {}", opt_num(lo.as_f64()), opt_num(hi.as_f64())),
+        _ => NONE.into(),
+    };
+    let _ = write!(
+        out,
+        "<tr><th>{symbol}<div class=\"law\">{}</div></th>",
+        escape(s(s_, "law"))
+    );
+    for n in names {
+        let _ = write!(out, "<td>{n} = {}</td>", estimate(s_.get(n)));
+    }
+    let _ = write!(
+        out,
+        "<td>{}</td><td>{}</td><td>{range}</td><td>{theory_cell}</td></tr>",
+        s_.get("n_drops")
+            .and_then(Value::as_u64)
+            .map_or(NONE.into(), |n| n.to_string()),
+        opt_num(f(s_, "chi2_red")),
+    );
+}
+
+fn series(out: &mut String, doc: &Value) {
+    let th = &doc["theory"];
+    out.push_str(
+        "<h3>Series in Ξ (Eq. 8)</h3><table class=\"fits\"><thead><tr><th>fit</th>\
+         <th>constant</th><th>linear</th><th>quadratic</th><th>drops</th><th>χ²<sub>red</sub></th>\
+         <th>Ξ range</th><th>theory at small Ξ</th></tr></thead><tbody>",
+    );
+    series_row(
+        out,
+        doc,
+        "psi_series",
+        ["A1", "A2", "A3"],
+        "Ψ(Ξ)",
+        (
+            "2<sup>1/3</sup>",
+            f(th, "psi_small_xi"),
+            f(th, "a1_minus_theory_in_stderr"),
+        ),
+    );
+    series_row(
+        out,
+        doc,
+        "omega_series",
+        ["B1", "B2", "B3"],
+        "Ω(Ξ)",
+        (
+            "C<sub>0</sub>",
+            f(th, "omega_small_xi_c0"),
+            f(th, "b1_minus_theory_in_stderr"),
+        ),
+    );
+    out.push_str("</tbody></table>");
+    let c = &doc["crossover_xi"];
+    let _ = write!(
+        out,
+        "<p>Crossover Ξ<sub>c</sub> = A1/A2: {}{}</p>",
+        if c.is_null() {
+            "none (no series fit, or A1 and A2 of opposite sign)".to_string()
+        } else {
+            estimate(Some(c))
+        },
+        if s(c, "definition").is_empty() {
+            String::new()
+        } else {
+            format!(
+                " <span class=\"law\">({})</span>",
+                escape(s(c, "definition"))
+            )
+        }
+    );
+    if !s(th, "source").is_empty() {
+        let _ = write!(
+            out,
+            "<p class=\"note\">Theory: {} (B(1/3, 1/2) = {}).</p>",
+            escape(s(th, "source")),
+            opt_num(f(th, "beta_1_3_1_2"))
+        );
+    }
+}
+
+fn asymptotes(out: &mut String, doc: &Value) {
+    out.push_str(
+        "<h3>Asymptotic constants (fixed exponents)</h3><table class=\"fits\"><thead><tr>\
+         <th>law</th><th>constant</th><th>drops</th><th>selection</th>\
+         <th>rms ln residual</th><th>weighted</th></tr></thead><tbody>",
+    );
+    for (key, label) in [
+        ("eq5_c1", "Ψ = c1 (Eq. 5)"),
+        ("eq7_c2", "Ψ/Ξ = c2 (Eq. 7)"),
+        ("eq1e_d1", "Ω = d1 (Eq. 1e)"),
+        ("eq11_d2", "Ω/Ξ = d2 (Eq. 11)"),
+    ] {
+        let a = &doc["asymptotes"][key];
+        if a.is_null() {
+            let _ = write!(
+                out,
+                "<tr><th>{label}</th><td colspan=\"5\" class=\"missing\">not fitted</td></tr>"
+            );
+            continue;
+        }
+        let _ = write!(
+            out,
+            "<tr><th class=\"law\">{}</th><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            escape(s(a, "law")),
+            estimate(a.get("constant")),
+            a.get("n_drops").and_then(Value::as_u64).map_or(NONE.into(), |n| n.to_string()),
+            escape(s(a, "selection")),
+            opt_num(f(a, "rms_log_residual")),
+            yes_no(a, "weighted"),
+        );
+    }
+    out.push_str("</tbody></table>");
+}
+
+fn exponent_cell(e: &Value, name: &str) -> String {
+    match f(e, name) {
+        Some(v) => format!(
+            "{}{}",
+            pm(v, f(e, &format!("{name}_stderr"))),
+            interval(e.get(format!("{name}_ci")))
+        ),
+        None => NONE.into(),
+    }
+}
+
+fn exponents(out: &mut String, doc: &Value) {
+    out.push_str(
+        "<h3>Local exponents per sphere radius</h3><p class=\"note\">Π ∝ η<sup>ν</sup> \
+         (the paper finds ν between 1/6 and 1/3) and τ<sub>c</sub> ∝ v<sup>μ</sup> \
+         (between −2/3 and −1/3).</p><table class=\"fits\"><thead><tr><th>R (mm)</th>\
+         <th>drops</th><th>ν</th><th>drops with τ<sub>c</sub></th><th>μ</th><th>weighted</th>\
+         </tr></thead><tbody>",
+    );
+    let list = doc["exponents"]
+        .as_array()
+        .map_or(&[][..], |a| a.as_slice());
+    if list.is_empty() {
+        out.push_str("<tr><td colspan=\"6\" class=\"missing\">none</td></tr>");
+    }
+    for e in list {
+        let count = |k: &str| {
+            e.get(k)
+                .and_then(Value::as_u64)
+                .map_or(NONE.into(), |n| n.to_string())
+        };
+        let _ = write!(
+            out,
+            "<tr><th>{}</th><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            opt_num(f(e, "radius_mm")),
+            count("n_drops"),
+            exponent_cell(e, "nu"),
+            count("n_tau"),
+            exponent_cell(e, "mu"),
+            yes_no(e, "weighted"),
+        );
+    }
+    out.push_str("</tbody></table>");
+}
+
+fn force_laws(out: &mut String, doc: &Value) {
+    let list = doc["force_laws"]
+        .as_array()
+        .map_or(&[][..], |a| a.as_slice());
+    if list.is_empty() {
+        return;
+    }
+    out.push_str(
+        "<h3>Contact law F = K δ<sup>n</sup> per drop</h3><table class=\"fits\"><thead><tr>\
+         <th>run</th><th>points</th><th>n (model: 2)</th><th>K (N/mm<sup>n</sup>)</th>\
+         <th>model πEφR/h (N/mm²)</th><th>from</th></tr></thead><tbody>",
+    );
+    for l in list {
+        let _ = write!(
+            out,
+            "<tr><th>{}</th><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            escape(s(l, "run")),
+            l.get("n_points")
+                .and_then(Value::as_u64)
+                .map_or(NONE.into(), |n| n.to_string()),
+            estimate(l.get("n")),
+            estimate(l.get("k_n_per_mm_pow_n")),
+            opt_num(f(l, "model_k_n_per_mm2")),
+            escape(s(l, "source")),
+        );
+    }
+    out.push_str("</tbody></table>");
+}
+
+fn provenance(out: &mut String, doc: &Value) {
+    let p = &doc["provenance"];
+    let mut surfaces = Vec::new();
+    for m in p["surfaces"].as_array().map_or(&[][..], |a| a.as_slice()) {
+        surfaces.push(format!(
+            "{} (E = {} Pa, h = {} mm, φ = {})",
+            escape(s(m, "name")),
+            opt_num(f(m, "modulus_pa")),
+            opt_num(f(m, "pillar_height_m").map(|h| h * 1e3)),
+            opt_num(f(m, "solid_fraction")),
+        ));
+    }
+    let count = |k: &str| {
+        doc.get(k)
+            .and_then(Value::as_u64)
+            .map_or(NONE.into(), |n| n.to_string())
+    };
+    let _ = write!(
+        out,
+        "<p>{} drops in the fits, {} skipped, {} with the geometric contact radius. \
+         Contact radius: {}; bootstrap: {} resamples, seed {}. Surfaces: {}.</p>",
+        count("n_used"),
+        count("n_skipped"),
+        count("n_geometric_contact_radius"),
+        escape(s(p, "contact_radius")),
+        p.get("bootstrap_resamples")
+            .and_then(Value::as_u64)
+            .map_or(NONE.into(), |n| n.to_string()),
+        p.get("seed")
+            .and_then(Value::as_u64)
+            .map_or(NONE.into(), |n| n.to_string()),
+        if surfaces.is_empty() {
+            NONE.into()
+        } else {
+            surfaces.join("; ")
+        },
+    );
+}
+
+fn notes(out: &mut String, doc: &Value) {
+    let skipped = doc["skipped"].as_array().map_or(&[][..], |a| a.as_slice());
+    if !skipped.is_empty() {
+        out.push_str("<h3>Rows left out of the fits</h3><ul class=\"skipped\">");
+        for k in skipped {
+            let _ = write!(
+                out,
+                "<li><b>{}</b> (drops.csv line {}): {}</li>",
+                escape(s(k, "run")),
+                k.get("row")
+                    .and_then(Value::as_u64)
+                    .map_or(NONE.into(), |n| n.to_string()),
+                escape(s(k, "reason"))
+            );
+        }
+        out.push_str("</ul>");
+    }
+    let warnings = doc["warnings"].as_array().map_or(&[][..], |a| a.as_slice());
+    if !warnings.is_empty() {
+        out.push_str("<h3>Warnings of the collapse</h3><ul class=\"warnings\">");
+        for w in warnings {
+            let w = w.as_str().unwrap_or("");
+            let class = if w.starts_with("GEOMETRIC") {
+                " class=\"alarm\""
+            } else {
+                ""
+            };
+            let _ = write!(out, "<li{class}>{}</li>", escape(w));
+        }
+        out.push_str("</ul>");
+    }
+}
+
+/// The fits section's body from the parsed `fits.json`.
+pub fn fits_section(doc: &Value) -> String {
+    let mut out = String::new();
+    provenance(&mut out, doc);
+    series(&mut out, doc);
+    asymptotes(&mut out, doc);
+    exponents(&mut out, doc);
+    force_laws(&mut out, doc);
+    notes(&mut out, doc);
+    out
+}

@@ -1,0 +1,283 @@
+//! `report.html`: one self-contained page for a person checking a
+//! campaign — the counts, the collapse plots, the fits and one row per drop
+//! with its numbers, status, overlay and diagnostics.
+//!
+//! | file | does |
+//! | --- | --- |
+//! | [`html`] | escaping, base64 data URIs, `value ± error` formatting |
+//! | [`fits`] | the fits tables from `fits.json` |
+//! | [`drops`] | the drops table from the records, with the overlay and diagnostic figures |
+//!
+//! The page reads what the other stages wrote into the output folder
+//! (`collapse.csv`, `fits.json`, `plots/*.svg`, `plots/overlays/<run>.png`,
+//! `plots/drops/<run>.svg`) and recomputes nothing. It refers to no other
+//! file and no URL: the collapse plots are inline SVG, the overlays PNG and
+//! the per-drop figures SVG in `data:` URIs, the style sheet and the few
+//! lines of script inline. It holds no date and no output path, so the same
+//! inputs give the same bytes wherever the output folder is.
+
+pub mod drops;
+pub mod fits;
+pub mod html;
+
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+use crate::dataset::{DropRecord, DropStatus};
+use html::escape;
+
+/// Why report.html could not be written (missing or unreadable collapse
+/// files are said in the page, not here).
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    #[error("{path}: cannot write the report: {source}")]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+const STYLE: &str = include_str!("style.css");
+
+/// Click a thumbnail to see it at full size over the page; click again to close.
+const SCRIPT: &str = "var z = document.getElementById('zoom'), zi = z.querySelector('img');\
+     document.querySelectorAll('img.thumb').forEach(function (i) {\
+     i.addEventListener('click', function () { zi.src = i.src; zi.alt = i.alt; z.hidden = false; });\
+     });\
+     z.addEventListener('click', function () { z.hidden = true; });";
+
+/// The collapse figures in reading order, with their captions; any other
+/// SVG the collapse writes into `plots/` follows, sorted by name.
+const KNOWN_PLOTS: [(&str, &str); 4] = [
+    (
+        "psi_vs_xi",
+        "Ψ(Ξ): the penetration collapse (Eq. 8, Fig. 3b of Maruoka 2019). All radii should fall \
+         on one curve, tending to 2<sup>1/3</sup> at small Ξ.",
+    ),
+    (
+        "omega_vs_xi",
+        "Ω(Ξ): the contact-time collapse (Eq. 10). All radii on one curve, tending to \
+         C<sub>0</sub> ≈ 3.533 at small Ξ.",
+    ),
+    (
+        "pi_vs_eta",
+        "Π = δ/R against η = ρv²/E (log–log, Fig. 3a), with each radius's power law and guide \
+         slopes 1/3 and 1/6.",
+    ),
+    (
+        "tau_vs_v",
+        "τ<sub>c</sub> against v (log–log, Fig. 4a), with each radius's power law and guide \
+         slopes −1/3 and −2/3.",
+    ),
+];
+
+/// The collapse figures found in `plots/`, as (stem, svg text).
+fn collapse_plots(out_dir: &Path) -> Vec<(String, String)> {
+    let dir = out_dir.join("plots");
+    let mut others: Vec<String> = std::fs::read_dir(&dir)
+        .map(|entries| {
+            entries
+                .flatten()
+                .filter_map(|e| {
+                    let name = e.file_name().to_str()?.to_string();
+                    let stem = name.strip_suffix(".svg")?;
+                    (e.path().is_file() && !KNOWN_PLOTS.iter().any(|(k, _)| *k == stem))
+                        .then(|| stem.to_string())
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    others.sort();
+    KNOWN_PLOTS
+        .iter()
+        .map(|(k, _)| k.to_string())
+        .chain(others)
+        .filter_map(|stem| {
+            let text = std::fs::read_to_string(dir.join(format!("{stem}.svg"))).ok()?;
+            // Only an SVG document is inlined; the namespace declaration is
+            // implied for <svg> inside HTML, so the page names no URL at all.
+            let text = text.trim_start();
+            text.starts_with("<svg").then(|| {
+                (
+                    stem,
+                    text.replacen(" xmlns=\"http://www.w3.org/2000/svg\"", "", 1),
+                )
+            })
+        })
+        .collect()
+}
+
+fn caption(stem: &str) -> String {
+    KNOWN_PLOTS
+        .iter()
+        .find(|(k, _)| *k == stem)
+        .map_or_else(|| escape(stem), |(_, c)| c.to_string())
+}
+
+/// The run names of collapse.csv, in its order (None when unreadable).
+fn collapse_runs(out_dir: &Path) -> Option<Vec<String>> {
+    let mut r = csv::Reader::from_path(out_dir.join("collapse.csv")).ok()?;
+    let col = r.headers().ok()?.iter().position(|h| h == "run")?;
+    r.records()
+        .map(|row| row.ok().and_then(|row| row.get(col).map(str::to_string)))
+        .collect()
+}
+
+fn counts(records: &[DropRecord]) -> [usize; 3] {
+    let n = |s: DropStatus| records.iter().filter(|r| r.status == s).count();
+    [
+        n(DropStatus::Ok),
+        n(DropStatus::Warning),
+        n(DropStatus::Failed),
+    ]
+}
+
+fn header(out: &mut String, config_name: &str, records: &[DropRecord]) {
+    let [ok, warning, failed] = counts(records);
+    let _ = write!(
+        out,
+        "<header><h1>dropscope report</h1><p class=\"meta\">dropscope {version} · configuration \
+         <code>{config}</code></p><p class=\"counts\"><span class=\"count\">{total} runs</span> \
+         <span class=\"count ok\">{ok} measured</span> <span class=\"count warning\">{warning} \
+         with warnings</span> <span class=\"count failed\">{failed} failed</span></p></header>",
+        version = env!("CARGO_PKG_VERSION"),
+        config = escape(config_name),
+        total = records.len(),
+    );
+    out.push_str(
+        "<section id=\"how\"><h2>How to read this page</h2><ul>\
+         <li><b>Drops</b> (last section): one row per run, in the manifest's order. Numbers are \
+         value ± one-sigma uncertainty, the error to two significant digits; units in the column \
+         heads. <span class=\"badge ok\">ok</span> all measured; \
+         <span class=\"badge warning\">warning</span> measured, but read the note (e.g. the \
+         fitted gravity off by more than 2 %: check the frame rate and scale); \
+         <span class=\"badge failed\">FAILED</span> nothing measured, the reason says which \
+         file or frame and why. Failed rows are left out of the collapse.</li>\
+         <li><b>Overlay</b>: the frame nearest the maximum penetration, enlarged, with the edge \
+         points, the fitted circle and the surface line. The circle should hug the sphere's \
+         edge and the line sit on the pillar tops. Click to enlarge.</li>\
+         <li><b>Diagnostics</b> (fold-out under each row): z(t) with the free-flight parabolas, \
+         which should follow the points before contact and after rebound, and the contact and \
+         rebound times; δ(t); and F(δ) with the fitted F = K δ<sup>n</sup> beside the model \
+         (πEφR/h) δ².</li>\
+         <li><b>Collapse</b>: in Ψ(Ξ) and Ω(Ξ) every radius should fall on one curve. A red \
+         warning on a plot means some drops use the geometric contact radius, for which the \
+         Ψ(Ξ) collapse holds by construction.</li>\
+         <li><b>Fits</b>: value ± standard error (covariance scaled by the reduced χ²), then the \
+         95 % bootstrap interval. Everything here is read from <code>fits.json</code> and \
+         <code>collapse.csv</code>; the CSV and JSON files beside this page hold every digit.</li>\
+         </ul></section>",
+    );
+}
+
+fn collapse_section(out: &mut String, out_dir: &Path, records: &[DropRecord]) {
+    out.push_str("<section id=\"collapse\"><h2>Collapse</h2>");
+    let fits_path = out_dir.join("fits.json");
+    let fits_bytes = std::fs::read(&fits_path).ok();
+    if fits_bytes.is_none() {
+        let measured = records
+            .iter()
+            .filter(|r| r.status != DropStatus::Failed)
+            .count();
+        let _ = write!(
+            out,
+            "<p class=\"missing\">The collapse did not run: no fits.json in the output folder{}.</p>",
+            if measured == 0 {
+                " (no drop was measured)"
+            } else {
+                ""
+            }
+        );
+    }
+    if fits_bytes.is_some() {
+        let listed: Vec<&str> = records.iter().map(|r| r.run.as_str()).collect();
+        match collapse_runs(out_dir) {
+            Some(runs) if runs == listed => {}
+            Some(runs) => {
+                let _ = write!(
+                    out,
+                    "<p class=\"alarm\">The collapse files in this folder are not from these \
+                     drops: collapse.csv lists {} runs, this report {}. They are from an \
+                     earlier job; run the collapse again.</p>",
+                    runs.len(),
+                    listed.len()
+                );
+            }
+            None => out.push_str(
+                "<p class=\"alarm\">collapse.csv is missing or unreadable: the fits below may \
+                 be from an earlier job.</p>",
+            ),
+        }
+    }
+    let plots = collapse_plots(out_dir);
+    if plots.is_empty() {
+        out.push_str("<p class=\"missing\">The collapse wrote no plots.</p>");
+    } else {
+        out.push_str("<div class=\"plots\">");
+        for (stem, svg) in &plots {
+            let _ = write!(
+                out,
+                "<figure id=\"plot-{id}\">{svg}<figcaption>{}</figcaption></figure>",
+                caption(stem),
+                id = escape(stem)
+            );
+        }
+        out.push_str("</div>");
+    }
+    out.push_str("</section><section id=\"fits\"><h2>Fits</h2>");
+    match fits_bytes.map(|b| serde_json::from_slice::<serde_json::Value>(&b)) {
+        None => out.push_str("<p class=\"missing\">No fits (the collapse did not run).</p>"),
+        Some(Err(e)) => {
+            let _ = write!(
+                out,
+                "<p class=\"alarm\">fits.json could not be read: {}</p>",
+                escape(&e.to_string())
+            );
+        }
+        Some(Ok(doc)) => out.push_str(&fits::fits_section(&doc)),
+    }
+    out.push_str("</section>");
+}
+
+/// The whole page as bytes.
+pub fn render_report(out_dir: &Path, config_name: &str, records: &[DropRecord]) -> Vec<u8> {
+    let mut out = String::new();
+    let _ = write!(
+        out,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\
+         <title>dropscope report — {}</title><style>{STYLE}</style></head><body>",
+        escape(config_name)
+    );
+    header(&mut out, config_name, records);
+    collapse_section(&mut out, out_dir, records);
+    out.push_str("<section id=\"drops\"><h2>Drops</h2>");
+    if records.is_empty() {
+        out.push_str("<p class=\"missing\">No runs.</p>");
+    } else {
+        out.push_str(&drops::drops_table(out_dir, records));
+    }
+    let _ = writeln!(
+        out,
+        "</section><div id=\"zoom\" hidden><img alt=\"\"></div><script>{SCRIPT}</script>\
+         </body></html>"
+    );
+    out.into_bytes()
+}
+
+/// Write `out_dir/report.html` (atomically) and return its path.
+pub fn write_report(
+    out_dir: &Path,
+    config_name: &str,
+    records: &[DropRecord],
+) -> Result<PathBuf, ReportError> {
+    let path = out_dir.join("report.html");
+    crate::io_util::write_atomic(&path, &render_report(out_dir, config_name, records)).map_err(
+        |source| ReportError::Write {
+            path: path.clone(),
+            source,
+        },
+    )?;
+    Ok(path)
+}

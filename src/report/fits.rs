@@ -6,7 +6,7 @@
 use serde_json::Value;
 use std::fmt::Write;
 
-use super::html::{escape, num, pm};
+use super::html::{at_precision_of, escape, num, pm, sig};
 
 const NONE: &str = "—";
 
@@ -18,11 +18,16 @@ fn s<'a>(v: &'a Value, key: &str) -> &'a str {
     v.get(key).and_then(Value::as_str).unwrap_or("")
 }
 
-fn interval(ci: Option<&Value>) -> String {
+/// A 95 % interval, its bounds written to the estimate's precision.
+fn interval(ci: Option<&Value>, stderr: Option<f64>) -> String {
     match ci.and_then(Value::as_array).map(|a| a.as_slice()) {
         Some([lo, hi]) => match (lo.as_f64(), hi.as_f64()) {
             (Some(lo), Some(hi)) => {
-                format!(" <span class=\"ci\">95 % [{}, {}]</span>", num(lo), num(hi))
+                format!(
+                    " <span class=\"ci\">95 % [{}, {}]</span>",
+                    at_precision_of(lo, stderr),
+                    at_precision_of(hi, stderr)
+                )
             }
             _ => String::new(),
         },
@@ -36,13 +41,22 @@ fn estimate(e: Option<&Value>) -> String {
         return NONE.into();
     };
     match f(e, "value") {
-        Some(v) => format!("{}{}", pm(v, f(e, "stderr")), interval(e.get("ci95"))),
+        Some(v) => format!(
+            "{}{}",
+            pm(v, f(e, "stderr")),
+            interval(e.get("ci95"), f(e, "stderr"))
+        ),
         None => NONE.into(),
     }
 }
 
 fn opt_num(x: Option<f64>) -> String {
     x.map_or_else(|| NONE.into(), num)
+}
+
+/// A statistic (χ², residual, range, z) to 3 significant digits.
+fn opt_short(x: Option<f64>) -> String {
+    x.map_or_else(|| NONE.into(), |x| sig(x, 3))
 }
 
 fn yes_no(v: &Value, key: &str) -> &'static str {
@@ -68,7 +82,7 @@ fn series_row(
         opt_num(theory_value),
         z.map_or_else(String::new, |z| format!(
             "; {names0} − theory = {} σ",
-            num(z),
+            sig(z, 2),
             names0 = names[0]
         ))
     );
@@ -86,7 +100,7 @@ fn series_row(
         .and_then(Value::as_array)
         .map(|a| a.as_slice())
     {
-        Some([lo, hi]) => format!("{} – {}", opt_num(lo.as_f64()), opt_num(hi.as_f64())),
+        Some([lo, hi]) => format!("{} – {}", opt_short(lo.as_f64()), opt_short(hi.as_f64())),
         _ => NONE.into(),
     };
     let _ = write!(
@@ -103,7 +117,7 @@ fn series_row(
         s_.get("n_drops")
             .and_then(Value::as_u64)
             .map_or(NONE.into(), |n| n.to_string()),
-        opt_num(f(s_, "chi2_red")),
+        opt_short(f(s_, "chi2_red")),
     );
 }
 
@@ -194,7 +208,7 @@ fn asymptotes(out: &mut String, doc: &Value) {
             estimate(a.get("constant")),
             a.get("n_drops").and_then(Value::as_u64).map_or(NONE.into(), |n| n.to_string()),
             escape(s(a, "selection")),
-            opt_num(f(a, "rms_log_residual")),
+            opt_short(f(a, "rms_log_residual")),
             yes_no(a, "weighted"),
         );
     }
@@ -206,7 +220,7 @@ fn exponent_cell(e: &Value, name: &str) -> String {
         Some(v) => format!(
             "{}{}",
             pm(v, f(e, &format!("{name}_stderr"))),
-            interval(e.get(format!("{name}_ci")))
+            interval(e.get(format!("{name}_ci")), f(e, &format!("{name}_stderr")))
         ),
         None => NONE.into(),
     }

@@ -70,6 +70,12 @@ fn fixed(x: f64, decimals: i32) -> String {
 
 /// A value without an uncertainty: 6 significant digits (HTML).
 pub fn num(x: f64) -> String {
+    sig(x, 6)
+}
+
+/// A value to `digits` significant digits (HTML), with a power of ten
+/// outside [1e-3, 1e5).
+pub fn sig(x: f64, digits: i32) -> String {
     if !x.is_finite() {
         return escape(&x.to_string());
     }
@@ -79,9 +85,22 @@ pub fn num(x: f64) -> String {
     let e = exponent(x);
     if scientific(e) {
         let m = x / 10f64.powi(e);
-        format!("{}×10<sup>{e}</sup>", trim(&format!("{m:.5}")))
+        let m = trim(&format!("{m:.*}", (digits - 1).max(0) as usize));
+        format!("{m}×10<sup>{e}</sup>")
     } else {
-        trim(&fixed(x, (5 - e).max(0)))
+        trim(&fixed(x, (digits - 1 - e).max(0)))
+    }
+}
+
+/// `x` written to the decimal place of an error `err` (two significant
+/// digits of it), as [`pm`] writes a value; `sig(x, 6)` when that does not
+/// apply (no error, or a value needing a power of ten).
+pub fn at_precision_of(x: f64, err: Option<f64>) -> String {
+    match err.filter(|e| e.is_finite() && *e > 0.0) {
+        Some(e) if x.is_finite() && x != 0.0 && !scientific(exponent(x)) => {
+            fixed(x, 1 - exponent(e))
+        }
+        _ => num(x),
     }
 }
 
@@ -108,6 +127,11 @@ pub fn pm(value: f64, err: Option<f64>) -> String {
     };
     if !value.is_finite() {
         return num(value);
+    }
+    // An error below the sixth significant digit (a fit of exact data)
+    // would print a screenful of digits: value and error each on their own.
+    if value != 0.0 && err < value.abs() * 1e-6 {
+        return format!("{} ±\u{a0}{}", num(value), sig(err, 2));
     }
     let e = if value == 0.0 {
         exponent(err)
@@ -180,7 +204,14 @@ mod tests {
             "(5.674 ±\u{a0}0.025)×10<sup>-5</sup>"
         );
         assert_eq!(pm(1.5, None), "<span title=\"error unknown\">1.5</span>");
+        assert_eq!(
+            pm(2.0 + 4.4e-16, Some(1.5e-16)),
+            "2 ±\u{a0}1.5×10<sup>-16</sup>"
+        );
         assert_eq!(num(3.5332775005708976), "3.53328");
+        assert_eq!(sig(0.857063, 3), "0.857");
+        assert_eq!(at_precision_of(1.23092, Some(0.019)), "1.231");
+        assert_eq!(at_precision_of(2.5e-7, Some(1e-8)), "2.5×10<sup>-7</sup>");
         assert_eq!(num(4.2e-6), "4.2×10<sup>-6</sup>");
     }
 }

@@ -19,6 +19,8 @@
 pub mod drops;
 pub mod fits;
 pub mod html;
+#[cfg(test)]
+mod tests;
 
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -140,7 +142,7 @@ fn header(out: &mut String, config_name: &str, records: &[DropRecord]) {
         "<header><h1>dropscope report</h1><p class=\"meta\">dropscope {version} · configuration \
          <code>{config}</code></p><p class=\"counts\"><span class=\"count\">{total} runs</span> \
          <span class=\"count ok\">{ok} measured</span> <span class=\"count warning\">{warning} \
-         with warnings</span> <span class=\"count failed\">{failed} failed</span></p></header>",
+         measured with warnings</span> <span class=\"count failed\">{failed} failed</span></p></header>",
         version = env!("CARGO_PKG_VERSION"),
         config = escape(config_name),
         total = records.len(),

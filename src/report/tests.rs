@@ -1,0 +1,200 @@
+//! The page from collapse outputs of synthetic drops (no movies): what it
+//! shows, that input cannot inject markup, and that it names no URL.
+
+use std::path::Path;
+
+use super::html::{escape, pm};
+use super::render_report;
+use crate::collapse::groups::ContactRadius;
+use crate::collapse::synthetic::{eq8_dataset, SyntheticSpec};
+use crate::collapse::CollapseArgs;
+use crate::config::{PipelineConfig, EMBEDDED_DEFAULT};
+use crate::dataset::{self, DropRecord, DropStatus};
+
+const EVIL_RUN: &str = "<script>alert(\"run\")</script>";
+const EVIL_REASON: &str = "cannot open /data/a&b/<img src=x onerror=alert(1)>.cine: 'bad'";
+
+/// 20 drops obeying Eq. (8) (4 per radius), one measured with a warning and
+/// one failed run with markup in its name and reason.
+fn records() -> Vec<DropRecord> {
+    let mut recs = eq8_dataset(
+        &SyntheticSpec::paper(4, 3),
+        [1.26, -0.3, 0.05],
+        [3.53, -0.5, 0.1],
+        [0.6, 1.8],
+    );
+    recs[1].status = DropStatus::Warning;
+    recs[1].reason = "g_fit 9.2 m/s² is 6 % off 9.81 <check fps>".into();
+    recs.push(DropRecord::failed(EVIL_RUN, 4.5, EVIL_REASON));
+    recs
+}
+
+/// drops.csv and the collapse outputs of `recs` in `out` (as the main job leaves them).
+fn collapse_into(out: &Path, recs: &[DropRecord]) {
+    let drops = out.join("drops.csv");
+    dataset::write_csv(&drops, recs).unwrap();
+    let cfg =
+        PipelineConfig::from_toml_str(EMBEDDED_DEFAULT, Path::new("pipeline.toml"), Path::new("."))
+            .unwrap();
+    let args = CollapseArgs {
+        drops,
+        out: Some(out.to_path_buf()),
+        config: None,
+        contact_radius: ContactRadius::Measured,
+        bootstrap: 200,
+        seed: 5,
+        no_plots: false,
+    };
+    crate::collapse::run(&args, &cfg, "pipeline.toml").unwrap();
+}
+
+/// Every value of a `src="…"` or `href="…"` attribute and every CSS `url(…)`.
+fn references(page: &str) -> Vec<&str> {
+    let mut refs = Vec::new();
+    for key in ["src=\"", "href=\"", "url("] {
+        let mut rest = page;
+        while let Some(i) = rest.find(key) {
+            rest = &rest[i + key.len()..];
+            let end = rest.find(['"', ')']).unwrap_or(rest.len());
+            refs.push(&rest[..end]);
+        }
+    }
+    refs
+}
+
+#[test]
+fn the_page_shows_the_collapse_files_and_every_drop() {
+    let dir = tempfile::tempdir().unwrap();
+    let recs = records();
+    collapse_into(dir.path(), &recs);
+    let page = String::from_utf8(render_report(dir.path(), "my config.toml", &recs)).unwrap();
+
+    // Header: version, configuration, counts (19 ok, 1 with a warning, 1 failed).
+    assert!(page.contains(concat!("dropscope ", env!("CARGO_PKG_VERSION"))));
+    assert!(page.contains("<code>my config.toml</code>"));
+    for count in [
+        "21 runs",
+        "19 measured",
+        "1 measured with warnings",
+        "1 failed",
+    ] {
+        assert!(page.contains(&format!(">{count}</span>")), "{count}");
+    }
+    // The four collapse plots inline, in reading order.
+    let at = |s: &str| page.find(s).unwrap_or_else(|| panic!("{s} missing"));
+    let order = [
+        "plot-psi_vs_xi",
+        "plot-omega_vs_xi",
+        "plot-pi_vs_eta",
+        "plot-tau_vs_v",
+    ];
+    assert!(order.windows(2).all(|w| at(w[0]) < at(w[1])));
+    assert_eq!(page.matches("<svg").count(), 4);
+    // The fits table holds fits.json's numbers, as written there.
+    let fits: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("fits.json")).unwrap()).unwrap();
+    for (series, coef) in [
+        ("psi_series", "A1"),
+        ("psi_series", "A3"),
+        ("omega_series", "B2"),
+    ] {
+        let e = &fits[series][coef];
+        let cell = format!(
+            "{coef} = {}",
+            pm(e["value"].as_f64().unwrap(), e["stderr"].as_f64())
+        );
+        assert!(page.contains(&cell), "{cell}");
+    }
+    let nu = &fits["exponents"][0];
+    assert!(page.contains(&pm(nu["nu"].as_f64().unwrap(), nu["nu_stderr"].as_f64())));
+    // One row per drop, with its numbers; the warning shown; the failed one marked.
+    assert_eq!(page.matches("<tbody class=").count(), recs.len());
+    for r in &recs[..20] {
+        assert!(page.contains(&format!("<th class=\"run\">{}</th>", r.run)));
+        assert!(
+            page.contains(&pm(r.tau_c_ms.unwrap(), r.tau_c_ms_err)),
+            "{}",
+            r.run
+        );
+    }
+    assert!(page.contains("&lt;check fps&gt;"));
+    assert!(page.contains(&format!(
+        "<span class=\"badge failed\">FAILED</span></td><td colspan=\"7\" class=\"reason\">{}</td>",
+        escape(EVIL_REASON)
+    )));
+    // No collapse alarm: collapse.csv lists exactly these drops.
+    assert!(!page.contains("class=\"alarm\">The collapse files"));
+}
+
+#[test]
+fn input_cannot_inject_markup_and_the_page_names_no_url() {
+    let dir = tempfile::tempdir().unwrap();
+    let recs = records();
+    collapse_into(dir.path(), &recs);
+    // An overlay and a diagnostic figure for the first drop.
+    let plots = dir.path().join("plots");
+    std::fs::create_dir_all(plots.join("overlays")).unwrap();
+    std::fs::create_dir_all(plots.join("drops")).unwrap();
+    image::RgbImage::from_pixel(4, 4, image::Rgb([9, 9, 9]))
+        .save(plots.join(format!("overlays/{}.png", recs[0].run)))
+        .unwrap();
+    std::fs::write(
+        plots.join(format!("drops/{}.svg", recs[0].run)),
+        "<svg width=\"4\" height=\"4\" xmlns=\"http://www.w3.org/2000/svg\"></svg>",
+    )
+    .unwrap();
+    let page = String::from_utf8(render_report(dir.path(), "<b>cfg</b>", &recs)).unwrap();
+    // The only script is the page's own; names and reasons arrive as text.
+    assert_eq!(page.matches("<script").count(), 1);
+    assert!(!page.contains("<img src=x"));
+    assert!(!page.contains("<b>cfg"));
+    assert!(page.contains(&escape(EVIL_RUN)));
+    // Self-contained: every reference is a data: URI, and no URL at all.
+    let refs = references(&page);
+    assert_eq!(refs.len(), 2, "{refs:.80?}");
+    assert!(refs[0].starts_with("data:image/png;base64,iVBORw0KGgo"));
+    assert!(refs[1].starts_with("data:image/svg+xml;base64,PHN2Zy"));
+    for r in refs {
+        assert!(r.starts_with("data:"), "external reference {r:.80}");
+    }
+    assert!(!page.contains("http://") && !page.contains("https://"));
+}
+
+#[test]
+fn without_collapse_outputs_the_page_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let recs = vec![DropRecord::failed(
+        "only",
+        3.0,
+        "no sphere found in any of the 40 frames",
+    )];
+    let page = String::from_utf8(render_report(dir.path(), "p.toml", &recs)).unwrap();
+    assert!(page.contains(
+        "The collapse did not run: no fits.json in the output folder (no drop was measured)"
+    ));
+    assert!(page.contains("The collapse wrote no plots."));
+    assert!(page.contains("No fits (the collapse did not run)."));
+    assert!(page.contains("no sphere found in any of the 40 frames"));
+    assert!(!page.contains("<svg"));
+}
+
+#[test]
+fn collapse_files_of_other_drops_are_flagged() {
+    let dir = tempfile::tempdir().unwrap();
+    let recs = records();
+    collapse_into(dir.path(), &recs[..10]);
+    let page = String::from_utf8(render_report(dir.path(), "p.toml", &recs)).unwrap();
+    assert!(page.contains("collapse.csv lists 10 runs, this report 21"));
+}
+
+#[test]
+fn the_same_outputs_give_the_same_bytes_wherever_the_folder_is() {
+    let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let recs = records();
+    collapse_into(a.path(), &recs);
+    collapse_into(b.path(), &recs);
+    let pa = render_report(a.path(), "p.toml", &recs);
+    assert!(pa == render_report(b.path(), "p.toml", &recs));
+    let text = String::from_utf8(pa).unwrap();
+    assert!(!text.contains(&a.path().display().to_string()));
+}

@@ -1,0 +1,273 @@
+//! report.html as a person sees it: the main job on the three fixture drops
+//! plus a broken run, the page opened in headless Chromium (Debian's
+//! `chromium` package, which `.ci/run` installs): its rendered DOM lists
+//! every drop, the failed one with its reason, and the inline plots; its
+//! screenshot is not blank.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use dropscope::dataset::{read_csv, DropStatus};
+
+const CHROMIUM: &str = "/usr/bin/chromium";
+
+/// A run name with every character HTML must escape.
+const BROKEN_RUN: &str = "broken<cine> & \"co\"";
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Run headless Chromium on `page` with `extra` arguments and a fresh
+/// profile; return its stdout. A hang is stopped after 3 minutes (a guard,
+/// not a timing assertion: the run takes about a second).
+fn chromium(page: &Path, extra: &[String], work: &Path) -> Vec<u8> {
+    assert!(
+        Path::new(CHROMIUM).is_file(),
+        "{CHROMIUM} not found: the report test needs Debian's chromium \
+         (apt-get install chromium, as root; .ci/run installs it)"
+    );
+    let profile = tempfile::tempdir_in(work).unwrap();
+    let (out_path, err_path) = (work.join("chromium.out"), work.join("chromium.err"));
+    let mut child = Command::new(CHROMIUM)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+        ])
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .args(extra)
+        .arg(format!("file://{}", page.display()))
+        .stdin(Stdio::null())
+        .stdout(std::fs::File::create(&out_path).unwrap())
+        .stderr(std::fs::File::create(&err_path).unwrap())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot start {CHROMIUM}: {e}"));
+    let deadline = Instant::now() + Duration::from_secs(180);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{CHROMIUM} did not finish within 3 minutes");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(
+        status.success(),
+        "{CHROMIUM} failed ({status}): {}",
+        std::fs::read_to_string(&err_path).unwrap_or_default()
+    );
+    std::fs::read(&out_path).unwrap()
+}
+
+/// Text as Chromium serialises it inside an element (HTML serialisation
+/// algorithm: `&`, `<`, `>` and the no-break space escaped).
+fn serialised(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('\u{a0}', "&nbsp;")
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &to.join(e.file_name()));
+        } else {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+/// The main job on the fixtures and a corrupt cine writes report.html;
+/// Chromium renders every drop (the broken one with its reason, its name's
+/// markup characters as text), the four inline collapse plots, three
+/// overlays and three fold-out diagnostics, and a screenshot that is far
+/// from blank. `dropscope report` on a copy of the folder writes the same
+/// bytes (no date, no output path in the page).
+#[test]
+fn the_report_renders_in_chromium_and_lists_every_drop() {
+    let start = Instant::now();
+    let dir = tempfile::tempdir().unwrap();
+    let work = dir.path();
+    std::fs::write(work.join("broken.cine"), b"CI not really a cine").unwrap();
+    let fixtures = root().join("fixtures");
+    let mut manifest = String::from("run,path,sphere_radius_mm\n");
+    for (run, r) in [
+        ("R3mm_H1.5cm_01", 3.0),
+        ("R4.5mm_H12cm_01", 4.5),
+        ("R7mm_H50cm_01", 7.0),
+    ] {
+        manifest += &format!("{run},{},{r}\n", fixtures.join(run).display());
+    }
+    manifest += "\"broken<cine> & \"\"co\"\"\",broken.cine,4.5\n";
+    std::fs::write(work.join("runs.csv"), manifest).unwrap();
+    let config = work.join("pipeline.toml");
+    std::fs::write(
+        &config,
+        "[input]\nmanifest = \"runs.csv\"\n[output]\ndir = \"out\"\n",
+    )
+    .unwrap();
+    let out = work.join("out");
+    let job = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .arg("run")
+        .arg("--config")
+        .arg(&config)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(
+        job.status.code(),
+        Some(1),
+        "one run fails: {}",
+        String::from_utf8_lossy(&job.stderr)
+    );
+    let records = read_csv(&out.join("drops.csv")).unwrap();
+    assert_eq!(records.len(), 4);
+    assert_eq!(records[3].run, BROKEN_RUN);
+    assert_eq!(records[3].status, DropStatus::Failed);
+    let page = out.join("report.html");
+    assert!(page.is_file(), "the main job wrote no report.html");
+    let job_secs = start.elapsed().as_secs_f64();
+
+    // The rendered DOM (after parsing and the page's script).
+    let dom = String::from_utf8(chromium(&page, &["--dump-dom".into()], work)).unwrap();
+    for r in &records {
+        let row = format!("<th class=\"run\">{}</th>", serialised(&r.run));
+        assert_eq!(dom.matches(&row).count(), 1, "{row} not rendered once");
+    }
+    let broken = &records[3];
+    assert!(broken.reason.contains("broken.cine"), "{}", broken.reason);
+    let failed_row = format!(
+        "<span class=\"badge failed\">FAILED</span></td><td colspan=\"7\" class=\"reason\">{}</td>",
+        serialised(&broken.reason)
+    );
+    assert!(dom.contains(&failed_row), "failed row not rendered");
+    assert_eq!(dom.matches("<svg ").count(), 4, "inline collapse plots");
+    assert_eq!(dom.matches("<img class=\"thumb\"").count(), 3, "overlays");
+    assert_eq!(
+        dom.matches("<img class=\"diagram\" src=\"data:image/svg+xml;base64,")
+            .count(),
+        3,
+        "diagnostics"
+    );
+    assert!(dom.contains("<span class=\"count failed\">1 failed</span>"));
+
+    // Where the four plots were laid out: a copy of the page with a probe
+    // script that writes each inline SVG's box into the DOM.
+    let probe = work.join("probe.html");
+    let html = std::fs::read_to_string(&page).unwrap();
+    std::fs::write(
+        &probe,
+        html.replace(
+            "</body>",
+            "<script>document.querySelectorAll('figure svg').forEach(function (s) { \
+             var r = s.getBoundingClientRect(); s.setAttribute('data-rect', \
+             [r.left, r.top, r.width, r.height].map(Math.round).join(',')); });</script></body>",
+        ),
+    )
+    .unwrap();
+    let window = "--window-size=1280,2000".to_string();
+    let probed = String::from_utf8(chromium(
+        &probe,
+        &["--dump-dom".into(), window.clone()],
+        work,
+    ))
+    .unwrap();
+    let rects: Vec<[u32; 4]> = probed
+        .split("data-rect=\"")
+        .skip(1)
+        .map(|s| {
+            let v: Vec<u32> = s[..s.find('"').unwrap()]
+                .split(',')
+                .map(|x| x.parse().unwrap())
+                .collect();
+            [v[0], v[1], v[2], v[3]]
+        })
+        .collect();
+    assert_eq!(rects.len(), 4, "{rects:?}");
+    for [_, _, w, h] in &rects {
+        // Drawn 1100 × 800 and scaled to the column: the aspect ratio is kept.
+        assert!(*w >= 400, "a plot only {w} px wide");
+        let aspect = f64::from(*w) / f64::from(*h);
+        assert!(
+            (aspect / (1100.0 / 800.0) - 1.0).abs() < 0.02,
+            "aspect {aspect}"
+        );
+    }
+
+    // The screenshot at the same size: not blank as a whole (measured:
+    // 9 % non-white, about 2000 colours; a blank page is one colour), and
+    // every plot box visibly drawn (an SVG that did not render leaves its
+    // box white).
+    let shot = work.join("shot.png");
+    chromium(
+        &page,
+        &[format!("--screenshot={}", shot.display()), window],
+        work,
+    );
+    let img = image::open(&shot).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (1280, 2000));
+    let stats = |x0: u32, y0: u32, w: u32, h: u32| {
+        let mut non_white = 0usize;
+        let mut colours = std::collections::BTreeSet::new();
+        for y in y0..(y0 + h).min(img.height()) {
+            for x in x0..(x0 + w).min(img.width()) {
+                let p = img.get_pixel(x, y).0;
+                non_white += usize::from(p.iter().any(|&c| c < 235));
+                colours.insert(p);
+            }
+        }
+        (non_white as f64 / f64::from(w * h), colours.len())
+    };
+    let (frac, colours) = stats(0, 0, 1280, 2000);
+    eprintln!(
+        "report test: job {job_secs:.1} s, total {:.1} s; screenshot {:.1} % non-white, {colours} colours",
+        start.elapsed().as_secs_f64(),
+        100.0 * frac,
+    );
+    assert!(
+        frac > 0.05,
+        "screenshot nearly blank: {:.1} % non-white",
+        100.0 * frac
+    );
+    assert!(colours > 200, "only {colours} colours");
+    for [x, y, w, h] in &rects {
+        let (frac, colours) = stats(*x, *y, *w, *h);
+        eprintln!(
+            "plot at {x},{y}: {:.1} % non-white, {colours} colours",
+            100.0 * frac
+        );
+    }
+
+    // `dropscope report` on a copy elsewhere writes the same page.
+    let copy = work.join("elsewhere");
+    copy_dir(&out, &copy);
+    std::fs::remove_file(copy.join("report.html")).unwrap();
+    let again = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .arg("report")
+        .arg("--config")
+        .arg(&config)
+        .arg("--out")
+        .arg(&copy)
+        .output()
+        .unwrap();
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    assert!(std::fs::read(&page).unwrap() == std::fs::read(copy.join("report.html")).unwrap());
+}

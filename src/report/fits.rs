@@ -267,9 +267,16 @@ fn force_laws(out: &mut String, doc: &Value) {
     if list.is_empty() {
         return;
     }
+    // A campaign's worth of rows is folded away; a handful is shown.
+    let _ = write!(
+        out,
+        "<details class=\"section\"{}><summary><h3>Contact law F = K δ<sup>n</sup> per drop \
+         ({} drops)</h3></summary>",
+        if list.len() <= 10 { " open" } else { "" },
+        list.len()
+    );
     out.push_str(
-        "<h3>Contact law F = K δ<sup>n</sup> per drop</h3><table class=\"fits\"><thead><tr>\
-         <th>run</th><th>points</th><th>n (model: 2)</th><th>K (N/mm<sup>n</sup>)</th>\
+        "<table class=\"fits\"><thead><tr><th>run</th><th>points</th><th>n (model: 2)</th><th>K (N/mm<sup>n</sup>)</th>\
          <th>model πEφR/h (N/mm²)</th><th>from</th></tr></thead><tbody>",
     );
     for l in list {
@@ -286,7 +293,7 @@ fn force_laws(out: &mut String, doc: &Value) {
             escape(s(l, "source")),
         );
     }
-    out.push_str("</tbody></table>");
+    out.push_str("</tbody></table></details>");
 }
 
 fn provenance(out: &mut String, doc: &Value) {

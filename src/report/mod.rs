@@ -117,13 +117,30 @@ fn caption(stem: &str) -> String {
         .map_or_else(|| escape(stem), |(_, c)| c.to_string())
 }
 
-/// The run names of collapse.csv, in its order (None when unreadable).
-fn collapse_runs(out_dir: &Path) -> Option<Vec<String>> {
+/// The `run` and `used` columns of collapse.csv, in its order (None when
+/// unreadable).
+fn collapse_rows(out_dir: &Path) -> Option<Vec<(String, bool)>> {
     let mut r = csv::Reader::from_path(out_dir.join("collapse.csv")).ok()?;
-    let col = r.headers().ok()?.iter().position(|h| h == "run")?;
+    let headers = r.headers().ok()?.clone();
+    let col = |name: &str| headers.iter().position(|h| h == name);
+    let (run, used) = (col("run")?, col("used")?);
     r.records()
-        .map(|row| row.ok().and_then(|row| row.get(col).map(str::to_string)))
+        .map(|row| {
+            let row = row.ok()?;
+            Some((row.get(run)?.to_string(), row.get(used)? == "true"))
+        })
         .collect()
+}
+
+/// Whether collapse.csv describes these records: the same runs in the same
+/// order, and no run it used that has failed since. (A drop the collapse
+/// skipped may be measured: it can lack a, say.)
+fn collapse_matches(rows: &[(String, bool)], records: &[DropRecord]) -> bool {
+    rows.len() == records.len()
+        && rows
+            .iter()
+            .zip(records)
+            .all(|((run, used), r)| *run == r.run && !(*used && r.status == DropStatus::Failed))
 }
 
 fn counts(records: &[DropRecord]) -> [usize; 3] {
@@ -191,19 +208,17 @@ fn collapse_section(out: &mut String, out_dir: &Path, records: &[DropRecord]) {
                 ""
             }
         );
-    }
-    if fits_bytes.is_some() {
-        let listed: Vec<&str> = records.iter().map(|r| r.run.as_str()).collect();
-        match collapse_runs(out_dir) {
-            Some(runs) if runs == listed => {}
-            Some(runs) => {
+    } else {
+        match collapse_rows(out_dir) {
+            Some(rows) if collapse_matches(&rows, records) => {}
+            Some(rows) => {
                 let _ = write!(
                     out,
                     "<p class=\"alarm\">The collapse files in this folder are not from these \
-                     drops: collapse.csv lists {} runs, this report {}. They are from an \
-                     earlier job; run the collapse again.</p>",
-                    runs.len(),
-                    listed.len()
+                     drops: collapse.csv lists {} runs, this report {}, or uses runs that have \
+                     failed since. They are from an earlier job; run the collapse again.</p>",
+                    rows.len(),
+                    records.len()
                 );
             }
             None => out.push_str(
@@ -212,9 +227,16 @@ fn collapse_section(out: &mut String, out_dir: &Path, records: &[DropRecord]) {
             ),
         }
     }
-    let plots = collapse_plots(out_dir);
+    // The collapse writes fits.json first: plots without it are an earlier job's.
+    let plots = if fits_bytes.is_some() {
+        collapse_plots(out_dir)
+    } else {
+        Vec::new()
+    };
     if plots.is_empty() {
-        out.push_str("<p class=\"missing\">The collapse wrote no plots.</p>");
+        if fits_bytes.is_some() {
+            out.push_str("<p class=\"missing\">The collapse wrote no plots.</p>");
+        }
     } else {
         out.push_str("<div class=\"plots\">");
         for (stem, svg) in &plots {

@@ -163,6 +163,9 @@ fn input_cannot_inject_markup_and_the_page_names_no_url() {
 #[test]
 fn without_collapse_outputs_the_page_says_so() {
     let dir = tempfile::tempdir().unwrap();
+    // A plot left by an earlier job is not shown without its fits.json.
+    std::fs::create_dir(dir.path().join("plots")).unwrap();
+    std::fs::write(dir.path().join("plots/psi_vs_xi.svg"), "<svg></svg>").unwrap();
     let recs = vec![DropRecord::failed(
         "only",
         3.0,
@@ -172,7 +175,6 @@ fn without_collapse_outputs_the_page_says_so() {
     assert!(page.contains(
         "The collapse did not run: no fits.json in the output folder (no drop was measured)"
     ));
-    assert!(page.contains("The collapse wrote no plots."));
     assert!(page.contains("No fits (the collapse did not run)."));
     assert!(page.contains("no sphere found in any of the 40 frames"));
     assert!(!page.contains("<svg"));
@@ -185,6 +187,14 @@ fn collapse_files_of_other_drops_are_flagged() {
     collapse_into(dir.path(), &recs[..10]);
     let page = String::from_utf8(render_report(dir.path(), "p.toml", &recs)).unwrap();
     assert!(page.contains("collapse.csv lists 10 runs, this report 21"));
+    // The same runs, but one the collapse used has failed since.
+    let mut now = recs[..10].to_vec();
+    now[4] = DropRecord::failed(&now[4].run, now[4].sphere_radius_mm, "unreadable now");
+    let page = String::from_utf8(render_report(dir.path(), "p.toml", &now)).unwrap();
+    assert!(page.contains("or uses runs that have failed since"));
+    // And as they were: no alarm.
+    let page = String::from_utf8(render_report(dir.path(), "p.toml", &recs[..10])).unwrap();
+    assert!(!page.contains("class=\"alarm\""));
 }
 
 #[test]
@@ -197,4 +207,15 @@ fn the_same_outputs_give_the_same_bytes_wherever_the_folder_is() {
     assert!(pa == render_report(b.path(), "p.toml", &recs));
     let text = String::from_utf8(pa).unwrap();
     assert!(!text.contains(&a.path().display().to_string()));
+}
+
+#[test]
+fn a_collapse_without_plots_says_so_and_keeps_its_fits() {
+    let dir = tempfile::tempdir().unwrap();
+    let recs = records();
+    collapse_into(dir.path(), &recs);
+    std::fs::remove_dir_all(dir.path().join("plots")).unwrap();
+    let page = String::from_utf8(render_report(dir.path(), "p.toml", &recs)).unwrap();
+    assert!(page.contains("The collapse wrote no plots."));
+    assert!(page.contains("<td>A1 = "));
 }

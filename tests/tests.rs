@@ -5,4 +5,5 @@ mod collapse;
 mod detect;
 mod process;
 mod render;
+mod run;
 mod source;

@@ -83,6 +83,8 @@ pub enum RunEvent<'a> {
         cached: bool,
         frames: usize,
     },
+    /// Every run is done; the collapse (and report) starts.
+    Collapsing,
 }
 
 /// What the job did.
@@ -302,6 +304,7 @@ pub fn run_job(
         .filter(|r| r.status != DropStatus::Failed)
         .count();
     let (collapsed, collapse_warnings) = if measured > 0 {
+        events(RunEvent::Collapsing);
         let args = CollapseArgs {
             drops: out.join("drops.csv"),
             out: Some(out.to_path_buf()),

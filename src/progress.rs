@@ -94,6 +94,10 @@ impl JobProgress {
                     }
                 }
             }
+            RunEvent::Collapsing => match &self.bars {
+                None => eprintln!("collapse …"),
+                Some(b) => b.overall.set_message("collapse …"),
+            },
             RunEvent::Finished { record, cached, .. } => {
                 let k = self.done.fetch_add(1, Ordering::Relaxed) + 1;
                 let n = self.total.load(Ordering::Relaxed);

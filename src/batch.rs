@@ -131,29 +131,47 @@ fn is_cine(p: &Path) -> bool {
         .is_some_and(|x| x.eq_ignore_ascii_case("cine"))
 }
 
+/// Deepest folder level searched under an input path (guards symlink loops).
+const MAX_SEARCH_DEPTH: usize = 16;
+
 /// Runs under the configured paths: a `.cine` or a folder of frames is one
-/// run; another folder is searched one level down (sorted by name).
+/// run; any other folder is searched, at any depth, for both (children in
+/// name order, so the runs' order does not depend on the file system).
 pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
+    fn search(dir: &Path, depth: usize, out: &mut Vec<PathBuf>) -> Result<(), BatchError> {
+        let mut children: Vec<PathBuf> = std::fs::read_dir(dir)
+            .map_err(|source| BatchError::Io {
+                path: dir.to_path_buf(),
+                source,
+            })?
+            .flatten()
+            .map(|e| e.path())
+            .collect();
+        children.sort();
+        for c in children {
+            if is_cine(&c) {
+                out.push(c);
+            } else if c.is_dir() {
+                if is_frame_folder(&c) {
+                    out.push(c);
+                } else if depth < MAX_SEARCH_DEPTH {
+                    search(&c, depth + 1, out)?;
+                }
+            }
+        }
+        Ok(())
+    }
     let mut out = Vec::new();
     for p in paths {
         if is_cine(p) || (p.is_dir() && is_frame_folder(p)) {
             out.push(p.clone());
             continue;
         }
-        let mut children: Vec<PathBuf> = std::fs::read_dir(p)
-            .map_err(|source| BatchError::Io {
-                path: p.clone(),
-                source,
-            })?
-            .flatten()
-            .map(|e| e.path())
-            .filter(|c| is_cine(c) || (c.is_dir() && is_frame_folder(c)))
-            .collect();
-        if children.is_empty() {
+        let before = out.len();
+        search(p, 1, &mut out)?;
+        if out.len() == before {
             return Err(BatchError::NothingFound(p.display().to_string()));
         }
-        children.sort();
-        out.extend(children);
     }
     Ok(out)
 }
@@ -327,4 +345,48 @@ pub fn run_job(
         collapsed,
         collapse_warnings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_are_found_at_any_depth_in_name_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        for (folder, file) in [
+            ("2019-06-14/R3mm_01", "R3mm_01_000000.tif"),
+            ("2019-06-14/R3mm_02", "R3mm_02.xml"),
+            ("2019-06-15/notes", "readme.txt"),
+            ("2019-06-15/cines", "b.cine"),
+            ("2019-06-15/cines", "a.CINE"),
+            ("2019-06-15/cines/R5/R5_01", "x_1.png"),
+        ] {
+            std::fs::create_dir_all(d.join(folder)).unwrap();
+            std::fs::write(d.join(folder).join(file), b"").unwrap();
+        }
+        let found = discover_runs(&[d.to_path_buf()]).unwrap();
+        let rel: Vec<String> = found
+            .iter()
+            .map(|p| p.strip_prefix(d).unwrap().display().to_string())
+            .collect();
+        assert_eq!(
+            rel,
+            [
+                "2019-06-14/R3mm_01",
+                "2019-06-14/R3mm_02",
+                "2019-06-15/cines/R5/R5_01",
+                "2019-06-15/cines/a.CINE",
+                "2019-06-15/cines/b.cine",
+            ]
+        );
+        let e = discover_runs(&[d.join("2019-06-15/notes")])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("no run folder or .cine") && e.contains("notes"),
+            "{e}"
+        );
+    }
 }

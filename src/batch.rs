@@ -1,14 +1,24 @@
 //! The main job (`dropscope` or `dropscope run`): every run of the
 //! configuration's manifest (or of its input paths) → process → collapse,
 //! all into the configuration's output folder.
+//!
+//! Runs are processed in parallel, each streaming its frames; each run's
+//! files are written as soon as it is done, and its cache entry
+//! (`runs/<run>.json`, see [`crate::cache`]) last, so a job killed at any
+//! moment and started again redoes only the runs it had not committed, and
+//! ends with the outputs of an uninterrupted job. `drops.csv` is assembled
+//! from the entries in the manifest's order; `provenance.json` records the
+//! version, the resolved configuration and every input's fingerprint.
 
+use crate::cache::{self, Entry};
 use crate::collapse::groups::ContactRadius;
 use crate::collapse::CollapseArgs;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::{read_manifest, RunSpec};
-use crate::process::process_all;
+use crate::process::{process_run, write_file, write_run_outputs};
 use crate::source::folder::ImageKind;
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// The command line of `dropscope run`.
@@ -20,6 +30,12 @@ pub struct RunArgs {
     /// Output folder (default: the configuration's output.dir).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Reprocess every run, even those whose cached result is still valid.
+    #[arg(long)]
+    pub force: bool,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
 }
 
 /// Why the job could not run (a bad run is a row, not this).
@@ -47,11 +63,41 @@ pub enum BatchError {
     NothingFound(String),
 }
 
+/// How the job runs (not what it computes: outputs do not depend on these).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct JobOptions {
+    /// Ignore cached results.
+    pub force: bool,
+    /// Worker threads; `None` is rayon's default (one per core).
+    pub threads: Option<usize>,
+}
+
+/// What the job reports while it runs, from the worker threads.
+#[derive(Debug, Clone, Copy)]
+pub enum RunEvent<'a> {
+    /// The job knows how many runs it has.
+    Planned { runs: usize },
+    /// A worker starts on a run.
+    Started { run: &'a str },
+    /// A run is done: measured, failed, or taken from the cache.
+    Finished {
+        record: &'a DropRecord,
+        cached: bool,
+        frames: usize,
+    },
+    /// Every run is done; the collapse (and report) starts.
+    Collapsing,
+}
+
 /// What the job did.
 #[derive(Debug, Clone)]
 pub struct JobSummary {
     pub records: Vec<DropRecord>,
     pub out: PathBuf,
+    /// Runs whose cached result was reused.
+    pub cached: usize,
+    /// Frames read by this job (cached runs read none).
+    pub frames: usize,
     /// Whether the collapse stage ran (it needs at least one measured drop).
     pub collapsed: bool,
     pub collapse_warnings: Vec<String>,
@@ -59,10 +105,12 @@ pub struct JobSummary {
 
 impl JobSummary {
     pub fn failed(&self) -> usize {
-        self.records
-            .iter()
-            .filter(|r| r.status == DropStatus::Failed)
-            .count()
+        self.count(DropStatus::Failed)
+    }
+
+    /// Runs with status `status`.
+    pub fn count(&self, status: DropStatus) -> usize {
+        self.records.iter().filter(|r| r.status == status).count()
     }
 }
 
@@ -85,29 +133,47 @@ fn is_cine(p: &Path) -> bool {
         .is_some_and(|x| x.eq_ignore_ascii_case("cine"))
 }
 
+/// Deepest folder level searched under an input path (guards symlink loops).
+const MAX_SEARCH_DEPTH: usize = 16;
+
 /// Runs under the configured paths: a `.cine` or a folder of frames is one
-/// run; another folder is searched one level down (sorted by name).
+/// run; any other folder is searched, at any depth, for both (children in
+/// name order, so the runs' order does not depend on the file system).
 pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
+    fn search(dir: &Path, depth: usize, out: &mut Vec<PathBuf>) -> Result<(), BatchError> {
+        let mut children: Vec<PathBuf> = std::fs::read_dir(dir)
+            .map_err(|source| BatchError::Io {
+                path: dir.to_path_buf(),
+                source,
+            })?
+            .flatten()
+            .map(|e| e.path())
+            .collect();
+        children.sort();
+        for c in children {
+            if is_cine(&c) {
+                out.push(c);
+            } else if c.is_dir() {
+                if is_frame_folder(&c) {
+                    out.push(c);
+                } else if depth < MAX_SEARCH_DEPTH {
+                    search(&c, depth + 1, out)?;
+                }
+            }
+        }
+        Ok(())
+    }
     let mut out = Vec::new();
     for p in paths {
         if is_cine(p) || (p.is_dir() && is_frame_folder(p)) {
             out.push(p.clone());
             continue;
         }
-        let mut children: Vec<PathBuf> = std::fs::read_dir(p)
-            .map_err(|source| BatchError::Io {
-                path: p.clone(),
-                source,
-            })?
-            .flatten()
-            .map(|e| e.path())
-            .filter(|c| is_cine(c) || (c.is_dir() && is_frame_folder(c)))
-            .collect();
-        if children.is_empty() {
+        let before = out.len();
+        search(p, 1, &mut out)?;
+        if out.len() == before {
             return Err(BatchError::NothingFound(p.display().to_string()));
         }
-        children.sort();
-        out.extend(children);
     }
     Ok(out)
 }
@@ -124,20 +190,141 @@ pub fn configured_runs(cfg: &PipelineConfig) -> Result<Vec<RunSpec>, BatchError>
     Ok(crate::process::runs_from_inputs(&found, None, cfg)?)
 }
 
-/// Process every configured run, then the collapse of the measured ones.
+/// One run: its cached result when still valid, else processed and committed.
+fn run_one(
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+    out: &Path,
+    force: bool,
+    events: &(dyn Fn(RunEvent) + Sync),
+) -> Result<(Entry, bool), BatchError> {
+    // An input that cannot be fingerprinted (missing, unreadable) is
+    // processed each time; processing then says what is wrong with it.
+    let fp = cache::fingerprint(&run.path).ok();
+    let key = fp.as_ref().map(|fp| cache::key(cfg, run, fp));
+    if let (false, Some(k)) = (force, &key) {
+        if let Some(e) = cache::lookup(out, &run.run, k) {
+            events(RunEvent::Finished {
+                record: &e.record,
+                cached: true,
+                frames: e.frames,
+            });
+            return Ok((e, true));
+        }
+    }
+    events(RunEvent::Started { run: &run.run });
+    let o = process_run(run, cfg, &[]);
+    let outputs = write_run_outputs(out, &o)?;
+    let entry = Entry {
+        schema: cache::CACHE_SCHEMA,
+        dropscope_version: env!("CARGO_PKG_VERSION").to_string(),
+        key: key.clone().unwrap_or_default(),
+        input: fp.unwrap_or_else(|| cache::Fingerprint::unreadable(&run.path)),
+        outputs,
+        frames: o.track.len(),
+        record: o.record,
+    };
+    if key.is_some() {
+        cache::store(out, &entry).map_err(|source| BatchError::Io {
+            path: cache::entry_path(out, &run.run),
+            source,
+        })?;
+    }
+    events(RunEvent::Finished {
+        record: &entry.record,
+        cached: false,
+        frames: entry.frames,
+    });
+    Ok((entry, false))
+}
+
+/// `provenance.json`: what produced the outputs, without timestamps, so the
+/// same inputs and configuration give the same bytes.
+fn provenance_json(cfg: &PipelineConfig, config_name: &str, entries: &[Entry]) -> Vec<u8> {
+    #[derive(serde::Serialize)]
+    struct RunProvenance<'a> {
+        run: &'a str,
+        key: &'a str,
+        input: &'a cache::Fingerprint,
+    }
+    #[derive(serde::Serialize)]
+    struct Provenance<'a> {
+        dropscope_version: &'a str,
+        configuration_file: &'a str,
+        configuration: &'a PipelineConfig,
+        runs: Vec<RunProvenance<'a>>,
+    }
+    let p = Provenance {
+        dropscope_version: env!("CARGO_PKG_VERSION"),
+        configuration_file: config_name,
+        configuration: cfg,
+        runs: entries
+            .iter()
+            .map(|e| RunProvenance {
+                run: &e.record.run,
+                key: &e.key,
+                input: &e.input,
+            })
+            .collect(),
+    };
+    let mut bytes = serde_json::to_vec_pretty(&p).unwrap_or_default();
+    bytes.push(b'\n');
+    bytes
+}
+
+/// Process every configured run (reusing valid cached results), then the
+/// collapse of the measured ones.
 pub fn run_job(
     cfg: &PipelineConfig,
     config_name: &str,
     out: &Path,
-    progress: &(dyn Fn(&DropRecord) + Sync),
+    options: &JobOptions,
+    events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<JobSummary, BatchError> {
     let runs = configured_runs(cfg)?;
-    let records = process_all(&runs, cfg, out, progress)?;
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| BatchError::Io { path, source }
+    };
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    crate::io_util::remove_stale_temporaries(out).map_err(io(out))?;
+    events(RunEvent::Planned { runs: runs.len() });
+    let work = || {
+        runs.par_iter()
+            .map(|r| run_one(r, cfg, out, options.force, events))
+            .collect::<Result<Vec<(Entry, bool)>, BatchError>>()
+    };
+    let done = match options.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|e| BatchError::Io {
+                path: out.to_path_buf(),
+                source: std::io::Error::other(e),
+            })?
+            .install(work)?,
+        None => work()?,
+    };
+    let cached = done.iter().filter(|(_, hit)| *hit).count();
+    let frames = done
+        .iter()
+        .filter(|(_, hit)| !*hit)
+        .map(|(e, _)| e.frames)
+        .sum();
+    let entries: Vec<Entry> = done.into_iter().map(|(e, _)| e).collect();
+    let records: Vec<DropRecord> = entries.iter().map(|e| e.record.clone()).collect();
+    write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
+    write_file(
+        out,
+        "provenance.json",
+        &provenance_json(cfg, config_name, &entries),
+    )?;
     let measured = records
         .iter()
         .filter(|r| r.status != DropStatus::Failed)
         .count();
     let (collapsed, collapse_warnings) = if measured > 0 {
+        events(RunEvent::Collapsing);
         let args = CollapseArgs {
             drops: out.join("drops.csv"),
             out: Some(out.to_path_buf()),
@@ -156,7 +343,53 @@ pub fn run_job(
     Ok(JobSummary {
         records,
         out: out.to_path_buf(),
+        cached,
+        frames,
         collapsed,
         collapse_warnings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_are_found_at_any_depth_in_name_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        for (folder, file) in [
+            ("2019-06-14/R3mm_01", "R3mm_01_000000.tif"),
+            ("2019-06-14/R3mm_02", "R3mm_02.xml"),
+            ("2019-06-15/notes", "readme.txt"),
+            ("2019-06-15/cines", "b.cine"),
+            ("2019-06-15/cines", "a.CINE"),
+            ("2019-06-15/cines/R5/R5_01", "x_1.png"),
+        ] {
+            std::fs::create_dir_all(d.join(folder)).unwrap();
+            std::fs::write(d.join(folder).join(file), b"").unwrap();
+        }
+        let found = discover_runs(&[d.to_path_buf()]).unwrap();
+        let rel: Vec<String> = found
+            .iter()
+            .map(|p| p.strip_prefix(d).unwrap().display().to_string())
+            .collect();
+        assert_eq!(
+            rel,
+            [
+                "2019-06-14/R3mm_01",
+                "2019-06-14/R3mm_02",
+                "2019-06-15/cines/R5/R5_01",
+                "2019-06-15/cines/a.CINE",
+                "2019-06-15/cines/b.cine",
+            ]
+        );
+        let e = discover_runs(&[d.join("2019-06-15/notes")])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("no run folder or .cine") && e.contains("notes"),
+            "{e}"
+        );
+    }
 }

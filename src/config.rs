@@ -5,7 +5,7 @@
 //! [`RawConfig::validate`] checks every value and converts it to SI. An error
 //! names the key, the value and what is allowed.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -126,7 +126,7 @@ pub struct RawOutput {
 // ---------------------------------------------------------- validated config
 
 /// A validated configuration; lengths in metres, paths resolved.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PipelineConfig {
     pub input: InputConfig,
     pub camera: CameraConfig,
@@ -137,7 +137,7 @@ pub struct PipelineConfig {
     pub output: OutputConfig,
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct InputConfig {
     pub manifest: Option<PathBuf>,
     pub paths: Vec<PathBuf>,
@@ -145,20 +145,20 @@ pub struct InputConfig {
     pub surface: String,
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CameraConfig {
     pub fps: Option<f64>,
     pub mm_per_px: Option<f64>,
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SphereConfig {
     pub density_kg_m3: f64,
     pub radius_m: Option<f64>,
 }
 
 /// A pillar-textured elastic surface (SPEC §1).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Surface {
     /// Young's modulus E.
     pub modulus_pa: f64,
@@ -185,7 +185,7 @@ impl Surface {
     }
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DetectConfig {
     pub background_frames: usize,
     pub surface_row_px: Option<f64>,
@@ -197,7 +197,7 @@ pub struct DetectConfig {
     pub edge_spacing_px: f64,
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OutputConfig {
     pub dir: PathBuf,
 }

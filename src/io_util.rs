@@ -30,6 +30,37 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
     })
 }
 
+/// Whether `name` is a temporary of [`write_atomic`]: `.<name>.tmp<pid>`.
+fn is_temporary(name: &str) -> bool {
+    name.starts_with('.')
+        && name.rfind(".tmp").is_some_and(|i| {
+            i > 1 && name[i + 4..].chars().all(|c| c.is_ascii_digit()) && name.len() > i + 4
+        })
+}
+
+/// Remove the temporaries that a killed [`write_atomic`] left under `dir`
+/// (searched recursively). Returns how many were removed; a missing `dir`
+/// has none.
+pub fn remove_stale_temporaries(dir: &Path) -> io::Result<usize> {
+    let entries = match fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(e),
+    };
+    let mut removed = 0;
+    for e in entries {
+        let e = e?;
+        let ty = e.file_type()?;
+        if ty.is_dir() {
+            removed += remove_stale_temporaries(&e.path())?;
+        } else if ty.is_file() && is_temporary(&e.file_name().to_string_lossy()) {
+            fs::remove_file(e.path())?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -43,5 +74,26 @@ mod tests {
         assert_eq!(fs::read(&p).unwrap(), b"second");
         let names: Vec<_> = fs::read_dir(dir.path()).unwrap().collect();
         assert_eq!(names.len(), 1, "a temporary file was left behind");
+    }
+
+    #[test]
+    fn stale_temporaries_are_found_and_only_they() {
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("tracks");
+        fs::create_dir(&sub).unwrap();
+        for name in [".a.csv.tmp123", "keep.csv", ".hidden", "x.tmp1", ".b.tmp"] {
+            fs::write(sub.join(name), b"x").unwrap();
+        }
+        assert_eq!(remove_stale_temporaries(dir.path()).unwrap(), 1);
+        let mut left: Vec<String> = fs::read_dir(&sub)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, [".b.tmp", ".hidden", "keep.csv", "x.tmp1"]);
+        assert_eq!(
+            remove_stale_temporaries(&dir.path().join("none")).unwrap(),
+            0
+        );
     }
 }

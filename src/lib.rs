@@ -15,8 +15,10 @@
 //! | [`measure`] | one drop from track to record |
 //! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
 //! | [`process`] | `dropscope process`: runs in parallel → drops.csv, tracks, overlays |
+//! | [`progress`] | the main job's progress bars, or plain lines off a terminal |
 //! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits (`dropscope collapse`) |
-//! | [`batch`] | the main job (`dropscope run`): process then collapse |
+//! | [`batch`] | the main job (`dropscope run`): process then collapse, with progress |
+//! | [`cache`] | the main job's per-run result cache: input fingerprints and keys |
 //! | [`report`] | `report.html`: counts, collapse plots, fits and every drop on one self-contained page |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | SVG + PNG figures (collapse plots, per-drop diagnostics), embedded font |
@@ -28,6 +30,7 @@
 //! library everything is SI unless the name says otherwise.
 
 pub mod batch;
+pub mod cache;
 pub mod collapse;
 pub mod config;
 pub mod dataset;
@@ -41,6 +44,7 @@ pub mod manifest;
 pub mod measure;
 pub mod plot;
 pub mod process;
+pub mod progress;
 pub mod render;
 pub mod report;
 pub mod source;

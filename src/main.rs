@@ -88,37 +88,42 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     let cfg = load_config(args.config.as_deref())?;
     let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
     let start = std::time::Instant::now();
-    let job =
-        dropscope::batch::run_job(
-            &cfg,
-            &config_name(args.config.as_deref()),
-            &out,
-            &|r| match r.status {
-                DropStatus::Failed => eprintln!("{}: failed: {}", r.run, r.reason),
-                DropStatus::Warning => {
-                    eprintln!("{}: measured, with warnings: {}", r.run, r.reason)
-                }
-                DropStatus::Ok => eprintln!("{}: measured", r.run),
-            },
-        )?;
+    let progress = dropscope::progress::JobProgress::new();
+    let options = dropscope::batch::JobOptions {
+        force: args.force,
+        threads: args.threads.map(usize::from),
+    };
+    let job = dropscope::batch::run_job(
+        &cfg,
+        &config_name(args.config.as_deref()),
+        &out,
+        &options,
+        &|e| progress.event(e),
+    );
+    progress.finish();
+    let job = job?;
     for w in &job.collapse_warnings {
         eprintln!("warning: {w}");
     }
-    let failed = job.failed();
+    let secs = start.elapsed().as_secs_f64();
     eprintln!(
-        "{} runs: {} measured, {} failed; collapse {}; {:.2} s; results in {}",
+        "{} runs: {} measured, {} with warnings, {} failed, {} reused from the cache; \
+         {} frames read in {secs:.2} s ({:.0} frames/s); collapse {}; results in {}",
         job.records.len(),
-        job.records.len() - failed,
-        failed,
+        job.count(DropStatus::Ok),
+        job.count(DropStatus::Warning),
+        job.failed(),
+        job.cached,
+        job.frames,
+        job.frames as f64 / secs.max(1e-9),
         if job.collapsed {
             "done"
         } else {
             "skipped (no measured drop)"
         },
-        start.elapsed().as_secs_f64(),
         out.display()
     );
-    Ok(if failed > 0 {
+    Ok(if job.failed() > 0 {
         ExitCode::from(1)
     } else {
         ExitCode::SUCCESS

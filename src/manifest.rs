@@ -28,7 +28,7 @@ pub struct ManifestRow {
 }
 
 /// A validated run: the path resolved against the manifest's folder.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunSpec {
     pub run: String,
     pub path: PathBuf,

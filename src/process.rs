@@ -340,6 +340,8 @@ pub fn process_all(
 
 /// [`process_all`], also drawing the overlays of the image numbers
 /// `overlay_frames` of every run (`plots/overlays/<run>_<number>.png`).
+/// Each run's files are written as soon as it is done, so memory holds only
+/// the runs in flight.
 pub fn process_all_with_overlays(
     runs: &[RunSpec],
     cfg: &PipelineConfig,
@@ -347,45 +349,71 @@ pub fn process_all_with_overlays(
     overlay_frames: &[i64],
     progress: &(dyn Fn(&DropRecord) + Sync),
 ) -> Result<Vec<DropRecord>, ProcessError> {
-    let write = |path: PathBuf, bytes: &[u8]| -> Result<(), ProcessError> {
-        if let Some(d) = path.parent() {
-            std::fs::create_dir_all(d).map_err(|source| ProcessError::Write {
-                path: d.to_path_buf(),
-                source,
-            })?;
-        }
-        crate::io_util::write_atomic(&path, bytes)
-            .map_err(|source| ProcessError::Write { path, source })
-    };
-    let outcomes: Vec<RunOutcome> = runs
+    let records = runs
         .par_iter()
         .map(|r| {
             let o = process_run(r, cfg, overlay_frames);
+            write_run_outputs(out, &o)?;
             progress(&o.record);
-            o
+            Ok(o.record)
         })
-        .collect();
-    for o in &outcomes {
-        if !o.track.is_empty() {
-            write(
-                out.join("tracks").join(format!("{}.csv", o.record.run)),
-                &track_csv(&o.track),
-            )?;
-        }
-        let overlays = out.join("plots").join("overlays");
-        if let Some(png) = &o.overlay {
-            write(overlays.join(format!("{}.png", o.record.run)), png)?;
-        }
-        for (n, png) in &o.frame_overlays {
-            write(overlays.join(format!("{}_{n}.png", o.record.run)), png)?;
-        }
-    }
-    let records: Vec<DropRecord> = outcomes.into_iter().map(|o| o.record).collect();
-    write(
-        out.join("drops.csv"),
-        &crate::dataset::to_csv_bytes(&records),
-    )?;
+        .collect::<Result<Vec<DropRecord>, ProcessError>>()?;
+    write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
     Ok(records)
+}
+
+/// Write `bytes` to `out/rel` atomically, creating folders.
+pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessError> {
+    let path = out.join(rel);
+    if let Some(d) = path.parent() {
+        std::fs::create_dir_all(d).map_err(|source| ProcessError::Write {
+            path: d.to_path_buf(),
+            source,
+        })?;
+    }
+    crate::io_util::write_atomic(&path, bytes)
+        .map_err(|source| ProcessError::Write { path, source })
+}
+
+/// Write one run's track (`tracks/<run>.csv`) and overlays
+/// (`plots/overlays/<run>[_<number>].png`) into `out`, each atomically.
+/// A track or main overlay left by an earlier job for this run, which this
+/// outcome does not have (the run now fails), is removed. Returns the files
+/// written, relative to `out`.
+pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<String>, ProcessError> {
+    let run = &o.record.run;
+    let track = format!("tracks/{run}.csv");
+    let main_overlay = format!("plots/overlays/{run}.png");
+    let mut written = Vec::new();
+    if o.track.is_empty() {
+        remove_if_present(out, &track)?;
+    } else {
+        write_file(out, &track, &track_csv(&o.track))?;
+        written.push(track);
+    }
+    match &o.overlay {
+        Some(png) => {
+            write_file(out, &main_overlay, png)?;
+            written.push(main_overlay);
+        }
+        None => remove_if_present(out, &main_overlay)?,
+    }
+    for (n, png) in &o.frame_overlays {
+        let rel = format!("plots/overlays/{run}_{n}.png");
+        write_file(out, &rel, png)?;
+        written.push(rel);
+    }
+    Ok(written)
+}
+
+fn remove_if_present(out: &Path, rel: &str) -> Result<(), ProcessError> {
+    let path = out.join(rel);
+    match std::fs::remove_file(&path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            Err(ProcessError::Write { path, source: e })
+        }
+        _ => Ok(()),
+    }
 }
 
 #[cfg(test)]

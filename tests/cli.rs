@@ -57,7 +57,8 @@ fn no_argument_runs_the_main_job_on_the_local_pipeline_toml() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{err}");
     assert!(
-        err.contains("3 runs: 3 measured, 0 failed; collapse done"),
+        err.contains("3 runs: 3 measured, 0 with warnings, 0 failed, 0 reused from the cache")
+            && err.contains("collapse done"),
         "{err}"
     );
     let results = dir.path().join("results");
@@ -68,6 +69,8 @@ fn no_argument_runs_the_main_job_on_the_local_pipeline_toml() {
         "fits.json",
         "plots/pi_vs_eta.svg",
         "tracks/R3mm_H1.5cm_01.csv",
+        "runs/R3mm_H1.5cm_01.json",
+        "provenance.json",
     ] {
         assert!(results.join(f).is_file(), "{f} missing");
     }

@@ -6,4 +6,5 @@ mod detect;
 mod process;
 mod render;
 mod report;
+mod run;
 mod source;

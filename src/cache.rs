@@ -1,0 +1,346 @@
+//! The main job's per-run result cache (issue 7).
+//!
+//! Each finished run leaves `<out>/runs/<run>.json`: its `drops.csv` record,
+//! the output files it wrote and the key it was computed under. The key is
+//! SHA-256 over the dropscope version, the resolved configuration (less the
+//! output folder), the run's manifest row and the input's [`Fingerprint`].
+//! A later job whose key for that run is the same, and whose listed files
+//! are all still there, reuses the record instead of reading the movie again.
+//!
+//! The entry is written last and atomically, after the run's track and
+//! overlay: it is the run's commit point. A job killed at any moment leaves
+//! each run either committed (whole) or not started, so starting it again
+//! finishes with the outputs of an uninterrupted job.
+
+use crate::config::PipelineConfig;
+use crate::dataset::DropRecord;
+use crate::manifest::RunSpec;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+use std::time::UNIX_EPOCH;
+
+/// Bump when the entry layout or anything it depends on changes meaning.
+pub const CACHE_SCHEMA: u32 = 1;
+
+/// Bytes hashed from the start of a `.cine` (headers and the offset table of
+/// up to 130 000 frames) and from each sampled place.
+const CINE_HEAD_BYTES: u64 = 1 << 20;
+const SAMPLE_BYTES: u64 = 64 << 10;
+/// Places sampled through a `.cine`, and frame files sampled in a folder.
+const SAMPLES: u64 = 8;
+/// Bytes hashed from each sampled frame file (a whole 8-bit 512×384 TIFF is 197 kB).
+const FRAME_FILE_BYTES: u64 = 1 << 20;
+
+/// What identifies an input without reading all of it: its size, its latest
+/// modification time and a SHA-256 of its headers and sampled frames.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Fingerprint {
+    /// The input as the manifest resolved it.
+    pub path: PathBuf,
+    /// `"cine"` or `"folder"`.
+    pub kind: String,
+    /// Total bytes (a folder: of all its files).
+    pub size_bytes: u64,
+    /// Files in the input (1 for a `.cine`).
+    pub files: u64,
+    /// Latest modification time, nanoseconds since 1970 (UTC).
+    pub modified_ns: u64,
+    /// SHA-256 of the file listing, the side files and the sampled bytes.
+    pub content_sha256: String,
+}
+
+impl Fingerprint {
+    /// For an input that could not be read: nothing but its path.
+    pub fn unreadable(path: &Path) -> Self {
+        Fingerprint {
+            path: path.to_path_buf(),
+            kind: "unreadable".into(),
+            size_bytes: 0,
+            files: 0,
+            modified_ns: 0,
+            content_sha256: String::new(),
+        }
+    }
+}
+
+/// The cached outcome of one run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Entry {
+    pub schema: u32,
+    pub dropscope_version: String,
+    /// SHA-256 of everything the result depends on (see the module docs).
+    pub key: String,
+    pub input: Fingerprint,
+    /// Output files of this run, relative to the output folder.
+    pub outputs: Vec<String>,
+    /// Frames the run held (rows of its track).
+    pub frames: usize,
+    pub record: DropRecord,
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn modified_ns(md: &std::fs::Metadata) -> u64 {
+    md.modified()
+        .ok()
+        .and_then(|t| t.duration_since(UNIX_EPOCH).ok())
+        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+}
+
+/// Feed `len` bytes of `file` from `offset` (fewer at the end of the file).
+fn hash_range(h: &mut Sha256, file: &mut File, offset: u64, len: u64) -> std::io::Result<()> {
+    file.seek(SeekFrom::Start(offset))?;
+    let mut buf = Vec::new();
+    file.take(len).read_to_end(&mut buf)?;
+    h.update(&buf);
+    Ok(())
+}
+
+/// The fingerprint of a `.cine` file or a folder of frames.
+pub fn fingerprint(path: &Path) -> std::io::Result<Fingerprint> {
+    let md = std::fs::metadata(path)?;
+    let mut h = Sha256::new();
+    if !md.is_dir() {
+        let size = md.len();
+        let mut f = File::open(path)?;
+        hash_range(&mut h, &mut f, 0, CINE_HEAD_BYTES)?;
+        if size > CINE_HEAD_BYTES {
+            for k in 0..SAMPLES {
+                let offset = CINE_HEAD_BYTES + (size - CINE_HEAD_BYTES) * k / SAMPLES;
+                hash_range(&mut h, &mut f, offset, SAMPLE_BYTES)?;
+            }
+        }
+        return Ok(Fingerprint {
+            path: path.to_path_buf(),
+            kind: "cine".into(),
+            size_bytes: size,
+            files: 1,
+            modified_ns: modified_ns(&md),
+            content_sha256: hex(&h.finalize()),
+        });
+    }
+    let mut files: Vec<(String, std::fs::Metadata)> = Vec::new();
+    for e in std::fs::read_dir(path)? {
+        let e = e?;
+        let m = e.metadata()?;
+        if m.is_file() {
+            files.push((e.file_name().to_string_lossy().into_owned(), m));
+        }
+    }
+    files.sort_by(|a, b| a.0.cmp(&b.0));
+    let (mut size, mut latest) = (0u64, 0u64);
+    for (name, m) in &files {
+        size += m.len();
+        latest = latest.max(modified_ns(m));
+        h.update(format!("{name}\0{}\0{}\n", m.len(), modified_ns(m)).as_bytes());
+    }
+    // The side files whole, and frames sampled evenly, first and last included.
+    let is_side = |n: &str| n.to_ascii_lowercase().ends_with(".xml");
+    let frames: Vec<&String> = files
+        .iter()
+        .map(|(n, _)| n)
+        .filter(|n| !is_side(n))
+        .collect();
+    let mut picked: Vec<&String> = files
+        .iter()
+        .map(|(n, _)| n)
+        .filter(|n| is_side(n))
+        .collect();
+    if let Some(last) = frames.len().checked_sub(1) {
+        let n = SAMPLES as usize;
+        let mut idx: Vec<usize> = (0..=n).map(|k| last * k / n).collect();
+        idx.dedup();
+        picked.extend(idx.into_iter().map(|i| frames[i]));
+    }
+    for name in picked {
+        let mut f = File::open(path.join(name))?;
+        hash_range(&mut h, &mut f, 0, FRAME_FILE_BYTES)?;
+    }
+    Ok(Fingerprint {
+        path: path.to_path_buf(),
+        kind: "folder".into(),
+        size_bytes: size,
+        files: files.len() as u64,
+        modified_ns: latest,
+        content_sha256: hex(&h.finalize()),
+    })
+}
+
+/// The configuration a run's result depends on: all of it but the output folder.
+fn config_for_key(cfg: &PipelineConfig) -> PipelineConfig {
+    let mut c = cfg.clone();
+    c.output.dir = PathBuf::new();
+    c
+}
+
+/// The cache key of `run` under `cfg` with input `fp`.
+pub fn key(cfg: &PipelineConfig, run: &RunSpec, fp: &Fingerprint) -> String {
+    #[derive(Serialize)]
+    struct KeyParts<'a> {
+        schema: u32,
+        version: &'a str,
+        config: PipelineConfig,
+        run: &'a RunSpec,
+        input: &'a Fingerprint,
+    }
+    let parts = KeyParts {
+        schema: CACHE_SCHEMA,
+        version: env!("CARGO_PKG_VERSION"),
+        config: config_for_key(cfg),
+        run,
+        input: fp,
+    };
+    // Serialising plain structs to JSON cannot fail.
+    let json = serde_json::to_vec(&parts).unwrap_or_default();
+    hex(&Sha256::digest(&json))
+}
+
+/// Where the entry of run `run` lives.
+pub fn entry_path(out: &Path, run: &str) -> PathBuf {
+    out.join("runs").join(format!("{run}.json"))
+}
+
+/// The entry of `run`, if there is one computed under `key` and every file
+/// it lists is still in `out`. Anything else (no entry, another key, a
+/// damaged entry, a missing output) is a miss.
+pub fn lookup(out: &Path, run: &str, key: &str) -> Option<Entry> {
+    let bytes = std::fs::read(entry_path(out, run)).ok()?;
+    let e: Entry = serde_json::from_slice(&bytes).ok()?;
+    let valid = e.schema == CACHE_SCHEMA
+        && e.key == key
+        && e.record.run == run
+        && e.outputs.iter().all(|p| out.join(p).is_file());
+    valid.then_some(e)
+}
+
+/// Commit `entry`: written atomically, after the files it lists.
+pub fn store(out: &Path, entry: &Entry) -> std::io::Result<()> {
+    let path = entry_path(out, &entry.record.run);
+    if let Some(d) = path.parent() {
+        std::fs::create_dir_all(d)?;
+    }
+    let mut bytes = serde_json::to_vec_pretty(entry).map_err(std::io::Error::other)?;
+    bytes.push(b'\n');
+    crate::io_util::write_atomic(&path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg() -> PipelineConfig {
+        PipelineConfig::from_toml_str(
+            crate::config::EMBEDDED_DEFAULT,
+            Path::new("pipeline.toml"),
+            Path::new(""),
+        )
+        .unwrap()
+    }
+
+    fn run(path: &Path) -> RunSpec {
+        RunSpec {
+            run: "a".into(),
+            path: path.to_path_buf(),
+            sphere_radius_mm: 4.5,
+            drop_height_cm: None,
+            fps: None,
+            mm_per_px: None,
+            surface: None,
+            sphere_density_kg_m3: None,
+        }
+    }
+
+    #[test]
+    fn fingerprint_sees_content_listing_and_time_changes() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path().join("run");
+        std::fs::create_dir(&d).unwrap();
+        for i in 0..20 {
+            std::fs::write(d.join(format!("f_{i:03}.tif")), vec![i as u8; 100]).unwrap();
+        }
+        std::fs::write(d.join("f.xml"), b"<chd/>").unwrap();
+        let a = fingerprint(&d).unwrap();
+        assert_eq!(
+            (a.files, a.size_bytes, a.kind.as_str()),
+            (21, 2006, "folder")
+        );
+        assert_eq!(a, fingerprint(&d).unwrap(), "not deterministic");
+        // Same size, other bytes, in a sampled frame (the last).
+        std::fs::write(d.join("f_019.tif"), vec![0u8; 100]).unwrap();
+        let b = fingerprint(&d).unwrap();
+        assert_ne!(a.content_sha256, b.content_sha256);
+        // A frame removed.
+        std::fs::remove_file(d.join("f_007.tif")).unwrap();
+        assert_ne!(b.content_sha256, fingerprint(&d).unwrap().content_sha256);
+
+        let cine = dir.path().join("m.cine");
+        std::fs::write(&cine, vec![7u8; 3 << 20]).unwrap();
+        let c = fingerprint(&cine).unwrap();
+        assert_eq!((c.files, c.size_bytes), (1, 3 << 20));
+        // One byte changed inside a sampled block (the 5th of 8: 1 MiB + 2 MiB·4/8).
+        let mut bytes = std::fs::read(&cine).unwrap();
+        bytes[(1 << 20) + (1 << 20) + 10] = 8;
+        std::fs::write(&cine, &bytes).unwrap();
+        assert_ne!(c.content_sha256, fingerprint(&cine).unwrap().content_sha256);
+        assert!(fingerprint(&dir.path().join("nowhere")).is_err());
+    }
+
+    #[test]
+    fn key_changes_with_configuration_run_and_input_but_not_output_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.cine");
+        std::fs::write(&p, b"CI").unwrap();
+        let fp = fingerprint(&p).unwrap();
+        let (c, r) = (cfg(), run(&p));
+        let k = key(&c, &r, &fp);
+        assert_eq!(k.len(), 64);
+        let mut c2 = c.clone();
+        c2.output.dir = PathBuf::from("elsewhere");
+        assert_eq!(k, key(&c2, &r, &fp));
+        c2.detect.contact_margin_px = 3.0;
+        assert_ne!(k, key(&c2, &r, &fp));
+        let mut r2 = r.clone();
+        r2.sphere_radius_mm = 4.0;
+        assert_ne!(k, key(&c, &r2, &fp));
+        let mut fp2 = fp.clone();
+        fp2.modified_ns += 1;
+        assert_ne!(k, key(&c, &r, &fp2));
+    }
+
+    #[test]
+    fn lookup_misses_on_other_key_missing_output_or_damage() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        std::fs::create_dir_all(out.join("tracks")).unwrap();
+        std::fs::write(out.join("tracks/a.csv"), b"frame\n").unwrap();
+        let entry = Entry {
+            schema: CACHE_SCHEMA,
+            dropscope_version: env!("CARGO_PKG_VERSION").into(),
+            key: "k1".into(),
+            input: Fingerprint {
+                path: "x".into(),
+                kind: "cine".into(),
+                size_bytes: 1,
+                files: 1,
+                modified_ns: 2,
+                content_sha256: "00".into(),
+            },
+            outputs: vec!["tracks/a.csv".into()],
+            frames: 1,
+            record: DropRecord::failed("a", 4.5, "why"),
+        };
+        store(out, &entry).unwrap();
+        assert_eq!(lookup(out, "a", "k1"), Some(entry));
+        assert_eq!(lookup(out, "a", "k2"), None);
+        assert_eq!(lookup(out, "b", "k1"), None);
+        std::fs::remove_file(out.join("tracks/a.csv")).unwrap();
+        assert_eq!(lookup(out, "a", "k1"), None);
+        std::fs::write(entry_path(out, "a"), b"{ damaged").unwrap();
+        assert_eq!(lookup(out, "a", "k1"), None);
+    }
+}

@@ -1,0 +1,176 @@
+//! What the main job shows while it runs: on a terminal, an overall bar and
+//! a spinner per run in flight (indicatif); otherwise (a log file, CI) one
+//! plain line per finished run. Either way a failed run's reason is printed
+//! when it fails, not only at the end.
+
+use crate::batch::RunEvent;
+use crate::dataset::{DropRecord, DropStatus};
+use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::collections::BTreeMap;
+use std::io::IsTerminal;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::Duration;
+
+/// Progress of one job, fed by [`RunEvent`]s from any thread.
+pub struct JobProgress {
+    bars: Option<Bars>,
+    total: AtomicUsize,
+    done: AtomicUsize,
+}
+
+struct Bars {
+    multi: MultiProgress,
+    overall: ProgressBar,
+    running: Mutex<BTreeMap<String, ProgressBar>>,
+    failed: AtomicUsize,
+    cached: AtomicUsize,
+}
+
+/// The line printed for a finished run.
+pub fn run_line(record: &DropRecord, cached: bool) -> String {
+    let from = if cached { " (cached)" } else { "" };
+    match record.status {
+        DropStatus::Failed => format!("{}: failed{from}: {}", record.run, record.reason),
+        DropStatus::Warning => format!(
+            "{}: measured{from}, with warnings: {}",
+            record.run, record.reason
+        ),
+        DropStatus::Ok => format!("{}: measured{from}", record.run),
+    }
+}
+
+impl JobProgress {
+    /// Bars when stderr is a terminal, plain lines otherwise.
+    pub fn new() -> Self {
+        Self::with_bars(std::io::stderr().is_terminal())
+    }
+
+    /// Bars (`true`) or plain lines (`false`).
+    pub fn with_bars(bars: bool) -> Self {
+        let bars = bars.then(|| {
+            let multi = MultiProgress::with_draw_target(ProgressDrawTarget::stderr());
+            let overall = multi.add(ProgressBar::new(0));
+            overall.set_style(
+                ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} runs {msg}")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar())
+                    .progress_chars("=> "),
+            );
+            Bars {
+                multi,
+                overall,
+                running: Mutex::new(BTreeMap::new()),
+                failed: AtomicUsize::new(0),
+                cached: AtomicUsize::new(0),
+            }
+        });
+        JobProgress {
+            bars,
+            total: AtomicUsize::new(0),
+            done: AtomicUsize::new(0),
+        }
+    }
+
+    /// Take one event.
+    pub fn event(&self, e: RunEvent) {
+        match e {
+            RunEvent::Planned { runs } => {
+                self.total.store(runs, Ordering::Relaxed);
+                if let Some(b) = &self.bars {
+                    b.overall.set_length(runs as u64);
+                }
+            }
+            RunEvent::Started { run } => {
+                if let Some(b) = &self.bars {
+                    let s = b.multi.add(ProgressBar::new_spinner());
+                    s.set_style(
+                        ProgressStyle::with_template("  {spinner} {msg} {elapsed}")
+                            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+                    );
+                    s.set_message(run.to_string());
+                    s.enable_steady_tick(Duration::from_millis(120));
+                    if let Ok(mut m) = b.running.lock() {
+                        m.insert(run.to_string(), s);
+                    }
+                }
+            }
+            RunEvent::Collapsing => match &self.bars {
+                None => eprintln!("collapse …"),
+                Some(b) => b.overall.set_message("collapse …"),
+            },
+            RunEvent::Finished { record, cached, .. } => {
+                let k = self.done.fetch_add(1, Ordering::Relaxed) + 1;
+                let n = self.total.load(Ordering::Relaxed);
+                match &self.bars {
+                    None => eprintln!("[{k}/{n}] {}", run_line(record, cached)),
+                    Some(b) => {
+                        if let Some(s) = b
+                            .running
+                            .lock()
+                            .ok()
+                            .and_then(|mut m| m.remove(&record.run))
+                        {
+                            s.finish_and_clear();
+                            b.multi.remove(&s);
+                        }
+                        if cached {
+                            b.cached.fetch_add(1, Ordering::Relaxed);
+                        }
+                        if record.status == DropStatus::Failed {
+                            b.failed.fetch_add(1, Ordering::Relaxed);
+                            let _ = b.multi.println(run_line(record, cached));
+                        }
+                        b.overall.set_message(format!(
+                            "({} failed, {} cached)",
+                            b.failed.load(Ordering::Relaxed),
+                            b.cached.load(Ordering::Relaxed)
+                        ));
+                        b.overall.inc(1);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Remove the bars (before the summary is printed).
+    pub fn finish(&self) {
+        if let Some(b) = &self.bars {
+            b.overall.finish_and_clear();
+            let _ = b.multi.clear();
+        }
+    }
+}
+
+impl Default for JobProgress {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_say_status_reason_and_cache() {
+        let mut r = DropRecord::failed("R3_01", 3.0, "no sphere found in 97 frames");
+        assert_eq!(
+            run_line(&r, false),
+            "R3_01: failed: no sphere found in 97 frames"
+        );
+        r.status = DropStatus::Ok;
+        assert_eq!(run_line(&r, true), "R3_01: measured (cached)");
+        // Bars off the terminal take every event without drawing.
+        let p = JobProgress::with_bars(true);
+        p.event(RunEvent::Planned { runs: 1 });
+        p.event(RunEvent::Started { run: "R3_01" });
+        p.event(RunEvent::Finished {
+            record: &r,
+            cached: false,
+            frames: 10,
+        });
+        assert_eq!(p.done.load(Ordering::Relaxed), 1);
+        assert!(p.bars.as_ref().unwrap().running.lock().unwrap().is_empty());
+        p.finish();
+    }
+}

@@ -108,7 +108,8 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     let secs = start.elapsed().as_secs_f64();
     eprintln!(
         "{} runs: {} measured, {} with warnings, {} failed, {} reused from the cache; \
-         {} frames read in {secs:.2} s ({:.0} frames/s); collapse {}; results in {}",
+         {} frames read in {secs:.2} s ({:.0} frames/s); collapse {}; results in {} \
+         (open report.html there)",
         job.records.len(),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),

@@ -190,7 +190,8 @@ fn broken_runs_get_reasons_and_the_good_ones_finish() {
 
 /// A second job reuses every run; touching one input reprocesses only that
 /// run; another configuration or `--force` reprocesses all; the outputs of
-/// a cached and a forced job are byte-identical to the first job's.
+/// a cached and a forced job are byte-identical to the first job's; a run
+/// that fails later leaves none of its earlier files.
 #[test]
 fn unchanged_runs_come_from_the_cache_and_changes_are_seen() {
     let dir = tempfile::tempdir().unwrap();
@@ -246,6 +247,31 @@ fn unchanged_runs_come_from_the_cache_and_changes_are_seen() {
         let keyed = rel == "provenance.json" || rel.ends_with("r3.json");
         assert_eq!(bytes == &b[rel], !keyed, "{rel}");
     }
+
+    // A run that now fails leaves none of its earlier files behind.
+    let out = d.join("out");
+    for rel in [
+        "tracks/r7.csv",
+        "plots/overlays/r7.png",
+        "plots/drops/r7.svg",
+    ] {
+        assert!(out.join(rel).is_file(), "{rel}");
+    }
+    std::fs::write(
+        d.join("runs.csv"),
+        "run,path,sphere_radius_mm\nr3,r3,3\nr7,nowhere,7\n",
+    )
+    .unwrap();
+    let o = run(&cfg, &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    for rel in [
+        "tracks/r7.csv",
+        "plots/overlays/r7.png",
+        "plots/drops/r7.svg",
+    ] {
+        assert!(!out.join(rel).exists(), "{rel} survived");
+    }
+    assert!(out.join("plots/drops/r3.svg").is_file());
 }
 
 fn copy_tree(from: &Path, to: &Path) {

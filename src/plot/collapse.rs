@@ -14,7 +14,7 @@ use super::layout::{
     free_corner, guide_lines, legend_box, log_ticks, normalised, range, with_band, Guide, Pt,
 };
 use super::marker::{radius_style, Marker, MarkerKind};
-use super::{render, tick, DrawResult};
+use super::{axis_tick, render, tick, DrawResult};
 use crate::collapse::fit::{self, ExponentFit, Fits, SeriesFit};
 use crate::collapse::groups::{DropGroups, Quantity};
 use crate::collapse::CollapseError;
@@ -572,8 +572,8 @@ where
         &mut chart,
         "Ξ = ξ φ^(1/6) κ^(−1/6) η^(−1/6)",
         y_desc,
-        &|v| tick(*v),
-        &|v| tick(*v),
+        &|v| axis_tick(*v, xr[1] - xr[0]),
+        &|v| axis_tick(*v, yr[1] - yr[0]),
     )?;
     chart
         .draw_series(DashedLineSeries::new(

@@ -5,7 +5,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{file_stem, render, tick, DrawResult};
+use super::{axis_tick, file_stem, render, tick, DrawResult};
 use crate::collapse::diagnostics::DropDiagnostics;
 use crate::collapse::CollapseError;
 
@@ -105,8 +105,8 @@ where
         .y_desc("centre row z (px, downward)")
         .axis_desc_style(desc)
         .label_style(label)
-        .x_label_formatter(&|v| tick(*v))
-        .y_label_formatter(&|v| tick(*v))
+        .x_label_formatter(&|v| axis_tick(*v, t_range[1] - t_range[0]))
+        .y_label_formatter(&|v| axis_tick(*v, zr[1] - zr[0]))
         .light_line_style(RGBColor(238, 238, 238))
         .draw()?;
     c.draw_series(
@@ -162,8 +162,8 @@ where
         .y_desc("penetration δ (mm)")
         .axis_desc_style(desc)
         .label_style(label)
-        .x_label_formatter(&|v| tick(*v))
-        .y_label_formatter(&|v| tick(*v))
+        .x_label_formatter(&|v| axis_tick(*v, t_range[1] - t_range[0]))
+        .y_label_formatter(&|v| axis_tick(*v, dr[1] - dr[0]))
         .light_line_style(RGBColor(238, 238, 238))
         .draw()?;
     c.draw_series(LineSeries::new(
@@ -200,8 +200,8 @@ where
         .y_desc("contact force F (N)")
         .axis_desc_style(desc)
         .label_style(label)
-        .x_label_formatter(&|v| tick(*v))
-        .y_label_formatter(&|v| tick(*v))
+        .x_label_formatter(&|v| axis_tick(*v, xr[1] - xr[0]))
+        .y_label_formatter(&|v| axis_tick(*v, fr[1] - fr[0]))
         .light_line_style(RGBColor(238, 238, 238))
         .draw()?;
     c.draw_series(

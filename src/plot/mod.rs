@@ -123,6 +123,30 @@ pub(crate) fn tick(v: f64) -> String {
     }
 }
 
+/// A tick label on a linear axis spanning `span`: as many decimals as a
+/// twentieth of the span needs (ticks are about a tenth apart; the factor 2
+/// is to spare), so neighbouring ticks never print alike (3 significant
+/// digits gave "1.22, 1.22" on a Ψ axis from 1.215 to 1.262); trailing
+/// zeros dropped.
+pub(crate) fn axis_tick(v: f64, span: f64) -> String {
+    let a = v.abs();
+    if !(span.is_finite() && span > 0.0) || a >= 1e4 || (a < 1e-3 && a > span * 1e-6) {
+        return tick(v);
+    }
+    let decimals = (-(span / 20.0).log10()).ceil().clamp(0.0, 8.0) as usize;
+    let s = format!("{v:.decimals$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" {
+        "0".into()
+    } else {
+        s
+    }
+}
+
 /// A run name made safe as a file name (path separators and the like → `_`).
 pub fn file_stem(run: &str) -> String {
     let s: String = run
@@ -154,6 +178,20 @@ mod tests {
         assert_eq!(tick(1.25), "1.25");
         assert_eq!(tick(100.0), "100");
         assert_eq!(tick(1e-5), "1e-5");
+    }
+
+    #[test]
+    fn axis_ticks_never_repeat_on_a_narrow_axis() {
+        let labels: Vec<String> = (0..10)
+            .map(|k| axis_tick(1.215 + 0.005 * f64::from(k), 0.047))
+            .collect();
+        assert_eq!(labels[..3], ["1.215", "1.22", "1.225"]);
+        let mut unique = labels.clone();
+        unique.dedup();
+        assert_eq!(unique.len(), labels.len(), "{labels:?}");
+        assert_eq!(axis_tick(40.0, 120.0), "40");
+        assert_eq!(axis_tick(-1e-17, 0.5), "0");
+        assert_eq!(axis_tick(0.25, 1.0), "0.25");
     }
 
     #[test]

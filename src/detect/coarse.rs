@@ -97,12 +97,20 @@ pub fn detect_coarse(
     };
     scratch.labels.clear();
     scratch.labels.resize(h * w, 0);
+    // Row by row, branch-free: dark (g·B − I > threshold·g·B) and above
+    // the line (z < row0 − margin + slope·x).
+    let (line0, slope) = surface.map_or((f64::INFINITY, 0.0), |s| {
+        (s.row0_px - params.surface_margin_px, s.slope)
+    });
     for i in 0..h {
-        for j in 0..w {
-            let (d, thr) = darkening(i, j);
-            if d > thr && searchable(i, j) {
-                scratch.labels[i * w + j] = 1;
-            }
+        let z = (band.row0 + i) as f64;
+        let row = &band.data[i * w..][..w];
+        let bg_row = &bg.levels[(band.row0 + i) * bg.width..][..w];
+        let labels = &mut scratch.labels[i * w..][..w];
+        for (j, ((l, &v), &b)) in labels.iter_mut().zip(row).zip(bg_row).enumerate() {
+            let gb = gain * b as f64;
+            let dark = gb - v as f64 > params.threshold * gb;
+            *l = (dark && z < line0 + slope * j as f64) as u32;
         }
     }
     // Label 4-connected groups; keep the largest.
@@ -201,6 +209,112 @@ pub fn detect_coarse(
         touches_top,
         boundary_points: scratch.points.len(),
     }))
+}
+
+/// A background binned 2×2, for [`BinnedBackground::detect`]: a coarse
+/// search of whole frames on a quarter of the pixels. Binned pixel `(i, j)`
+/// is the mean of full pixels `2i..2i+2 × 2j..2j+2`, centred at full
+/// coordinates `(2j + ½, 2i + ½)`; circles and lines map back with
+/// `X = 2x + ½`, `R = 2r`. The coarse circle comes back to within about a
+/// pixel, which the sub-pixel measurement's re-centring absorbs.
+#[derive(Debug, Clone)]
+pub struct BinnedBackground {
+    binned: Background,
+    /// The binned frame of the last call.
+    frame: Vec<u16>,
+}
+
+impl BinnedBackground {
+    /// Bin `bg` (an odd last row or column is dropped).
+    pub fn new(bg: &Background) -> Self {
+        let (wb, hb) = (bg.width / 2, bg.height / 2);
+        let mut levels = Vec::with_capacity(wb * hb);
+        for i in 0..hb {
+            let a = &bg.levels[2 * i * bg.width..][..2 * wb];
+            let b = &bg.levels[(2 * i + 1) * bg.width..][..2 * wb];
+            levels.extend(
+                a.chunks_exact(2)
+                    .zip(b.chunks_exact(2))
+                    .map(|(p, q)| 0.25 * (p[0] + p[1] + q[0] + q[1])),
+            );
+        }
+        BinnedBackground {
+            binned: Background {
+                width: wb,
+                height: hb,
+                levels,
+                region: bg.region,
+                gains: Vec::new(),
+            },
+            frame: Vec::with_capacity(wb * hb),
+        }
+    }
+
+    /// [`detect_coarse`] on `frame` (a whole frame, row-major, of the
+    /// background's full size) binned 2×2, with `params.min_area_px` and
+    /// `surface_margin_px` scaled to binned pixels; the circle in full
+    /// frame pixels.
+    pub fn detect(
+        &mut self,
+        frame: &[u16],
+        gain: f64,
+        surface: Option<&SurfaceLine>,
+        params: &CoarseParams,
+        scratch: &mut CoarseScratch,
+    ) -> Result<Option<Coarse>, DetectError> {
+        let (wb, hb) = (self.binned.width, self.binned.height);
+        let w = frame.len() / (2 * hb).max(1);
+        if w / 2 != wb || frame.len() < 2 * hb * w {
+            return Err(DetectError::ShapeMismatch {
+                width: w,
+                height: frame.len() / w.max(1),
+                bg_width: 2 * wb,
+                bg_height: 2 * hb,
+            });
+        }
+        self.frame.clear();
+        for i in 0..hb {
+            let a = &frame[2 * i * w..][..2 * wb];
+            let b = &frame[(2 * i + 1) * w..][..2 * wb];
+            self.frame
+                .extend(a.chunks_exact(2).zip(b.chunks_exact(2)).map(|(p, q)| {
+                    ((p[0] as u32 + p[1] as u32 + q[0] as u32 + q[1] as u32 + 2) / 4) as u16
+                }));
+        }
+        // Full row Z = 2z + ½ on the line Z = a + b·X, X = 2x + ½.
+        let line = surface.map(|s| SurfaceLine {
+            row0_px: 0.5 * (s.row0_px + 0.5 * s.slope - 0.5),
+            ..*s
+        });
+        let binned_params = CoarseParams {
+            min_area_px: params.min_area_px.div_ceil(4),
+            surface_margin_px: 0.5 * params.surface_margin_px,
+            ..*params
+        };
+        let band = Band {
+            data: &self.frame,
+            row0: 0,
+            nrows: hb,
+            width: wb,
+        };
+        let found = detect_coarse(
+            &band,
+            &self.binned,
+            gain,
+            line.as_ref(),
+            &binned_params,
+            scratch,
+        )?;
+        Ok(found.map(|c| Coarse {
+            circle: Circle {
+                x_px: 2.0 * c.circle.x_px + 0.5,
+                z_px: 2.0 * c.circle.z_px + 0.5,
+                r_px: 2.0 * c.circle.r_px,
+            },
+            area_px: 4 * c.area_px,
+            ..c
+        }))
+    }
 }
 
 /// The first of `frames` (with its index) in which [`detect_coarse`] finds

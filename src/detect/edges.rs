@@ -150,6 +150,8 @@ pub struct EdgeScratch {
     pub radial_sigma_px: f64,
     /// The circle fit's buffers.
     pub fit: FitScratch,
+    /// The circle the normals of the last call were centred on.
+    pub centre: Circle,
 }
 
 /// Sub-pixel edge points around `predicted` in `band` (see the module doc).
@@ -177,6 +179,7 @@ pub fn edge_points<'s>(
     let w = params.half_window;
     let m = 2 * w + 1;
     let (cx, cz, r) = (predicted.x_px, predicted.z_px, predicted.r_px);
+    scratch.centre = *predicted;
     scratch.points.clear();
     scratch.normals.clear();
     scratch.levels.clear();

@@ -9,6 +9,9 @@
 //! `I_f / g_f` over the first frames, normalised so that `g = 1` on the first
 //! frame; the median resists a frame or two with a passing speck.
 
+use super::circle::Circle;
+use super::coarse;
+use super::surface::SurfaceLine;
 use super::{Band, DetectError};
 
 /// The median of a non-empty slice (the mean of the two middle values for an
@@ -110,10 +113,11 @@ impl Background {
     ///    taken over every 4th pixel) are filled along their row;
     /// 2. in each frame, the sphere's coarse circle against that maximum
     ///    ([`super::coarse::detect_coarse`], above a preliminary surface
-    ///    line fitted to it), found on the frame and the maximum binned 2×2
-    ///    (a quarter of the pixels; the circle comes back to within a pixel,
-    ///    well inside the pad); the pixels within `r + pad_px` of it are
-    ///    "covered" in that frame;
+    ///    line fitted to it); the pixels within `r + pad_px` of it are
+    ///    "covered" in that frame. Passes 1 and 2 only need circles to
+    ///    about a pixel (the pad is 6 px), so for frames of at least
+    ///    128 × 128 px they run on the frames binned 2×2
+    ///    ([`super::coarse::bin_frame`]): a quarter of the pixels;
     /// 3. the per-pixel median of `I_f / g_f` over the frames in which the
     ///    pixel is not covered: each row of every frame is scaled by `1/g_f`,
     ///    its covered run (one interval per frame and row) set to +∞, the
@@ -144,46 +148,39 @@ impl Background {
             .map(|f| f.as_slice().ok_or(DetectError::NotContiguous))
             .collect::<Result<_, _>>()?;
         let inv: Vec<f32> = gains.iter().map(|g| (1.0 / g) as f32).collect();
-        // Pass 1: the maximum.
-        let mut max = vec![0f32; w * h];
-        for (d, &ig) in data.iter().zip(&inv) {
-            for (m, &v) in max.iter_mut().zip(d.iter()) {
-                let q = v as f32 * ig;
-                *m = if q > *m { q } else { *m };
-            }
-        }
-        // Pixels the sphere covers in every frame stay dark in the maximum:
-        // those below half their row's 90th percentile are refilled along
-        // the row, so that the sphere is darker than this background in
-        // every frame, whole.
-        let mut sorted = Vec::with_capacity(w.div_ceil(4));
-        for row in max.chunks_exact_mut(w) {
-            sorted.clear();
-            sorted.extend(row.iter().step_by(4).copied());
-            let len = sorted.len();
-            let p90 = *sorted
-                .select_nth_unstable_by((len * 9 / 10).min(len - 1), f32::total_cmp)
-                .1;
-            for v in row.iter_mut() {
-                if *v < 0.5 * p90 {
-                    *v = f32::NAN;
-                }
-            }
-            fill_row(row);
-        }
+        // Passes 1 and 2 on the frames binned 2×2 when they are large
+        // enough (a quarter of the pixels; the circles come back to within
+        // a pixel, well inside the pad).
+        let (circles, surface) = if w >= 128 && h >= 128 {
+            let (wb, hb) = (w / 2, h / 2);
+            let binned: Vec<Vec<u16>> = data
+                .iter()
+                .map(|d| {
+                    let mut out = Vec::with_capacity(wb * hb);
+                    coarse::bin_frame(d, w, wb, hb, &mut out);
+                    out
+                })
+                .collect();
+            let views: Vec<&[u16]> = binned.iter().map(|b| b.as_slice()).collect();
+            let params = coarse::binned_params(coarse);
+            let (circles, line) = coarse_pass(&views, wb, hb, &gains, region, &params)?;
+            (
+                circles
+                    .iter()
+                    .map(|c| c.as_ref().map(coarse::from_binned_circle))
+                    .collect(),
+                line.as_ref().map(coarse::from_binned_line),
+            )
+        } else {
+            coarse_pass(&data, w, h, &gains, region, coarse)?
+        };
         let mut bg = Background {
             width: w,
             height: h,
-            levels: max,
+            levels: Vec::new(),
             region,
             gains,
         };
-        // Pass 2: coarse circles, from their outline above a preliminary
-        // surface line (below it the pillars hide the sphere, and the
-        // mask's flat bottom there is no edge of the sphere).
-        let surface =
-            super::surface::fit_surface(&bg, &super::surface::SurfaceParams::default()).ok();
-        let circles = coarse_circles(&data, &bg, surface.as_ref(), coarse)?;
         // Pass 3: per-pixel median over uncovered frames; pixels never
         // uncovered get a smooth model of the light (below).
         let mut levels = vec![f32::NAN; w * h];
@@ -461,37 +458,68 @@ fn batcher_pairs(n: usize) -> Vec<(usize, usize)> {
     pairs
 }
 
-/// The coarse circle of the sphere in each frame (see
-/// [`Background::from_frames_with_sphere`], pass 2), searched on the frames
-/// and `bg` binned 2×2 ([`super::coarse::BinnedBackground`]) when both
-/// sides are at least 128 px, else at full resolution.
-fn coarse_circles(
+/// Passes 1 and 2 of [`Background::from_frames_with_sphere`] on frames
+/// `w × h` (row-major): the per-pixel maximum of `I_f/g_f` (pixels darker
+/// than half their row's 90th percentile, taken over every 4th pixel,
+/// refilled along the row), a preliminary surface line fitted to it, and
+/// each frame's coarse circle against it above that line — all in these
+/// frames' pixels.
+#[allow(clippy::type_complexity)]
+fn coarse_pass(
     data: &[&[u16]],
-    bg: &Background,
-    surface: Option<&super::surface::SurfaceLine>,
-    coarse: &super::coarse::CoarseParams,
-) -> Result<Vec<Option<super::circle::Circle>>, DetectError> {
-    let (w, h) = (bg.width, bg.height);
-    let mut scratch = super::coarse::CoarseScratch::default();
-    let mut binned = (w >= 128 && h >= 128).then(|| super::coarse::BinnedBackground::new(bg));
-    data.iter()
-        .zip(&bg.gains)
+    w: usize,
+    h: usize,
+    gains: &[f64],
+    region: GainRegion,
+    params: &coarse::CoarseParams,
+) -> Result<(Vec<Option<Circle>>, Option<SurfaceLine>), DetectError> {
+    let mut max = vec![0f32; w * h];
+    for (d, &g) in data.iter().zip(gains) {
+        let ig = (1.0 / g) as f32;
+        for (m, &v) in max.iter_mut().zip(d.iter()) {
+            let q = v as f32 * ig;
+            *m = if q > *m { q } else { *m };
+        }
+    }
+    let mut sorted = Vec::with_capacity(w.div_ceil(4));
+    for row in max.chunks_exact_mut(w) {
+        sorted.clear();
+        sorted.extend(row.iter().step_by(4).copied());
+        let len = sorted.len();
+        let p90 = *sorted
+            .select_nth_unstable_by((len * 9 / 10).min(len - 1), f32::total_cmp)
+            .1;
+        for v in row.iter_mut() {
+            if *v < 0.5 * p90 {
+                *v = f32::NAN;
+            }
+        }
+        fill_row(row);
+    }
+    let bg = Background {
+        width: w,
+        height: h,
+        levels: max,
+        region,
+        gains: gains.to_vec(),
+    };
+    let surface = super::surface::fit_surface(&bg, &super::surface::SurfaceParams::default()).ok();
+    let mut scratch = coarse::CoarseScratch::default();
+    let circles = data
+        .iter()
+        .zip(gains)
         .map(|(d, &g)| {
-            let found = match binned.as_mut() {
-                Some(b) => b.detect(d, g, surface, coarse, &mut scratch)?,
-                None => {
-                    let band = Band {
-                        data: d,
-                        row0: 0,
-                        nrows: h,
-                        width: w,
-                    };
-                    super::coarse::detect_coarse(&band, bg, g, surface, coarse, &mut scratch)?
-                }
+            let band = Band {
+                data: d,
+                row0: 0,
+                nrows: h,
+                width: w,
             };
-            Ok(found.map(|c| c.circle))
+            let c = coarse::detect_coarse(&band, &bg, g, surface.as_ref(), params, &mut scratch)?;
+            Ok(c.map(|c| c.circle))
         })
-        .collect()
+        .collect::<Result<_, DetectError>>()?;
+    Ok((circles, surface))
 }
 
 /// "Above the line by `margin`", true without a line.

@@ -61,6 +61,8 @@ pub struct CoarseScratch {
     /// Per pixel: 0 background, 1 dark, 2.. group label.
     labels: Vec<u32>,
     stack: Vec<usize>,
+    /// Per column, the surface line's row minus the margin.
+    limits: Vec<f32>,
     points: Vec<EdgePoint>,
     fit: FitScratch,
 }
@@ -97,24 +99,29 @@ pub fn detect_coarse(
     };
     scratch.labels.clear();
     scratch.labels.resize(h * w, 0);
-    // Row by row, branch-free: dark (g·B − I > threshold·g·B) and above
-    // the line (z < row0 − margin + slope·x).
-    let (line0, slope) = surface.map_or((f64::INFINITY, 0.0), |s| {
-        (s.row0_px - params.surface_margin_px, s.slope)
-    });
+    // Row by row, branch-free (f32, four pixels at a time): dark
+    // (I < (1 − threshold)·g·B) and above the line minus the margin, whose
+    // row at each column is computed once.
+    scratch.limits.clear();
+    scratch.limits.extend((0..w).map(|j| match surface {
+        Some(s) => (s.row_at(j as f64) - params.surface_margin_px) as f32,
+        None => f32::INFINITY,
+    }));
+    let level = ((1.0 - params.threshold) * gain) as f32;
     for i in 0..h {
-        let z = (band.row0 + i) as f64;
+        let z = (band.row0 + i) as f32;
         let row = &band.data[i * w..][..w];
         let bg_row = &bg.levels[(band.row0 + i) * bg.width..][..w];
         let labels = &mut scratch.labels[i * w..][..w];
-        for (j, ((l, &v), &b)) in labels.iter_mut().zip(row).zip(bg_row).enumerate() {
-            let gb = gain * b as f64;
-            let dark = gb - v as f64 > params.threshold * gb;
-            *l = (dark && z < line0 + slope * j as f64) as u32;
+        let limits = &scratch.limits[..w];
+        for j in 0..w {
+            let dark = (row[j] as f32) < level * bg_row[j];
+            labels[j] = (dark & (z < limits[j])) as u32;
         }
     }
     // Label 4-connected groups; keep the largest.
-    let mut best = (0u32, 0usize);
+    // (label, size, first row, last row) of the largest group.
+    let mut best = (0u32, 0usize, 0usize, 0usize);
     let mut next = 2u32;
     for start in 0..h * w {
         if scratch.labels[start] != 1 {
@@ -123,12 +130,15 @@ pub fn detect_coarse(
         let label = next;
         next += 1;
         let mut size = 0;
+        let (mut top, mut bottom) = (h, 0);
         scratch.stack.clear();
         scratch.stack.push(start);
         scratch.labels[start] = label;
         while let Some(k) = scratch.stack.pop() {
             size += 1;
             let (i, j) = (k / w, k % w);
+            top = top.min(i);
+            bottom = bottom.max(i);
             let mut visit = |kk: usize| {
                 if scratch.labels[kk] == 1 {
                     scratch.labels[kk] = label;
@@ -149,17 +159,17 @@ pub fn detect_coarse(
             }
         }
         if size > best.1 {
-            best = (label, size);
+            best = (label, size, top, bottom);
         }
     }
-    let (label, area) = best;
+    let (label, area, top, bottom) = best;
     if area < params.min_area_px.max(1) {
         return Ok(None);
     }
     // Outline points at the threshold crossing towards each outside neighbour.
     scratch.points.clear();
     let mut touches_top = false;
-    for i in 0..h {
+    for i in top..=bottom {
         for j in 0..w {
             if scratch.labels[i * w + j] != label {
                 continue;
@@ -212,11 +222,9 @@ pub fn detect_coarse(
 }
 
 /// A background binned 2×2, for [`BinnedBackground::detect`]: a coarse
-/// search of whole frames on a quarter of the pixels. Binned pixel `(i, j)`
-/// is the mean of full pixels `2i..2i+2 × 2j..2j+2`, centred at full
-/// coordinates `(2j + ½, 2i + ½)`; circles and lines map back with
-/// `X = 2x + ½`, `R = 2r`. The coarse circle comes back to within about a
-/// pixel, which the sub-pixel measurement's re-centring absorbs.
+/// search of whole frames on a quarter of the pixels (see [`bin_frame`] for
+/// the geometry). The coarse circle comes back to within about a pixel,
+/// which the sub-pixel measurement's re-centring absorbs.
 #[derive(Debug, Clone)]
 pub struct BinnedBackground {
     binned: Background,
@@ -251,9 +259,8 @@ impl BinnedBackground {
     }
 
     /// [`detect_coarse`] on `frame` (a whole frame, row-major, of the
-    /// background's full size) binned 2×2, with `params.min_area_px` and
-    /// `surface_margin_px` scaled to binned pixels; the circle in full
-    /// frame pixels.
+    /// background's full size) binned 2×2, with the parameters of
+    /// [`binned_params`]; the circle in full frame pixels.
     pub fn detect(
         &mut self,
         frame: &[u16],
@@ -272,48 +279,76 @@ impl BinnedBackground {
                 bg_height: 2 * hb,
             });
         }
-        self.frame.clear();
-        for i in 0..hb {
-            let a = &frame[2 * i * w..][..2 * wb];
-            let b = &frame[(2 * i + 1) * w..][..2 * wb];
-            self.frame
-                .extend(a.chunks_exact(2).zip(b.chunks_exact(2)).map(|(p, q)| {
-                    ((p[0] as u32 + p[1] as u32 + q[0] as u32 + q[1] as u32 + 2) / 4) as u16
-                }));
-        }
-        // Full row Z = 2z + ½ on the line Z = a + b·X, X = 2x + ½.
-        let line = surface.map(|s| SurfaceLine {
-            row0_px: 0.5 * (s.row0_px + 0.5 * s.slope - 0.5),
-            ..*s
-        });
-        let binned_params = CoarseParams {
-            min_area_px: params.min_area_px.div_ceil(4),
-            surface_margin_px: 0.5 * params.surface_margin_px,
-            ..*params
-        };
+        bin_frame(frame, w, wb, hb, &mut self.frame);
         let band = Band {
             data: &self.frame,
             row0: 0,
             nrows: hb,
             width: wb,
         };
+        let line = surface.map(to_binned_line);
         let found = detect_coarse(
             &band,
             &self.binned,
             gain,
             line.as_ref(),
-            &binned_params,
+            &binned_params(params),
             scratch,
         )?;
         Ok(found.map(|c| Coarse {
-            circle: Circle {
-                x_px: 2.0 * c.circle.x_px + 0.5,
-                z_px: 2.0 * c.circle.z_px + 0.5,
-                r_px: 2.0 * c.circle.r_px,
-            },
+            circle: from_binned_circle(&c.circle),
             area_px: 4 * c.area_px,
             ..c
         }))
+    }
+}
+
+/// Bin a row-major frame `w` columns wide 2×2 into `out` (`hb` rows of
+/// `wb` columns; an odd last row or column is dropped): binned pixel
+/// `(i, j)` is the rounded mean of full pixels `2i..2i+2 × 2j..2j+2`, centred
+/// at full coordinates `(X, Z) = (2j + ½, 2i + ½)`.
+pub fn bin_frame(frame: &[u16], w: usize, wb: usize, hb: usize, out: &mut Vec<u16>) {
+    out.clear();
+    for i in 0..hb {
+        let a = &frame[2 * i * w..][..2 * wb];
+        let b = &frame[(2 * i + 1) * w..][..2 * wb];
+        out.extend(a.chunks_exact(2).zip(b.chunks_exact(2)).map(|(p, q)| {
+            ((p[0] as u32 + p[1] as u32 + q[0] as u32 + q[1] as u32 + 2) / 4) as u16
+        }));
+    }
+}
+
+/// `params` in binned pixels: a quarter of the area, half the margin.
+pub fn binned_params(params: &CoarseParams) -> CoarseParams {
+    CoarseParams {
+        min_area_px: params.min_area_px.div_ceil(4),
+        surface_margin_px: 0.5 * params.surface_margin_px,
+        ..*params
+    }
+}
+
+/// A full-frame line `Z = a + b·X` in binned pixels (`X = 2x + ½`, `Z = 2z + ½`).
+pub fn to_binned_line(s: &SurfaceLine) -> SurfaceLine {
+    SurfaceLine {
+        row0_px: 0.5 * (s.row0_px + 0.5 * s.slope - 0.5),
+        ..*s
+    }
+}
+
+/// A binned line back in full-frame pixels (the inverse of [`to_binned_line`]).
+pub fn from_binned_line(s: &SurfaceLine) -> SurfaceLine {
+    SurfaceLine {
+        row0_px: 2.0 * s.row0_px + 0.5 - 0.5 * s.slope,
+        ..*s
+    }
+}
+
+/// A binned circle in full-frame pixels.
+pub fn from_binned_circle(c: &Circle) -> Circle {
+    Circle {
+        x_px: 2.0 * c.x_px + 0.5,
+        z_px: 2.0 * c.z_px + 0.5,
+        r_px: 2.0 * c.r_px,
     }
 }
 

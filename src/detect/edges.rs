@@ -237,27 +237,31 @@ pub fn edge_points<'s>(
         let mut xf = (xa * FIX) as i64;
         let mut zf = (z0 * FIX) as i64;
         let (dxf, dzf) = ((c * FIX) as i64, (s * FIX) as i64);
-        let mut qt = 0.0;
-        let mut q_in = 0.0;
-        let mut q_out = 0.0;
+        // Σ q_j t_j = Σ I_j (ia + j·di)(t0 + j)
+        //           = ia·t0·S0 + (ia + di·t0)·S1 + di·S2,  S_k = Σ j^k I_j:
+        // three independent sums of the samples, the weights applied once.
+        let (mut s0, mut s1, mut s2) = (0.0f64, 0.0f64, 0.0f64);
+        let mut v_first = 0.0;
+        let mut v_last = 0.0;
         for j in 0..m {
             let jf = j as f64;
             let v = lerp_fixed(band.data, band.width, xf, zf) as f64;
             xf += dxf;
             zf += dzf;
-            let q = v * (ia + jf * di);
-            qt += q * (t0 + jf);
+            s0 += v;
+            s1 += v * jf;
+            s2 += v * jf * jf;
             if j == 0 {
-                q_in = q;
+                v_first = v;
             }
-            q_out = q;
+            v_last = v;
         }
         scratch.normals.push(NormalSums {
             c,
             s,
-            qt,
-            q_in,
-            q_out,
+            qt: ia * t0 * s0 + (ia + di * t0) * s1 + di * s2,
+            q_in: v_first * ia,
+            q_out: v_last * (ia + last_j * di),
         });
     }
     if scratch.normals.is_empty() {

@@ -13,7 +13,9 @@
 //! entering through the top, only partly visible, is fitted on its visible
 //! arc. The coarse circle is accurate to a fraction of a pixel (the
 //! threshold is not at half contrast); [`super::edges::measure_circle`]
-//! refines it.
+//! refines it. [`BinnedBackground`] runs the same search on whole frames
+//! binned 2×2 (a quarter of the pixels, the circle to about a pixel), for
+//! the tracker's searches and the background's masks.
 
 use super::background::Background;
 use super::circle::{fit_circle, Circle, FitOptions, FitScratch};

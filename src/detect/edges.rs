@@ -31,8 +31,9 @@
 //! needs) plus `O(e σ²/R²)`, negligible after one refinement pass.
 //!
 //! Because `P` enters linearly, the sum is accumulated while sampling:
-//! `Σ P_j t_j = (Σ t_j − Σ q_j t_j)/(1 − τ)` with `q_j = I_j/(g·B_j)`, so no
-//! sample is stored. Because the estimator integrates the profile instead of
+//! `Σ P_j t_j = (Σ t_j − Σ q_j t_j)/(1 − τ)` with `q_j = I_j/(g·B_j)`, and
+//! with `1/(g·B_j) = i_a + j·d` linear, `Σ q_j t_j` is a combination of the
+//! three sample moments `Σ I_j`, `Σ j I_j`, `Σ j² I_j`: no sample is stored. Because the estimator integrates the profile instead of
 //! locating a peak between samples, it has no pixel locking for an
 //! axis-aligned edge (a sum of linearly interpolated samples at unit spacing
 //! does not depend on their phase); the residual phase structure for oblique

@@ -371,3 +371,63 @@ pub fn first_appearance<'a>(
     }
     Ok(None)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::synth::Scene;
+
+    fn scene(disk: (f64, f64, f64)) -> Scene {
+        Scene {
+            width: 256,
+            height: 192,
+            background: 200.0,
+            vignetting: 0.1,
+            sphere_transmission: 0.2,
+            disk: Some(disk),
+            band: None,
+            blur_px: 1.0,
+        }
+    }
+
+    #[test]
+    fn the_binned_search_finds_the_circle_to_a_pixel_also_entering_at_the_top() {
+        let empty = Scene {
+            disk: None,
+            ..scene((0.0, 0.0, 1.0))
+        }
+        .render()
+        .mapv(|v| v.round() as u16);
+        let views = [empty.view()];
+        let bg = Background::from_frames(&views, Default::default()).unwrap();
+        let mut binned = BinnedBackground::new(&bg);
+        let mut scratch = CoarseScratch::default();
+        // Whole, and entering through the top (centre above the frame).
+        for disk in [(101.37, 80.62, 40.0), (140.8, -15.3, 45.0)] {
+            let frame = scene(disk).render().mapv(|v| v.round() as u16);
+            let c = binned
+                .detect(
+                    frame.as_slice().unwrap(),
+                    1.0,
+                    None,
+                    &CoarseParams::default(),
+                    &mut scratch,
+                )
+                .unwrap()
+                .expect("a sphere")
+                .circle;
+            // The threshold sits at 30 % darkening, not at half contrast,
+            // and the 2×2 bins widen the blur: the outline lies outside the
+            // edge (measured +0.4 px on the radius), evenly around it, so
+            // the centre is off by little (measured ≤ 0.02 px). Bounds: the
+            // centre to 0.1 px, the radius to 1 px (the tracker's
+            // measurement re-centres; the background's mask pads by 6 px).
+            let err = [c.x_px - disk.0, c.z_px - disk.1, c.r_px - disk.2];
+            println!("{disk:?}: error (x, z, r) {err:.3?} px");
+            assert!(
+                err[0].abs() < 0.1 && err[1].abs() < 0.1 && err[2].abs() < 1.0,
+                "{disk:?}: {c:?}"
+            );
+        }
+    }
+}

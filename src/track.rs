@@ -164,7 +164,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
             let gain = bg.gain(&band).map_err(|e| detect_err(number, e))?.gain;
             let found = if anything_dark(&buf, &bg, gain, &surface) {
                 match binned.as_mut() {
-                    Some(b) => b.detect(band.data, gain, Some(&surface), &st.coarse, &mut cs),
+                    Some(b) => b.detect(&band, gain, Some(&surface), &st.coarse, &mut cs),
                     None => detect_coarse(&band, &bg, gain, Some(&surface), &st.coarse, &mut cs),
                 }
                 .map_err(|e| detect_err(number, e))?

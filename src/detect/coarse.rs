@@ -260,28 +260,27 @@ impl BinnedBackground {
         }
     }
 
-    /// [`detect_coarse`] on `frame` (a whole frame, row-major, of the
+    /// [`detect_coarse`] on `frame` (a whole frame: `row0` 0, the
     /// background's full size) binned 2×2, with the parameters of
     /// [`binned_params`]; the circle in full frame pixels.
     pub fn detect(
         &mut self,
-        frame: &[u16],
+        frame: &Band,
         gain: f64,
         surface: Option<&SurfaceLine>,
         params: &CoarseParams,
         scratch: &mut CoarseScratch,
     ) -> Result<Option<Coarse>, DetectError> {
         let (wb, hb) = (self.binned.width, self.binned.height);
-        let w = frame.len() / (2 * hb).max(1);
-        if w / 2 != wb || frame.len() < 2 * hb * w {
+        if frame.row0 != 0 || frame.width / 2 != wb || frame.nrows / 2 != hb {
             return Err(DetectError::ShapeMismatch {
-                width: w,
-                height: frame.len() / w.max(1),
+                width: frame.width,
+                height: frame.row0 + frame.nrows,
                 bg_width: 2 * wb,
                 bg_height: 2 * hb,
             });
         }
-        bin_frame(frame, w, wb, hb, &mut self.frame);
+        bin_frame(frame.data, frame.width, wb, hb, &mut self.frame);
         let band = Band {
             data: &self.frame,
             row0: 0,
@@ -407,7 +406,7 @@ mod tests {
             let frame = scene(disk).render().mapv(|v| v.round() as u16);
             let c = binned
                 .detect(
-                    frame.as_slice().unwrap(),
+                    &Band::new(frame.view(), 0).unwrap(),
                     1.0,
                     None,
                     &CoarseParams::default(),

@@ -125,7 +125,17 @@ pub fn detect_coarse(
     // (label, size, first row, last row) of the largest group.
     let mut best = (0u32, 0usize, 0usize, 0usize);
     let mut next = 2u32;
-    for start in 0..h * w {
+    let n = h * w;
+    let mut start = 0;
+    while start < n {
+        // Skip 16 pixels at a time where no new group starts (most of
+        // the frame), then one at a time.
+        if start + 16 <= n && !scratch.labels[start..start + 16].contains(&1) {
+            start += 16;
+            continue;
+        }
+        start += 1;
+        let start = start - 1;
         if scratch.labels[start] != 1 {
             continue;
         }

@@ -22,6 +22,9 @@
 //!
 //! Rates are given by the wall clock (the machine may be shared: note the
 //! load) and by each thread's CPU time (what a core delivers unshared).
+//! `-- fixed` times only the fixed cost (200 runs on the first movie) and
+//! `-- frames` only the long movie's tracking (40 runs; `-- frames0` the
+//! first movie's), for a profiler.
 
 use clap::Parser;
 use dropscope::config::DetectConfig;
@@ -164,11 +167,12 @@ fn main() {
     // profiler); `-- frames`: only the long movie's tracking, 40 times.
     let only = std::env::args()
         .skip(1)
-        .find(|a| a == "fixed" || a == "frames");
+        .find(|a| a == "fixed" || a == "frames" || a == "frames0");
     for (k, (name, args, reps)) in movies.into_iter().enumerate() {
         match only.as_deref() {
             Some("fixed") if k > 0 => break,
             Some("frames") if k < 2 => continue,
+            Some("frames0") if k > 0 => break,
             _ => {}
         }
         let m = movie(&args, &dir.path().join(format!("m{k}")));
@@ -192,7 +196,7 @@ fn main() {
             );
             break;
         }
-        if only.as_deref() == Some("frames") {
+        if only.as_deref().is_some_and(|o| o.starts_with("frames")) {
             let (w1, c1) = timed(1, 40, || {
                 std::hint::black_box(
                     track(
@@ -227,6 +231,8 @@ fn main() {
             mean_iter(&|f| f.held.map(|c| c.iterations)),
         );
         let pts = mean_iter(&|f| f.held.map(|c| c.n_used));
+        let flagged = |name: &str| t.frames.iter().filter(|f| f.flags.contains(&name)).count();
+        let (partial, missing) = (flagged("partial"), flagged("missing"));
         let run = || {
             std::hint::black_box(track(&mut source(), &st).expect("track"));
         };
@@ -243,7 +249,7 @@ fn main() {
             t.radius_px, t.reread_frames, t.radius_px
         );
         println!(
-            "  {pts:.0} edge points a frame; IRLS iterations per fit {it_free:.1} (free), {it_held:.1} (held)"
+            "  {pts:.0} edge points a frame; IRLS iterations per fit {it_free:.1} (free), {it_held:.1} (held); {partial} partial, {missing} missing"
         );
         println!(
             "  1 thread : {:>6.0} wall / {:>6.0} cpu frames/s",

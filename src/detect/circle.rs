@@ -424,11 +424,12 @@ pub fn fit_circle(
     let mut huber = true;
     for it in 0..opts.max_iterations.max(1) {
         iterations = it + 1;
-        residuals_at(points, &c, scratch);
         // The scale follows the fit while it still moves by more than
         // `FREEZE_SCALE_PX`, then is held (one median less per iteration).
         huber = it < opts.huber_iterations;
-        if scale.is_none() || last_step > FREEZE_SCALE_PX || huber {
+        let rescale = scale.is_none() || last_step > FREEZE_SCALE_PX || huber;
+        residuals_at(points, &c, rescale, scratch);
+        if rescale {
             scale = Some((1.4826 * median(&mut scratch.work)).max(opts.min_scale_px));
         }
         let s = scale.unwrap_or(opts.min_scale_px);
@@ -550,22 +551,32 @@ pub fn fit_circle(
 }
 
 /// Residuals `dᵢ = |pᵢ − c| − r` and unit vectors from the centre into
-/// `scratch`, and `|dᵢ|` of the points with weight > 0 into `scratch.work`.
-fn residuals_at(points: &[EdgePoint], c: &Circle, scratch: &mut FitScratch) {
-    scratch.work.clear();
-    for (i, p) in points.iter().enumerate() {
+/// `scratch`, and, when `for_scale`, `|dᵢ|` of the points with weight > 0
+/// into `scratch.work`. The first loop has no branch or push, so it runs
+/// two points at a time.
+fn residuals_at(points: &[EdgePoint], c: &Circle, for_scale: bool, scratch: &mut FitScratch) {
+    let n = points.len();
+    let (residuals, units) = (&mut scratch.residuals[..n], &mut scratch.units[..n]);
+    for ((p, d), u) in points
+        .iter()
+        .zip(residuals.iter_mut())
+        .zip(units.iter_mut())
+    {
         let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
         let rho = (dx * dx + dz * dz).sqrt();
-        let d = rho - c.r_px;
-        scratch.residuals[i] = d;
-        scratch.units[i] = if rho > 0.0 {
-            (dx / rho, dz / rho)
-        } else {
-            (0.0, 0.0)
-        };
-        if p.weight > 0.0 {
-            scratch.work.push(d.abs());
-        }
+        *d = rho - c.r_px;
+        let (ux, uz) = (dx / rho, dz / rho);
+        *u = if rho > 0.0 { (ux, uz) } else { (0.0, 0.0) };
+    }
+    scratch.work.clear();
+    if for_scale {
+        scratch.work.extend(
+            points
+                .iter()
+                .zip(residuals.iter())
+                .filter(|(p, _)| p.weight > 0.0)
+                .map(|(_, d)| d.abs()),
+        );
     }
 }
 
@@ -605,7 +616,7 @@ fn final_sums(
     opts: &FitOptions,
     scratch: &mut FitScratch,
 ) -> LastSums {
-    residuals_at(points, c, scratch);
+    residuals_at(points, c, false, scratch);
     let mut last = LastSums::default();
     for (i, p) in points.iter().enumerate() {
         let d = scratch.residuals[i];

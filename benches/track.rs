@@ -1,24 +1,37 @@
-//! Speed of tracking (issue 4, stage 7) and of one drop's whole measurement
-//! on 512×384 8-bit frames already in memory, 1 and 2 threads.
+//! Speed of detect + track (issue 4, stage 7) on 512×384 8-bit frames
+//! already in memory, 1 and 2 threads.
 //!
 //!     cargo bench --bench track
 //!
-//! Frames: rendered drops (realistic preset, R = 3 and 7 mm, H = 12 cm, 90
-//! frames each, the sphere in view in all of them) decoded once into a
-//! [`MemorySource`], so file decoding is not timed. Timed: the whole tracker
-//! (background from 8 frames, surface line, pass 1 with the radius free
-//! through row bands, calibration, pass 2 with the radius held), then the
-//! same plus events, kinematics and the force-law fit (`process_run` minus
-//! the overlay and file output). Two threads run two drops at once.
+//! Movies: rendered drops (realistic preset) decoded once into memory, so
+//! file decoding is not timed:
+//! * `R = 3 mm` and `R = 7 mm` dropped from 12 cm at 10 000 frames/s, ~90
+//!   frames each (30 before contact, the contact, 30 after);
+//! * a 600-frame movie: R = 3 mm from 1.5 cm at 60 000 frames/s (exposure
+//!   10 µs), 200 frames before contact and 200 after.
+//!
+//! The sphere is in view in every frame of every movie, and every frame is
+//! tracked: "frames" are the movie's frames, each measured twice (radius
+//! free, then held). Timed: [`track`] whole — the background from 8 frames
+//! and the surface line (the fixed cost per run), then per frame the band
+//! read, edge points and free fit (pass 1), the calibration, and the
+//! held-radius fit (pass 2). The fixed cost is also timed alone
+//! ([`background_and_surface`]); the per-frame cost is the rest divided by
+//! the frame count. Two threads track two copies of the movie at once (as a
+//! batch runs one drop per thread), sharing the frames in memory.
+//!
+//! Rates are given by the wall clock (the machine may be shared: note the
+//! load) and by each thread's CPU time (what a core delivers unshared).
+//! `-- fixed` times only the fixed cost (200 runs on the first movie) and
+//! `-- frames` only the long movie's tracking (40 runs; `-- frames0` the
+//! first movie's), for a profiler.
 
 use clap::Parser;
 use dropscope::config::DetectConfig;
-use dropscope::detect::background::{Background, GainRegion};
-use dropscope::detect::coarse::CoarseParams;
-use dropscope::detect::surface::{fit_surface, SurfaceParams};
 use dropscope::source::memory::MemorySource;
-use dropscope::source::{open, OpenOptions};
-use dropscope::track::{track, TrackSettings};
+use dropscope::source::{open, FrameSource, OpenOptions, SourceError, SourceMeta};
+use dropscope::track::{background_and_surface, track, TrackSettings};
+use ndarray::{s, ArrayViewMut2};
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -27,24 +40,49 @@ struct Cli {
     args: dropscope::render::RenderArgs,
 }
 
-fn movie(radius_mm: f64, dir: &std::path::Path) -> MemorySource {
-    let drop = format!("{radius_mm}:12");
+fn movie(args: &[&str], dir: &std::path::Path) -> MemorySource {
     let out = dir.to_str().expect("temp dir is UTF-8");
-    let a = Cli::parse_from([
-        "render",
-        "--drop",
-        &drop,
-        "--preset",
-        "realistic",
-        "--seed",
-        "5",
-        "--out",
-        out,
-    ])
-    .args;
-    let report = dropscope::render::render(&a).expect("render");
+    let mut argv = vec!["render", "--preset", "realistic", "--seed", "5"];
+    argv.extend_from_slice(args);
+    argv.extend_from_slice(&["--out", out]);
+    let report = dropscope::render::render(&Cli::parse_from(argv).args).expect("render");
     let mut src = open(&report.drops[0].dir, &OpenOptions::default()).expect("open");
     MemorySource::load(src.as_mut()).expect("load")
+}
+
+/// A movie in memory shared by several threads: each reads rows by copying
+/// them out (one `memcpy` for whole rows), as [`MemorySource`] does.
+struct Shared<'a> {
+    movie: &'a MemorySource,
+    meta: SourceMeta,
+}
+
+impl FrameSource for Shared<'_> {
+    fn meta(&self) -> &SourceMeta {
+        &self.meta
+    }
+
+    fn read_rows_into(
+        &mut self,
+        index: usize,
+        row0: usize,
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
+        let n = out.nrows();
+        if index >= self.meta.frame_count || row0 + n > self.meta.height {
+            return Err(SourceError::FrameOutOfRange {
+                path: self.meta.path.clone(),
+                index,
+                count: self.meta.frame_count,
+            });
+        }
+        let rows = self.movie.frame(index).slice(s![row0..row0 + n, ..]);
+        match (rows.to_slice(), out.as_slice_mut()) {
+            (Some(a), Some(b)) => b.copy_from_slice(a),
+            _ => out.assign(&rows),
+        }
+        Ok(())
+    }
 }
 
 fn settings() -> TrackSettings {
@@ -58,49 +96,177 @@ fn settings() -> TrackSettings {
     })
 }
 
+/// CPU time this thread has run, from `/proc/thread-self/schedstat` (first
+/// field, ns); `None` where the file does not exist.
+fn thread_cpu_s() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: f64 = text.split_whitespace().next()?.parse().ok()?;
+    Some(ns * 1e-9)
+}
+
+/// `reps` calls of `work` on each of `threads` threads: (wall seconds, CPU
+/// seconds summed over the threads).
+fn timed(threads: usize, reps: usize, work: impl Fn() + Sync) -> (f64, f64) {
+    let start = Instant::now();
+    let cpu: f64 = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads)
+            .map(|_| {
+                scope.spawn(|| {
+                    let c0 = thread_cpu_s();
+                    for _ in 0..reps {
+                        work();
+                    }
+                    match (c0, thread_cpu_s()) {
+                        (Some(a), Some(b)) => b - a,
+                        _ => f64::NAN,
+                    }
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("bench thread"))
+            .sum()
+    });
+    (start.elapsed().as_secs_f64(), cpu)
+}
+
 fn main() {
     let dir = tempfile::tempdir().expect("temp dir");
     let st = settings();
-    for r in [3.0, 7.0] {
-        let m = movie(r, &dir.path().join(format!("r{r}")));
-        let n = m.meta().frame_count;
-        use dropscope::source::FrameSource;
-        // One copy of the movie per thread, made before timing; warm up.
-        let (mut a, mut b) = (m.clone(), m);
-        track(&mut a, &st).expect("track");
-        let reps = 20;
-        let t0 = Instant::now();
-        for _ in 0..reps {
-            track(&mut a, &st).expect("track");
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!(
+        "load average at start: {}",
+        load.split_whitespace()
+            .take(3)
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    println!("wall = by the clock (shared machine); cpu = per second of thread CPU time");
+    let movies: [(&str, Vec<&str>, usize); 3] = [
+        ("R 3 mm, H 12 cm", vec!["--drop", "3:12"], 40),
+        ("R 7 mm, H 12 cm", vec!["--drop", "7:12"], 40),
+        (
+            "R 3 mm, H 1.5 cm, 60 000 fps",
+            vec![
+                "--drop",
+                "3:1.5",
+                "--fps",
+                "60000",
+                "--exposure-us",
+                "10",
+                "--frames-before",
+                "200",
+                "--frames-after",
+                "200",
+            ],
+            8,
+        ),
+    ];
+    // `-- fixed`: only the fixed cost of the first movie, 200 times (for a
+    // profiler); `-- frames`: only the long movie's tracking, 40 times.
+    let only = std::env::args()
+        .skip(1)
+        .find(|a| a == "fixed" || a == "frames" || a == "frames0");
+    for (k, (name, args, reps)) in movies.into_iter().enumerate() {
+        match only.as_deref() {
+            Some("fixed") if k > 0 => break,
+            Some("frames") if k < 2 => continue,
+            Some("frames0") if k > 0 => break,
+            _ => {}
         }
-        let one = (n * reps) as f64 / t0.elapsed().as_secs_f64();
-        let t0 = Instant::now();
-        rayon::join(
-            || (0..reps).for_each(|_| drop(track(&mut a, &st))),
-            || (0..reps).for_each(|_| drop(track(&mut b, &st))),
+        let m = movie(&args, &dir.path().join(format!("m{k}")));
+        if only.as_deref() == Some("fixed") {
+            let (wf, cf) = timed(1, 200, || {
+                std::hint::black_box(
+                    background_and_surface(
+                        &mut Shared {
+                            movie: &m,
+                            meta: m.meta().clone(),
+                        },
+                        &st,
+                    )
+                    .expect("background"),
+                );
+            });
+            println!(
+                "{name}: fixed cost {:.2} ms cpu, {:.2} ms wall",
+                5.0 * cf,
+                5.0 * wf
+            );
+            break;
+        }
+        if only.as_deref().is_some_and(|o| o.starts_with("frames")) {
+            let (w1, c1) = timed(1, 40, || {
+                std::hint::black_box(
+                    track(
+                        &mut Shared {
+                            movie: &m,
+                            meta: m.meta().clone(),
+                        },
+                        &st,
+                    )
+                    .expect("track"),
+                );
+            });
+            let f = 40.0 * m.meta().frame_count as f64;
+            println!("{name}: {:.0} wall / {:.0} cpu frames/s", f / w1, f / c1);
+            break;
+        }
+        let meta = m.meta().clone();
+        let n = meta.frame_count;
+        let source = || Shared {
+            movie: &m,
+            meta: meta.clone(),
+        };
+        // Warm up, and check what is timed.
+        let t = track(&mut source(), &st).expect("track");
+        let held = t.frames.iter().filter(|f| f.held.is_some()).count();
+        let mean_iter = |g: &dyn Fn(&dropscope::track::FrameTrack) -> Option<usize>| {
+            let v: Vec<usize> = t.frames.iter().filter_map(g).collect();
+            v.iter().sum::<usize>() as f64 / v.len().max(1) as f64
+        };
+        let (it_free, it_held) = (
+            mean_iter(&|f| f.free.map(|c| c.iterations)),
+            mean_iter(&|f| f.held.map(|c| c.iterations)),
         );
-        let two = (2 * n * reps) as f64 / t0.elapsed().as_secs_f64();
-        // The fixed cost per run: the background (8 frames) and the surface.
-        let t0 = Instant::now();
-        for _ in 0..reps {
-            let views: Vec<_> = (0..8).map(|i| a.frame(i * (n - 1) / 7).view()).collect();
-            let bg = Background::from_frames_with_sphere(
-                &views,
-                GainRegion::default(),
-                &CoarseParams::default(),
-                6.0,
-            )
-            .expect("background");
-            drop(fit_surface(&bg, &SurfaceParams::default()));
-        }
-        let fixed_s = t0.elapsed().as_secs_f64() / reps as f64;
-        let per_frame_s = (n as f64 / one - fixed_s) / n as f64;
+        let pts = mean_iter(&|f| f.held.map(|c| c.n_used));
+        let flagged = |name: &str| t.frames.iter().filter(|f| f.flags.contains(&name)).count();
+        let (partial, missing) = (flagged("partial"), flagged("missing"));
+        let run = || {
+            std::hint::black_box(track(&mut source(), &st).expect("track"));
+        };
+        let (w1, c1) = timed(1, reps, run);
+        let (w2, c2) = timed(2, reps, run);
+        let (wf, cf) = timed(1, reps, || {
+            std::hint::black_box(background_and_surface(&mut source(), &st).expect("background"));
+        });
+        let frames = (n * reps) as f64;
+        let fixed_ms = 1e3 * cf / reps as f64;
+        let per_frame_us = 1e6 * (c1 - cf) / frames;
         println!(
-            "R = {r} mm ({n} frames, R_px ≈ {:.0}): {one:.0} frames/s on 1 thread, {two:.0} on 2 threads; \
-             fixed cost per run {:.1} ms (background, surface), then {:.0} frames/s per thread (two passes)",
-            r / (0.04 + 0.01 * (r - 3.0)),
-            fixed_s * 1e3,
-            1.0 / per_frame_s
+            "{name}: {n} frames (sphere in all, {held} measured with R_px = {:.1} held, {} read twice), R_px {:.1}",
+            t.radius_px, t.reread_frames, t.radius_px
+        );
+        println!(
+            "  {pts:.0} edge points a frame; IRLS iterations per fit {it_free:.1} (free), {it_held:.1} (held); {partial} partial, {missing} missing"
+        );
+        println!(
+            "  1 thread : {:>6.0} wall / {:>6.0} cpu frames/s",
+            frames / w1,
+            frames / c1
+        );
+        println!(
+            "  2 threads: {:>6.0} wall / {:>6.0} cpu frames/s (per core {:.0})",
+            2.0 * frames / w2,
+            2.0 * 2.0 * frames / c2,
+            2.0 * frames / c2
+        );
+        println!(
+            "  fixed cost per run (background from 8 frames, surface): {fixed_ms:.2} ms cpu ({:.2} ms wall); \
+             per frame (both passes): {per_frame_us:.1} µs cpu = {:.0} frames/s per core",
+            1e3 * wf / reps as f64,
+            1e6 / per_frame_us
         );
     }
 }

@@ -9,6 +9,9 @@
 //! `I_f / g_f` over the first frames, normalised so that `g = 1` on the first
 //! frame; the median resists a frame or two with a passing speck.
 
+use super::circle::Circle;
+use super::coarse;
+use super::surface::SurfaceLine;
 use super::{Band, DetectError};
 
 /// The median of a non-empty slice (the mean of the two middle values for an
@@ -78,40 +81,8 @@ impl Background {
         frames: &[ArrayView2<u16>],
         region: GainRegion,
     ) -> Result<Self, DetectError> {
-        let first = frames.first().ok_or(DetectError::NoBackgroundFrames)?;
-        let (height, width) = first.dim();
-        for f in frames {
-            let (h, w) = f.dim();
-            if (h, w) != (height, width) {
-                return Err(DetectError::ShapeMismatch {
-                    width: w,
-                    height: h,
-                    bg_width: width,
-                    bg_height: height,
-                });
-            }
-        }
-        let region = GainRegion {
-            strip_px: region.strip_px.clamp(1, (width / 2).max(1)),
-            step: region.step.max(1),
-        };
-        // Gains relative to the first frame, from the raw reference sums.
-        let ref_sum = |f: &ArrayView2<u16>| -> f64 {
-            let mut s = 0.0;
-            for i in (0..height).step_by(region.step) {
-                for j in strip_columns(width, region) {
-                    s += f[[i, j]] as f64;
-                }
-            }
-            s
-        };
-        let s0 = ref_sum(first);
-        if !(s0 > 0.0) {
-            return Err(DetectError::DarkReference {
-                what: format!("{}-px strips at the left and right edges", region.strip_px),
-            });
-        }
-        let gains: Vec<f64> = frames.iter().map(|f| ref_sum(f) / s0).collect();
+        let (height, width, region) = check_frames(frames, region)?;
+        let gains = reference_gains(frames, width, height, region)?;
         let mut levels = vec![0f32; width * height];
         let mut column = vec![0f64; frames.len()];
         for i in 0..height {
@@ -138,22 +109,29 @@ impl Background {
     /// 1. the per-pixel maximum of `I_f / g_f` over the frames: background
     ///    wherever the sphere uncovered the pixel at least once (biased up by
     ///    about two noise σ, harmless for a coarse threshold); pixels covered
-    ///    in every frame (darker than half their row's 90th percentile) are
-    ///    filled along their row;
+    ///    in every frame (darker than half their row's 90th percentile,
+    ///    taken over every 4th pixel) are filled along their row;
     /// 2. in each frame, the sphere's coarse circle against that maximum
     ///    ([`super::coarse::detect_coarse`], above a preliminary surface
     ///    line fitted to it); the pixels within `r + pad_px` of it are
-    ///    "covered" in that frame;
+    ///    "covered" in that frame. Passes 1 and 2 only need circles to
+    ///    about a pixel (the pad is 6 px), so for frames of at least
+    ///    128 × 128 px they run on the frames binned 2×2
+    ///    ([`super::coarse::bin_frame`]): a quarter of the pixels;
     /// 3. the per-pixel median of `I_f / g_f` over the frames in which the
-    ///    pixel is not covered. Pixels covered in every frame (the core of a
-    ///    slow sphere's path, and the ring just outside it at the deepest
-    ///    point) get a smooth model of the light: a quadratic in `(x, z)`
-    ///    fitted to the filled pixels above the surface (two rounds, the
-    ///    second without pixels more than 3 MAD off: dust). Outside the
-    ///    sphere, `B` sets the zero of every edge profile, and a straight
-    ///    row interpolation across a 160-px gap of a vignetted light is off by
-    ///    ~0.5 %, which moves edges by ~0.03 px; the quadratic follows a
-    ///    ramp-and-vignette light exactly.
+    ///    pixel is not covered: each row of every frame is scaled by `1/g_f`,
+    ///    its covered run (one interval per frame and row) set to +∞, the
+    ///    rows sorted pixel by pixel by an odd–even transposition network
+    ///    (branch-free, vectorised across the row), and the median read at
+    ///    the ranks of the `m` uncovered values. Pixels covered in every
+    ///    frame (the core of a slow sphere's path, and the ring just outside
+    ///    it at the deepest point) get a smooth model of the light: a
+    ///    quadratic in `(x, z)` fitted to the filled pixels above the surface
+    ///    (two rounds, the second without pixels more than 3 MAD off: dust).
+    ///    Outside the sphere, `B` sets the zero of every edge profile, and a
+    ///    straight row interpolation across a 160-px gap of a vignetted
+    ///    light is off by ~0.5 %, which moves edges by ~0.03 px; the
+    ///    quadratic follows a ramp-and-vignette light exactly.
     ///
     /// The gains come from the reference strips, which the sphere must not
     /// cross. Frames where no sphere is found count as sphere-free.
@@ -163,79 +141,104 @@ impl Background {
         coarse: &super::coarse::CoarseParams,
         pad_px: f64,
     ) -> Result<Self, DetectError> {
-        // Pass 1: the maximum (and the gains) via an all-frames "background".
-        let mut bg = Self::from_frames(frames, region)?;
-        let (h, w) = (bg.height, bg.width);
-        for (i, v) in bg.levels.iter_mut().enumerate() {
-            let (r, c) = (i / w, i % w);
-            *v = frames
+        let (h, w, region) = check_frames(frames, region)?;
+        let gains = reference_gains(frames, w, h, region)?;
+        let data: Vec<&[u16]> = frames
+            .iter()
+            .map(|f| f.as_slice().ok_or(DetectError::NotContiguous))
+            .collect::<Result<_, _>>()?;
+        let inv: Vec<f32> = gains.iter().map(|g| (1.0 / g) as f32).collect();
+        // Passes 1 and 2 on the frames binned 2×2 when they are large
+        // enough (a quarter of the pixels; the circles come back to within
+        // a pixel, well inside the pad).
+        let (circles, surface) = if w >= 128 && h >= 128 {
+            let (wb, hb) = (w / 2, h / 2);
+            let binned: Vec<Vec<u16>> = data
                 .iter()
-                .zip(&bg.gains)
-                .map(|(f, g)| f[[r, c]] as f64 / g)
-                .fold(0.0, f64::max) as f32;
-        }
-        // Pixels the sphere covers in every frame stay dark in the maximum:
-        // those below half their row's 90th percentile are refilled along
-        // the row, so that the sphere is darker than this background in
-        // every frame, whole.
-        let mut sorted = vec![0f32; w];
-        for r in 0..h {
-            let row = &mut bg.levels[r * w..(r + 1) * w];
-            sorted.copy_from_slice(row);
-            let k = (w * 9) / 10;
-            let p90 = *sorted
-                .select_nth_unstable_by(k.min(w - 1), f32::total_cmp)
-                .1;
-            for v in row.iter_mut() {
-                if *v < 0.5 * p90 {
-                    *v = f32::NAN;
-                }
-            }
-            fill_row(row);
-        }
-        // Pass 2: coarse circles, from their outline above a preliminary
-        // surface line (below it the pillars hide the sphere, and the
-        // mask's flat bottom there is no edge of the sphere).
-        let surface =
-            super::surface::fit_surface(&bg, &super::surface::SurfaceParams::default()).ok();
-        let mut scratch = super::coarse::CoarseScratch::default();
-        let mut circles = Vec::with_capacity(frames.len());
-        for (f, &g) in frames.iter().zip(&bg.gains) {
-            let band = Band::new(f.view(), 0)?;
-            let c = super::coarse::detect_coarse(
-                &band,
-                &bg,
-                g,
-                surface.as_ref(),
-                coarse,
-                &mut scratch,
-            )?;
-            circles.push(c.map(|c| c.circle));
-        }
+                .map(|d| {
+                    let mut out = Vec::with_capacity(wb * hb);
+                    coarse::bin_frame(d, w, wb, hb, &mut out);
+                    out
+                })
+                .collect();
+            let views: Vec<&[u16]> = binned.iter().map(|b| b.as_slice()).collect();
+            let params = coarse::binned_params(coarse);
+            let (circles, line) = coarse_pass(&views, wb, hb, &gains, region, &params)?;
+            (
+                circles
+                    .iter()
+                    .map(|c| c.as_ref().map(coarse::from_binned_circle))
+                    .collect(),
+                line.as_ref().map(coarse::from_binned_line),
+            )
+        } else {
+            coarse_pass(&data, w, h, &gains, region, coarse)?
+        };
+        let mut bg = Background {
+            width: w,
+            height: h,
+            levels: Vec::new(),
+            region,
+            gains,
+        };
         // Pass 3: per-pixel median over uncovered frames; pixels never
         // uncovered get a smooth model of the light (below).
-        let mut values = Vec::with_capacity(frames.len());
         let mut levels = vec![f32::NAN; w * h];
+        let n = frames.len();
+        let mut rows = vec![0f32; n * w];
+        let mut count = vec![0usize; w];
+        let mut values = Vec::with_capacity(n);
+        let pairs = batcher_pairs(n);
         for r in 0..h {
-            for c in 0..w {
-                values.clear();
-                for ((f, &g), circle) in frames.iter().zip(&bg.gains).zip(&circles) {
-                    let covered = circle.is_some_and(|k| {
-                        let d2 = (c as f64 - k.x_px).powi(2) + (r as f64 - k.z_px).powi(2);
-                        d2 < (k.r_px + pad_px).powi(2)
-                    });
-                    if !covered {
-                        values.push(f[[r, c]] as f64 / g);
+            count.fill(n);
+            for (k, (d, &ig)) in data.iter().zip(&inv).enumerate() {
+                let row = &mut rows[k * w..(k + 1) * w];
+                for (o, &v) in row.iter_mut().zip(&d[r * w..(r + 1) * w]) {
+                    *o = v as f32 * ig;
+                }
+                if let Some(c) = circles[k] {
+                    // Covered: (j − x)² + (r − z)² < (R + pad)².
+                    let (reach, dz) = (c.r_px + pad_px, r as f64 - c.z_px);
+                    let s2 = reach * reach - dz * dz;
+                    if s2 > 0.0 {
+                        let s = s2.sqrt();
+                        let lo = ((c.x_px - s).floor() + 1.0).max(0.0);
+                        let hi = ((c.x_px + s).ceil() - 1.0).min(w as f64 - 1.0);
+                        if lo <= hi {
+                            for j in lo as usize..=hi as usize {
+                                row[j] = f32::INFINITY;
+                                count[j] -= 1;
+                            }
+                        }
                     }
                 }
-                if !values.is_empty() {
-                    levels[r * w + c] = median_of(&mut values) as f32;
+            }
+            let out = &mut levels[r * w..(r + 1) * w];
+            if n <= MAX_NETWORK_FRAMES {
+                sort_rows(&mut rows, w, &pairs);
+                for (j, (o, &m)) in out.iter_mut().zip(&count).enumerate() {
+                    if m > 0 {
+                        let (a, b) = (rows[((m - 1) / 2) * w + j], rows[(m / 2) * w + j]);
+                        *o = 0.5 * (a + b);
+                    }
+                }
+            } else {
+                for (j, o) in out.iter_mut().enumerate() {
+                    values.clear();
+                    values.extend(
+                        (0..n)
+                            .map(|k| rows[k * w + j] as f64)
+                            .filter(|v| v.is_finite()),
+                    );
+                    if !values.is_empty() {
+                        *o = median_of(&mut values) as f32;
+                    }
                 }
             }
         }
         fill_smooth(&mut levels, w, h, surface.as_ref());
-        for r in 0..h {
-            fill_row(&mut levels[r * w..(r + 1) * w]);
+        for row in levels.chunks_exact_mut(w) {
+            fill_row(row);
         }
         bg.levels = levels;
         Ok(bg)
@@ -328,9 +331,12 @@ pub struct FrameGain {
 
 /// Fill the NaN pixels above the surface line (all of them without one)
 /// from a quadratic `B = a₀ + a₁x + a₂z + a₃x² + a₄xz + a₅z²` fitted to the
-/// finite pixels above the line (minus 4 px) on a 2-px grid, refitted once
-/// without residuals over 3 MAD. Coordinates are scaled to ±1 for
+/// finite pixels above the line (minus 4 px) on a 4-px grid (thousands of
+/// pixels for six coefficients, each a median of several frames), refitted
+/// once without residuals over 3 MAD. Coordinates are scaled to ±1 for
 /// conditioning. Leaves the rest (below the line) to the caller.
+// Small fixed-size matrix code reads best with explicit indices.
+#[allow(clippy::needless_range_loop)]
 fn fill_smooth(
     levels: &mut [f32],
     w: usize,
@@ -349,69 +355,171 @@ fn fill_smooth(
         let z = (r as f64 - sz) / sz;
         [1.0, x, z, x * x, x * z, z * z]
     };
-    let mut coef: Option<[f64; 6]> = None;
-    let mut cut = f64::INFINITY;
-    for _round in 0..2 {
+    const GRID: usize = 4;
+    let samples: Vec<([f64; 6], f64)> = (0..h)
+        .step_by(GRID)
+        .flat_map(|r| (0..w).step_by(GRID).map(move |c| (r, c)))
+        .filter(|&(r, c)| !levels[r * w + c].is_nan() && above(r, c, 4.0))
+        .map(|(r, c)| (basis(r, c), levels[r * w + c] as f64))
+        .collect();
+    let model = |b: &[f64; 6], k: &[f64; 6]| -> f64 { b.iter().zip(k).map(|(p, q)| p * q).sum() };
+    let solve = |cut: f64, coef: Option<&[f64; 6]>| -> Option<[f64; 6]> {
         let mut ata = [[0.0; 6]; 6];
         let mut atb = [0.0; 6];
-        let mut resid = Vec::new();
-        for r in (0..h).step_by(2) {
-            for c in (0..w).step_by(2) {
-                let v = levels[r * w + c];
-                if v.is_nan() || !above(r, c, 4.0) {
+        for (b, v) in &samples {
+            if let Some(k) = coef {
+                if (v - model(b, k)).abs() > cut {
                     continue;
                 }
-                let b = basis(r, c);
-                if let Some(k) = coef {
-                    let model: f64 = b.iter().zip(&k).map(|(p, q)| p * q).sum();
-                    let d = v as f64 - model;
-                    resid.push(d.abs());
-                    if d.abs() > cut {
-                        continue;
-                    }
-                }
-                for i in 0..6 {
-                    atb[i] += b[i] * v as f64;
-                    for j in 0..6 {
-                        ata[i][j] += b[i] * b[j];
-                    }
+            }
+            for i in 0..6 {
+                atb[i] += b[i] * v;
+                for j in 0..=i {
+                    ata[i][j] += b[i] * b[j];
                 }
             }
         }
-        match super::circle::solve_spd(&ata, &atb) {
-            Some(k) => coef = Some(k),
-            None => return,
-        }
-        // The cut for the next round, from this round's residuals.
-        if let Some(k) = coef {
-            resid.clear();
-            for r in (0..h).step_by(2) {
-                for c in (0..w).step_by(2) {
-                    let v = levels[r * w + c];
-                    if v.is_nan() || !above(r, c, 4.0) {
-                        continue;
-                    }
-                    let model: f64 = basis(r, c).iter().zip(&k).map(|(p, q)| p * q).sum();
-                    resid.push((v as f64 - model).abs());
-                }
+        for i in 0..6 {
+            for j in i + 1..6 {
+                ata[i][j] = ata[j][i];
             }
-            if resid.is_empty() {
-                return;
-            }
-            let mid = resid.len() / 2;
-            let mad = *resid.select_nth_unstable_by(mid, f64::total_cmp).1;
-            cut = 3.0 * 1.4826 * mad;
         }
+        super::circle::solve_spd(&ata, &atb)
+    };
+    let Some(first) = solve(f64::INFINITY, None) else {
+        return;
+    };
+    // The cut for the second round, from the first round's residuals.
+    let mut resid: Vec<f64> = samples
+        .iter()
+        .map(|(b, v)| (v - model(b, &first)).abs())
+        .collect();
+    if resid.is_empty() {
+        return;
     }
-    let Some(k) = coef else { return };
+    let mid = resid.len() / 2;
+    let mad = *resid.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let Some(k) = solve(3.0 * 1.4826 * mad, Some(&first)) else {
+        return;
+    };
     for r in 0..h {
         for c in 0..w {
             let v = &mut levels[r * w + c];
             if v.is_nan() && above(r, c, 0.0) {
-                *v = basis(r, c).iter().zip(&k).map(|(p, q)| p * q).sum::<f64>() as f32;
+                *v = model(&basis(r, c), &k) as f32;
             }
         }
     }
+}
+
+/// Most frames whose per-pixel median [`sort_rows`] takes; more go pixel by
+/// pixel through [`median_of`].
+const MAX_NETWORK_FRAMES: usize = 32;
+
+/// Sort `n` rows of `w` values pixel by pixel (after it, `rows[k·w + j]` is
+/// the `k`-th smallest of column `j`; no NaN) with the network `pairs` of
+/// [`batcher_pairs`]`(n)` (Batcher's odd–even merge sort: 19
+/// compare-exchanges for 8 rows), each compare-exchange a branch-free min/max between two whole
+/// rows.
+fn sort_rows(rows: &mut [f32], w: usize, pairs: &[(usize, usize)]) {
+    for &(lo, hi) in pairs {
+        let (a, b) = rows.split_at_mut(hi * w);
+        let (a, b) = (&mut a[lo * w..][..w], &mut b[..w]);
+        for (x, y) in a.iter_mut().zip(b.iter_mut()) {
+            let (p, q) = (*x, *y);
+            (*x, *y) = (p.min(q), p.max(q));
+        }
+    }
+}
+
+/// The compare-exchanges `(lo, hi)` of Batcher's odd–even merge sort for `n`
+/// inputs (Knuth, TAOCP vol. 3, §5.3.4), in order; for `n` not a power of
+/// two, the network of the next power of two without the comparators that
+/// touch the missing inputs (which would hold +∞ and never move).
+fn batcher_pairs(n: usize) -> Vec<(usize, usize)> {
+    let mut pairs = Vec::new();
+    let mut p = 1;
+    while p < n {
+        let mut k = p;
+        while k >= 1 {
+            let mut j = k % p;
+            while j + k < n {
+                for i in 0..k.min(n - j - k) {
+                    if (i + j) / (2 * p) == (i + j + k) / (2 * p) {
+                        pairs.push((i + j, i + j + k));
+                    }
+                }
+                j += 2 * k;
+            }
+            k /= 2;
+        }
+        p *= 2;
+    }
+    pairs
+}
+
+/// Passes 1 and 2 of [`Background::from_frames_with_sphere`] on frames
+/// `w × h` (row-major): the per-pixel maximum of `I_f/g_f` (pixels darker
+/// than half their row's 90th percentile, taken over every 4th pixel,
+/// refilled along the row), a preliminary surface line fitted to it, and
+/// each frame's coarse circle against it above that line — all in these
+/// frames' pixels.
+#[allow(clippy::type_complexity)]
+fn coarse_pass(
+    data: &[&[u16]],
+    w: usize,
+    h: usize,
+    gains: &[f64],
+    region: GainRegion,
+    params: &coarse::CoarseParams,
+) -> Result<(Vec<Option<Circle>>, Option<SurfaceLine>), DetectError> {
+    let mut max = vec![0f32; w * h];
+    for (d, &g) in data.iter().zip(gains) {
+        let ig = (1.0 / g) as f32;
+        for (m, &v) in max.iter_mut().zip(d.iter()) {
+            let q = v as f32 * ig;
+            *m = if q > *m { q } else { *m };
+        }
+    }
+    let mut sorted = Vec::with_capacity(w.div_ceil(4));
+    for row in max.chunks_exact_mut(w) {
+        sorted.clear();
+        sorted.extend(row.iter().step_by(4).copied());
+        let len = sorted.len();
+        let p90 = *sorted
+            .select_nth_unstable_by((len * 9 / 10).min(len - 1), f32::total_cmp)
+            .1;
+        for v in row.iter_mut() {
+            if *v < 0.5 * p90 {
+                *v = f32::NAN;
+            }
+        }
+        fill_row(row);
+    }
+    let bg = Background {
+        width: w,
+        height: h,
+        levels: max,
+        region,
+        gains: gains.to_vec(),
+    };
+    let surface = super::surface::fit_surface(&bg, &super::surface::SurfaceParams::default()).ok();
+    let mut scratch = coarse::CoarseScratch::default();
+    let circles = data
+        .iter()
+        .zip(gains)
+        .map(|(d, &g)| {
+            let band = Band {
+                data: d,
+                row0: 0,
+                nrows: h,
+                width: w,
+            };
+            let c = coarse::detect_coarse(&band, &bg, g, surface.as_ref(), params, &mut scratch)?;
+            Ok(c.map(|c| c.circle))
+        })
+        .collect::<Result<_, DetectError>>()?;
+    Ok((circles, surface))
 }
 
 /// "Above the line by `margin`", true without a line.
@@ -459,6 +567,57 @@ fn fill_row(row: &mut [f32]) {
     }
 }
 
+/// The frames' common shape `(height, width)` and the region clamped to it.
+fn check_frames(
+    frames: &[ArrayView2<u16>],
+    region: GainRegion,
+) -> Result<(usize, usize, GainRegion), DetectError> {
+    let first = frames.first().ok_or(DetectError::NoBackgroundFrames)?;
+    let (height, width) = first.dim();
+    for f in frames {
+        let (h, w) = f.dim();
+        if (h, w) != (height, width) {
+            return Err(DetectError::ShapeMismatch {
+                width: w,
+                height: h,
+                bg_width: width,
+                bg_height: height,
+            });
+        }
+    }
+    let region = GainRegion {
+        strip_px: region.strip_px.clamp(1, (width / 2).max(1)),
+        step: region.step.max(1),
+    };
+    Ok((height, width, region))
+}
+
+/// Gains of the frames relative to the first, from the raw sums over the
+/// reference strips.
+fn reference_gains(
+    frames: &[ArrayView2<u16>],
+    width: usize,
+    height: usize,
+    region: GainRegion,
+) -> Result<Vec<f64>, DetectError> {
+    let ref_sum = |f: &ArrayView2<u16>| -> f64 {
+        let mut s = 0.0;
+        for i in (0..height).step_by(region.step) {
+            for j in strip_columns(width, region) {
+                s += f[[i, j]] as f64;
+            }
+        }
+        s
+    };
+    let s0 = frames.first().map(ref_sum).unwrap_or(0.0);
+    if !(s0 > 0.0) {
+        return Err(DetectError::DarkReference {
+            what: format!("{}-px strips at the left and right edges", region.strip_px),
+        });
+    }
+    Ok(frames.iter().map(|f| ref_sum(f) / s0).collect())
+}
+
 /// The reference columns: `0..strip` and `width − strip..width`, every `step`-th.
 fn strip_columns(width: usize, region: GainRegion) -> impl Iterator<Item = usize> {
     let s = region.strip_px.min(width);
@@ -469,6 +628,39 @@ fn strip_columns(width: usize, region: GainRegion) -> impl Iterator<Item = usize
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn the_network_sorts_every_column_for_1_to_33_rows() {
+        // Pseudo-random columns with ties, and +∞ (covered pixels): after
+        // sort_rows each column must equal its sorted copy exactly.
+        let w = 7;
+        let mut x = 12345u64;
+        for n in 1..=33 {
+            let mut rows: Vec<f32> = (0..n * w)
+                .map(|_| {
+                    x = x
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    match (x >> 60) as u8 {
+                        0 => f32::INFINITY,
+                        k => (k % 5) as f32 + 0.5 * (x >> 40 & 7) as f32,
+                    }
+                })
+                .collect();
+            let mut want: Vec<Vec<f32>> = (0..w)
+                .map(|j| (0..n).map(|k| rows[k * w + j]).collect())
+                .collect();
+            for c in want.iter_mut() {
+                c.sort_by(f32::total_cmp);
+            }
+            super::sort_rows(&mut rows, w, &super::batcher_pairs(n));
+            for (j, c) in want.iter().enumerate() {
+                let got: Vec<f32> = (0..n).map(|k| rows[k * w + j]).collect();
+                assert_eq!(&got, c, "n = {n}, column {j}");
+            }
+        }
+        assert_eq!(super::batcher_pairs(8).len(), 19);
+    }
+
     #[test]
     fn median_of_odd_and_even_counts() {
         assert_eq!(super::median_of(&mut [3.0, 1.0, 2.0]), 2.0);

@@ -31,7 +31,7 @@ use super::edges::EdgePoint;
 use super::DetectError;
 
 /// A circle in frame pixels (see the module convention in [`super`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Circle {
     /// Centre column.
     pub x_px: f64,
@@ -365,7 +365,7 @@ fn sandwich<const N: usize>(
 /// residual scale is held for the remaining iterations.
 const FREEZE_SCALE_PX: f64 = 1e-3;
 
-/// The sums of an IRLS iteration, kept for the covariance.
+/// The sums of the covariance, taken once at the solution.
 #[derive(Debug, Default, Clone, Copy)]
 struct LastSums {
     /// `JᵀWJ`, the fallback when `bread` is not positive definite.
@@ -391,8 +391,10 @@ struct LastSums {
 /// biweight `(1 − (d / (c s))²)²` for `|d| < c s`, else 0 — and takes one
 /// Gauss–Newton step on the weighted normal equations (with a tiny
 /// Levenberg damping, 1e-9 of the diagonal, for safety). Stops when no
-/// parameter moves by more than `tolerance_px`. The cost is a few passes over the points per iteration, with
-/// no allocation once `scratch` has grown. Final weights are left in
+/// parameter moves by more than `tolerance_px`. The cost is two passes over
+/// the points per iteration (residuals; weights and `JᵀWJ`), and one pass
+/// more at the solution for the covariance's sums, with no allocation once
+/// `scratch` has grown. Final weights (at the solution) are left in
 /// `scratch.weights`.
 pub fn fit_circle(
     points: &[EdgePoint],
@@ -417,78 +419,35 @@ pub fn fit_circle(
     scratch.units.clear();
     scratch.units.resize(n, (0.0, 0.0));
     let mut iterations = 0;
-    let mut last = LastSums::default();
     let mut scale: Option<f64> = None;
     let mut last_step = f64::INFINITY;
+    let mut huber = true;
     for it in 0..opts.max_iterations.max(1) {
         iterations = it + 1;
-        // Pass 1: residuals, unit vectors from the centre, robust scale.
-        scratch.work.clear();
-        for (i, p) in points.iter().enumerate() {
-            let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
-            let rho = (dx * dx + dz * dz).sqrt();
-            let d = rho - c.r_px;
-            scratch.residuals[i] = d;
-            scratch.units[i] = if rho > 0.0 {
-                (dx / rho, dz / rho)
-            } else {
-                (0.0, 0.0)
-            };
-            if p.weight > 0.0 {
-                scratch.work.push(d.abs());
-            }
-        }
         // The scale follows the fit while it still moves by more than
         // `FREEZE_SCALE_PX`, then is held (one median less per iteration).
-        let huber = it < opts.huber_iterations;
-        if scale.is_none() || last_step > FREEZE_SCALE_PX || huber {
+        huber = it < opts.huber_iterations;
+        let rescale = scale.is_none() || last_step > FREEZE_SCALE_PX || huber;
+        residuals_at(points, &c, rescale, scratch);
+        if rescale {
             scale = Some((1.4826 * median(&mut scratch.work)).max(opts.min_scale_px));
         }
         let s = scale.unwrap_or(opts.min_scale_px);
-        // Pass 2: weights and the weighted normal equations.
+        // Weights and the weighted normal equations (lower triangle).
         let mut jtj = [[0.0; 3]; 3];
         let mut jtd = [0.0; 3];
-        let (mut ss_unweighted, mut n_in) = (0.0, 0usize);
-        let mut jtw1 = [0.0; 3];
-        let mut meat = [[0.0; 3]; 3];
-        let mut bread = [[0.0; 3]; 3];
         for (i, p) in points.iter().enumerate() {
             let d = scratch.residuals[i];
-            let a = d.abs();
-            // Weight w = ψ(d)/d and slope ψ'(d) of the ρ-function.
-            let prior = p.weight.max(0.0);
-            let (w, dpsi) = if huber {
-                let k = 1.345 * s;
-                if a <= k {
-                    (1.0, 1.0)
-                } else {
-                    (k / a, 0.0)
-                }
-            } else {
-                let u = a / (opts.tukey_c * s);
-                if u < 1.0 {
-                    let q = 1.0 - u * u;
-                    (q * q, q * (1.0 - 5.0 * u * u))
-                } else {
-                    (0.0, 0.0)
-                }
-            };
-            let (w, dpsi) = (w * prior, dpsi * prior);
+            let (w, _) = robust_weight(d, s, huber, p.weight, opts);
             scratch.weights[i] = w;
             if w > 0.0 {
-                ss_unweighted += d * d;
-                n_in += 1;
                 // ∂d/∂x = −uₓ, ∂d/∂z = −u_z, ∂d/∂r = −1.
                 let (ux, uz) = scratch.units[i];
                 let j3 = [-ux, -uz, -1.0];
-                let wd2 = w * w * d * d;
                 for a in 0..3 {
-                    jtw1[a] += dpsi * j3[a];
                     jtd[a] += w * j3[a] * d;
                     for b in 0..=a {
                         jtj[a][b] += w * j3[a] * j3[b];
-                        meat[a][b] += wd2 * j3[a] * j3[b];
-                        bread[a][b] += dpsi * j3[a] * j3[b];
                     }
                 }
             }
@@ -496,20 +455,8 @@ pub fn fit_circle(
         for a in 0..3 {
             for b in a + 1..3 {
                 jtj[a][b] = jtj[b][a];
-                meat[a][b] = meat[b][a];
-                bread[a][b] = bread[b][a];
             }
-        }
-        last = LastSums {
-            jtj,
-            bread,
-            meat,
-            jtw1,
-            ss_unweighted,
-            n_in,
-        };
-        for (a, row) in jtj.iter_mut().enumerate() {
-            row[a] *= 1.0 + 1e-9;
+            jtj[a][a] *= 1.0 + 1e-9;
         }
         let step = if held {
             let m2 = [[jtj[0][0], jtj[0][1]], [jtj[1][0], jtj[1][1]]];
@@ -535,6 +482,16 @@ pub fn fit_circle(
             reason: format!("circle ({}, {}, r {})", c.x_px, c.z_px, c.r_px),
         });
     }
+    // The sums of the covariance, once, at the solution (the last
+    // iteration's weight function and scale).
+    let last = final_sums(
+        points,
+        &c,
+        scale.unwrap_or(opts.min_scale_px),
+        huber,
+        opts,
+        scratch,
+    );
     let inliers = scratch.weights.iter().filter(|&&w| w > 0.0).count();
     let p = if held { 2 } else { 3 };
     if inliers < opts.min_points.max(p + 1) {
@@ -544,8 +501,7 @@ pub fn fit_circle(
             needed: opts.min_points.max(p + 1),
         });
     }
-    // Residual and covariance from the last iteration's sums: its step was
-    // below `tolerance_px`, so they hold at the solution to that accuracy.
+    // Residual and covariance from the sums at the solution.
     let residual_px = (last.ss_unweighted / last.n_in.max(1) as f64).sqrt();
     let degenerate = || DetectError::Degenerate {
         what: WHAT,
@@ -592,6 +548,104 @@ pub fn fit_circle(
         inliers,
         iterations,
     })
+}
+
+/// Residuals `dᵢ = |pᵢ − c| − r` and unit vectors from the centre into
+/// `scratch`, and, when `for_scale`, `|dᵢ|` of the points with weight > 0
+/// into `scratch.work`. The first loop has no branch or push, so it runs
+/// two points at a time.
+fn residuals_at(points: &[EdgePoint], c: &Circle, for_scale: bool, scratch: &mut FitScratch) {
+    let n = points.len();
+    let (residuals, units) = (&mut scratch.residuals[..n], &mut scratch.units[..n]);
+    for ((p, d), u) in points
+        .iter()
+        .zip(residuals.iter_mut())
+        .zip(units.iter_mut())
+    {
+        let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
+        let rho = (dx * dx + dz * dz).sqrt();
+        *d = rho - c.r_px;
+        let (ux, uz) = (dx / rho, dz / rho);
+        *u = if rho > 0.0 { (ux, uz) } else { (0.0, 0.0) };
+    }
+    scratch.work.clear();
+    if for_scale {
+        scratch.work.extend(
+            points
+                .iter()
+                .zip(residuals.iter())
+                .filter(|(p, _)| p.weight > 0.0)
+                .map(|(_, d)| d.abs()),
+        );
+    }
+}
+
+/// Weight `w = ψ(d)/d` and slope `ψ'(d)` of the ρ-function at residual `d`
+/// with scale `s` (Huber's or Tukey's biweight), times the point's prior
+/// weight.
+#[inline]
+fn robust_weight(d: f64, s: f64, huber: bool, prior: f64, opts: &FitOptions) -> (f64, f64) {
+    let a = d.abs();
+    let prior = prior.max(0.0);
+    let (w, dpsi) = if huber {
+        let k = 1.345 * s;
+        if a <= k {
+            (1.0, 1.0)
+        } else {
+            (k / a, 0.0)
+        }
+    } else {
+        let u = a / (opts.tukey_c * s);
+        if u < 1.0 {
+            let q = 1.0 - u * u;
+            (q * q, q * (1.0 - 5.0 * u * u))
+        } else {
+            (0.0, 0.0)
+        }
+    };
+    (w * prior, dpsi * prior)
+}
+
+/// The sums of [`LastSums`] at circle `c`, with the final weights left in
+/// `scratch.weights`.
+fn final_sums(
+    points: &[EdgePoint],
+    c: &Circle,
+    s: f64,
+    huber: bool,
+    opts: &FitOptions,
+    scratch: &mut FitScratch,
+) -> LastSums {
+    residuals_at(points, c, false, scratch);
+    let mut last = LastSums::default();
+    for (i, p) in points.iter().enumerate() {
+        let d = scratch.residuals[i];
+        let (w, dpsi) = robust_weight(d, s, huber, p.weight, opts);
+        scratch.weights[i] = w;
+        if w > 0.0 {
+            last.ss_unweighted += d * d;
+            last.n_in += 1;
+            let (ux, uz) = scratch.units[i];
+            let j3 = [-ux, -uz, -1.0];
+            let wd2 = w * w * d * d;
+            for a in 0..3 {
+                last.jtw1[a] += dpsi * j3[a];
+                for b in 0..=a {
+                    last.jtj[a][b] += w * j3[a] * j3[b];
+                    last.meat[a][b] += wd2 * j3[a] * j3[b];
+                    last.bread[a][b] += dpsi * j3[a] * j3[b];
+                }
+            }
+        }
+    }
+    for a in 0..3 {
+        for b in a + 1..3 {
+            last.jtj[a][b] = last.jtj[b][a];
+            last.meat[a][b] = last.meat[b][a];
+            last.bread[a][b] = last.bread[b][a];
+        }
+    }
+    last
 }
 
 #[cfg(test)]

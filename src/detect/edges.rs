@@ -31,8 +31,9 @@
 //! needs) plus `O(e σ²/R²)`, negligible after one refinement pass.
 //!
 //! Because `P` enters linearly, the sum is accumulated while sampling:
-//! `Σ P_j t_j = (Σ t_j − Σ q_j t_j)/(1 − τ)` with `q_j = I_j/(g·B_j)`, so no
-//! sample is stored. Because the estimator integrates the profile instead of
+//! `Σ P_j t_j = (Σ t_j − Σ q_j t_j)/(1 − τ)` with `q_j = I_j/(g·B_j)`, and
+//! with `1/(g·B_j) = i_a + j·d` linear, `Σ q_j t_j` is a combination of the
+//! three sample moments `Σ I_j`, `Σ j I_j`, `Σ j² I_j`: no sample is stored. Because the estimator integrates the profile instead of
 //! locating a peak between samples, it has no pixel locking for an
 //! axis-aligned edge (a sum of linearly interpolated samples at unit spacing
 //! does not depend on their phase); the residual phase structure for oblique
@@ -150,6 +151,8 @@ pub struct EdgeScratch {
     pub radial_sigma_px: f64,
     /// The circle fit's buffers.
     pub fit: FitScratch,
+    /// The circle the normals of the last call were centred on.
+    pub centre: Circle,
 }
 
 /// Sub-pixel edge points around `predicted` in `band` (see the module doc).
@@ -177,6 +180,7 @@ pub fn edge_points<'s>(
     let w = params.half_window;
     let m = 2 * w + 1;
     let (cx, cz, r) = (predicted.x_px, predicted.z_px, predicted.r_px);
+    scratch.centre = *predicted;
     scratch.points.clear();
     scratch.normals.clear();
     scratch.levels.clear();
@@ -234,27 +238,31 @@ pub fn edge_points<'s>(
         let mut xf = (xa * FIX) as i64;
         let mut zf = (z0 * FIX) as i64;
         let (dxf, dzf) = ((c * FIX) as i64, (s * FIX) as i64);
-        let mut qt = 0.0;
-        let mut q_in = 0.0;
-        let mut q_out = 0.0;
+        // Σ q_j t_j = Σ I_j (ia + j·di)(t0 + j)
+        //           = ia·t0·S0 + (ia + di·t0)·S1 + di·S2,  S_k = Σ j^k I_j:
+        // three independent sums of the samples, the weights applied once.
+        let (mut s0, mut s1, mut s2) = (0.0f64, 0.0f64, 0.0f64);
+        let mut v_first = 0.0;
+        let mut v_last = 0.0;
         for j in 0..m {
             let jf = j as f64;
             let v = lerp_fixed(band.data, band.width, xf, zf) as f64;
             xf += dxf;
             zf += dzf;
-            let q = v * (ia + jf * di);
-            qt += q * (t0 + jf);
+            s0 += v;
+            s1 += v * jf;
+            s2 += v * jf * jf;
             if j == 0 {
-                q_in = q;
+                v_first = v;
             }
-            q_out = q;
+            v_last = v;
         }
         scratch.normals.push(NormalSums {
             c,
             s,
-            qt,
-            q_in,
-            q_out,
+            qt: ia * t0 * s0 + (ia + di * t0) * s1 + di * s2,
+            q_in: v_first * ia,
+            q_out: v_last * (ia + last_j * di),
         });
     }
     if scratch.normals.is_empty() {

@@ -104,16 +104,27 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<(f64, f64)> 
     if r_hi < r_lo + 2 * w + 2 {
         return out;
     }
-    for j in 0..bg.width {
-        let mut best = (0usize, f64::NEG_INFINITY);
-        for i in r_lo + w..r_hi - w - 1 {
-            let step = bg.at(i, j) as f64 - bg.at(i + 1, j) as f64;
-            if step > best.1 {
-                best = (i, step);
+    // Row by row (the image is row-major): per column, the first row of
+    // the largest step.
+    let width = bg.width;
+    let mut best_row = vec![0usize; width];
+    let mut best_step = vec![f64::NEG_INFINITY; width];
+    for i in r_lo + w..r_hi - w - 1 {
+        let (upper, lower) = (
+            &bg.levels[i * width..][..width],
+            &bg.levels[(i + 1) * width..][..width],
+        );
+        for j in 0..width {
+            let step = upper[j] as f64 - lower[j] as f64;
+            if step > best_step[j] {
+                best_step[j] = step;
+                best_row[j] = i;
             }
         }
-        let (zs, _) = best;
-        if best.1 <= 0.0 {
+    }
+    for j in 0..width {
+        let zs = best_row[j];
+        if best_step[j] <= 0.0 {
             continue;
         }
         // Window rows zs − w ..= zs + 1 + w.

@@ -292,18 +292,17 @@ impl FolderSource {
             Some((p, x)) => (Some(p), Some(x)),
             None => (None, None),
         };
-        let fps =
-            match xml.as_ref().and_then(|x| x.fps) {
+        let fps = match xml.as_ref().and_then(|x| x.fps) {
+            Some(f) if f.is_finite() && f > 0.0 => f,
+            _ => match options.fps_fallback {
                 Some(f) if f.is_finite() && f > 0.0 => f,
-                _ => match options.fps_fallback {
-                    Some(f) if f.is_finite() && f > 0.0 => f,
-                    _ => return Err(format_err(
-                        dir,
-                        "no frame rate: no PCC XML side file with FrameRateDouble/FrameRate here; \
-                         give fps in the run manifest or camera.fps in pipeline.toml (or --fps)",
-                    )),
-                },
-            };
+                _ => {
+                    return Err(SourceError::NoFrameRate {
+                        path: dir.to_path_buf(),
+                    })
+                }
+            },
+        };
         // Bit depth: the XML's RealBPP when it fits the container, else the container's.
         let bit_depth = match xml.as_ref().and_then(|x| x.real_bpp) {
             Some(b) if (1..=first.bits).contains(&b) => b,

@@ -286,6 +286,12 @@ pub enum SourceError {
     Format { path: PathBuf, reason: String },
     #[error("{path}: unsupported: {reason}")]
     Unsupported { path: PathBuf, reason: String },
+    /// The input carries no frame rate and none was given as a fallback.
+    #[error(
+        "{path}: no frame rate: no PCC XML side file with FrameRateDouble/FrameRate here; \
+         give fps in the run manifest or camera.fps in pipeline.toml (or --fps)"
+    )]
+    NoFrameRate { path: PathBuf },
     #[error("{path}: frame index {index} out of range (the sequence has {count} frames)")]
     FrameOutOfRange {
         path: PathBuf,

@@ -29,6 +29,7 @@ use std::path::{Path, PathBuf};
 use ndarray::{s, ArrayViewMut2};
 
 use super::pcc_xml::{self, PccXml};
+use super::widen::widen_u8;
 use super::{
     check_band, fill_row, fill_rows, Frame, FrameSource, OpenOptions, SourceDetails, SourceError,
     SourceMeta,
@@ -863,9 +864,7 @@ impl FrameSource for FolderSource {
                         &bytes[j * row_bytes..(j + 1) * row_bytes]
                     };
                     if bpp == 1 {
-                        for (d, s) in dst.iter_mut().zip(src) {
-                            *d = u16::from(*s);
-                        }
+                        widen_u8(src, dst);
                     } else if big_endian {
                         for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
                             *d = u16::from_be_bytes([s[0], s[1]]);
@@ -929,9 +928,7 @@ impl FrameSource for FolderSource {
                                     *d = u16::from_be_bytes([s[0], s[1]]);
                                 }
                             } else {
-                                for (d, s) in dst.iter_mut().zip(src) {
-                                    *d = u16::from(*s);
-                                }
+                                widen_u8(src, dst);
                             }
                         },
                     );

@@ -18,6 +18,7 @@ pub mod memory;
 mod p10_lut;
 mod packing;
 pub mod pcc_xml;
+mod widen;
 
 /// The name of an input, for run names and file names: a folder's whole name
 /// (run folders such as `R4.5mm_H12cm_01` hold dots that are no extension),

@@ -6,3 +6,4 @@ mod detect;
 mod process;
 mod render;
 mod source;
+mod source_tiff;

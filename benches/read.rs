@@ -71,40 +71,44 @@ fn thread_cpu_s() -> Option<f64> {
 
 /// Rate of `frames` frames shared by `threads` threads: thread `t` first
 /// runs `prepare(t)` (untimed: opening a source, allocating a buffer), then
-/// all start together and run `work(t, state)`.
+/// all start together and run `work(t, state)`. Each thread reads the clock
+/// itself (the spawning thread may not be scheduled while the workers
+/// run): wall time is from the first start to the last end.
 fn run<S>(
     frames: usize,
     threads: usize,
     prepare: impl Fn(usize) -> S + Sync,
     work: impl Fn(usize, &mut S) + Sync,
 ) -> Rate {
-    let barrier = std::sync::Barrier::new(threads + 1);
-    let (cpu, wall_s) = std::thread::scope(|scope| {
+    let barrier = std::sync::Barrier::new(threads);
+    let spans: Vec<(Instant, Instant, f64)> = std::thread::scope(|scope| {
         let handles: Vec<_> = (0..threads)
             .map(|t| {
                 let (barrier, prepare, work) = (&barrier, &prepare, &work);
                 scope.spawn(move || {
                     let mut state = prepare(t);
                     barrier.wait();
+                    let start = Instant::now();
                     let cpu0 = thread_cpu_s();
                     work(t, &mut state);
-                    match (cpu0, thread_cpu_s()) {
+                    let cpu = match (cpu0, thread_cpu_s()) {
                         (Some(a), Some(b)) => b - a,
                         _ => f64::NAN,
-                    }
+                    };
+                    (start, Instant::now(), cpu)
                 })
             })
             .collect();
-        barrier.wait();
-        let t0 = Instant::now();
-        let cpu: f64 = handles
+        handles
             .into_iter()
             .map(|h| h.join().expect("bench thread"))
-            .sum();
-        (cpu, t0.elapsed().as_secs_f64())
+            .collect()
     });
+    let start = spans.iter().map(|s| s.0).min().expect("a thread");
+    let end = spans.iter().map(|s| s.1).max().expect("a thread");
+    let cpu: f64 = spans.iter().map(|s| s.2).sum();
     Rate {
-        wall: frames as f64 / wall_s,
+        wall: frames as f64 / (end - start).as_secs_f64(),
         cpu: frames as f64 / cpu,
     }
 }

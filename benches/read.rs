@@ -347,12 +347,20 @@ fn main() {
                 best(|| time_copy(&cine_bytes[..n * cine_frame], cine_frame, threads)),
             ),
         ];
-        let band = [(
-            "16-bit .cine, 64-row band",
-            best(|| time_band(&cine, n, threads, 64)),
-            "memcpy of the band's bytes",
-            best(|| time_copy(&cine_bytes[..n * cine_frame / 6], cine_frame / 6, threads)),
-        )];
+        let band = [
+            (
+                "16-bit .cine, 64-row band",
+                best(|| time_band(&cine, n, threads, 64)),
+                "memcpy of the band's bytes",
+                best(|| time_copy(&cine_bytes[..n * cine_frame / 6], cine_frame / 6, threads)),
+            ),
+            (
+                "TIFF 8-bit folder, 64-row band",
+                best(|| time_band(&tiff_dir, n, threads, 64)),
+                "memcpy of the band's bytes",
+                best(|| time_copy(&tiff_bytes[..n * (W * H / 6)], W * H / 6, threads)),
+            ),
+        ];
         for (name, ours, base_name, base) in rows.into_iter().chain(band) {
             println!(
                 "| {name} | {threads} | {:.0} | {:.0} | {base_name} | {:.0} | {:.0} | {:.2} | {:.2} |",

@@ -222,6 +222,22 @@ impl PipelineConfig {
         })?;
         raw.validate(path, base_dir)
     }
+
+    /// The configuration every command uses: `explicit` (a `--config`
+    /// path), else `./pipeline.toml` when it exists, else the embedded
+    /// default. Returns it with its name for messages.
+    pub fn load_resolved(explicit: Option<&Path>) -> Result<(Self, String), ConfigError> {
+        let local = Path::new("pipeline.toml");
+        match explicit {
+            Some(p) => Ok((Self::load(p)?, p.display().to_string())),
+            None if local.exists() => Ok((Self::load(local)?, "./pipeline.toml".into())),
+            None => {
+                let name = "(embedded pipeline.toml)";
+                let cfg = Self::from_toml_str(EMBEDDED_DEFAULT, Path::new(name), Path::new(""))?;
+                Ok((cfg, name.into()))
+            }
+        }
+    }
 }
 
 struct Checker<'a> {

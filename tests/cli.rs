@@ -93,3 +93,139 @@ fn the_main_job_names_a_missing_manifest() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("nope.csv"));
 }
+
+/// A folder of three 8-bit PNG frames and no PCC XML: no frame rate of its own.
+fn folder_without_xml(dir: &std::path::Path) -> std::path::PathBuf {
+    let run = dir.join("run");
+    std::fs::create_dir(&run).unwrap();
+    for i in 0..3u8 {
+        image::GrayImage::from_pixel(4, 3, image::Luma([10 * i]))
+            .save(run.join(format!("img_{i}.png")))
+            .unwrap();
+    }
+    run
+}
+
+/// `inspect --json` of `input` run in `cwd` with `extra` arguments: (exit code, stdout, stderr).
+fn inspect(
+    cwd: &std::path::Path,
+    input: &std::path::Path,
+    extra: &[&str],
+) -> (i32, String, String) {
+    let out = dropscope()
+        .current_dir(cwd)
+        .arg("inspect")
+        .arg(input)
+        .arg("--json")
+        .args(extra)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn json_fps(stdout: &str) -> f64 {
+    let v: serde_json::Value = serde_json::from_str(stdout).unwrap();
+    v["fps"].as_f64().unwrap()
+}
+
+/// Without a PCC XML the frame rate comes from `--fps`, else camera.fps of
+/// `--config`, else of ./pipeline.toml, else of the embedded default — the
+/// rule `process` follows. The values are distinct, so each assertion can
+/// only pass if that source was used.
+#[test]
+fn inspect_takes_a_folders_missing_fps_from_the_flag_or_the_configuration() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = folder_without_xml(dir.path());
+    let cfg = dir.path().join("cam.toml");
+    std::fs::write(&cfg, "[camera]\nfps = 2500\n").unwrap();
+    let cfg_arg = cfg.to_str().unwrap();
+    let work = dir.path().join("work");
+    std::fs::create_dir(&work).unwrap();
+
+    // No ./pipeline.toml in `work`: the embedded default's camera.fps.
+    let embedded = dropscope::config::PipelineConfig::from_toml_str(
+        dropscope::config::EMBEDDED_DEFAULT,
+        std::path::Path::new("embedded"),
+        std::path::Path::new(""),
+    )
+    .unwrap()
+    .camera
+    .fps
+    .unwrap();
+    let (code, out, err) = inspect(&work, &run, &[]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(json_fps(&out), embedded);
+
+    // --config FILE.
+    let (code, out, err) = inspect(&work, &run, &["--config", cfg_arg]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(json_fps(&out), 2500.0);
+    assert!(
+        out.contains("from camera.fps in") && out.contains("cam.toml"),
+        "{out}"
+    );
+
+    // ./pipeline.toml.
+    std::fs::write(work.join("pipeline.toml"), "[camera]\nfps = 3125\n").unwrap();
+    let (code, out, err) = inspect(&work, &run, &[]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(json_fps(&out), 3125.0);
+
+    // --fps wins over any configuration.
+    let (code, out, err) = inspect(&work, &run, &["--config", cfg_arg, "--fps", "777"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(json_fps(&out), 777.0);
+    assert!(out.contains("fps 777 from --fps"), "{out}");
+}
+
+/// A configuration without camera.fps and no `--fps`: exit 2, and the
+/// message names the folder and both places to set a frame rate.
+#[test]
+fn inspect_and_export_without_any_fps_say_where_to_set_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = folder_without_xml(dir.path());
+    let cfg = dir.path().join("nofps.toml");
+    std::fs::write(&cfg, "[camera]\n").unwrap();
+    let cfg_arg = cfg.to_str().unwrap();
+    let (code, _, err) = inspect(dir.path(), &run, &["--config", cfg_arg]);
+    assert_eq!(code, 2, "{err}");
+    for needle in ["no frame rate", "--fps", "camera.fps", "nofps.toml", "run"] {
+        assert!(err.contains(needle), "{needle:?} missing from: {err}");
+    }
+    let out = dropscope()
+        .current_dir(dir.path())
+        .arg("export")
+        .arg(&run)
+        .args(["--frames", "0:1", "--out"])
+        .arg(dir.path().join("out"))
+        .args(["--config", cfg_arg])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("no frame rate") && err.contains("--fps") && err.contains("camera.fps"),
+        "{err}"
+    );
+    // With --fps the same export works.
+    let out = dropscope()
+        .current_dir(dir.path())
+        .arg("export")
+        .arg(&run)
+        .args(["--frames", "0:1", "--fps", "100", "--out"])
+        .arg(dir.path().join("out"))
+        .args(["--config", cfg_arg])
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(dir.path().join("out/run_0.png").is_file());
+}

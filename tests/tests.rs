@@ -8,3 +8,4 @@ mod render;
 mod report;
 mod run;
 mod source;
+mod source_tiff;

@@ -1,19 +1,25 @@
 //! `dropscope inspect` and `dropscope export` (SPEC §6): what a folder or
 //! `.cine` holds, and frames exactly as read written out as 16-bit PNG.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use serde_json::json;
 
-use super::{open, Frame, OpenOptions, P10Mode, SourceMeta};
+use super::{open, Frame, FrameSource, OpenOptions, P10Mode, SourceError, SourceMeta};
+use crate::config::PipelineConfig;
 
 /// Options shared by the commands that open a source.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SourceArgs {
-    /// Frame rate to assume when the input carries none (a folder without a PCC XML).
+    /// Frame rate to assume when the input carries none (a folder without a
+    /// PCC XML). Default: camera.fps of the configuration.
     #[arg(long)]
     pub fps: Option<f64>,
+    /// The configuration whose camera.fps is the fallback frame rate
+    /// (default: ./pipeline.toml, else the embedded default).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// Apply the recorded viewer flips (bFlipV/bFlipH): the picture as PCC shows it.
     /// By default frames are returned in storage orientation.
     #[arg(long)]
@@ -24,7 +30,55 @@ pub struct SourceArgs {
 }
 
 impl SourceArgs {
-    /// The corresponding [`OpenOptions`].
+    /// Open `input`; when it holds no frame rate, use the fallback resolved
+    /// as `process` does: `--fps`, else camera.fps of the configuration
+    /// (`--config`, else ./pipeline.toml, else the embedded default). The
+    /// configuration is read only then. Returns the source and, when the
+    /// fallback was used, where its frame rate came from. An input left
+    /// without a frame rate is an error saying where to set one.
+    pub fn open_source(
+        &self,
+        input: &Path,
+    ) -> anyhow::Result<(Box<dyn FrameSource>, Option<String>)> {
+        let has_fps = |m: &SourceMeta| m.fps.is_finite() && m.fps > 0.0;
+        let mut options = self.options();
+        options.fps_fallback = None;
+        match open(input, &options) {
+            Ok(src) if has_fps(src.meta()) => return Ok((src, None)),
+            Ok(_) | Err(SourceError::NoFrameRate { .. }) => {}
+            Err(e) => return Err(e.into()),
+        }
+        let (fallback, origin, problem) = match self.fps {
+            Some(f) => (Some(f), "--fps".to_string(), None),
+            None => match PipelineConfig::load_resolved(self.config.as_deref()) {
+                Ok((cfg, name)) => (cfg.camera.fps, format!("camera.fps in {name}"), None),
+                Err(e) => (None, String::new(), Some(e.to_string())),
+            },
+        };
+        if fallback.is_some() {
+            options.fps_fallback = fallback;
+            let src = open(input, &options)?;
+            if has_fps(src.meta()) {
+                return Ok((src, Some(origin)));
+            }
+        }
+        let config = match &self.config {
+            Some(p) => p.display().to_string(),
+            None if Path::new("pipeline.toml").exists() => "./pipeline.toml".into(),
+            None => "pipeline.toml (none here; or pass --config FILE)".into(),
+        };
+        let mut msg = format!(
+            "{}: no frame rate: the input holds none (a folder without its PCC XML side \
+             file, or a cine header without one); give --fps, or set camera.fps in {config}",
+            input.display()
+        );
+        if let Some(p) = problem {
+            msg.push_str(&format!("; the configuration could not be read: {p}"));
+        }
+        bail!(msg)
+    }
+
+    /// The corresponding [`OpenOptions`] (frame-rate fallback from `--fps` only).
     pub fn options(&self) -> OpenOptions {
         OpenOptions {
             fps_fallback: self.fps,
@@ -68,8 +122,15 @@ pub struct ExportArgs {
 
 /// Run `inspect`: print the report on stdout.
 pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
-    let src = open(&args.input, &args.source.options())?;
-    println!("{}", inspect_report(src.meta(), args.json));
+    let (src, fps_origin) = args.source.open_source(&args.input)?;
+    let mut meta = src.meta().clone();
+    if let Some(origin) = fps_origin {
+        meta.details.warnings.push(format!(
+            "the input holds no frame rate: fps {} from {origin}",
+            meta.fps
+        ));
+    }
+    println!("{}", inspect_report(&meta, args.json));
     Ok(())
 }
 
@@ -222,7 +283,7 @@ pub fn parse_frame_range(text: &str, count: usize) -> anyhow::Result<std::ops::R
 /// Run `export`: frames A..B as 16-bit grey PNGs `<name>_<number>.png`,
 /// values as read (not rescaled), rows top-down. Returns the files written.
 pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
-    let mut src = open(&args.input, &args.source.options())?;
+    let (mut src, _) = args.source.open_source(&args.input)?;
     let meta = src.meta().clone();
     let range = parse_frame_range(&args.frames, meta.frame_count)?;
     std::fs::create_dir_all(&args.out)

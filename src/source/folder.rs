@@ -16,8 +16,9 @@
 //! Every file's header is read when the folder is opened: a file whose size
 //! or bit depth differs from the first frame's is an error naming it.
 //!
-//! Speed: uncompressed single-sample TIFFs are parsed here (only the IFD and
-//! the requested rows are read, straight into the caller's buffer); PNGs are
+//! Speed: uncompressed single-sample TIFFs are parsed here (a whole frame
+//! with one read of the file into a reused buffer, a band of fewer than half
+//! the rows by its first 4 KiB and the band's rows only); PNGs are
 //! decoded row by row with the `png` crate into reused buffers and stop after
 //! the last requested row; BMP 8-bit is parsed here; everything else goes
 //! through the `image` crate.
@@ -29,6 +30,7 @@ use std::path::{Path, PathBuf};
 use ndarray::{s, ArrayViewMut2};
 
 use super::pcc_xml::{self, PccXml};
+use super::widen::widen_u8;
 use super::{
     check_band, fill_row, fill_rows, Frame, FrameSource, OpenOptions, SourceDetails, SourceError,
     SourceMeta,
@@ -138,6 +140,9 @@ struct Scratch {
     whole: bool,
     /// Read small TIFFs whole (frame reads) or only their headers (open).
     read_whole: bool,
+    /// The current request is a band of fewer than half the rows: a TIFF
+    /// is read by its header and the band's rows only, not whole.
+    small_band: bool,
 }
 
 /// TIFFs up to this size are read with one call and decoded from memory.
@@ -292,18 +297,17 @@ impl FolderSource {
             Some((p, x)) => (Some(p), Some(x)),
             None => (None, None),
         };
-        let fps =
-            match xml.as_ref().and_then(|x| x.fps) {
+        let fps = match xml.as_ref().and_then(|x| x.fps) {
+            Some(f) if f.is_finite() && f > 0.0 => f,
+            _ => match options.fps_fallback {
                 Some(f) if f.is_finite() && f > 0.0 => f,
-                _ => match options.fps_fallback {
-                    Some(f) if f.is_finite() && f > 0.0 => f,
-                    _ => return Err(format_err(
-                        dir,
-                        "no frame rate: no PCC XML side file with FrameRateDouble/FrameRate here; \
-                         give fps in the run manifest or camera.fps in pipeline.toml (or --fps)",
-                    )),
-                },
-            };
+                _ => {
+                    return Err(SourceError::NoFrameRate {
+                        path: dir.to_path_buf(),
+                    })
+                }
+            },
+        };
         // Bit depth: the XML's RealBPP when it fits the container, else the container's.
         let bit_depth = match xml.as_ref().and_then(|x| x.real_bpp) {
             Some(b) if (1..=first.bits).contains(&b) => b,
@@ -464,10 +468,17 @@ fn pick_xml(
     }
 }
 
-/// Read `buf.len()` bytes at `offset`.
+/// Read `buf.len()` bytes at `offset` (one positioned read on Unix).
 fn read_at(file: &mut File, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
-    file.seek(SeekFrom::Start(offset))?;
-    file.read_exact(buf)
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
+    }
+    #[cfg(not(unix))]
+    {
+        file.seek(SeekFrom::Start(offset))?;
+        file.read_exact(buf)
+    }
 }
 
 /// Open a frame file and read its header.
@@ -571,24 +582,24 @@ fn png_info<R: std::io::BufRead + Seek>(r: R) -> Result<Probe, png::DecodingErro
 fn probe_tiff(file: &mut File, len: u64, sc: &mut Scratch) -> Result<Option<Probe>, String> {
     // Files up to WHOLE_FILE_MAX are read whole, in one call, and decoded
     // from memory; larger ones by their first 4 KiB, then the rows needed.
-    let head_len = if sc.read_whole && len <= WHOLE_FILE_MAX {
+    let head_len = if sc.read_whole && !sc.small_band && len <= WHOLE_FILE_MAX {
         len
     } else {
         len.min(4096)
     };
-    // Grow the reused buffer only when needed (no zeroing frame after frame).
+    // Grow the reused buffer only when needed and never shrink it (no
+    // zeroing frame after frame): the file's bytes are `head[..head_len]`.
     let head_usize = head_len as usize;
     if sc.head.len() < head_usize {
         sc.head.resize(head_usize, 0);
     }
-    sc.head.truncate(head_usize);
-    file.read_exact(&mut sc.head)
+    file.read_exact(&mut sc.head[..head_usize])
         .map_err(|e| format!("not a TIFF (reading {head_len} bytes: {e})"))?;
     sc.whole = head_len == len;
     if head_len < 8 {
         return Err(format!("not a TIFF ({len} bytes)"));
     }
-    let head = &sc.head;
+    let head = &sc.head[..head_usize];
     let fetch = |file: &mut File, off: u64, out: &mut Vec<u8>, n: usize| {
         out.clear();
         if off + n as u64 <= head.len() as u64 {
@@ -812,6 +823,7 @@ impl FrameSource for FolderSource {
             index,
             reason,
         };
+        self.scratch.small_band = 2 * out.nrows() < self.meta.height;
         let (mut file, p) =
             open_and_probe(path, self.kind, &mut self.scratch).map_err(|e| match e {
                 SourceError::Format { reason, .. } => frame_err(reason),
@@ -837,20 +849,17 @@ impl FrameSource for FolderSource {
                 let row_at =
                     |strips: &[u64], r: usize| strips[r / rps] as usize + (r % rps) * row_bytes;
                 if !sc.whole {
-                    // A large file: read only the band's rows, strip by strip.
+                    // A small band or a large file: read only the band's
+                    // rows, one read per strip they lie in.
                     sc.bytes.clear();
+                    sc.bytes.resize(n * row_bytes, 0);
                     let mut r = row0;
                     while r < row0 + n {
                         let take = (rps - r % rps).min(row0 + n - r);
-                        let len = (take * row_bytes) as u64;
-                        let got = file
-                            .seek(SeekFrom::Start(row_at(&sc.strips, r) as u64))
-                            .and_then(|_| (&mut file).take(len).read_to_end(&mut sc.bytes));
-                        match got {
-                            Ok(g) if g as u64 == len => {}
-                            Ok(_) => return Err(frame_err("file ends inside a strip".into())),
-                            Err(e) => return Err(frame_err(format!("reading rows: {e}"))),
-                        }
+                        let dst =
+                            &mut sc.bytes[(r - row0) * row_bytes..(r - row0 + take) * row_bytes];
+                        read_at(&mut file, row_at(&sc.strips, r) as u64, dst)
+                            .map_err(|e| frame_err(format!("reading rows: {e}")))?;
                         r += take;
                     }
                 }
@@ -864,9 +873,7 @@ impl FrameSource for FolderSource {
                         &bytes[j * row_bytes..(j + 1) * row_bytes]
                     };
                     if bpp == 1 {
-                        for (d, s) in dst.iter_mut().zip(src) {
-                            *d = u16::from(*s);
-                        }
+                        widen_u8(src, dst);
                     } else if big_endian {
                         for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
                             *d = u16::from_be_bytes([s[0], s[1]]);
@@ -930,9 +937,7 @@ impl FrameSource for FolderSource {
                                     *d = u16::from_be_bytes([s[0], s[1]]);
                                 }
                             } else {
-                                for (d, s) in dst.iter_mut().zip(src) {
-                                    *d = u16::from(*s);
-                                }
+                                widen_u8(src, dst);
                             }
                         },
                     );

@@ -18,6 +18,7 @@ pub mod memory;
 mod p10_lut;
 mod packing;
 pub mod pcc_xml;
+mod widen;
 
 /// The name of an input, for run names and file names: a folder's whole name
 /// (run folders such as `R4.5mm_H12cm_01` hold dots that are no extension),
@@ -286,6 +287,12 @@ pub enum SourceError {
     Format { path: PathBuf, reason: String },
     #[error("{path}: unsupported: {reason}")]
     Unsupported { path: PathBuf, reason: String },
+    /// The input carries no frame rate and none was given as a fallback.
+    #[error(
+        "{path}: no frame rate: no PCC XML side file with FrameRateDouble/FrameRate here; \
+         give fps in the run manifest or camera.fps in pipeline.toml (or --fps)"
+    )]
+    NoFrameRate { path: PathBuf },
     #[error("{path}: frame index {index} out of range (the sequence has {count} frames)")]
     FrameOutOfRange {
         path: PathBuf,

@@ -4,9 +4,7 @@
 
 /// Widen 8-bit samples to `u16` (values unchanged).
 pub(crate) fn unpack_u8(src: &[u8], out: &mut [u16]) {
-    for (d, s) in out.iter_mut().zip(src) {
-        *d = u16::from(*s);
-    }
+    super::widen::widen_u8(src, out);
 }
 
 /// Little-endian 16-bit samples to `u16` (values unchanged).

@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
+use dropscope::config::PipelineConfig;
 
 /// Sphere-impact high-speed recordings into physics.
 #[derive(Debug, Parser)]
@@ -49,27 +49,10 @@ enum Command {
     },
 }
 
-/// Load `--config FILE`, else `./pipeline.toml`, else the embedded default.
-fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<PipelineConfig> {
-    let local = PathBuf::from("pipeline.toml");
-    Ok(match path {
-        Some(p) => PipelineConfig::load(p)?,
-        None if local.exists() => PipelineConfig::load(&local)?,
-        None => PipelineConfig::from_toml_str(
-            EMBEDDED_DEFAULT,
-            std::path::Path::new("(embedded pipeline.toml)"),
-            std::path::Path::new(""),
-        )?,
-    })
-}
-
-/// The name of the configuration in messages.
-fn config_name(path: Option<&std::path::Path>) -> String {
-    match path {
-        Some(p) => p.display().to_string(),
-        None if std::path::Path::new("pipeline.toml").exists() => "./pipeline.toml".to_string(),
-        None => "(embedded pipeline.toml)".to_string(),
-    }
+/// Load `--config FILE`, else `./pipeline.toml`, else the embedded default;
+/// with its name for messages.
+fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<(PipelineConfig, String)> {
+    Ok(PipelineConfig::load_resolved(path)?)
 }
 
 /// One line per finished run on stderr.
@@ -85,7 +68,7 @@ fn print_run_status(r: &dropscope::dataset::DropRecord) {
 /// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
 fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     use dropscope::dataset::DropStatus;
-    let cfg = load_config(args.config.as_deref())?;
+    let (cfg, name) = load_config(args.config.as_deref())?;
     let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
     let start = std::time::Instant::now();
     let progress = dropscope::progress::JobProgress::new();
@@ -93,13 +76,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         force: args.force,
         threads: args.threads.map(usize::from),
     };
-    let job = dropscope::batch::run_job(
-        &cfg,
-        &config_name(args.config.as_deref()),
-        &out,
-        &options,
-        &|e| progress.event(e),
-    );
+    let job = dropscope::batch::run_job(&cfg, &name, &out, &options, &|e| progress.event(e));
     progress.finish();
     let job = job?;
     for w in &job.collapse_warnings {
@@ -134,7 +111,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
 /// `dropscope process`: every run in parallel; exit 1 when some runs failed.
 fn run_process(args: &dropscope::process::ProcessArgs) -> anyhow::Result<ExitCode> {
     use dropscope::dataset::DropStatus;
-    let cfg = load_config(args.config.as_deref())?;
+    let (cfg, _) = load_config(args.config.as_deref())?;
     let runs = match &args.manifest {
         Some(m) => dropscope::manifest::read_manifest(m)?,
         None => dropscope::process::runs_from_inputs(&args.inputs, args.radius_mm, &cfg)?,
@@ -169,8 +146,8 @@ fn run_process(args: &dropscope::process::ProcessArgs) -> anyhow::Result<ExitCod
 
 /// `dropscope collapse`: groups, fits and plots; exit 1 when rows were skipped.
 fn run_collapse(args: &dropscope::collapse::CollapseArgs) -> anyhow::Result<ExitCode> {
-    let cfg = load_config(args.config.as_deref())?;
-    let s = dropscope::collapse::run(args, &cfg, &config_name(args.config.as_deref()))?;
+    let (cfg, name) = load_config(args.config.as_deref())?;
+    let s = dropscope::collapse::run(args, &cfg, &name)?;
     for w in &s.warnings {
         eprintln!("warning: {w}");
     }
@@ -220,10 +197,10 @@ fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> 
 
 /// `dropscope report`: report.html from what the main job left in a folder.
 fn run_report(out: Option<PathBuf>, config: Option<PathBuf>) -> anyhow::Result<ExitCode> {
-    let cfg = load_config(config.as_deref())?;
+    let (cfg, name) = load_config(config.as_deref())?;
     let out = out.unwrap_or_else(|| cfg.output.dir.clone());
     let records = dropscope::dataset::read_csv(&out.join("drops.csv"))?;
-    let path = dropscope::report::write_report(&out, &config_name(config.as_deref()), &records)?;
+    let path = dropscope::report::write_report(&out, &name, &records)?;
     println!("report: {}", path.display());
     Ok(ExitCode::SUCCESS)
 }
@@ -235,7 +212,7 @@ fn main() -> ExitCode {
         .unwrap_or_else(|| Command::Run(dropscope::batch::RunArgs::default()));
     let result: anyhow::Result<ExitCode> = match command {
         Command::Run(args) => run_main_job(&args),
-        Command::CheckConfig { config } => load_config(config.as_deref()).map(|c| {
+        Command::CheckConfig { config } => load_config(config.as_deref()).map(|(c, _)| {
             println!("{c:#?}");
             ExitCode::SUCCESS
         }),

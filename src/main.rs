@@ -20,7 +20,14 @@ struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// The main job: every run of the configured manifest → process → collapse
-    /// (what `dropscope` with no argument does).
+    /// → report.html (what `dropscope` with no argument does).
+    ///
+    /// Each finished run is kept in OUT/runs/<run>.json and reused by later
+    /// jobs while its input (size, time, sampled content), the configuration
+    /// and the dropscope version are unchanged; `--force` reprocesses all.
+    /// A job interrupted at any moment, even by kill -9, is finished by
+    /// running it again. OUT/provenance.json records version, configuration
+    /// and input fingerprints.
     Run(dropscope::batch::RunArgs),
     /// Validate a pipeline.toml and print the resolved configuration.
     CheckConfig {

@@ -19,6 +19,7 @@ fn help_lists_the_built_subcommands() {
         "process",
         "collapse",
         "check-config",
+        "report",
     ] {
         assert!(text.contains(sub), "{sub} missing from: {text}");
     }

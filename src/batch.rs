@@ -238,29 +238,6 @@ fn run_one(
     Ok((entry, false))
 }
 
-/// Files the collapse writes: its tables, and its figures in `plots/` and `plots/drops/`.
-const COLLAPSE_FILES: [&str; 2] = ["collapse.csv", "fits.json"];
-const COLLAPSE_FIGURES: [&str; 4] = ["psi_vs_xi", "omega_vs_xi", "pi_vs_eta", "tau_vs_v"];
-
-fn remove_collapse_outputs(out: &Path) -> Result<(), BatchError> {
-    let gone = |r: std::io::Result<()>, path: &Path| match r {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(BatchError::Io {
-            path: path.to_path_buf(),
-            source: e,
-        }),
-        _ => Ok(()),
-    };
-    let figures = COLLAPSE_FIGURES
-        .iter()
-        .flat_map(|stem| ["svg", "png"].map(|ext| format!("plots/{stem}.{ext}")));
-    for rel in COLLAPSE_FILES.iter().map(|s| s.to_string()).chain(figures) {
-        let p = out.join(rel);
-        gone(std::fs::remove_file(&p), &p)?;
-    }
-    let drops = out.join("plots").join("drops");
-    gone(std::fs::remove_dir_all(&drops), &drops)
-}
-
 /// `provenance.json`: what produced the outputs, without timestamps, so the
 /// same inputs and configuration give the same bytes.
 fn provenance_json(cfg: &PipelineConfig, config_name: &str, entries: &[Entry]) -> Vec<u8> {
@@ -350,7 +327,7 @@ pub fn run_job(
     // earlier job's collapse wrote, so that no figure of a run that has
     // since failed or left the manifest survives (nor all of it when no
     // drop is measured now).
-    remove_collapse_outputs(out)?;
+    crate::collapse::remove_outputs(out).map_err(io(out))?;
     let (collapsed, collapse_warnings) = if measured > 0 {
         events(RunEvent::Collapsing);
         let args = CollapseArgs {

@@ -30,6 +30,14 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
     })
 }
 
+/// Remove `path`; a file that is not there is not an error.
+pub fn remove_if_present(path: &Path) -> io::Result<()> {
+    match fs::remove_file(path) {
+        Err(e) if e.kind() != io::ErrorKind::NotFound => Err(e),
+        _ => Ok(()),
+    }
+}
+
 /// Whether `name` is a temporary of [`write_atomic`]: `.<name>.tmp<pid>`.
 fn is_temporary(name: &str) -> bool {
     name.starts_with('.')

@@ -408,12 +408,7 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<String>, Proc
 
 fn remove_if_present(out: &Path, rel: &str) -> Result<(), ProcessError> {
     let path = out.join(rel);
-    match std::fs::remove_file(&path) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-            Err(ProcessError::Write { path, source: e })
-        }
-        _ => Ok(()),
-    }
+    crate::io_util::remove_if_present(&path).map_err(|source| ProcessError::Write { path, source })
 }
 
 #[cfg(test)]

@@ -157,6 +157,26 @@ pub fn compute_groups(
     Ok(outcomes)
 }
 
+/// The tables [`run`] writes into the output folder: `collapse.csv`, `fits.json`.
+pub const TABLES: [&str; 2] = ["collapse.csv", "fits.json"];
+
+/// Remove what [`run`] writes into `out_dir` (its tables, the figures in
+/// `plots/` and the per-drop figures in `plots/drops/`), so that a collapse
+/// redone, or not done, leaves nothing of an earlier one. Missing files are
+/// not an error.
+pub fn remove_outputs(out_dir: &Path) -> std::io::Result<()> {
+    let figures = crate::plot::FIGURE_STEMS
+        .iter()
+        .flat_map(|stem| ["svg", "png"].map(|ext| format!("plots/{stem}.{ext}")));
+    for rel in TABLES.iter().map(|s| s.to_string()).chain(figures) {
+        crate::io_util::remove_if_present(&out_dir.join(rel))?;
+    }
+    match std::fs::remove_dir_all(out_dir.join("plots").join("drops")) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+        _ => Ok(()),
+    }
+}
+
 /// Run the collapse stage: read `args.drops`, write everything into the
 /// output folder. `config_name` names the configuration in messages.
 pub fn run(
@@ -257,13 +277,13 @@ pub fn run(
     let mut files = Vec::new();
     write(
         &out_dir,
-        Path::new("collapse.csv"),
+        Path::new(TABLES[0]),
         &output::collapse_csv(&outcomes),
         &mut files,
     )?;
     write(
         &out_dir,
-        Path::new("fits.json"),
+        Path::new(TABLES[1]),
         &output::fits_json(&prov, &outcomes, &fits, &force_laws, &warnings),
         &mut files,
     )?;

@@ -618,6 +618,9 @@ where
     Ok(())
 }
 
+/// File stems of the figures [`collapse_figures`] draws, in its order.
+pub const FIGURE_STEMS: [&str; 4] = ["pi_vs_eta", "tau_vs_v", "psi_vs_xi", "omega_vs_xi"];
+
 /// The four collapse figures as `(file name, bytes)`, SVG and PNG each.
 pub fn collapse_figures(
     groups: &[DropGroups],
@@ -625,10 +628,14 @@ pub fn collapse_figures(
 ) -> Result<Vec<(String, Vec<u8>)>, CollapseError> {
     let sets = by_radius(groups, fits);
     let mut out = Vec::new();
-    out.extend(render!("pi_vs_eta", FIGURE_SIZE, |a| pi_vs_eta(a, &sets))?);
-    out.extend(render!("tau_vs_v", FIGURE_SIZE, |a| tau_vs_v(a, &sets))?);
+    out.extend(render!(FIGURE_STEMS[0], FIGURE_SIZE, |a| pi_vs_eta(
+        a, &sets
+    ))?);
+    out.extend(render!(FIGURE_STEMS[1], FIGURE_SIZE, |a| tau_vs_v(
+        a, &sets
+    ))?);
     let psi_label = format!("Ψ → 2^(1/3) = {:.4} (energy balance)", fit::psi_theory());
-    out.extend(render!("psi_vs_xi", FIGURE_SIZE, |a| series_plot(
+    out.extend(render!(FIGURE_STEMS[2], FIGURE_SIZE, |a| series_plot(
         a,
         &sets,
         "Collapse Ψ(Ξ), Ψ = Π φ^(1/3) κ^(−1/3) η^(−1/3) (Eq. 8, cf. Fig. 3b)",
@@ -640,7 +647,7 @@ pub fn collapse_figures(
         fits.crossover_xi.as_ref().map(|c| c.value),
     ))?);
     let omega_label = format!("Ω → C0 = {:.4} (energy balance)", fit::omega_theory());
-    out.extend(render!("omega_vs_xi", FIGURE_SIZE, |a| series_plot(
+    out.extend(render!(FIGURE_STEMS[3], FIGURE_SIZE, |a| series_plot(
         a,
         &sets,
         "Collapse Ω(Ξ), Ω = ω φ^(1/3) κ^(−1/3) η^(−1/3), ω = τc v/R (cf. Fig. 4b)",

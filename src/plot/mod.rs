@@ -18,7 +18,7 @@ mod drop;
 mod layout;
 mod marker;
 
-pub use collapse::collapse_figures;
+pub use collapse::{collapse_figures, FIGURE_STEMS};
 pub use drop::drop_figures;
 pub use marker::{radius_style, Marker, MarkerKind};
 

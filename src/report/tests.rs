@@ -219,3 +219,14 @@ fn a_collapse_without_plots_says_so_and_keeps_its_fits() {
     assert!(page.contains("The collapse wrote no plots."));
     assert!(page.contains("<td>A1 = "));
 }
+
+/// The captioned plots are exactly the figures the collapse draws, so a
+/// figure added to one and not the other is caught here.
+#[test]
+fn captioned_plots_are_the_collapse_figures() {
+    let mut captioned: Vec<&str> = super::KNOWN_PLOTS.iter().map(|(s, _)| *s).collect();
+    let mut drawn = crate::plot::FIGURE_STEMS.to_vec();
+    captioned.sort_unstable();
+    drawn.sort_unstable();
+    assert_eq!(captioned, drawn);
+}

@@ -31,7 +31,7 @@ use dropscope::config::DetectConfig;
 use dropscope::source::memory::MemorySource;
 use dropscope::source::{open, FrameSource, OpenOptions, SourceError, SourceMeta};
 use dropscope::track::{background_and_surface, track, TrackSettings};
-use ndarray::{s, ArrayViewMut2};
+use ndarray::ArrayViewMut2;
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -51,7 +51,8 @@ fn movie(args: &[&str], dir: &std::path::Path) -> MemorySource {
 }
 
 /// A movie in memory shared by several threads: each reads rows by copying
-/// them out (one `memcpy` for whole rows), as [`MemorySource`] does.
+/// them out, as [`MemorySource`] does (an 8-bit movie is held as bytes and
+/// widened to 16 bits on the way out).
 struct Shared<'a> {
     movie: &'a MemorySource,
     meta: SourceMeta,
@@ -68,20 +69,7 @@ impl FrameSource for Shared<'_> {
         row0: usize,
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), SourceError> {
-        let n = out.nrows();
-        if index >= self.meta.frame_count || row0 + n > self.meta.height {
-            return Err(SourceError::FrameOutOfRange {
-                path: self.meta.path.clone(),
-                index,
-                count: self.meta.frame_count,
-            });
-        }
-        let rows = self.movie.frame(index).slice(s![row0..row0 + n, ..]);
-        match (rows.to_slice(), out.as_slice_mut()) {
-            (Some(a), Some(b)) => b.copy_from_slice(a),
-            _ => out.assign(&rows),
-        }
-        Ok(())
+        self.movie.read_rows(index, row0, out)
     }
 }
 

@@ -268,13 +268,15 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
                     weight: 1.0,
                 }),
         );
-        // Tukey's weights from the first iteration: the start is the free
-        // fit on the same points, whose Huber iterations already brought it
-        // from the prediction.
+        // Tukey's weights from the first iteration, at the free fit's
+        // residual scale: the start is the free fit on the same points,
+        // whose Huber iterations already brought it from the prediction,
+        // and holding the radius moves it by hundredths of a pixel.
         let opts = FitOptions {
             hold_radius: Some(radius_px),
             radial_sigma_px: k.radial_sigma_px,
             huber_iterations: 0,
+            scale_px: Some(f1.scale_px),
             ..FitOptions::default()
         };
         let held = fit_circle(&points, Some(p), &opts, &mut fs).ok();

@@ -141,6 +141,7 @@ mod tests {
             n_used: 100,
             inliers: 100,
             iterations: 5,
+            scale_px: 0.02,
         }
     }
 

@@ -427,7 +427,11 @@ fn sort_rows(rows: &mut [f32], w: usize, pairs: &[(usize, usize)]) {
         let (a, b) = (&mut a[lo * w..][..w], &mut b[..w]);
         for (x, y) in a.iter_mut().zip(b.iter_mut()) {
             let (p, q) = (*x, *y);
-            (*x, *y) = (p.min(q), p.max(q));
+            // Plain comparisons, not f32::min/max: the values are never NaN
+            // (levels or +∞), and these compile to one minps/maxps each
+            // instead of a NaN-aware sequence.
+            let lt = p < q;
+            (*x, *y) = (if lt { p } else { q }, if lt { q } else { p });
         }
     }
 }

@@ -445,11 +445,11 @@ pub fn fit_circle(
         let (jtj, jtd) = if rescale {
             residuals_at(points, &c, scratch);
             scale = Some((1.4826 * median(&mut scratch.work)).max(opts.min_scale_px));
-            let s = scale.unwrap_or(opts.min_scale_px);
-            normal_equations(points, s, huber, opts, scratch)
+            let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), huber, opts);
+            normal_equations(points, rw, scratch)
         } else {
-            let s = scale.unwrap_or(opts.min_scale_px);
-            fused_normal_equations(points, &c, s, huber, opts)
+            let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), huber, opts);
+            fused_normal_equations(points, &c, rw)
         };
         let step = if held {
             let m2 = [[jtj[0][0], jtj[0][1]], [jtj[1][0], jtj[1][1]]];
@@ -477,14 +477,8 @@ pub fn fit_circle(
     }
     // The sums of the covariance, once, at the solution (the last
     // iteration's weight function and scale).
-    let last = final_sums(
-        points,
-        &c,
-        scale.unwrap_or(opts.min_scale_px),
-        huber,
-        opts,
-        scratch,
-    );
+    let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), huber, opts);
+    let last = final_sums(points, &c, rw, scratch);
     let inliers = scratch.weights.iter().filter(|&&w| w > 0.0).count();
     let p = if held { 2 } else { 3 };
     if inliers < opts.min_points.max(p + 1) {
@@ -549,15 +543,13 @@ pub fn fit_circle(
 /// vectors already in `scratch`, leaving the weights in `scratch.weights`.
 fn normal_equations(
     points: &[EdgePoint],
-    s: f64,
-    huber: bool,
-    opts: &FitOptions,
+    rw: RobustWeight,
     scratch: &mut FitScratch,
 ) -> ([[f64; 3]; 3], [f64; 3]) {
     let mut sums = NormalSums::default();
     for (i, p) in points.iter().enumerate() {
         let d = scratch.residuals[i];
-        let (w, _) = robust_weight(d, s, huber, p.weight, opts);
+        let (w, _) = rw.at(d, p.weight);
         scratch.weights[i] = w;
         sums.add(w, scratch.units[i], d);
     }
@@ -569,24 +561,29 @@ fn normal_equations(
 fn fused_normal_equations(
     points: &[EdgePoint],
     c: &Circle,
-    s: f64,
-    huber: bool,
-    opts: &FitOptions,
+    rw: RobustWeight,
 ) -> ([[f64; 3]; 3], [f64; 3]) {
     let mut sums = NormalSums::default();
     for p in points {
         let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
         let rho = (dx * dx + dz * dz).sqrt();
         let d = rho - c.r_px;
-        let u = if rho > 0.0 {
-            (dx / rho, dz / rho)
-        } else {
-            (0.0, 0.0)
-        };
-        let (w, _) = robust_weight(d, s, huber, p.weight, opts);
+        let u = unit(dx, dz, rho);
+        let (w, _) = rw.at(d, p.weight);
         sums.add(w, u, d);
     }
     sums.finish()
+}
+
+/// The unit vector `(dx, dz)/rho` (one division), `(0, 0)` at `rho = 0`.
+#[inline(always)]
+fn unit(dx: f64, dz: f64, rho: f64) -> (f64, f64) {
+    let inv = 1.0 / rho;
+    if rho > 0.0 {
+        (dx * inv, dz * inv)
+    } else {
+        (0.0, 0.0)
+    }
 }
 
 /// Running sums of the weighted normal equations (lower triangle).
@@ -637,8 +634,7 @@ fn residuals_at(points: &[EdgePoint], c: &Circle, scratch: &mut FitScratch) {
         let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
         let rho = (dx * dx + dz * dz).sqrt();
         *d = rho - c.r_px;
-        let (ux, uz) = (dx / rho, dz / rho);
-        *u = if rho > 0.0 { (ux, uz) } else { (0.0, 0.0) };
+        *u = unit(dx, dz, rho);
     }
     scratch.work.clear();
     scratch.work.extend(
@@ -650,30 +646,51 @@ fn residuals_at(points: &[EdgePoint], c: &Circle, scratch: &mut FitScratch) {
     );
 }
 
-/// Weight `w = ψ(d)/d` and slope `ψ'(d)` of the ρ-function at residual `d`
-/// with scale `s` (Huber's or Tukey's biweight), times the point's prior
-/// weight.
-#[inline]
-fn robust_weight(d: f64, s: f64, huber: bool, prior: f64, opts: &FitOptions) -> (f64, f64) {
-    let a = d.abs();
-    let prior = prior.max(0.0);
-    let (w, dpsi) = if huber {
-        let k = 1.345 * s;
-        if a <= k {
-            (1.0, 1.0)
-        } else {
-            (k / a, 0.0)
+/// The weight function of one IRLS iteration: Huber's or Tukey's biweight
+/// at residual scale `s`, with its constants worked out once.
+#[derive(Debug, Clone, Copy)]
+struct RobustWeight {
+    huber: bool,
+    /// Huber's corner `1.345 s`.
+    k: f64,
+    /// `1 / (c s)²` for Tukey's biweight.
+    inv_cs2: f64,
+}
+
+impl RobustWeight {
+    fn new(s: f64, huber: bool, opts: &FitOptions) -> Self {
+        let cs = opts.tukey_c * s;
+        RobustWeight {
+            huber,
+            k: 1.345 * s,
+            inv_cs2: 1.0 / (cs * cs),
         }
-    } else {
-        let u = a / (opts.tukey_c * s);
-        if u < 1.0 {
-            let q = 1.0 - u * u;
-            (q * q, q * (1.0 - 5.0 * u * u))
+    }
+
+    /// Weight `w = ψ(d)/d` and slope `ψ'(d)` of the ρ-function at residual
+    /// `d`, times the point's prior weight.
+    #[inline(always)]
+    fn at(&self, d: f64, prior: f64) -> (f64, f64) {
+        let prior = prior.max(0.0);
+        let (w, dpsi) = if self.huber {
+            let a = d.abs();
+            if a <= self.k {
+                (1.0, 1.0)
+            } else {
+                (self.k / a, 0.0)
+            }
         } else {
-            (0.0, 0.0)
-        }
-    };
-    (w * prior, dpsi * prior)
+            // u² = (d / c s)², no division or square root per point.
+            let u2 = d * d * self.inv_cs2;
+            if u2 < 1.0 {
+                let q = 1.0 - u2;
+                (q * q, q * (1.0 - 5.0 * u2))
+            } else {
+                (0.0, 0.0)
+            }
+        };
+        (w * prior, dpsi * prior)
+    }
 }
 
 /// The sums of [`LastSums`] at circle `c`, with the final weights left in
@@ -681,9 +698,7 @@ fn robust_weight(d: f64, s: f64, huber: bool, prior: f64, opts: &FitOptions) -> 
 fn final_sums(
     points: &[EdgePoint],
     c: &Circle,
-    s: f64,
-    huber: bool,
-    opts: &FitOptions,
+    rw: RobustWeight,
     scratch: &mut FitScratch,
 ) -> LastSums {
     let mut last = LastSums::default();
@@ -691,16 +706,12 @@ fn final_sums(
         let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
         let rho = (dx * dx + dz * dz).sqrt();
         let d = rho - c.r_px;
-        let (w, dpsi) = robust_weight(d, s, huber, p.weight, opts);
+        let (w, dpsi) = rw.at(d, p.weight);
         *weight = w;
         if w > 0.0 {
             last.ss_unweighted += d * d;
             last.n_in += 1;
-            let (ux, uz) = if rho > 0.0 {
-                (dx / rho, dz / rho)
-            } else {
-                (0.0, 0.0)
-            };
+            let (ux, uz) = unit(dx, dz, rho);
             let j3 = [-ux, -uz, -1.0];
             let wd2 = w * w * d * d;
             for a in 0..3 {

@@ -3,8 +3,12 @@
 //! The portable loop is vectorised by the compiler for the baseline x86-64
 //! target (SSE2, 16 pixels per step); on CPUs with AVX2 the same loop is
 //! compiled a second time with AVX2 enabled and chosen at run time
-//! (32 pixels per step). Measured on this machine's AMD EPYC: widening a
-//! 512×384 frame held in L2 takes 5.0 µs with SSE2 and 2.0–3.4 µs with AVX2.
+//! (32 pixels per step), with software prefetches 4 kB ahead: a hardware
+//! prefetcher alone left the widening of rows still in DRAM (an in-memory
+//! movie) at half the bandwidth of a `memcpy`, and the prefetches made the
+//! tracking of such a movie ~8 % faster. Measured on this machine's AMD
+//! EPYC: widening a 512×384 frame held in L2 takes 5.0 µs with SSE2 and
+//! 2.0–3.4 µs with AVX2.
 
 /// `dst[i] = src[i]` for `i < min(len)`.
 pub(crate) fn widen_u8(src: &[u8], dst: &mut [u16]) {
@@ -20,7 +24,26 @@ pub(crate) fn widen_u8(src: &[u8], dst: &mut [u16]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn widen_u8_avx2(src: &[u8], dst: &mut [u16]) {
-    widen_u8_portable(src, dst);
+    use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+    // Blocks of CHUNK bytes; before each, the block AHEAD bytes further on
+    // is requested a cache line at a time (a prefetch never faults, and
+    // only addresses inside `src` are named).
+    const CHUNK: usize = 1024;
+    const AHEAD: usize = 4096;
+    let n = src.len().min(dst.len());
+    let (src, dst) = (&src[..n], &mut dst[..n]);
+    for (k, (s, d)) in src.chunks(CHUNK).zip(dst.chunks_mut(CHUNK)).enumerate() {
+        let ahead = k * CHUNK + AHEAD;
+        if ahead < n {
+            let end = (ahead + CHUNK).min(n);
+            let mut at = ahead;
+            while at < end {
+                _mm_prefetch::<_MM_HINT_T0>(src.as_ptr().add(at) as *const i8);
+                at += 64;
+            }
+        }
+        widen_u8_portable(s, d);
+    }
 }
 
 #[inline(always)]

@@ -250,12 +250,14 @@ fn provenance_json(cfg: &PipelineConfig, config_name: &str, entries: &[Entry]) -
     #[derive(serde::Serialize)]
     struct Provenance<'a> {
         dropscope_version: &'a str,
+        dropscope_source_sha256: &'a str,
         configuration_file: &'a str,
         configuration: &'a PipelineConfig,
         runs: Vec<RunProvenance<'a>>,
     }
     let p = Provenance {
         dropscope_version: env!("CARGO_PKG_VERSION"),
+        dropscope_source_sha256: cache::SOURCE_SHA256,
         configuration_file: config_name,
         configuration: cfg,
         runs: entries

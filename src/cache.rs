@@ -25,6 +25,12 @@ use std::time::UNIX_EPOCH;
 /// Bump when the entry layout or anything it depends on changes meaning.
 pub const CACHE_SCHEMA: u32 = 1;
 
+/// SHA-256 (hex) of the sources this dropscope was built from: every file
+/// under `src/`, `Cargo.toml` and `Cargo.lock`, taken by `build.rs`. Any
+/// change to the code or to a dependency's version changes it, and with it
+/// every cache key.
+pub const SOURCE_SHA256: &str = env!("DROPSCOPE_SOURCE_SHA256");
+
 /// Bytes hashed from the start of a `.cine` (headers and the offset table of
 /// up to 130 000 frames) and from each sampled place.
 const CINE_HEAD_BYTES: u64 = 1 << 20;
@@ -178,12 +184,19 @@ fn config_for_key(cfg: &PipelineConfig) -> PipelineConfig {
     c
 }
 
-/// The cache key of `run` under `cfg` with input `fp`.
+/// The cache key of `run` under `cfg` with input `fp`, computed by this
+/// build of dropscope.
 pub fn key(cfg: &PipelineConfig, run: &RunSpec, fp: &Fingerprint) -> String {
+    key_for_source(SOURCE_SHA256, cfg, run, fp)
+}
+
+/// [`key`] as the build whose sources hash to `source` would compute it.
+fn key_for_source(source: &str, cfg: &PipelineConfig, run: &RunSpec, fp: &Fingerprint) -> String {
     #[derive(Serialize)]
     struct KeyParts<'a> {
         schema: u32,
         version: &'a str,
+        source: &'a str,
         config: PipelineConfig,
         run: &'a RunSpec,
         input: &'a Fingerprint,
@@ -191,6 +204,7 @@ pub fn key(cfg: &PipelineConfig, run: &RunSpec, fp: &Fingerprint) -> String {
     let parts = KeyParts {
         schema: CACHE_SCHEMA,
         version: env!("CARGO_PKG_VERSION"),
+        source,
         config: config_for_key(cfg),
         run,
         input: fp,
@@ -291,7 +305,7 @@ mod tests {
     }
 
     #[test]
-    fn key_changes_with_configuration_run_and_input_but_not_output_folder() {
+    fn key_changes_with_code_configuration_run_and_input_but_not_output_folder() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("m.cine");
         std::fs::write(&p, b"CI").unwrap();
@@ -310,6 +324,10 @@ mod tests {
         let mut fp2 = fp.clone();
         fp2.modified_ns += 1;
         assert_ne!(k, key(&c, &r, &fp2));
+        // Other code: a build from other sources computes another key.
+        assert!(SOURCE_SHA256.len() == 64 && SOURCE_SHA256.bytes().all(|b| b.is_ascii_hexdigit()));
+        assert_eq!(k, key_for_source(SOURCE_SHA256, &c, &r, &fp));
+        assert_ne!(k, key_for_source(&"0".repeat(64), &c, &r, &fp));
     }
 
     #[test]

@@ -24,10 +24,11 @@ enum Command {
     ///
     /// Each finished run is kept in OUT/runs/<run>.json and reused by later
     /// jobs while its input (size, time, sampled content), the configuration
-    /// and the dropscope version are unchanged; `--force` reprocesses all.
-    /// A job interrupted at any moment, even by kill -9, is finished by
-    /// running it again. OUT/provenance.json records version, configuration
-    /// and input fingerprints.
+    /// and dropscope (its version and the SHA-256 of the sources it was built
+    /// from) are unchanged; `--force` reprocesses all. A job interrupted at
+    /// any moment, even by kill -9, is finished by running it again.
+    /// OUT/provenance.json records version, source hash, configuration and
+    /// input fingerprints.
     Run(dropscope::batch::RunArgs),
     /// Validate a pipeline.toml and print the resolved configuration.
     CheckConfig {

@@ -205,10 +205,9 @@ impl Background {
                         let lo = ((c.x_px - s).floor() + 1.0).max(0.0);
                         let hi = ((c.x_px + s).ceil() - 1.0).min(w as f64 - 1.0);
                         if lo <= hi {
-                            for j in lo as usize..=hi as usize {
-                                row[j] = f32::INFINITY;
-                                count[j] -= 1;
-                            }
+                            let span = lo as usize..=hi as usize;
+                            row[span.clone()].fill(f32::INFINITY);
+                            count[span].iter_mut().for_each(|c| *c -= 1);
                         }
                     }
                 }

@@ -197,6 +197,20 @@ pub struct DetectConfig {
     pub edge_spacing_px: f64,
 }
 
+/// The values a `[detect]` table without the key gets.
+impl Default for DetectConfig {
+    fn default() -> Self {
+        DetectConfig {
+            background_frames: 8,
+            surface_row_px: None,
+            surface_slope: 0.0,
+            contact_margin_px: 2.0,
+            edge_half_window_px: 6,
+            edge_spacing_px: 3.0,
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OutputConfig {
     pub dir: PathBuf,
@@ -329,11 +343,18 @@ impl RawConfig {
         let fps = c.positive_opt("camera.fps", self.camera.fps)?;
         let mm_per_px = c.positive_opt("camera.mm_per_px", self.camera.mm_per_px)?;
 
-        let background_frames = self.detect.background_frames.unwrap_or(8);
+        let defaults = DetectConfig::default();
+        let background_frames = self
+            .detect
+            .background_frames
+            .unwrap_or(defaults.background_frames);
         if background_frames == 0 {
             return Err(c.invalid("detect.background_frames", 0, "must be at least 1"));
         }
-        let contact_margin_px = self.detect.contact_margin_px.unwrap_or(2.0);
+        let contact_margin_px = self
+            .detect
+            .contact_margin_px
+            .unwrap_or(defaults.contact_margin_px);
         if !(contact_margin_px.is_finite() && contact_margin_px >= 0.0) {
             return Err(c.invalid(
                 "detect.contact_margin_px",
@@ -341,7 +362,7 @@ impl RawConfig {
                 "must be a finite number ≥ 0",
             ));
         }
-        let surface_slope = self.detect.surface_slope.unwrap_or(0.0);
+        let surface_slope = self.detect.surface_slope.unwrap_or(defaults.surface_slope);
         if !surface_slope.is_finite() || surface_slope.abs() > 0.2 {
             return Err(c.invalid(
                 "detect.surface_slope",
@@ -349,7 +370,10 @@ impl RawConfig {
                 "must be a finite tilt in rows per column, |slope| ≤ 0.2",
             ));
         }
-        let edge_half_window_px = self.detect.edge_half_window_px.unwrap_or(6);
+        let edge_half_window_px = self
+            .detect
+            .edge_half_window_px
+            .unwrap_or(defaults.edge_half_window_px);
         if !(3..=30).contains(&edge_half_window_px) {
             return Err(c.invalid(
                 "detect.edge_half_window_px",
@@ -357,7 +381,10 @@ impl RawConfig {
                 "must be an integer from 3 to 30",
             ));
         }
-        let edge_spacing_px = self.detect.edge_spacing_px.unwrap_or(3.0);
+        let edge_spacing_px = self
+            .detect
+            .edge_spacing_px
+            .unwrap_or(defaults.edge_spacing_px);
         if !(edge_spacing_px.is_finite() && (1.0..=20.0).contains(&edge_spacing_px)) {
             return Err(c.invalid(
                 "detect.edge_spacing_px",
@@ -414,6 +441,15 @@ mod tests {
         assert!((s.modulus_pa - 1.6e6).abs() < 1e-6);
         let m = c.input.manifest.expect("the default names a manifest");
         assert!(m.starts_with("/base/fixtures"), "{}", m.display());
+        // The shipped file spells out the defaults; without its [detect]
+        // table the same values come from DetectConfig::default().
+        assert_eq!(c.detect, DetectConfig::default());
+        let (head, tail) = EMBEDDED_DEFAULT
+            .split_once("[detect]")
+            .expect("a [detect] table");
+        let rest = tail.find("\n[").map_or("", |i| &tail[i..]);
+        let without = parse(&format!("{head}{rest}")).unwrap();
+        assert_eq!(without.detect, DetectConfig::default());
     }
 
     #[test]

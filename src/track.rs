@@ -543,14 +543,7 @@ mod tests {
     }
 
     fn settings() -> TrackSettings {
-        TrackSettings::from_config(&DetectConfig {
-            background_frames: 8,
-            surface_row_px: None,
-            surface_slope: 0.0,
-            contact_margin_px: 2.0,
-            edge_half_window_px: 6,
-            edge_spacing_px: 3.0,
-        })
+        TrackSettings::from_config(&DetectConfig::default())
     }
 
     #[test]

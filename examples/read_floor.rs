@@ -88,6 +88,7 @@ fn main() {
     let mut out = vec![0u16; W * H];
     let mut rows = vec![0u8; frame16];
     let row = W * 2;
+    let movie = File::open(&big).unwrap();
     let results = [
         ("memcpy of a TIFF's bytes (the bench's baseline)", {
             us_per_frame(|| {
@@ -179,29 +180,13 @@ fn main() {
         }),
         (
             "mmap of the whole file once, reversed copy per frame (faulting)",
-            { whole_file_mmap(&File::open(&big).unwrap(), frame16, row, &mut rows, 0, true) },
+            { whole_file_mmap(&movie, frame16, row, &mut rows, 0, true) },
         ),
         ("  … MAP_POPULATE (faults not timed)", {
-            let populate = libc::MAP_POPULATE;
-            whole_file_mmap(
-                &File::open(&big).unwrap(),
-                frame16,
-                row,
-                &mut rows,
-                populate,
-                true,
-            )
+            whole_file_mmap(&movie, frame16, row, &mut rows, libc::MAP_POPULATE, true)
         }),
         ("  … MAP_POPULATE, plain memcpy per frame (no reversal)", {
-            let populate = libc::MAP_POPULATE;
-            whole_file_mmap(
-                &File::open(&big).unwrap(),
-                frame16,
-                row,
-                &mut rows,
-                populate,
-                false,
-            )
+            whole_file_mmap(&movie, frame16, row, &mut rows, libc::MAP_POPULATE, false)
         }),
     ];
     for (name, us) in results {

@@ -12,6 +12,10 @@ use crate::collapse::CollapseError;
 /// Size of a per-drop figure in pixels.
 pub const DROP_FIGURE_SIZE: (u32, u32) = (1650, 560);
 
+/// Light grid lines between two labelled ones (plotters draws up to 10: a
+/// graph-paper grey behind the points, and a third of the SVG's bytes).
+const LIGHT_LINES: usize = 4;
+
 const EVENT: RGBColor = RGBColor(200, 0, 0);
 const FIT: RGBColor = RGBColor(0, 110, 220);
 
@@ -108,6 +112,7 @@ where
         .x_label_formatter(&|v| axis_tick(*v, t_range[1] - t_range[0]))
         .y_label_formatter(&|v| axis_tick(*v, zr[1] - zr[0]))
         .light_line_style(RGBColor(238, 238, 238))
+        .max_light_lines(LIGHT_LINES)
         .draw()?;
     c.draw_series(
         zs.iter()
@@ -165,6 +170,7 @@ where
         .x_label_formatter(&|v| axis_tick(*v, t_range[1] - t_range[0]))
         .y_label_formatter(&|v| axis_tick(*v, dr[1] - dr[0]))
         .light_line_style(RGBColor(238, 238, 238))
+        .max_light_lines(LIGHT_LINES)
         .draw()?;
     c.draw_series(LineSeries::new(
         vec![(t_range[0], 0.0), (t_range[1], 0.0)],
@@ -203,6 +209,7 @@ where
         .x_label_formatter(&|v| axis_tick(*v, xr[1] - xr[0]))
         .y_label_formatter(&|v| axis_tick(*v, fr[1] - fr[0]))
         .light_line_style(RGBColor(238, 238, 238))
+        .max_light_lines(LIGHT_LINES)
         .draw()?;
     c.draw_series(
         fs.iter()

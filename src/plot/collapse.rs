@@ -14,7 +14,7 @@ use super::layout::{
     free_corner, guide_lines, legend_box, log_ticks, normalised, range, with_band, Guide, Pt,
 };
 use super::marker::{radius_style, Marker, MarkerKind};
-use super::{axis_tick, render, tick, DrawResult};
+use super::{axis_tick, render, tick, DrawResult, LIGHT_LINES};
 use crate::collapse::fit::{self, ExponentFit, Fits, SeriesFit};
 use crate::collapse::groups::{DropGroups, Quantity};
 use crate::collapse::CollapseError;
@@ -139,6 +139,7 @@ where
         .y_label_formatter(fy)
         .light_line_style(RGBColor(235, 235, 235))
         .bold_line_style(RGBColor(200, 200, 200))
+        .max_light_lines(LIGHT_LINES)
         .draw()?;
     Ok(())
 }

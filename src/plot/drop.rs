@@ -5,16 +5,12 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{axis_tick, file_stem, render, tick, DrawResult};
+use super::{axis_tick, file_stem, render, tick, DrawResult, LIGHT_LINES};
 use crate::collapse::diagnostics::DropDiagnostics;
 use crate::collapse::CollapseError;
 
 /// Size of a per-drop figure in pixels.
 pub const DROP_FIGURE_SIZE: (u32, u32) = (1650, 560);
-
-/// Light grid lines between two labelled ones (plotters draws up to 10: a
-/// graph-paper grey behind the points, and a third of the SVG's bytes).
-const LIGHT_LINES: usize = 4;
 
 const EVENT: RGBColor = RGBColor(200, 0, 0);
 const FIT: RGBColor = RGBColor(0, 110, 220);

@@ -31,6 +31,11 @@ use crate::collapse::CollapseError;
 /// The error type of the drawing functions (plotters' errors, boxed).
 pub(crate) type DrawResult = Result<(), Box<dyn std::error::Error>>;
 
+/// Light grid lines between two labelled ones. Plotters draws up to 10,
+/// which on a linear axis is a graph-paper grey behind the points and a
+/// third of a figure's SVG bytes.
+pub(crate) const LIGHT_LINES: usize = 4;
+
 /// Register DejaVu Sans as plotters' "sans-serif" (all styles fall back to
 /// regular, bold and oblique are registered). Idempotent.
 pub fn register_fonts() {

@@ -373,9 +373,11 @@ fn sandwich<const N: usize>(
 }
 
 /// Once an IRLS step moves no parameter by more than this (px), the
-/// residual scale is held for the remaining iterations: the residuals'
-/// MAD (a few hundredths of a pixel) then changes by less than the scatter
-/// of a MAD over ~150 points.
+/// residual scale is held for the remaining iterations (one median less per
+/// iteration). Raising it from 1e-3 to 1e-2, together with the looser stop
+/// and the held refit's reuse of the free fit's scale, moved the centres of
+/// the 30-drop rendered campaign by at most 0.0014 px and left its accuracy
+/// table unchanged.
 const FREEZE_SCALE_PX: f64 = 1e-2;
 
 /// The sums of the covariance, taken once at the solution.

@@ -401,16 +401,17 @@ struct LastSums {
 ///
 /// IRLS: each iteration computes the residuals `dᵢ`, their scale
 /// `s = max(1.4826·MAD, min_scale_px)` (held once a step moves less than
-/// [`FREEZE_SCALE_PX`], or given throughout by `opts.scale_px`) and weights — Huber's
-/// `min(1, 1.345 s / |d|)` for the first `huber_iterations`, then Tukey's
+/// [`FREEZE_SCALE_PX`], or given throughout by `opts.scale_px`) and
+/// weights — Huber's `min(1, 1.345 s / |d|)` for the first
+/// `huber_iterations`, then Tukey's
 /// biweight `(1 − (d / (c s))²)²` for `|d| < c s`, else 0 — and takes one
 /// Gauss–Newton step on the weighted normal equations (with a tiny
 /// Levenberg damping, 1e-9 of the diagonal, for safety). Stops when no
 /// parameter moves by more than `tolerance_px`. The cost is one pass over
 /// the points per iteration (two, and a median, while the scale is
 /// re-estimated), and one pass more at the solution for the covariance's
-/// sums, with no allocation once `scratch` has grown. Final weights (at the solution) are left in
-/// `scratch.weights`.
+/// sums, with no allocation once `scratch` has grown. Final weights (at the
+/// solution) are left in `scratch.weights`.
 pub fn fit_circle(
     points: &[EdgePoint],
     start: Option<Circle>,
@@ -444,13 +445,14 @@ pub fn fit_circle(
         // `FREEZE_SCALE_PX`, then is held (one median less per iteration).
         huber = it < opts.huber_iterations;
         let rescale = !fixed_scale && (scale.is_none() || last_step > FREEZE_SCALE_PX || huber);
-        let (jtj, jtd) = if rescale {
+        if rescale {
             residuals_at(points, &c, scratch);
             scale = Some((1.4826 * median(&mut scratch.work)).max(opts.min_scale_px));
-            let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), huber, opts);
+        }
+        let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), huber, opts);
+        let (jtj, jtd) = if rescale {
             normal_equations(points, rw, scratch)
         } else {
-            let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), huber, opts);
             fused_normal_equations(points, &c, rw)
         };
         let step = if held {

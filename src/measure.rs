@@ -42,7 +42,7 @@ pub fn measure_drop(
     };
     let ev = find_events(track, geom, cfg)?;
     let kin = kinematics(track, &ev, geom, &sphere, cfg.exposure_s)?;
-    let law = fit_force_law(track, &ev, geom, &sphere, cfg.g_m_s2);
+    let law = fit_force_law(track, &ev, geom, &sphere, cfg.g_m_s2, cfg.exposure_s);
     let table = force_table(
         track,
         &ev,

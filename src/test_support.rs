@@ -64,6 +64,19 @@ pub fn geometry() -> Geometry {
 }
 
 pub fn track(drop: &Drop, geom: &Geometry, sigma_px: f64, seed: u64) -> Vec<TrackPoint> {
+    track_exposed(drop, geom, sigma_px, seed, 0.0)
+}
+
+/// [`track`] as a camera with exposure `exposure_s` sees it: each frame's
+/// position is the mean of the position over its exposure (a 64-point
+/// midpoint rule), as the renderer's motion blur gives it.
+pub fn track_exposed(
+    drop: &Drop,
+    geom: &Geometry,
+    sigma_px: f64,
+    seed: u64,
+    exposure_s: f64,
+) -> Vec<TrackPoint> {
     let fps = 10_000.0;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, 1.0).unwrap();
@@ -71,7 +84,15 @@ pub fn track(drop: &Drop, geom: &Geometry, sigma_px: f64, seed: u64) -> Vec<Trac
     (-35..70)
         .map(|n: i64| {
             let t = n as f64 / fps;
-            let d = drop.delta(t);
+            const SUB: usize = 64;
+            let d = if exposure_s > 0.0 {
+                (0..SUB)
+                    .map(|k| drop.delta(t + exposure_s * ((k as f64 + 0.5) / SUB as f64 - 0.5)))
+                    .sum::<f64>()
+                    / SUB as f64
+            } else {
+                drop.delta(t)
+            };
             let z = geom.surface_row_px - geom.radius_px + d / s_m;
             TrackPoint {
                 frame: n,

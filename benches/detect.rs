@@ -11,6 +11,9 @@
 //! up to ±0.5 px (a ballistic prediction); the radius is held (after
 //! calibration) or free. Accuracy of the same runs is printed too.
 
+#[path = "common/mod.rs"]
+mod common;
+use common::thread_cpu_s;
 use dropscope::detect::background::{Background, GainRegion};
 use dropscope::detect::circle::Circle;
 use dropscope::detect::edges::{measure_circle, EdgeParams, EdgeScratch};
@@ -112,14 +115,6 @@ fn surface() -> SurfaceLine {
         residual_px: 0.0,
         n_used: 0,
     }
-}
-
-/// CPU time this thread has run, from `/proc/thread-self/schedstat` (first
-/// field, ns); `None` where the file does not exist.
-fn thread_cpu_s() -> Option<f64> {
-    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
-    let ns: f64 = text.split_whitespace().next()?.parse().ok()?;
-    Some(ns * 1e-9)
 }
 
 /// Rates over `rounds` passes through `cases` on `threads` threads:

@@ -19,6 +19,9 @@
 //! per frame). Each figure is the best of `REPEATS` runs (the machine is
 //! shared).
 
+#[path = "common/mod.rs"]
+mod common;
+use common::thread_cpu_s;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -47,26 +50,6 @@ fn best(mut f: impl FnMut() -> Rate) -> Rate {
             wall: a.wall.max(b.wall),
             cpu: a.cpu.max(b.cpu),
         })
-}
-
-/// CPU time this thread has run (`CLOCK_THREAD_CPUTIME_ID`, exact to the
-/// nanosecond; `/proc/thread-self/schedstat` is only updated at scheduler
-/// ticks, too coarse for the few-millisecond band runs); `None` off Unix.
-fn thread_cpu_s() -> Option<f64> {
-    #[cfg(unix)]
-    {
-        let mut ts = libc::timespec {
-            tv_sec: 0,
-            tv_nsec: 0,
-        };
-        // SAFETY: `ts` is a valid, writable timespec for the call.
-        let r = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-        (r == 0).then_some(ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9)
-    }
-    #[cfg(not(unix))]
-    {
-        None
-    }
 }
 
 /// Rate of `frames` frames shared by `threads` threads: thread `t` first

@@ -26,12 +26,14 @@
 //! `-- frames` only the long movie's tracking (40 runs; `-- frames0` the
 //! first movie's), for a profiler.
 
+#[path = "common/mod.rs"]
+mod common;
 use clap::Parser;
+use common::thread_cpu_s;
 use dropscope::config::DetectConfig;
 use dropscope::source::memory::MemorySource;
-use dropscope::source::{open, FrameSource, OpenOptions, SourceError, SourceMeta};
+use dropscope::source::{open, FrameSource, OpenOptions};
 use dropscope::track::{background_and_surface, track, TrackSettings};
-use ndarray::ArrayViewMut2;
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -50,39 +52,8 @@ fn movie(args: &[&str], dir: &std::path::Path) -> MemorySource {
     MemorySource::load(src.as_mut()).expect("load")
 }
 
-/// A movie in memory shared by several threads: each reads rows by copying
-/// them out, as [`MemorySource`] does (an 8-bit movie is held as bytes and
-/// widened to 16 bits on the way out).
-struct Shared<'a> {
-    movie: &'a MemorySource,
-    meta: SourceMeta,
-}
-
-impl FrameSource for Shared<'_> {
-    fn meta(&self) -> &SourceMeta {
-        &self.meta
-    }
-
-    fn read_rows_into(
-        &mut self,
-        index: usize,
-        row0: usize,
-        out: &mut ArrayViewMut2<u16>,
-    ) -> Result<(), SourceError> {
-        self.movie.read_rows(index, row0, out)
-    }
-}
-
 fn settings() -> TrackSettings {
     TrackSettings::from_config(&DetectConfig::default())
-}
-
-/// CPU time this thread has run, from `/proc/thread-self/schedstat` (first
-/// field, ns); `None` where the file does not exist.
-fn thread_cpu_s() -> Option<f64> {
-    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
-    let ns: f64 = text.split_whitespace().next()?.parse().ok()?;
-    Some(ns * 1e-9)
 }
 
 /// `reps` calls of `work` on each of `threads` threads: (wall seconds, CPU
@@ -159,16 +130,7 @@ fn main() {
         let m = movie(&args, &dir.path().join(format!("m{k}")));
         if only.as_deref() == Some("fixed") {
             let (wf, cf) = timed(1, 200, || {
-                std::hint::black_box(
-                    background_and_surface(
-                        &mut Shared {
-                            movie: &m,
-                            meta: m.meta().clone(),
-                        },
-                        &st,
-                    )
-                    .expect("background"),
-                );
+                std::hint::black_box(background_and_surface(&mut &m, &st).expect("background"));
             });
             println!(
                 "{name}: fixed cost {:.2} ms cpu, {:.2} ms wall",
@@ -179,29 +141,15 @@ fn main() {
         }
         if only.as_deref().is_some_and(|o| o.starts_with("frames")) {
             let (w1, c1) = timed(1, 40, || {
-                std::hint::black_box(
-                    track(
-                        &mut Shared {
-                            movie: &m,
-                            meta: m.meta().clone(),
-                        },
-                        &st,
-                    )
-                    .expect("track"),
-                );
+                std::hint::black_box(track(&mut &m, &st).expect("track"));
             });
             let f = 40.0 * m.meta().frame_count as f64;
             println!("{name}: {:.0} wall / {:.0} cpu frames/s", f / w1, f / c1);
             break;
         }
-        let meta = m.meta().clone();
-        let n = meta.frame_count;
-        let source = || Shared {
-            movie: &m,
-            meta: meta.clone(),
-        };
+        let n = m.meta().frame_count;
         // Warm up, and check what is timed.
-        let t = track(&mut source(), &st).expect("track");
+        let t = track(&mut &m, &st).expect("track");
         let held = t.frames.iter().filter(|f| f.held.is_some()).count();
         let mean_iter = |g: &dyn Fn(&dropscope::track::FrameTrack) -> Option<usize>| {
             let v: Vec<usize> = t.frames.iter().filter_map(g).collect();
@@ -215,12 +163,12 @@ fn main() {
         let flagged = |name: &str| t.frames.iter().filter(|f| f.flags.contains(&name)).count();
         let (partial, missing) = (flagged("partial"), flagged("missing"));
         let run = || {
-            std::hint::black_box(track(&mut source(), &st).expect("track"));
+            std::hint::black_box(track(&mut &m, &st).expect("track"));
         };
         let (w1, c1) = timed(1, reps, run);
         let (w2, c2) = timed(2, reps, run);
         let (wf, cf) = timed(1, reps, || {
-            std::hint::black_box(background_and_surface(&mut source(), &st).expect("background"));
+            std::hint::black_box(background_and_surface(&mut &m, &st).expect("background"));
         });
         let frames = (n * reps) as f64;
         let fixed_ms = 1e3 * cf / reps as f64;

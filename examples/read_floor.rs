@@ -13,6 +13,9 @@
 //! Data (≈1.2 GB in a temporary folder, removed at the end) are written,
 //! dropped from the page cache and read once, as in the benchmark. Linux.
 
+#[path = "../benches/common/mod.rs"]
+mod common;
+
 use std::fs::File;
 use std::io::Read;
 use std::os::fd::AsRawFd;
@@ -23,14 +26,9 @@ const W: usize = 512;
 const H: usize = 384;
 const N: usize = 2000;
 
+/// CPU time of this thread (s); the benches' clock.
 fn thread_cpu_s() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec for the call.
-    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+    common::thread_cpu_s().expect("a thread CPU clock (Linux)")
 }
 
 /// Best µs of CPU per frame over five passes of `pass` (which does N frames).

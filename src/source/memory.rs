@@ -112,6 +112,23 @@ impl FrameSource for MemorySource {
     }
 }
 
+/// A shared reference is a source too: several threads read one movie held
+/// once (the track benchmark).
+impl FrameSource for &MemorySource {
+    fn meta(&self) -> &SourceMeta {
+        &self.meta
+    }
+
+    fn read_rows_into(
+        &mut self,
+        index: usize,
+        row0: usize,
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
+        self.read_rows(index, row0, out)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

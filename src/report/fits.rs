@@ -18,6 +18,13 @@ fn s<'a>(v: &'a Value, key: &str) -> &'a str {
     v.get(key).and_then(Value::as_str).unwrap_or("")
 }
 
+/// A count (non-negative integer) as text, or the missing-value mark.
+fn count(v: &Value, key: &str) -> String {
+    v.get(key)
+        .and_then(Value::as_u64)
+        .map_or(NONE.into(), |n| n.to_string())
+}
+
 /// A 95 % interval, its bounds written to the estimate's precision.
 fn interval(ci: Option<&Value>, stderr: Option<f64>) -> String {
     match ci.and_then(Value::as_array).map(|a| a.as_slice()) {
@@ -114,9 +121,7 @@ fn series_row(
     let _ = write!(
         out,
         "<td>{}</td><td>{}</td><td>{range}</td><td>{theory_cell}</td></tr>",
-        s_.get("n_drops")
-            .and_then(Value::as_u64)
-            .map_or(NONE.into(), |n| n.to_string()),
+        count(s_, "n_drops"),
         opt_short(f(s_, "chi2_red")),
     );
 }
@@ -206,7 +211,7 @@ fn asymptotes(out: &mut String, doc: &Value) {
             "<tr><th class=\"law\">{}</th><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             escape(s(a, "law")),
             estimate(a.get("constant")),
-            a.get("n_drops").and_then(Value::as_u64).map_or(NONE.into(), |n| n.to_string()),
+            count(a, "n_drops"),
             escape(s(a, "selection")),
             opt_short(f(a, "rms_log_residual")),
             yes_no(a, "weighted"),
@@ -241,18 +246,13 @@ fn exponents(out: &mut String, doc: &Value) {
         out.push_str("<tr><td colspan=\"6\" class=\"missing\">none</td></tr>");
     }
     for e in list {
-        let count = |k: &str| {
-            e.get(k)
-                .and_then(Value::as_u64)
-                .map_or(NONE.into(), |n| n.to_string())
-        };
         let _ = write!(
             out,
             "<tr><th>{}</th><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             opt_num(f(e, "radius_mm")),
-            count("n_drops"),
+            count(e, "n_drops"),
             exponent_cell(e, "nu"),
-            count("n_tau"),
+            count(e, "n_tau"),
             exponent_cell(e, "mu"),
             yes_no(e, "weighted"),
         );
@@ -284,9 +284,7 @@ fn force_laws(out: &mut String, doc: &Value) {
             out,
             "<tr><th>{}</th><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             escape(s(l, "run")),
-            l.get("n_points")
-                .and_then(Value::as_u64)
-                .map_or(NONE.into(), |n| n.to_string()),
+            count(l, "n_points"),
             estimate(l.get("n")),
             estimate(l.get("k_n_per_mm_pow_n")),
             opt_num(f(l, "model_k_n_per_mm2")),
@@ -308,25 +306,16 @@ fn provenance(out: &mut String, doc: &Value) {
             opt_num(f(m, "solid_fraction")),
         ));
     }
-    let count = |k: &str| {
-        doc.get(k)
-            .and_then(Value::as_u64)
-            .map_or(NONE.into(), |n| n.to_string())
-    };
     let _ = write!(
         out,
         "<p>{} drops in the fits, {} skipped, {} with the geometric contact radius. \
          Contact radius: {}; bootstrap: {} resamples, seed {}. Surfaces: {}.</p>",
-        count("n_used"),
-        count("n_skipped"),
-        count("n_geometric_contact_radius"),
+        count(doc, "n_used"),
+        count(doc, "n_skipped"),
+        count(doc, "n_geometric_contact_radius"),
         escape(s(p, "contact_radius")),
-        p.get("bootstrap_resamples")
-            .and_then(Value::as_u64)
-            .map_or(NONE.into(), |n| n.to_string()),
-        p.get("seed")
-            .and_then(Value::as_u64)
-            .map_or(NONE.into(), |n| n.to_string()),
+        count(p, "bootstrap_resamples"),
+        count(p, "seed"),
         if surfaces.is_empty() {
             NONE.into()
         } else {
@@ -344,9 +333,7 @@ fn notes(out: &mut String, doc: &Value) {
                 out,
                 "<li><b>{}</b> (drops.csv line {}): {}</li>",
                 escape(s(k, "run")),
-                k.get("row")
-                    .and_then(Value::as_u64)
-                    .map_or(NONE.into(), |n| n.to_string()),
+                count(k, "row"),
                 escape(s(k, "reason"))
             );
         }

@@ -140,10 +140,14 @@ fn main() {
             break;
         }
         if only.as_deref().is_some_and(|o| o.starts_with("frames")) {
-            let (w1, c1) = timed(1, 40, || {
+            let runs: usize = std::env::var("TRACK_RUNS")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(40);
+            let (w1, c1) = timed(1, runs, || {
                 std::hint::black_box(track(&mut &m, &st).expect("track"));
             });
-            let f = 40.0 * m.meta().frame_count as f64;
+            let f = (runs * m.meta().frame_count) as f64;
             println!("{name}: {:.0} wall / {:.0} cpu frames/s", f / w1, f / c1);
             break;
         }

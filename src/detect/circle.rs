@@ -163,8 +163,15 @@ impl Default for FitOptions {
 pub struct FitScratch {
     /// Final weight of each point (0 = rejected), in the order given.
     pub weights: Vec<f64>,
+    /// The points as columns (`x`, `z`, prior weight ≥ 0), padded to a
+    /// multiple of [`LANES`] with weight-0 points at the origin.
+    xs: Vec<f64>,
+    zs: Vec<f64>,
+    prior: Vec<f64>,
+    /// Residuals and unit vectors of the last re-scaling iteration.
     residuals: Vec<f64>,
-    units: Vec<(f64, f64)>,
+    ux: Vec<f64>,
+    uz: Vec<f64>,
     work: Vec<f64>,
 }
 
@@ -418,6 +425,34 @@ pub fn fit_circle(
     opts: &FitOptions,
     scratch: &mut FitScratch,
 ) -> Result<CircleFit, DetectError> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2, checked just above.
+        return unsafe { fit_circle_avx2(points, start, opts, scratch) };
+    }
+    fit_circle_lanes::<F4>(points, start, opts, scratch)
+}
+
+/// [`fit_circle`] compiled with AVX2, its passes four points per
+/// instruction ([`Y4`]). The same bits as the portable [`F4`] (tested).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fit_circle_avx2(
+    points: &[EdgePoint],
+    start: Option<Circle>,
+    opts: &FitOptions,
+    scratch: &mut FitScratch,
+) -> Result<CircleFit, DetectError> {
+    fit_circle_lanes::<Y4>(points, start, opts, scratch)
+}
+
+#[inline(always)]
+fn fit_circle_lanes<V: Lanes>(
+    points: &[EdgePoint],
+    start: Option<Circle>,
+    opts: &FitOptions,
+    scratch: &mut FitScratch,
+) -> Result<CircleFit, DetectError> {
     const WHAT: &str = "robust circle fit";
     let n = points.len();
     let mut c = match start {
@@ -428,12 +463,7 @@ pub fn fit_circle(
         c.r_px = r;
     }
     let held = opts.hold_radius.is_some();
-    scratch.weights.clear();
-    scratch.weights.resize(n, 0.0);
-    scratch.residuals.clear();
-    scratch.residuals.resize(n, 0.0);
-    scratch.units.clear();
-    scratch.units.resize(n, (0.0, 0.0));
+    scratch.load(points);
     let mut iterations = 0;
     let mut scale: Option<f64> = opts.scale_px.map(|s| s.max(opts.min_scale_px));
     let fixed_scale = scale.is_some();
@@ -446,14 +476,15 @@ pub fn fit_circle(
         huber = it < opts.huber_iterations;
         let rescale = !fixed_scale && (scale.is_none() || last_step > FREEZE_SCALE_PX || huber);
         if rescale {
-            residuals_at(points, &c, scratch);
+            scratch.residuals_at::<V>(&c);
             scale = Some((1.4826 * median(&mut scratch.work)).max(opts.min_scale_px));
         }
-        let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), huber, opts);
-        let (jtj, jtd) = if rescale {
-            normal_equations(points, rw, scratch)
-        } else {
-            fused_normal_equations(points, &c, rw)
+        let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), opts);
+        let (jtj, jtd) = match (rescale, huber) {
+            (true, true) => scratch.normal_equations::<V, true>(rw),
+            (true, false) => scratch.normal_equations::<V, false>(rw),
+            (false, true) => scratch.fused_normal_equations::<V, true>(&c, rw),
+            (false, false) => scratch.fused_normal_equations::<V, false>(&c, rw),
         };
         let step = if held {
             let m2 = [[jtj[0][0], jtj[0][1]], [jtj[1][0], jtj[1][1]]];
@@ -481,9 +512,13 @@ pub fn fit_circle(
     }
     // The sums of the covariance, once, at the solution (the last
     // iteration's weight function and scale).
-    let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), huber, opts);
-    let last = final_sums(points, &c, rw, scratch);
-    let inliers = scratch.weights.iter().filter(|&&w| w > 0.0).count();
+    let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), opts);
+    let last = if huber {
+        scratch.final_sums::<V, true>(&c, rw, n)
+    } else {
+        scratch.final_sums::<V, false>(&c, rw, n)
+    };
+    let inliers = last.n_in;
     let p = if held { 2 } else { 3 };
     if inliers < opts.min_points.max(p + 1) {
         return Err(DetectError::TooFewPoints {
@@ -542,119 +577,428 @@ pub fn fit_circle(
     })
 }
 
-/// The weighted normal equations `(JᵀWJ, JᵀWd)` (full `JᵀWJ`, with a tiny
-/// Levenberg damping of 1e-9 on its diagonal) from the residuals and unit
-/// vectors already in `scratch`, leaving the weights in `scratch.weights`.
-fn normal_equations(
-    points: &[EdgePoint],
-    rw: RobustWeight,
-    scratch: &mut FitScratch,
-) -> ([[f64; 3]; 3], [f64; 3]) {
-    let mut sums = NormalSums::default();
-    for (i, p) in points.iter().enumerate() {
-        let d = scratch.residuals[i];
-        let (w, _) = rw.at(d, p.weight);
-        scratch.weights[i] = w;
-        sums.add(w, scratch.units[i], d);
-    }
-    sums.finish()
+/// Points per step of the passes over the points. Every quantity of a step
+/// holds four points' values ([`Lanes`]), and the sums are kept per lane and
+/// added in a fixed order at the end.
+const LANES: usize = 4;
+
+/// Four `f64` lanes and the operations the fit's passes need, each the same
+/// IEEE operation on every lane (no fused multiply-add), so that the two
+/// implementations, [`F4`] (portable) and [`Y4`] (AVX2, one instruction per
+/// operation), give the same bits (tested).
+trait Lanes:
+    Copy
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Div<Output = Self>
+    + std::ops::Neg<Output = Self>
+    + std::ops::AddAssign
+{
+    const ZERO: Self;
+    fn splat(v: f64) -> Self;
+    /// The first four values of `v`.
+    fn load(v: &[f64]) -> Self;
+    /// Into the first four values of `out`.
+    fn store(self, out: &mut [f64]);
+    fn sqrt(self) -> Self;
+    fn abs(self) -> Self;
+    /// `max(self, o)`; `o` where `self` is NaN.
+    fn max(self, o: Self) -> Self;
+    /// `self` where `a < b`, 0 elsewhere (also where either is NaN).
+    fn where_lt(self, a: Self, b: Self) -> Self;
+    /// `self` where `a ≤ b`, 0 elsewhere (also where either is NaN).
+    fn where_le(self, a: Self, b: Self) -> Self;
+    /// The sum of the lanes, `(l₀ + l₁) + (l₂ + l₃)`.
+    fn total(self) -> f64;
 }
 
-/// [`normal_equations`] in one pass over the points at circle `c`, without
-/// storing residuals or weights: the iterations whose scale is held.
-fn fused_normal_equations(
-    points: &[EdgePoint],
-    c: &Circle,
-    rw: RobustWeight,
-) -> ([[f64; 3]; 3], [f64; 3]) {
-    let mut sums = NormalSums::default();
-    for p in points {
-        let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
-        let rho = (dx * dx + dz * dz).sqrt();
-        let d = rho - c.r_px;
-        let u = unit(dx, dz, rho);
-        let (w, _) = rw.at(d, p.weight);
-        sums.add(w, u, d);
-    }
-    sums.finish()
-}
+/// Portable [`Lanes`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct F4([f64; LANES]);
 
-/// The unit vector `(dx, dz)/rho` (one division), `(0, 0)` at `rho = 0`.
-#[inline(always)]
-fn unit(dx: f64, dz: f64, rho: f64) -> (f64, f64) {
-    let inv = 1.0 / rho;
-    if rho > 0.0 {
-        (dx * inv, dz * inv)
-    } else {
-        (0.0, 0.0)
-    }
-}
-
-/// Running sums of the weighted normal equations (lower triangle).
-#[derive(Default)]
-struct NormalSums {
-    jtj: [[f64; 3]; 3],
-    jtd: [f64; 3],
-}
-
-impl NormalSums {
+impl F4 {
     #[inline(always)]
-    fn add(&mut self, w: f64, (ux, uz): (f64, f64), d: f64) {
-        if w > 0.0 {
-            // ∂d/∂x = −uₓ, ∂d/∂z = −u_z, ∂d/∂r = −1.
-            let j3 = [-ux, -uz, -1.0];
-            for a in 0..3 {
-                self.jtd[a] += w * j3[a] * d;
-                for b in 0..=a {
-                    self.jtj[a][b] += w * j3[a] * j3[b];
+    fn zip(self, o: F4, f: impl Fn(f64, f64) -> f64) -> F4 {
+        let mut r = [0.0; LANES];
+        for l in 0..LANES {
+            r[l] = f(self.0[l], o.0[l]);
+        }
+        F4(r)
+    }
+}
+
+impl Lanes for F4 {
+    const ZERO: F4 = F4([0.0; LANES]);
+
+    #[inline(always)]
+    fn splat(v: f64) -> F4 {
+        F4([v; LANES])
+    }
+
+    #[inline(always)]
+    fn load(v: &[f64]) -> F4 {
+        F4([v[0], v[1], v[2], v[3]])
+    }
+
+    #[inline(always)]
+    fn store(self, out: &mut [f64]) {
+        out[..LANES].copy_from_slice(&self.0);
+    }
+
+    #[inline(always)]
+    fn sqrt(self) -> F4 {
+        F4(self.0.map(f64::sqrt))
+    }
+
+    #[inline(always)]
+    fn abs(self) -> F4 {
+        F4(self.0.map(f64::abs))
+    }
+
+    #[inline(always)]
+    fn max(self, o: F4) -> F4 {
+        self.zip(o, |a, b| if a > b { a } else { b })
+    }
+
+    #[inline(always)]
+    fn where_lt(self, a: F4, b: F4) -> F4 {
+        let mut r = [0.0; LANES];
+        for l in 0..LANES {
+            r[l] = if a.0[l] < b.0[l] { self.0[l] } else { 0.0 };
+        }
+        F4(r)
+    }
+
+    #[inline(always)]
+    fn where_le(self, a: F4, b: F4) -> F4 {
+        let mut r = [0.0; LANES];
+        for l in 0..LANES {
+            r[l] = if a.0[l] <= b.0[l] { self.0[l] } else { 0.0 };
+        }
+        F4(r)
+    }
+
+    #[inline(always)]
+    fn total(self) -> f64 {
+        (self.0[0] + self.0[1]) + (self.0[2] + self.0[3])
+    }
+}
+
+macro_rules! f4_ops {
+    ($($op:ident $f:ident $sym:tt),*) => {$(
+        impl std::ops::$op for F4 {
+            type Output = F4;
+            #[inline(always)]
+            fn $f(self, o: F4) -> F4 {
+                self.zip(o, |a, b| a $sym b)
+            }
+        }
+    )*};
+}
+f4_ops!(Add add +, Sub sub -, Mul mul *, Div div /);
+
+impl std::ops::Neg for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn neg(self) -> F4 {
+        F4(self.0.map(|a| -a))
+    }
+}
+
+impl std::ops::AddAssign for F4 {
+    #[inline(always)]
+    fn add_assign(&mut self, o: F4) {
+        *self = *self + o;
+    }
+}
+
+/// [`Lanes`] in one AVX2 register. Only used inside [`fit_circle_avx2`],
+/// which runs only on CPUs with AVX2: that is what makes its intrinsics
+/// sound.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct Y4(std::arch::x86_64::__m256d);
+
+#[cfg(target_arch = "x86_64")]
+mod y4 {
+    use super::{Lanes, LANES, Y4};
+    use std::arch::x86_64::*;
+
+    // SAFETY (every block below): AVX2 is present (see `Y4`); loads and
+    // stores touch the first LANES values of slices checked to hold them.
+    impl Lanes for Y4 {
+        const ZERO: Y4 = Y4(unsafe { std::mem::transmute::<[f64; LANES], __m256d>([0.0; LANES]) });
+
+        #[inline(always)]
+        fn splat(v: f64) -> Y4 {
+            Y4(unsafe { _mm256_set1_pd(v) })
+        }
+
+        #[inline(always)]
+        fn load(v: &[f64]) -> Y4 {
+            let v = &v[..LANES];
+            Y4(unsafe { _mm256_loadu_pd(v.as_ptr()) })
+        }
+
+        #[inline(always)]
+        fn store(self, out: &mut [f64]) {
+            let out = &mut out[..LANES];
+            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), self.0) }
+        }
+
+        #[inline(always)]
+        fn sqrt(self) -> Y4 {
+            Y4(unsafe { _mm256_sqrt_pd(self.0) })
+        }
+
+        #[inline(always)]
+        fn abs(self) -> Y4 {
+            Y4(unsafe { _mm256_andnot_pd(_mm256_set1_pd(-0.0), self.0) })
+        }
+
+        #[inline(always)]
+        fn max(self, o: Y4) -> Y4 {
+            // maxpd gives its second operand where either is NaN; with the
+            // operands swapped that is `self` where `o` is NaN, matching
+            // `if a > b { a } else { b }` lane by lane.
+            Y4(unsafe { _mm256_max_pd(o.0, self.0) })
+        }
+
+        #[inline(always)]
+        fn where_lt(self, a: Y4, b: Y4) -> Y4 {
+            Y4(unsafe { _mm256_and_pd(self.0, _mm256_cmp_pd::<_CMP_LT_OQ>(a.0, b.0)) })
+        }
+
+        #[inline(always)]
+        fn where_le(self, a: Y4, b: Y4) -> Y4 {
+            Y4(unsafe { _mm256_and_pd(self.0, _mm256_cmp_pd::<_CMP_LE_OQ>(a.0, b.0)) })
+        }
+
+        #[inline(always)]
+        fn total(self) -> f64 {
+            let mut l = [0.0; LANES];
+            self.store(&mut l);
+            (l[0] + l[1]) + (l[2] + l[3])
+        }
+    }
+
+    macro_rules! y4_ops {
+        ($($op:ident $f:ident $intr:ident),*) => {$(
+            impl std::ops::$op for Y4 {
+                type Output = Y4;
+                #[inline(always)]
+                fn $f(self, o: Y4) -> Y4 {
+                    Y4(unsafe { $intr(self.0, o.0) })
                 }
             }
+        )*};
+    }
+    y4_ops!(Add add _mm256_add_pd, Sub sub _mm256_sub_pd, Mul mul _mm256_mul_pd, Div div _mm256_div_pd);
+
+    impl std::ops::Neg for Y4 {
+        type Output = Y4;
+        #[inline(always)]
+        fn neg(self) -> Y4 {
+            Y4(unsafe { _mm256_xor_pd(self.0, _mm256_set1_pd(-0.0)) })
         }
     }
 
-    fn finish(mut self) -> ([[f64; 3]; 3], [f64; 3]) {
-        for a in 0..3 {
-            for b in a + 1..3 {
-                self.jtj[a][b] = self.jtj[b][a];
-            }
-            self.jtj[a][a] *= 1.0 + 1e-9;
+    impl std::ops::AddAssign for Y4 {
+        #[inline(always)]
+        fn add_assign(&mut self, o: Y4) {
+            *self = *self + o;
         }
-        (self.jtj, self.jtd)
     }
 }
 
-/// Residuals `dᵢ = |pᵢ − c| − r` and unit vectors from the centre into
-/// `scratch`, and `|dᵢ|` of the points with weight > 0 into `scratch.work`
-/// (for the scale). The first loop has no branch or push, so it runs two
-/// points at a time.
-fn residuals_at(points: &[EdgePoint], c: &Circle, scratch: &mut FitScratch) {
-    let n = points.len();
-    let (residuals, units) = (&mut scratch.residuals[..n], &mut scratch.units[..n]);
-    for ((p, d), u) in points
-        .iter()
-        .zip(residuals.iter_mut())
-        .zip(units.iter_mut())
-    {
-        let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
-        let rho = (dx * dx + dz * dz).sqrt();
-        *d = rho - c.r_px;
-        *u = unit(dx, dz, rho);
+/// Four points' residuals `ρ − r` at distances `ρ` from the centre and their
+/// unit vectors `(dx, dz)/ρ` (`(0, 0)` at `ρ = 0`): a square root and a
+/// division per point, the costliest operations of a pass.
+#[inline(always)]
+fn geometry<V: Lanes>(x: V, z: V, c: &Circle) -> (V, V, V) {
+    let (dx, dz) = (x - V::splat(c.x_px), z - V::splat(c.z_px));
+    let rho = (dx * dx + dz * dz).sqrt();
+    let inv = (V::splat(1.0) / rho).where_lt(V::ZERO, rho);
+    (rho - V::splat(c.r_px), dx * inv, dz * inv)
+}
+
+/// The normal equations' sums of four points (`j = (−uₓ, −u_z, −1)`):
+/// `JᵀWd`, then the lower triangle of `JᵀWJ`, `(x x), (z x), (z z), (r x),
+/// (r z), (r r)`.
+#[inline(always)]
+fn normal_terms<V: Lanes>(w: V, ux: V, uz: V, d: V) -> [V; 9] {
+    let (wx, wz) = (w * ux, w * uz);
+    [
+        -(wx * d),
+        -(wz * d),
+        -(w * d),
+        wx * ux,
+        wz * ux,
+        wz * uz,
+        wx,
+        wz,
+        w,
+    ]
+}
+
+/// `(JᵀWJ, JᵀWd)` from the sums of [`normal_terms`], with a tiny Levenberg
+/// damping of 1e-9 on the diagonal.
+fn normal_matrix<V: Lanes>(sums: [V; 9]) -> ([[f64; 3]; 3], [f64; 3]) {
+    let t = sums.map(V::total);
+    let d = 1.0 + 1e-9;
+    (
+        [
+            [t[3] * d, t[4], t[6]],
+            [t[4], t[5] * d, t[7]],
+            [t[6], t[7], t[8] * d],
+        ],
+        [t[0], t[1], t[2]],
+    )
+}
+
+impl FitScratch {
+    /// The points into columns, padded to a multiple of [`LANES`].
+    fn load(&mut self, points: &[EdgePoint]) {
+        let n = points.len();
+        let padded = n.div_ceil(LANES) * LANES;
+        self.xs.clear();
+        self.zs.clear();
+        self.prior.clear();
+        // A point with a coordinate that is not finite is kept at the origin
+        // with weight 0, so that it adds exact zeros to every sum.
+        for p in points {
+            let ok = p.x_px.is_finite() && p.z_px.is_finite();
+            self.xs.push(if ok { p.x_px } else { 0.0 });
+            self.zs.push(if ok { p.z_px } else { 0.0 });
+            self.prior.push(if ok { p.weight.max(0.0) } else { 0.0 });
+        }
+        self.xs.resize(padded, 0.0);
+        self.zs.resize(padded, 0.0);
+        self.prior.resize(padded, 0.0);
+        for v in [&mut self.residuals, &mut self.ux, &mut self.uz] {
+            v.clear();
+            v.resize(padded, 0.0);
+        }
+        self.weights.clear();
+        self.weights.resize(n, 0.0);
     }
-    scratch.work.clear();
-    scratch.work.extend(
-        points
-            .iter()
-            .zip(residuals.iter())
-            .filter(|(p, _)| p.weight > 0.0)
-            .map(|(_, d)| d.abs()),
-    );
+
+    /// Residuals `dᵢ = |pᵢ − c| − r` and unit vectors from the centre, and
+    /// `|dᵢ|` of the points with weight > 0 into `work` (for the scale).
+    #[inline(always)]
+    fn residuals_at<V: Lanes>(&mut self, c: &Circle) {
+        for i in (0..self.xs.len()).step_by(LANES) {
+            let (x, z) = (V::load(&self.xs[i..]), V::load(&self.zs[i..]));
+            let (d, ux, uz) = geometry(x, z, c);
+            d.store(&mut self.residuals[i..]);
+            ux.store(&mut self.ux[i..]);
+            uz.store(&mut self.uz[i..]);
+        }
+        self.work.clear();
+        self.work.extend(
+            self.prior
+                .iter()
+                .zip(&self.residuals)
+                .filter(|(p, _)| **p > 0.0)
+                .map(|(_, d)| d.abs()),
+        );
+    }
+
+    /// The weighted normal equations from the residuals and unit vectors of
+    /// [`FitScratch::residuals_at`].
+    #[inline(always)]
+    fn normal_equations<V: Lanes, const HUBER: bool>(
+        &self,
+        rw: RobustWeight,
+    ) -> ([[f64; 3]; 3], [f64; 3]) {
+        let mut sums = [V::ZERO; 9];
+        for i in (0..self.xs.len()).step_by(LANES) {
+            let d = V::load(&self.residuals[i..]);
+            let (w, _) = rw.at::<V, HUBER>(d, V::load(&self.prior[i..]));
+            let t = normal_terms(w, V::load(&self.ux[i..]), V::load(&self.uz[i..]), d);
+            for k in 0..9 {
+                sums[k] += t[k];
+            }
+        }
+        normal_matrix(sums)
+    }
+
+    /// [`FitScratch::normal_equations`] in one pass at circle `c`, without
+    /// storing residuals: the iterations whose scale is held.
+    #[inline(always)]
+    fn fused_normal_equations<V: Lanes, const HUBER: bool>(
+        &self,
+        c: &Circle,
+        rw: RobustWeight,
+    ) -> ([[f64; 3]; 3], [f64; 3]) {
+        let mut sums = [V::ZERO; 9];
+        for i in (0..self.xs.len()).step_by(LANES) {
+            let (x, z) = (V::load(&self.xs[i..]), V::load(&self.zs[i..]));
+            let (d, ux, uz) = geometry(x, z, c);
+            let (w, _) = rw.at::<V, HUBER>(d, V::load(&self.prior[i..]));
+            let t = normal_terms(w, ux, uz, d);
+            for k in 0..9 {
+                sums[k] += t[k];
+            }
+        }
+        normal_matrix(sums)
+    }
+
+    /// The sums of [`LastSums`] at circle `c`, with the final weights of the
+    /// `n` points left in `weights`.
+    #[inline(always)]
+    fn final_sums<V: Lanes, const HUBER: bool>(
+        &mut self,
+        c: &Circle,
+        rw: RobustWeight,
+        n: usize,
+    ) -> LastSums {
+        // JᵀWJ, bread, meat (lower triangles in the order of
+        // `normal_terms`), Σψ'j, Σd² and the count of the inliers.
+        let (mut jtj, mut bread, mut meat) = ([V::ZERO; 6], [V::ZERO; 6], [V::ZERO; 6]);
+        let (mut jtw1, mut ss, mut count) = ([V::ZERO; 3], V::ZERO, V::ZERO);
+        for i in (0..self.xs.len()).step_by(LANES) {
+            let (x, z) = (V::load(&self.xs[i..]), V::load(&self.zs[i..]));
+            let (d, ux, uz) = geometry(x, z, c);
+            let (w, dpsi) = rw.at::<V, HUBER>(d, V::load(&self.prior[i..]));
+            // The weights go to `residuals`, free until the next rescale.
+            w.store(&mut self.residuals[i..]);
+            let inside = V::splat(1.0).where_lt(V::ZERO, w);
+            let wd2 = w * w * d * d;
+            let quad = |a: V| [a * ux * ux, a * uz * ux, a * uz * uz, a * ux, a * uz, a];
+            let (qj, qb, qm) = (quad(w), quad(dpsi), quad(wd2));
+            for k in 0..6 {
+                jtj[k] += qj[k];
+                bread[k] += qb[k];
+                meat[k] += qm[k];
+            }
+            jtw1[0] += -(dpsi * ux);
+            jtw1[1] += -(dpsi * uz);
+            jtw1[2] += -dpsi;
+            ss += inside * d * d;
+            count += inside;
+        }
+        self.weights.copy_from_slice(&self.residuals[..n]);
+        let sym = |q: [V; 6]| {
+            let t = q.map(V::total);
+            [[t[0], t[1], t[3]], [t[1], t[2], t[4]], [t[3], t[4], t[5]]]
+        };
+        LastSums {
+            jtj: sym(jtj),
+            bread: sym(bread),
+            meat: sym(meat),
+            jtw1: jtw1.map(V::total),
+            ss_unweighted: ss.total(),
+            n_in: count.total() as usize,
+        }
+    }
 }
 
 /// The weight function of one IRLS iteration: Huber's or Tukey's biweight
 /// at residual scale `s`, with its constants worked out once.
 #[derive(Debug, Clone, Copy)]
 struct RobustWeight {
-    huber: bool,
     /// Huber's corner `1.345 s`.
     k: f64,
     /// `1 / (c s)²` for Tukey's biweight.
@@ -662,80 +1006,35 @@ struct RobustWeight {
 }
 
 impl RobustWeight {
-    fn new(s: f64, huber: bool, opts: &FitOptions) -> Self {
+    fn new(s: f64, opts: &FitOptions) -> Self {
         let cs = opts.tukey_c * s;
         RobustWeight {
-            huber,
             k: 1.345 * s,
             inv_cs2: 1.0 / (cs * cs),
         }
     }
 
-    /// Weight `w = ψ(d)/d` and slope `ψ'(d)` of the ρ-function at residual
-    /// `d`, times the point's prior weight.
+    /// Weights `w = ψ(d)/d` and slopes `ψ'(d)` of Huber's (`HUBER`) or
+    /// Tukey's ρ-function at four residuals `d`, times the points' prior
+    /// weights (≥ 0).
     #[inline(always)]
-    fn at(&self, d: f64, prior: f64) -> (f64, f64) {
-        let prior = prior.max(0.0);
-        let (w, dpsi) = if self.huber {
-            let a = d.abs();
-            if a <= self.k {
-                (1.0, 1.0)
-            } else {
-                (self.k / a, 0.0)
-            }
+    fn at<V: Lanes, const HUBER: bool>(&self, d: V, prior: V) -> (V, V) {
+        let one = V::splat(1.0);
+        let (w, dpsi) = if HUBER {
+            // k / max(|d|, k) is exactly 1 inside the corner.
+            let (k, a) = (V::splat(self.k), d.abs());
+            (k / a.max(k), one.where_le(a, k))
         } else {
             // u² = (d / c s)², no division or square root per point.
-            let u2 = d * d * self.inv_cs2;
-            if u2 < 1.0 {
-                let q = 1.0 - u2;
-                (q * q, q * (1.0 - 5.0 * u2))
-            } else {
-                (0.0, 0.0)
-            }
+            let u2 = d * d * V::splat(self.inv_cs2);
+            let q = one - u2;
+            (
+                (q * q).where_lt(u2, one),
+                (q * (one - V::splat(5.0) * u2)).where_lt(u2, one),
+            )
         };
         (w * prior, dpsi * prior)
     }
-}
-
-/// The sums of [`LastSums`] at circle `c`, with the final weights left in
-/// `scratch.weights`.
-fn final_sums(
-    points: &[EdgePoint],
-    c: &Circle,
-    rw: RobustWeight,
-    scratch: &mut FitScratch,
-) -> LastSums {
-    let mut last = LastSums::default();
-    for (p, weight) in points.iter().zip(scratch.weights.iter_mut()) {
-        let (dx, dz) = (p.x_px - c.x_px, p.z_px - c.z_px);
-        let rho = (dx * dx + dz * dz).sqrt();
-        let d = rho - c.r_px;
-        let (w, dpsi) = rw.at(d, p.weight);
-        *weight = w;
-        if w > 0.0 {
-            last.ss_unweighted += d * d;
-            last.n_in += 1;
-            let (ux, uz) = unit(dx, dz, rho);
-            let j3 = [-ux, -uz, -1.0];
-            let wd2 = w * w * d * d;
-            for a in 0..3 {
-                last.jtw1[a] += dpsi * j3[a];
-                for b in 0..=a {
-                    last.jtj[a][b] += w * j3[a] * j3[b];
-                    last.meat[a][b] += wd2 * j3[a] * j3[b];
-                    last.bread[a][b] += dpsi * j3[a] * j3[b];
-                }
-            }
-        }
-    }
-    for a in 0..3 {
-        for b in a + 1..3 {
-            last.jtj[a][b] = last.jtj[b][a];
-            last.meat[a][b] = last.meat[b][a];
-            last.bread[a][b] = last.bread[b][a];
-        }
-    }
-    last
 }
 
 #[cfg(test)]
@@ -829,6 +1128,73 @@ mod tests {
         let f = fit_circle(&pts, None, &held, &mut s).unwrap();
         assert!((f.z_px - c.z_px).abs() < 1e-6, "{f:?}");
         assert!(matches!(f.cov, Covariance::CentreOnly(_)));
+    }
+
+    #[test]
+    fn the_avx2_and_portable_passes_give_the_same_bits() {
+        use rand::{Rng, SeedableRng};
+        #[cfg(target_arch = "x86_64")]
+        assert!(
+            std::arch::is_x86_feature_detected!("avx2"),
+            "this test compares the AVX2 passes with the portable ones: run it on a CPU with AVX2"
+        );
+        // Noisy arcs with outliers, one point not finite and a weight-0
+        // point, free and held, from starts near and far (Huber and Tukey
+        // passes, rescaled and fused): every field of the fit, to the bit.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut fitted = 0;
+        for k in 0..30 {
+            let c = Circle {
+                x_px: 200.0 + rng.gen::<f64>(),
+                z_px: 150.0 + rng.gen::<f64>(),
+                r_px: 40.0 + 40.0 * rng.gen::<f64>(),
+            };
+            let span = 100.0 + 260.0 * rng.gen::<f64>();
+            let n = 50 + k * 5;
+            let mut pts = arc(c, 270.0 - span / 2.0, 270.0 + span / 2.0, n);
+            for (i, p) in pts.iter_mut().enumerate() {
+                p.x_px += 0.05 * (rng.gen::<f64>() - 0.5) + if i % 17 == 3 { 2.0 } else { 0.0 };
+                p.z_px += 0.05 * (rng.gen::<f64>() - 0.5);
+            }
+            pts[1].weight = 0.0;
+            pts[2].z_px = f64::NAN;
+            let off = 2.0 * rng.gen::<f64>();
+            let start = Circle {
+                x_px: c.x_px + off,
+                z_px: c.z_px - off,
+                r_px: c.r_px + 0.5 * off,
+            };
+            let (mut s1, mut s2) = (FitScratch::default(), FitScratch::default());
+            for opts in [
+                FitOptions::default(),
+                FitOptions {
+                    hold_radius: Some(c.r_px),
+                    ..FitOptions::default()
+                },
+                FitOptions {
+                    hold_radius: Some(c.r_px),
+                    huber_iterations: 0,
+                    scale_px: Some(0.03),
+                    ..FitOptions::default()
+                },
+            ] {
+                let portable = fit_circle_lanes::<F4>(&pts, Some(start), &opts, &mut s1);
+                #[cfg(target_arch = "x86_64")]
+                {
+                    // SAFETY: AVX2 is present (asserted above).
+                    let avx2 = unsafe { fit_circle_avx2(&pts, Some(start), &opts, &mut s2) };
+                    assert_eq!(portable, avx2, "arc {k}, {opts:?}");
+                    assert_eq!(s1.weights, s2.weights, "arc {k}");
+                }
+                if portable.is_ok() {
+                    fitted += 1;
+                    assert_eq!(s1.weights[2], 0.0, "arc {k}: the NaN point has weight 0");
+                }
+            }
+        }
+        // Most fits succeed (a fixed scale of 0.03 px from a start up to
+        // 2 px off rejects every point: an error, equal on both paths).
+        assert!(fitted >= 70, "{fitted} of 90 fits");
     }
 
     #[test]

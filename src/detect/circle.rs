@@ -777,8 +777,8 @@ mod y4 {
 
         #[inline(always)]
         fn total(self) -> f64 {
-            let mut l = [0.0; LANES];
-            self.store(&mut l);
+            // A plain bit copy, no intrinsic (so it inlines anywhere).
+            let l = unsafe { std::mem::transmute::<__m256d, [f64; LANES]>(self.0) };
             (l[0] + l[1]) + (l[2] + l[3])
         }
     }

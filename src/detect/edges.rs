@@ -52,8 +52,10 @@
 //!
 //! `normals × (2w + 1)` bilinear samples of the frame and two of the
 //! background per normal: proportional to the perimeter, independent of the
-//! frame size. All buffers live in [`EdgeScratch`], reused from frame to
-//! frame.
+//! frame size. The windows are set up first, then sampled eight at a time
+//! with AVX2 (two 32-bit gathers per sample fetch its four neighbours) or
+//! one at a time without, with the same bits. All buffers live in
+//! [`EdgeScratch`], reused from frame to frame.
 
 use super::background::{Background, FrameGain};
 use super::circle::{fit_circle, Circle, CircleFit, FitOptions, FitScratch};
@@ -136,12 +138,40 @@ impl EdgeParams {
     }
 }
 
+/// A normal ready to be sampled: its window's start and step in 16.16
+/// fixed point (column, and row within the band), and `1/(g·B)` at its
+/// inner end with its change per sample.
+#[derive(Debug, Clone, Copy)]
+struct Window {
+    c: f64,
+    s: f64,
+    ia: f64,
+    di: f64,
+    xf: i32,
+    zf: i32,
+    dxf: i32,
+    dzf: i32,
+}
+
+/// The sample sums of one window: `S_k = Σ j^k I_j` and the first and last
+/// samples.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Samples {
+    s0: f64,
+    s1: f64,
+    s2: f64,
+    first: f64,
+    last: f64,
+}
+
 /// Reusable buffers: one per thread, reused for every frame.
 #[derive(Debug, Default, Clone)]
 pub struct EdgeScratch {
     /// The edge points of the last call.
     pub points: Vec<EdgePoint>,
     normals: Vec<NormalSums>,
+    windows: Vec<Window>,
+    samples: Vec<Samples>,
     /// Directions (cos, sin) of all `table.len()` normals around the circle.
     table: Vec<(f64, f64)>,
     /// Work buffer for the transmission.
@@ -215,6 +245,7 @@ pub fn edge_points<'s>(
     }
     let row0 = band.row0 as f64;
     let last_j = (m - 1) as f64;
+    scratch.windows.clear();
     for &(c, s) in &scratch.table {
         let (xa, za) = (cx + t0 * c, cz + t0 * s);
         let (xb, zb) = (cx + t1 * c, cz + t1 * s);
@@ -229,40 +260,37 @@ pub fn edge_points<'s>(
             continue;
         }
         let (ia, ib) = (1.0 / (gain * ba), 1.0 / (gain * bb));
-        let di = (ib - ia) / last_j;
-        // The window is a segment inside the (convex) visible region, so
-        // every sample's four neighbours are inside the band.
         // Positions in 16.16 fixed point (1.5e-5 px steps): integer and
         // fractional parts by shifts instead of float conversions.
-        let z0 = za - row0;
-        let mut xf = (xa * FIX) as i64;
-        let mut zf = (z0 * FIX) as i64;
-        let (dxf, dzf) = ((c * FIX) as i64, (s * FIX) as i64);
+        let w = Window {
+            c,
+            s,
+            ia,
+            di: (ib - ia) / last_j,
+            xf: (xa * FIX) as i32,
+            zf: ((za - row0) * FIX) as i32,
+            dxf: (c * FIX) as i32,
+            dzf: (s * FIX) as i32,
+        };
+        // The window is a segment inside the (convex) visible region, so
+        // every sample's four neighbours are inside the band; checked
+        // here on the fixed-point positions as the samplers will step them.
+        if window_inside(&w, m, band) {
+            scratch.windows.push(w);
+        }
+    }
+    sample_windows(band, m, &scratch.windows, &mut scratch.samples);
+    for (w, sm) in scratch.windows.iter().zip(&scratch.samples) {
         // Σ q_j t_j = Σ I_j (ia + j·di)(t0 + j)
         //           = ia·t0·S0 + (ia + di·t0)·S1 + di·S2,  S_k = Σ j^k I_j:
         // three independent sums of the samples, the weights applied once.
-        let (mut s0, mut s1, mut s2) = (0.0f64, 0.0f64, 0.0f64);
-        let mut v_first = 0.0;
-        let mut v_last = 0.0;
-        for j in 0..m {
-            let jf = j as f64;
-            let v = lerp_fixed(band.data, band.width, xf, zf) as f64;
-            xf += dxf;
-            zf += dzf;
-            s0 += v;
-            s1 += v * jf;
-            s2 += v * jf * jf;
-            if j == 0 {
-                v_first = v;
-            }
-            v_last = v;
-        }
+        let (ia, di) = (w.ia, w.di);
         scratch.normals.push(NormalSums {
-            c,
-            s,
-            qt: ia * t0 * s0 + (ia + di * t0) * s1 + di * s2,
-            q_in: v_first * ia,
-            q_out: v_last * (ia + last_j * di),
+            c: w.c,
+            s: w.s,
+            qt: ia * t0 * sm.s0 + (ia + di * t0) * sm.s1 + di * sm.s2,
+            q_in: sm.first * ia,
+            q_out: sm.last * (ia + last_j * di),
         });
     }
     if scratch.normals.is_empty() {
@@ -406,11 +434,152 @@ fn transmission(
 /// Fixed-point scale of sample positions: 16 fractional bits.
 const FIX: f64 = 65536.0;
 
+/// Whether every sample of window `w` (`m` samples) has its four
+/// neighbours inside the band: the rows and columns of the samples are
+/// monotone along the window, so its ends bound them. Bands of 2¹⁵ columns
+/// or rows or more (beyond 16.16 fixed point in 32 bits) have no windows.
+fn window_inside(w: &Window, m: usize, band: &Band) -> bool {
+    let steps = (m as i64 - 1).max(0);
+    let (x0, z0) = (w.xf as i64, w.zf as i64);
+    let (x1, z1) = (x0 + steps * w.dxf as i64, z0 + steps * w.dzf as i64);
+    let (jmin, jmax) = (x0.min(x1) >> 16, x0.max(x1) >> 16);
+    let (imin, imax) = (z0.min(z1) >> 16, z0.max(z1) >> 16);
+    let width = band.width as i64;
+    jmin >= 0
+        && imin >= 0
+        && jmax + 1 < width
+        && (imax + 1) * width + jmax + 1 < band.data.len() as i64
+        && band.data.len() < (1 << 30)
+        && band.width < (1 << 15)
+        && band.nrows < (1 << 15)
+}
+
+/// The sums of every window's `m` samples, interpolated bilinearly in `f32`
+/// and summed in `f64`, into `out`: eight windows at a time with AVX2
+/// (gathers), one at a time without; the same operations in the same order
+/// per window, so the same bits (tested).
+fn sample_windows(band: &Band, m: usize, windows: &[Window], out: &mut Vec<Samples>) {
+    out.clear();
+    out.resize(windows.len(), Samples::default());
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2, checked just above; every window
+        // passed `window_inside`.
+        unsafe { sample_windows_avx2(band, m, windows, out) };
+        return;
+    }
+    sample_windows_portable(band, m, windows, out);
+}
+
+fn sample_windows_portable(band: &Band, m: usize, windows: &[Window], out: &mut [Samples]) {
+    for (w, o) in windows.iter().zip(out.iter_mut()) {
+        let (mut xf, mut zf) = (w.xf, w.zf);
+        let mut sm = Samples::default();
+        for j in 0..m {
+            let jf = j as f64;
+            let v = lerp_fixed(band.data, band.width, xf, zf) as f64;
+            xf += w.dxf;
+            zf += w.dzf;
+            sm.s0 += v;
+            sm.s1 += v * jf;
+            sm.s2 += v * jf * jf;
+            if j == 0 {
+                sm.first = v;
+            }
+            sm.last = v;
+        }
+        *o = sm;
+    }
+}
+
+/// [`sample_windows_portable`] on eight windows at a time: each sample's
+/// four neighbours by two 32-bit gathers (a pixel and its right neighbour
+/// are one 32-bit word), the interpolation in eight `f32` lanes, the sums
+/// in two sets of four `f64` lanes.
+///
+/// # Safety
+/// AVX2 must be present, and every window must pass [`window_inside`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn sample_windows_avx2(band: &Band, m: usize, windows: &[Window], out: &mut [Samples]) {
+    use std::arch::x86_64::*;
+    const L: usize = 8;
+    let base = band.data.as_ptr() as *const i32;
+    let below = band.data.as_ptr().wrapping_add(band.width) as *const i32;
+    let width = _mm256_set1_epi32(band.width as i32);
+    let low = _mm256_set1_epi32(0xffff);
+    let inv = _mm256_set1_ps(1.0 / 65536.0);
+    let mut k = 0;
+    while k < windows.len() {
+        let n = (windows.len() - k).min(L);
+        // Lanes past the last window repeat it; their sums are dropped.
+        let lane = |f: fn(&Window) -> i32| {
+            let mut v = [0i32; L];
+            for (l, x) in v.iter_mut().enumerate() {
+                *x = f(&windows[k + l.min(n - 1)]);
+            }
+            _mm256_loadu_si256(v.as_ptr() as *const __m256i)
+        };
+        let (mut x, mut z) = (lane(|w| w.xf), lane(|w| w.zf));
+        let (dx, dz) = (lane(|w| w.dxf), lane(|w| w.dzf));
+        let zero = _mm256_setzero_pd();
+        let (mut s0, mut s1, mut s2) = ([zero; 2], [zero; 2], [zero; 2]);
+        let (mut first, mut last) = ([zero; 2], [zero; 2]);
+        for j in 0..m {
+            let jf = _mm256_set1_pd(j as f64);
+            let col = _mm256_srai_epi32::<16>(x);
+            let row = _mm256_srai_epi32::<16>(z);
+            let fx = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_and_si256(x, low)), inv);
+            let fz = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_and_si256(z, low)), inv);
+            let at = _mm256_add_epi32(_mm256_mullo_epi32(row, width), col);
+            let top = _mm256_i32gather_epi32::<2>(base, at);
+            let bot = _mm256_i32gather_epi32::<2>(below, at);
+            let a = _mm256_cvtepi32_ps(_mm256_and_si256(top, low));
+            let b = _mm256_cvtepi32_ps(_mm256_srli_epi32::<16>(top));
+            let c = _mm256_cvtepi32_ps(_mm256_and_si256(bot, low));
+            let d = _mm256_cvtepi32_ps(_mm256_srli_epi32::<16>(bot));
+            let t = _mm256_add_ps(a, _mm256_mul_ps(fx, _mm256_sub_ps(b, a)));
+            let u = _mm256_add_ps(c, _mm256_mul_ps(fx, _mm256_sub_ps(d, c)));
+            let v = _mm256_add_ps(t, _mm256_mul_ps(fz, _mm256_sub_ps(u, t)));
+            let halves = [
+                _mm256_cvtps_pd(_mm256_castps256_ps128(v)),
+                _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(v)),
+            ];
+            for h in 0..2 {
+                let vj = _mm256_mul_pd(halves[h], jf);
+                s0[h] = _mm256_add_pd(s0[h], halves[h]);
+                s1[h] = _mm256_add_pd(s1[h], vj);
+                s2[h] = _mm256_add_pd(s2[h], _mm256_mul_pd(vj, jf));
+                if j == 0 {
+                    first[h] = halves[h];
+                }
+                last[h] = halves[h];
+            }
+            x = _mm256_add_epi32(x, dx);
+            z = _mm256_add_epi32(z, dz);
+        }
+        let lanes =
+            |v: [__m256d; 2]| -> [f64; L] { std::mem::transmute::<[__m256d; 2], [f64; L]>(v) };
+        let (s0, s1, s2) = (lanes(s0), lanes(s1), lanes(s2));
+        let (first, last) = (lanes(first), lanes(last));
+        for l in 0..n {
+            out[k + l] = Samples {
+                s0: s0[l],
+                s1: s1[l],
+                s2: s2[l],
+                first: first[l],
+                last: last[l],
+            };
+        }
+        k += L;
+    }
+}
+
 /// Bilinear interpolation of row-major `data` (`width` columns) at the
 /// 16.16 fixed-point column `x` and local row `z`, both ≥ 0 with their right
 /// and lower neighbours inside (the caller checks the window first).
 #[inline(always)]
-fn lerp_fixed(data: &[u16], width: usize, x: i64, z: i64) -> f32 {
+fn lerp_fixed(data: &[u16], width: usize, x: i32, z: i32) -> f32 {
     let (j, i) = ((x >> 16) as usize, (z >> 16) as usize);
     const INV: f32 = 1.0 / 65536.0;
     let (fx, fz) = ((x & 0xffff) as f32 * INV, (z & 0xffff) as f32 * INV);
@@ -465,4 +634,92 @@ pub fn measure_circle(
         found: 0,
         needed: 1,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn the_avx2_and_portable_samplers_give_the_same_bits() {
+        #[cfg(target_arch = "x86_64")]
+        assert!(
+            std::arch::is_x86_feature_detected!("avx2"),
+            "this test compares the AVX2 sampler with the portable one: run it on a CPU with AVX2"
+        );
+        // A 12-bit band of noise, 1 to 40 windows in every direction
+        // (so that the last group of eight is partial), 13 samples each.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let (width, nrows) = (97, 61);
+        let data: Vec<u16> = (0..width * nrows).map(|_| rng.gen_range(0..4096)).collect();
+        let band = Band {
+            data: &data,
+            row0: 100,
+            nrows,
+            width,
+        };
+        let m = 13;
+        for count in 1..=40 {
+            let mut windows = Vec::new();
+            while windows.len() < count {
+                let a: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+                let (c, s) = (a.cos(), a.sin());
+                let w = Window {
+                    c,
+                    s,
+                    ia: 1.0,
+                    di: 0.0,
+                    xf: (rng.gen_range(0.0..width as f64) * FIX) as i32,
+                    zf: (rng.gen_range(0.0..nrows as f64) * FIX) as i32,
+                    dxf: (c * FIX) as i32,
+                    dzf: (s * FIX) as i32,
+                };
+                if window_inside(&w, m, &band) {
+                    windows.push(w);
+                }
+            }
+            let mut portable = vec![Samples::default(); count];
+            sample_windows_portable(&band, m, &windows, &mut portable);
+            let mut chosen = Vec::new();
+            sample_windows(&band, m, &windows, &mut chosen);
+            assert_eq!(portable, chosen, "{count} windows");
+            // The sums are those of the samples: S0 within the range of
+            // 13 twelve-bit values, S1 and S2 weighted by j and j².
+            for p in &portable {
+                assert!(p.s0 > 0.0 && p.s0 < 13.0 * 4096.0);
+                assert!(p.s1 <= 78.0 * 4096.0 && p.s2 <= 650.0 * 4096.0);
+            }
+        }
+    }
+
+    #[test]
+    fn windows_reaching_out_of_the_band_are_refused() {
+        let data = vec![0u16; 20 * 10];
+        let band = Band {
+            data: &data,
+            row0: 0,
+            nrows: 10,
+            width: 20,
+        };
+        let at = |x: f64, z: f64, c: f64, s: f64| Window {
+            c,
+            s,
+            ia: 1.0,
+            di: 0.0,
+            xf: (x * FIX) as i32,
+            zf: (z * FIX) as i32,
+            dxf: (c * FIX) as i32,
+            dzf: (s * FIX) as i32,
+        };
+        // 13 samples from column 2 to the right end at 14, row 4: inside.
+        assert!(window_inside(&at(2.0, 4.0, 1.0, 0.0), 13, &band));
+        // One column more and the last sample's right neighbour is column 20.
+        assert!(!window_inside(&at(7.0, 4.0, 1.0, 0.0), 13, &band));
+        // Down from row 0: the last sample at row 12 is below the band.
+        assert!(!window_inside(&at(5.0, 0.0, 0.0, 1.0), 13, &band));
+        // Up and left of the origin.
+        assert!(!window_inside(&at(5.0, 5.0, -1.0, 0.0), 13, &band));
+        assert!(!window_inside(&at(5.0, 5.0, 0.0, -1.0), 13, &band));
+    }
 }

@@ -23,6 +23,11 @@
 //! understates it under Tukey weights); it assumes independent point errors.
 //! Errors shared by all points along their radii (`radial_sigma_px`) are
 //! added through the fit's response to a uniform radial shift.
+//!
+//! Speed: the passes over the points take four at a time (`Lanes`): with
+//! AVX2 (chosen at run time) each step is one instruction on four `f64`
+//! lanes, without it the same IEEE operations lane by lane, and the lane
+//! sums are added in a fixed order, so both give the same bits.
 
 // Small fixed-size matrix code reads best with explicit indices.
 #![allow(clippy::needless_range_loop)]

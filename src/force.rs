@@ -9,7 +9,7 @@
 //!   table is biased (n ≈ 1.94 for ±2 frames on a 24-frame contact).
 //! - [`fit_force_law`]: the law F = K·δⁿ (+ a linear damping c·δ̇) fitted to
 //!   the trajectory itself: the equation of motion
-//!   m·δ̈ = m·g − K·δ₊ⁿ − c·δ̇·[δ > 0] is integrated (exact in flight, RK4
+//!   m·δ̈ = m·g − K·δ₊ⁿ − c·δ̇·\[δ > 0\] is integrated (exact in flight, RK4
 //!   in contact, touchdown and lift-off located exactly) from the first
 //!   flight frame and its δ(t), averaged over each frame's exposure as the
 //!   camera averages it, fitted to every frame of the flight–contact–

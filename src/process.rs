@@ -39,7 +39,7 @@ pub struct ProcessArgs {
     #[arg(long)]
     pub radius_mm: Option<f64>,
     /// Also draw the overlay of these camera image numbers (comma-separated,
-    /// e.g. `-5,0,12`) for every run: plots/overlays/<run>_<number>.png.
+    /// e.g. `-5,0,12`) for every run: `plots/overlays/<run>_<number>.png`.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub overlay_frames: Vec<i64>,
 }

@@ -111,7 +111,7 @@ pub struct ExponentFit {
     pub mu: Option<f64>,
     pub mu_stderr: Option<f64>,
     pub mu_ci: Option<[f64; 2]>,
-    /// ln τc[s] = mu_intercept + μ ln v[m/s].
+    /// ln τc\[s\] = mu_intercept + μ ln v\[m/s\].
     pub mu_intercept: Option<f64>,
     /// Drops with a contact time (those in the μ fit).
     pub n_tau: usize,

@@ -413,7 +413,7 @@ struct LastSums {
 ///
 /// IRLS: each iteration computes the residuals `dᵢ`, their scale
 /// `s = max(1.4826·MAD, min_scale_px)` (held once a step moves less than
-/// [`FREEZE_SCALE_PX`], or given throughout by `opts.scale_px`) and
+/// `FREEZE_SCALE_PX`, or given throughout by `opts.scale_px`) and
 /// weights — Huber's `min(1, 1.345 s / |d|)` for the first
 /// `huber_iterations`, then Tukey's
 /// biweight `(1 − (d / (c s))²)²` for `|d| < c s`, else 0 — and takes one

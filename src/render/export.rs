@@ -375,7 +375,7 @@ fn civil_from_days(z: i64) -> (i64, u32, u32) {
 }
 
 /// Days since 1970-01-01 → (year, month, day) for a calendar date (inverse of
-/// [`civil_from_days`]).
+/// `civil_from_days`).
 pub fn days_from_civil(y: i64, m: u32, d: u32) -> i64 {
     let y = if m <= 2 { y - 1 } else { y };
     let era = y.div_euclid(400);

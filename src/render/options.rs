@@ -155,7 +155,7 @@ pub struct RenderArgs {
     /// Gravity, m/s².
     #[arg(long, default_value_t = physics::STANDARD_GRAVITY_M_S2)]
     pub gravity_m_s2: f64,
-    /// Name of the surface written to runs.csv (a [surface.<name>] of pipeline.toml).
+    /// Name of the surface written to runs.csv (a `[surface.<name>]` of pipeline.toml).
     #[arg(long, default_value = "pdms")]
     pub surface_name: String,
 

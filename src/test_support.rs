@@ -1,5 +1,6 @@
 //! Test support: an exact drop (the renderer's physics) and its noisy
-//! track, for the event and kinematics tests.
+//! track, for the event and kinematics tests; the AVX2 check of the tests
+//! that compare a vector path with its portable twin.
 
 use crate::config::Surface;
 use crate::events::{Geometry, TrackPoint};
@@ -112,4 +113,16 @@ pub fn sphere() -> SphereParams {
         radius_m: 4.5e-3,
         density_kg_m3: 7800.0,
     }
+}
+
+/// Fail a test that compares `what` with AVX2 and without when the CPU has
+/// no AVX2: passing would then say nothing.
+pub fn require_avx2(what: &str) {
+    #[cfg(target_arch = "x86_64")]
+    assert!(
+        std::arch::is_x86_feature_detected!("avx2"),
+        "this test compares {what} with AVX2 and without: run it on a CPU with AVX2"
+    );
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = what;
 }

@@ -1138,11 +1138,7 @@ mod tests {
     #[test]
     fn the_avx2_and_portable_passes_give_the_same_bits() {
         use rand::{Rng, SeedableRng};
-        #[cfg(target_arch = "x86_64")]
-        assert!(
-            std::arch::is_x86_feature_detected!("avx2"),
-            "this test compares the AVX2 passes with the portable ones: run it on a CPU with AVX2"
-        );
+        crate::test_support::require_avx2("the circle fit's passes");
         // Noisy arcs with outliers, one point not finite and a weight-0
         // point, free and held, from starts near and far (Huber and Tukey
         // passes, rescaled and fused): every field of the fit, to the bit.

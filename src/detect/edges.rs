@@ -643,11 +643,7 @@ mod tests {
 
     #[test]
     fn the_avx2_and_portable_samplers_give_the_same_bits() {
-        #[cfg(target_arch = "x86_64")]
-        assert!(
-            std::arch::is_x86_feature_detected!("avx2"),
-            "this test compares the AVX2 sampler with the portable one: run it on a CPU with AVX2"
-        );
+        crate::test_support::require_avx2("the edge sampler");
         // A 12-bit band of noise, 1 to 40 windows in every direction
         // (so that the last group of eight is partial), 13 samples each.
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);

@@ -65,6 +65,7 @@ fn main() -> anyhow::Result<()> {
     let mut errs: Vec<Vec<f64>> = vec![Vec::new(); quantities.len()];
     let mut covered = vec![0usize; quantities.len()];
     let (mut dn, mut dk) = (Vec::new(), Vec::new());
+    let (mut n_covered, mut k_covered) = (0, 0);
     let mut measured = 0;
     for run in &runs {
         let Some(r) = records.iter().find(|r| r.run == run.run) else {
@@ -102,6 +103,9 @@ fn main() -> anyhow::Result<()> {
         if let (Some(n), Some(k)) = (r.force_exponent, r.force_k2_n_m2) {
             dn.push(n - 2.0);
             dk.push(k / k_model - 1.0);
+            let within = |d: f64, e: Option<f64>| e.is_some_and(|e| d.abs() <= 2.0 * e);
+            n_covered += usize::from(within(n - 2.0, r.force_exponent_err));
+            k_covered += usize::from(within(k - k_model, r.force_k2_n_m2_err));
         }
     }
     println!("{measured} of {} drops measured\n", runs.len());
@@ -123,9 +127,11 @@ fn main() -> anyhow::Result<()> {
     }
     let absmax = |v: &[f64]| v.iter().fold(0.0f64, |a, b| a.max(b.abs()));
     println!(
-        "\ncontact law: max |n − 2| = {:.4} (n free), max |K/K_model − 1| = {:.4} (K at n = 2) over {} drops",
+        "\ncontact law: max |n − 2| = {:.4} (n free, 2σ covers {n_covered}/{}), max |K/K_model − 1| = {:.4} (K at n = 2, 2σ covers {k_covered}/{}) over {} drops",
         absmax(&dn),
+        dn.len(),
         absmax(&dk),
+        dk.len(),
         dn.len()
     );
     Ok(())

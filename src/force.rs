@@ -14,7 +14,12 @@
 //!   flight frame and its δ(t), averaged over each frame's exposure as the
 //!   camera averages it, fitted to every frame of the flight–contact–
 //!   flight sequence by Levenberg–Marquardt. This has no smoothing bias;
-//!   K, n and c come with errors from the fit's covariance.
+//!   K, n and c come with errors from the fit's covariance, plus what the
+//!   uncertainties of the geometry do to them: δ = (z + R − y_s)·s moves
+//!   as a whole with the surface row y_s and the radius R_px (and scales
+//!   with the scale s, which follows R_px when it comes from it), which the
+//!   frames' own scatter does not show. Each enters through the fit's
+//!   linear response, `Δθ = −(JᵀJ)⁻¹Jᵀ ∂r/∂q · Δq`.
 
 use crate::events::{Events, Geometry, TrackPoint};
 use crate::kinematics::{Measured, SphereParams};
@@ -282,25 +287,43 @@ fn fit_force_law_to(
     // (δ0, v0, ln K/m, n, c/m) all free; then n held at the model's 2.
     let free = levenberg_marquardt(&theta0, &[0, 1, 2, 3, 4], &resid, rel_tol)?;
     let held = levenberg_marquardt(&theta0, &[0, 1, 2, 4], &resid, rel_tol)?;
+    // The geometry's errors (see the module doc): ∂r_i/∂q = −(∂obs_i/∂q)/σ_i
+    // with obs_i = δ_i·s, times σ_q. With the scale from the radius,
+    // s = R_mm/R_px, so ∂obs/∂R = s·(1 − δ_px/R_px); a scale given
+    // independently adds its own relative error.
+    let px: Vec<f64> = obs.iter().map(|o| o / s_m).collect();
+    let per_frame = |f: &dyn Fn(usize) -> f64| DVector::from_fn(m_pts, |i, _| -f(i) / sig[i]);
+    let mut nuisances = vec![
+        per_frame(&|_| -s_m) * geom.surface_row_err_px,
+        if geom.scale_from_radius {
+            per_frame(&|i| s_m * (1.0 - px[i] / geom.radius_px)) * geom.radius_err_px
+        } else {
+            per_frame(&|_| s_m) * geom.radius_err_px
+        },
+    ];
+    if !geom.scale_from_radius && geom.mm_per_px > 0.0 {
+        nuisances.push(per_frame(&|i| obs[i]) * (geom.mm_per_px_err / geom.mm_per_px));
+    }
+    let sd = |fit: &LmFit, i: usize| fit.sd_with(i, &nuisances);
     let mass = sphere.mass_kg();
-    let k_of = |fit: &LmFit, col: usize| {
+    let k_of = |fit: &LmFit| {
         let km = fit.theta[2].exp();
         Measured {
             value: km * mass,
-            err: km * mass * fit.sd(col),
+            err: km * mass * sd(fit, 2),
         }
     };
     Some(ForceLaw {
-        k: k_of(&free, 2),
+        k: k_of(&free),
         n: Measured {
             value: free.theta[3],
-            err: free.sd(3),
+            err: sd(&free, 3),
         },
         damping_n_s_m: Measured {
             value: free.theta[4] * mass,
-            err: mass * free.sd(4),
+            err: mass * sd(&free, 4),
         },
-        k_at_n2: k_of(&held, 2),
+        k_at_n2: k_of(&held),
         chi2_red: free.cost / free.dof as f64,
         n_frames: m_pts,
     })
@@ -313,17 +336,27 @@ struct LmFit {
     free: Vec<usize>,
     /// (JᵀJ)⁻¹ over the fitted parameters, scaled by max(1, χ²_red).
     cov: DMatrix<f64>,
+    /// (JᵀJ)⁻¹Jᵀ at the solution: the fitted parameters' response to a
+    /// change of the residuals is minus this times it.
+    response: DMatrix<f64>,
     cost: f64,
     dof: usize,
 }
 
 impl LmFit {
-    /// Standard error of θ[i] (0 when θ[i] was held).
-    fn sd(&self, i: usize) -> f64 {
-        self.free
+    /// Standard error of θ[i] (0 when θ[i] was held), with independent
+    /// nuisances added: each
+    /// `dr` is the change of the residuals that one standard deviation of
+    /// a nuisance makes.
+    fn sd_with(&self, i: usize, nuisances: &[DVector<f64>]) -> f64 {
+        let Some(p) = self.free.iter().position(|&k| k == i) else {
+            return 0.0;
+        };
+        let var: f64 = nuisances
             .iter()
-            .position(|&k| k == i)
-            .map_or(0.0, |p| self.cov[(p, p)].max(0.0).sqrt())
+            .map(|dr| self.response.row(p).dot(&dr.transpose()).powi(2))
+            .sum();
+        (self.cov[(p, p)].max(0.0) + var).sqrt()
     }
 }
 
@@ -401,11 +434,12 @@ fn levenberg_marquardt(
     }
     let j = jacobian(&theta, r.len());
     let dof = r.len().saturating_sub(p).max(1);
-    let cov = (j.transpose() * &j).try_inverse()? * (cost / dof as f64).max(1.0);
+    let inv = (j.transpose() * &j).try_inverse()?;
     Some(LmFit {
         theta,
         free: free.to_vec(),
-        cov,
+        cov: &inv * (cost / dof as f64).max(1.0),
+        response: inv * j.transpose(),
         cost,
         dof,
     })
@@ -479,6 +513,67 @@ mod tests {
             "the instants fit should be visibly biased: n = {:?}",
             naive.n
         );
+    }
+
+    #[test]
+    fn the_geometrys_errors_reach_the_law_as_a_refit_on_the_shifted_geometry_does() {
+        // The surface row and the radius (with the scale from it) off by
+        // 0.05 px: the error each adds to K(n = 2), n and K, by the fit's
+        // linear response, must be what refitting the same frames on the
+        // shifted geometry changes them by (within 10 %).
+        let drop = Drop::new(4.5e-3, 1.7, 0.5e-4);
+        let exact = Geometry {
+            surface_row_err_px: 0.0,
+            radius_err_px: 0.0,
+            ..geometry()
+        };
+        let tr = track(&drop, &exact, 0.03, 5);
+        let fit = |g: &Geometry| {
+            let ev = find_events(&tr, g, &EventConfig::default()).unwrap();
+            fit_force_law(&tr, &ev, g, &sphere(), 9.81, 0.0).unwrap()
+        };
+        let base = fit(&exact);
+        let shift = 0.05;
+        let r_mm = exact.radius_px * exact.mm_per_px;
+        for (with_error, shifted) in [
+            (
+                Geometry {
+                    surface_row_err_px: shift,
+                    ..exact
+                },
+                Geometry {
+                    surface_row_px: exact.surface_row_px + shift,
+                    ..exact
+                },
+            ),
+            (
+                Geometry {
+                    radius_err_px: shift,
+                    ..exact
+                },
+                Geometry {
+                    radius_px: exact.radius_px + shift,
+                    mm_per_px: r_mm / (exact.radius_px + shift),
+                    ..exact
+                },
+            ),
+        ] {
+            let (e, s) = (fit(&with_error), fit(&shifted));
+            for (b, e, s, what) in [
+                (base.k_at_n2, e.k_at_n2, s.k_at_n2, "K(n = 2)"),
+                (base.n, e.n, s.n, "n"),
+                (base.k, e.k, s.k, "K"),
+            ] {
+                let added = (e.err * e.err - b.err * b.err).max(0.0).sqrt();
+                let moved = (s.value - b.value).abs();
+                assert!(
+                    (added / moved - 1.0).abs() < 0.1,
+                    "{what}: error added {added:.4e}, refit moved {moved:.4e}"
+                );
+                // And not negligible next to the frames' own scatter.
+                assert!(added > 0.1 * b.err, "{what}: {added:.3e} vs {:.3e}", b.err);
+            }
+        }
     }
 
     #[test]

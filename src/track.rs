@@ -45,6 +45,13 @@ use ndarray::s;
 /// Systematic uncertainty of the calibrated R_px (see `track`).
 pub const RADIUS_SYSTEMATIC_PX: f64 = 0.002;
 
+/// Systematic uncertainty of a detected surface row, added in quadrature to
+/// the line fit's statistical error where the row is used (δ's zero). The
+/// fit's error is ~0.0005 px, but the row at the impact column is off by up
+/// to 0.0018 px on rendered drops (realistic preset; 0.0066 px harsh): the
+/// edge of the pillar band is not a clean step.
+pub const SURFACE_SYSTEMATIC_PX: f64 = 0.002;
+
 /// Settings of the tracker.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackSettings {

@@ -23,8 +23,8 @@
 //! Rates are given by the wall clock (the machine may be shared: note the
 //! load) and by each thread's CPU time (what a core delivers unshared).
 //! `-- fixed` times only the fixed cost (200 runs on the first movie) and
-//! `-- frames` only the long movie's tracking (40 runs; `-- frames0` the
-//! first movie's), for a profiler.
+//! `-- frames` only the long movie's tracking (40 runs, or `TRACK_RUNS`;
+//! `-- frames0` the first movie's), for a profiler.
 
 #[path = "common/mod.rs"]
 mod common;

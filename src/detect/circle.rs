@@ -1104,6 +1104,24 @@ mod tests {
         assert!(hyper_fit(&pts).is_err());
         let mut s = FitScratch::default();
         assert!(fit_circle(&pts, None, &FitOptions::default(), &mut s).is_err());
+        // No points, or none finite, from a start: an error too, not a panic.
+        let start = Some(Circle {
+            x_px: 1.0,
+            z_px: 2.0,
+            r_px: 3.0,
+        });
+        let nan = [EdgePoint {
+            x_px: f64::NAN,
+            z_px: 0.0,
+            weight: 1.0,
+        }; 7];
+        for pts in [&[][..], &nan[..]] {
+            let e = fit_circle(pts, start, &FitOptions::default(), &mut s).unwrap_err();
+            assert!(
+                matches!(e, DetectError::TooFewPoints { found: 0, .. }),
+                "{e:?}"
+            );
+        }
     }
 
     #[test]

@@ -360,10 +360,6 @@ impl LmFit {
     }
 }
 
-/// Minimise |r(θ)|² over θ[free] from θ0 (central-difference Jacobian,
-/// multiplicative damping of the diagonal). Stops when an accepted step
-/// lowers the cost by less than `rel_tol` of it ([`LM_REL_TOL`]), or no
-/// step helps.
 /// An accepted step that lowers |r|² by less than this fraction of it ends
 /// the fit. At the minimum a step δθ lowers the cost by δθᵀJᵀJδθ, so with
 /// ~100 residuals the parameters have then settled to ~1e-4 of their
@@ -372,6 +368,10 @@ impl LmFit {
 /// then spent 20 trials failing.
 const LM_REL_TOL: f64 = 1e-10;
 
+/// Minimise |r(θ)|² over θ[free] from θ0 (central-difference Jacobian,
+/// multiplicative damping of the diagonal). Stops when an accepted step
+/// lowers the cost by less than `rel_tol` of it ([`LM_REL_TOL`]), or no
+/// step helps.
 fn levenberg_marquardt(
     theta0: &[f64],
     free: &[usize],

@@ -32,7 +32,17 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
 
 /// Remove `path`; a file that is not there is not an error.
 pub fn remove_if_present(path: &Path) -> io::Result<()> {
-    match fs::remove_file(path) {
+    absent_is_fine(fs::remove_file(path))
+}
+
+/// Remove the folder `path` and everything in it; a folder that is not
+/// there is not an error.
+pub fn remove_dir_if_present(path: &Path) -> io::Result<()> {
+    absent_is_fine(fs::remove_dir_all(path))
+}
+
+fn absent_is_fine(r: io::Result<()>) -> io::Result<()> {
+    match r {
         Err(e) if e.kind() != io::ErrorKind::NotFound => Err(e),
         _ => Ok(()),
     }

@@ -182,13 +182,7 @@ fn try_process_run(
     let geom = Geometry {
         surface_row_px: tr.surface.row0_px,
         surface_slope: tr.surface.slope,
-        surface_row_err_px: if tr.surface_from_config {
-            tr.surface.sigma_row_at(x_mid)
-        } else {
-            tr.surface
-                .sigma_row_at(x_mid)
-                .hypot(crate::track::SURFACE_SYSTEMATIC_PX)
-        },
+        surface_row_err_px: tr.surface_row_err_px(x_mid),
         radius_px: tr.radius_px,
         radius_err_px: tr.radius_err_px,
         mm_per_px,

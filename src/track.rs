@@ -326,6 +326,20 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     })
 }
 
+impl Track {
+    /// One-sigma uncertainty of the surface row at column `x_px`: the line
+    /// fit's, plus [`SURFACE_SYSTEMATIC_PX`] in quadrature for a detected
+    /// line (a line from the configuration is taken as given).
+    pub fn surface_row_err_px(&self, x_px: f64) -> f64 {
+        let fit = self.surface.sigma_row_at(x_px);
+        if self.surface_from_config {
+            fit
+        } else {
+            fit.hypot(SURFACE_SYSTEMATIC_PX)
+        }
+    }
+}
+
 /// Where pass 1's edge points of one frame sit in the kept buffer, and the
 /// circle their normals were centred on (the origin of their offsets).
 #[derive(Debug, Clone, Copy)]

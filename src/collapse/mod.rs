@@ -171,10 +171,7 @@ pub fn remove_outputs(out_dir: &Path) -> std::io::Result<()> {
     for rel in TABLES.iter().map(|s| s.to_string()).chain(figures) {
         crate::io_util::remove_if_present(&out_dir.join(rel))?;
     }
-    match std::fs::remove_dir_all(out_dir.join("plots").join("drops")) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
-        _ => Ok(()),
-    }
+    crate::io_util::remove_dir_if_present(&out_dir.join("plots").join("drops"))
 }
 
 /// Run the collapse stage: read `args.drops`, write everything into the

@@ -485,11 +485,12 @@ fn fit_circle_lanes<V: Lanes>(
             scale = Some((1.4826 * median(&mut scratch.work)).max(opts.min_scale_px));
         }
         let rw = RobustWeight::new(scale.unwrap_or(opts.min_scale_px), opts);
+        let s = &*scratch;
         let (jtj, jtd) = match (rescale, huber) {
-            (true, true) => scratch.normal_equations::<V, true>(rw),
-            (true, false) => scratch.normal_equations::<V, false>(rw),
-            (false, true) => scratch.fused_normal_equations::<V, true>(&c, rw),
-            (false, false) => scratch.fused_normal_equations::<V, false>(&c, rw),
+            (true, true) => s.normal_equations::<V, true>(rw, |i| s.stored(i)),
+            (true, false) => s.normal_equations::<V, false>(rw, |i| s.stored(i)),
+            (false, true) => s.normal_equations::<V, true>(rw, |i| s.fresh(i, &c)),
+            (false, false) => s.normal_equations::<V, false>(rw, |i| s.fresh(i, &c)),
         };
         let step = if held {
             let m2 = [[jtj[0][0], jtj[0][1]], [jtj[1][0], jtj[1][1]]];
@@ -894,8 +895,7 @@ impl FitScratch {
     #[inline(always)]
     fn residuals_at<V: Lanes>(&mut self, c: &Circle) {
         for i in (0..self.xs.len()).step_by(LANES) {
-            let (x, z) = (V::load(&self.xs[i..]), V::load(&self.zs[i..]));
-            let (d, ux, uz) = geometry(x, z, c);
+            let (d, ux, uz) = self.fresh::<V>(i, c);
             d.store(&mut self.residuals[i..]);
             ux.store(&mut self.ux[i..]);
             uz.store(&mut self.uz[i..]);
@@ -910,37 +910,17 @@ impl FitScratch {
         );
     }
 
-    /// The weighted normal equations from the residuals and unit vectors of
-    /// [`FitScratch::residuals_at`].
+    /// The weighted normal equations, the residuals and unit vectors of
+    /// each four points from `at(i)` (`i` the first point's index).
     #[inline(always)]
     fn normal_equations<V: Lanes, const HUBER: bool>(
         &self,
         rw: RobustWeight,
+        at: impl Fn(usize) -> (V, V, V),
     ) -> ([[f64; 3]; 3], [f64; 3]) {
         let mut sums = [V::ZERO; 9];
         for i in (0..self.xs.len()).step_by(LANES) {
-            let d = V::load(&self.residuals[i..]);
-            let (w, _) = rw.at::<V, HUBER>(d, V::load(&self.prior[i..]));
-            let t = normal_terms(w, V::load(&self.ux[i..]), V::load(&self.uz[i..]), d);
-            for k in 0..9 {
-                sums[k] += t[k];
-            }
-        }
-        normal_matrix(sums)
-    }
-
-    /// [`FitScratch::normal_equations`] in one pass at circle `c`, without
-    /// storing residuals: the iterations whose scale is held.
-    #[inline(always)]
-    fn fused_normal_equations<V: Lanes, const HUBER: bool>(
-        &self,
-        c: &Circle,
-        rw: RobustWeight,
-    ) -> ([[f64; 3]; 3], [f64; 3]) {
-        let mut sums = [V::ZERO; 9];
-        for i in (0..self.xs.len()).step_by(LANES) {
-            let (x, z) = (V::load(&self.xs[i..]), V::load(&self.zs[i..]));
-            let (d, ux, uz) = geometry(x, z, c);
+            let (d, ux, uz) = at(i);
             let (w, _) = rw.at::<V, HUBER>(d, V::load(&self.prior[i..]));
             let t = normal_terms(w, ux, uz, d);
             for k in 0..9 {
@@ -948,6 +928,21 @@ impl FitScratch {
             }
         }
         normal_matrix(sums)
+    }
+
+    /// The residuals and unit vectors of [`FitScratch::residuals_at`] for
+    /// the four points from `i`.
+    #[inline(always)]
+    fn stored<V: Lanes>(&self, i: usize) -> (V, V, V) {
+        let load = |v: &[f64]| V::load(&v[i..]);
+        (load(&self.residuals), load(&self.ux), load(&self.uz))
+    }
+
+    /// The residuals and unit vectors at circle `c` of the four points from
+    /// `i`, computed afresh (the iterations whose scale is held: one pass).
+    #[inline(always)]
+    fn fresh<V: Lanes>(&self, i: usize, c: &Circle) -> (V, V, V) {
+        geometry(V::load(&self.xs[i..]), V::load(&self.zs[i..]), c)
     }
 
     /// The sums of [`LastSums`] at circle `c`, with the final weights of the
@@ -964,8 +959,7 @@ impl FitScratch {
         let (mut jtj, mut bread, mut meat) = ([V::ZERO; 6], [V::ZERO; 6], [V::ZERO; 6]);
         let (mut jtw1, mut ss, mut count) = ([V::ZERO; 3], V::ZERO, V::ZERO);
         for i in (0..self.xs.len()).step_by(LANES) {
-            let (x, z) = (V::load(&self.xs[i..]), V::load(&self.zs[i..]));
-            let (d, ux, uz) = geometry(x, z, c);
+            let (d, ux, uz) = self.fresh::<V>(i, c);
             let (w, dpsi) = rw.at::<V, HUBER>(d, V::load(&self.prior[i..]));
             // The weights go to `residuals`, free until the next rescale.
             w.store(&mut self.residuals[i..]);

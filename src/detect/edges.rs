@@ -153,6 +153,25 @@ struct Window {
     dzf: i32,
 }
 
+impl Window {
+    /// The window from column `x` and band row `z` along `(c, s)`, with
+    /// `1/(g·B)` = `ia` at its start changing by `di` per sample. Positions
+    /// in 16.16 fixed point (1.5e-5 px steps): integer and fractional parts
+    /// by shifts instead of float conversions.
+    fn new(x: f64, z: f64, c: f64, s: f64, ia: f64, di: f64) -> Self {
+        Window {
+            c,
+            s,
+            ia,
+            di,
+            xf: (x * FIX) as i32,
+            zf: (z * FIX) as i32,
+            dxf: (c * FIX) as i32,
+            dzf: (s * FIX) as i32,
+        }
+    }
+}
+
 /// The sample sums of one window: `S_k = Σ j^k I_j` and the first and last
 /// samples.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -260,18 +279,7 @@ pub fn edge_points<'s>(
             continue;
         }
         let (ia, ib) = (1.0 / (gain * ba), 1.0 / (gain * bb));
-        // Positions in 16.16 fixed point (1.5e-5 px steps): integer and
-        // fractional parts by shifts instead of float conversions.
-        let w = Window {
-            c,
-            s,
-            ia,
-            di: (ib - ia) / last_j,
-            xf: (xa * FIX) as i32,
-            zf: ((za - row0) * FIX) as i32,
-            dxf: (c * FIX) as i32,
-            dzf: (s * FIX) as i32,
-        };
+        let w = Window::new(xa, za - row0, c, s, ia, (ib - ia) / last_j);
         // The window is a segment inside the (convex) visible region, so
         // every sample's four neighbours are inside the band; checked
         // here on the fixed-point positions as the samplers will step them.
@@ -660,17 +668,11 @@ mod tests {
             let mut windows = Vec::new();
             while windows.len() < count {
                 let a: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
-                let (c, s) = (a.cos(), a.sin());
-                let w = Window {
-                    c,
-                    s,
-                    ia: 1.0,
-                    di: 0.0,
-                    xf: (rng.gen_range(0.0..width as f64) * FIX) as i32,
-                    zf: (rng.gen_range(0.0..nrows as f64) * FIX) as i32,
-                    dxf: (c * FIX) as i32,
-                    dzf: (s * FIX) as i32,
-                };
+                let (x, z) = (
+                    rng.gen_range(0.0..width as f64),
+                    rng.gen_range(0.0..nrows as f64),
+                );
+                let w = Window::new(x, z, a.cos(), a.sin(), 1.0, 0.0);
                 if window_inside(&w, m, &band) {
                     windows.push(w);
                 }
@@ -698,16 +700,7 @@ mod tests {
             nrows: 10,
             width: 20,
         };
-        let at = |x: f64, z: f64, c: f64, s: f64| Window {
-            c,
-            s,
-            ia: 1.0,
-            di: 0.0,
-            xf: (x * FIX) as i32,
-            zf: (z * FIX) as i32,
-            dxf: (c * FIX) as i32,
-            dzf: (s * FIX) as i32,
-        };
+        let at = |x: f64, z: f64, c: f64, s: f64| Window::new(x, z, c, s, 1.0, 0.0);
         // 13 samples from column 2 to the right end at 14, row 4: inside.
         assert!(window_inside(&at(2.0, 4.0, 1.0, 0.0), 13, &band));
         // One column more and the last sample's right neighbour is column 20.

@@ -56,7 +56,7 @@ pub struct RawConfig {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawInput {
-    /// A `runs.csv` manifest (SPEC §4), relative to the configuration file.
+    /// A `runs.csv` manifest (docs/outputs.md), relative to the configuration file.
     pub manifest: Option<PathBuf>,
     /// Run folders, `.cine` files, or directories holding them (used when no manifest).
     #[serde(default)]

@@ -343,7 +343,7 @@ mod tests {
             v.sort_by(f64::total_cmp);
             v[v.len() / 2]
         };
-        // SPEC §5 targets: δ 0.1 %, τc 0.1 %, v_impact 0.02 % (medians).
+        // docs/accuracy.md targets: δ 0.1 %, τc 0.1 %, v_impact 0.02 % (medians).
         let (md, mt, mv) = (median(&mut e_delta), median(&mut e_tau), median(&mut e_v));
         eprintln!("median |rel err| δmax {md:.2e}, τc {mt:.2e}, v_in {mv:.2e}; 2σ coverage {covered:?}/{n}");
         assert!(md < 1e-3, "δmax median rel error {md:e}");

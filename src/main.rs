@@ -1,5 +1,5 @@
 //! The `dropscope` binary: parse the command line, load the configuration,
-//! call the library, map errors to exit codes (SPEC §6): 0 all good, 1 some
+//! call the library, map errors to exit codes (docs/outputs.md): 0 all good, 1 some
 //! runs failed, 2 the command itself could not run.
 
 use clap::{Parser, Subcommand};
@@ -10,11 +10,20 @@ use dropscope::config::PipelineConfig;
 
 /// Sphere-impact high-speed recordings into physics.
 #[derive(Debug, Parser)]
-#[command(name = "dropscope", version, about, long_about = None)]
+#[command(
+    name = "dropscope",
+    version,
+    about,
+    long_about = None,
+    args_conflicts_with_subcommands = true
+)]
 struct Cli {
-    /// Without a subcommand: the main job (`run`) on ./pipeline.toml.
+    /// Without a subcommand: the main job (`run`) on ./pipeline.toml, with
+    /// `run`'s options (`dropscope --force` is `dropscope run --force`).
     #[command(subcommand)]
     command: Option<Command>,
+    #[command(flatten)]
+    run: dropscope::batch::RunArgs,
 }
 
 #[derive(Debug, Subcommand)]
@@ -215,9 +224,7 @@ fn run_report(out: Option<PathBuf>, config: Option<PathBuf>) -> anyhow::Result<E
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let command = cli
-        .command
-        .unwrap_or_else(|| Command::Run(dropscope::batch::RunArgs::default()));
+    let command = cli.command.unwrap_or(Command::Run(cli.run));
     let result: anyhow::Result<ExitCode> = match command {
         Command::Run(args) => run_main_job(&args),
         Command::CheckConfig { config } => load_config(config.as_deref()).map(|(c, _)| {

@@ -26,7 +26,7 @@ pub struct ProcessArgs {
     /// Run folders (PCC exports) or `.cine` files, one drop each.
     #[arg(required_unless_present = "manifest", conflicts_with = "manifest")]
     pub inputs: Vec<PathBuf>,
-    /// A runs.csv manifest (SPEC §4) instead of INPUTs.
+    /// A runs.csv manifest (columns: docs/outputs.md) instead of INPUTs.
     #[arg(long)]
     pub manifest: Option<PathBuf>,
     /// Output folder (default: the configuration's output.dir).

@@ -77,6 +77,54 @@ fn no_argument_runs_the_main_job_on_the_local_pipeline_toml() {
     }
 }
 
+/// `dropscope` alone takes `run`'s options, as the README shows them
+/// (issue 17 item 3: `dropscope --force` said "unexpected argument").
+#[test]
+fn the_main_job_takes_runs_options_without_the_subcommand() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/runs.csv");
+    let keep_one = dir.path().join("runs.csv");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let row = lines.next().unwrap();
+    let base = manifest.parent().unwrap();
+    let (run, rest) = row.split_once(',').unwrap();
+    let (path, rest) = rest.split_once(',').unwrap();
+    std::fs::write(
+        &keep_one,
+        format!("{header}\n{run},{},{rest}\n", base.join(path).display()),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("pipeline.toml"),
+        "[input]\nmanifest = \"runs.csv\"\n",
+    )
+    .unwrap();
+    let go = || {
+        dropscope()
+            .args(["--force", "--threads", "1", "--out", "elsewhere"])
+            .current_dir(dir.path())
+            .output()
+            .unwrap()
+    };
+    for _ in 0..2 {
+        let out = go();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{err}");
+        // --force: the second job reuses nothing from the first.
+        assert!(err.contains("0 reused from the cache"), "{err}");
+    }
+    assert!(dir.path().join("elsewhere/drops.csv").is_file());
+    // Options before a subcommand are refused rather than silently dropped.
+    let out = dropscope()
+        .args(["--force", "check-config"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}
+
 /// The main job names a missing manifest and exits 2.
 #[test]
 fn the_main_job_names_a_missing_manifest() {

@@ -534,8 +534,7 @@ fn the_pcc_xml_parses_back_to_the_same_metadata() {
     assert!(exps.iter().all(|e| *e == "37.500"));
     // same element tree as real PCC exports
     let ours = element_paths(&xml);
-    let root =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/phantom-samples/cinefiles-jl");
+    let root = crate::phantom_sample("cinefiles-jl");
     for real in ["cam_1.xml", "12bpp.xml"] {
         let theirs = element_paths(&std::fs::read_to_string(root.join(real)).unwrap());
         assert_eq!(ours, theirs, "element tree differs from {real}");

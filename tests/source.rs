@@ -12,11 +12,7 @@ use dropscope::source::{open, pcc_xml, Frame, FrameSource, OpenOptions, P10Mode,
 use ndarray::s;
 
 fn sample(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/phantom-samples/"
-    ))
-    .join(rel)
+    crate::phantom_sample(rel)
 }
 
 fn open_default(p: &Path) -> Result<Box<dyn FrameSource>, SourceError> {

@@ -11,11 +11,7 @@ use dropscope::source::{open, Frame, OpenOptions};
 use ndarray::s;
 
 fn sample(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/phantom-samples/"
-    ))
-    .join(rel)
+    crate::phantom_sample(rel)
 }
 
 fn options() -> OpenOptions {

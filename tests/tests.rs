@@ -9,3 +9,20 @@ mod report;
 mod run;
 mod source;
 mod source_tiff;
+
+/// `../shared/data/phantom-samples/` beside the checkout, with `rel` joined:
+/// the real Phantom files some tests read. Without that folder, the test
+/// stops saying where it looked and what to do, not with a bare "file not
+/// found".
+pub fn phantom_sample(rel: &str) -> std::path::PathBuf {
+    let root =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/phantom-samples");
+    assert!(
+        root.is_dir(),
+        "the real Phantom sample files are missing: looked for {}. These tests need the \
+         project's shared/ folder beside the checkout (shared/data/phantom-samples/); \
+         clone or copy it there, or run the tests from a checkout that sits beside it",
+        root.display()
+    );
+    root.join(rel)
+}

@@ -616,7 +616,7 @@ mod tests {
 
     #[test]
     fn theory_constants_match_the_paper() {
-        // Maruoka 2019 below Eq. (1e): C0 ≈ 3.533; SPEC §3: 3.5333, B ≈ 4.20655.
+        // Maruoka 2019 below Eq. (1e): C0 ≈ 3.533; docs/physics.md: 3.5333, B ≈ 4.20655.
         assert!((omega_theory() - 3.5333).abs() < 1e-4, "{}", omega_theory());
         assert!((beta_third_half() - 4.20655).abs() < 1e-5);
         assert!((psi_theory() - 1.259_921).abs() < 1e-6);

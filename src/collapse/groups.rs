@@ -318,7 +318,7 @@ mod tests {
         rec.a_max_mm = Some(geo);
         let g = compute(&rec, "pdms", &s, ContactRadius::Measured).unwrap();
         assert_eq!(g.a_source, ASource::MeasuredEqualsGeometric);
-        // By construction Ξ² = Ψ (2 − Π) (SPEC §3).
+        // By construction Ξ² = Ψ (2 − Π) (docs/physics.md).
         let lhs = g.big_xi.value.powi(2);
         let rhs = g.psi.value * (2.0 - g.pi.value);
         assert!((lhs - rhs).abs() < 1e-12 * lhs, "{lhs} vs {rhs}");

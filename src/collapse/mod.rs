@@ -211,7 +211,7 @@ pub fn run(
             "GEOMETRIC CONTACT RADIUS: {n_geo} of {} drops use a = sqrt(R^2 - (R - delta)^2) \
              (requested, a_max_mm missing, or a_max_mm equal to it; e.g. {}). For them \
              Xi^2 = Psi (2 - Pi) holds by construction, so their collapse of Psi(Xi) is not an \
-             experimental result (SPEC §3)",
+             experimental result (docs/physics.md)",
             used.len(),
             runs.join(", ")
         ));

@@ -163,7 +163,7 @@ mod tests {
             let got = ln_gamma(x).exp();
             assert!(((got - g) / g).abs() < 1e-13, "Γ({x}) = {got}, want {g}");
         }
-        // B(1/3, 1/2) ≈ 4.20655 (SPEC §3), to the 6 digits quoted there.
+        // B(1/3, 1/2) ≈ 4.20655 (docs/physics.md), to the 6 digits quoted there.
         assert!((beta(1.0 / 3.0, 0.5) - 4.20655).abs() < 5e-6);
     }
 

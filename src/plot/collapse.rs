@@ -545,7 +545,7 @@ where
         }
     };
 
-    // A geometric contact radius makes Ψ(Ξ) hold by construction (SPEC §3):
+    // A geometric contact radius makes Ψ(Ξ) hold by construction (docs/physics.md):
     // say so on the figure itself, not only in fits.json.
     let n_geo = sets
         .iter()

@@ -86,7 +86,7 @@ pub fn parse_frame_name(name: &str) -> Option<(String, i64, ImageKind)> {
     let negative = before.strip_suffix('-').is_some_and(|rest| {
         rest.chars()
             .last()
-            .map_or(true, |c| !c.is_ascii_alphanumeric())
+            .is_none_or(|c| !c.is_ascii_alphanumeric())
     });
     if negative {
         Some((before[..before.len() - 1].to_string(), -value, kind))

@@ -234,11 +234,13 @@ pub fn write_csv(path: &Path, records: &[DropRecord]) -> Result<(), DatasetError
 /// Read a `drops.csv` (from `process`, or any CSV with those columns, so
 /// hand-measured data works too; the `_err` columns and `surface` may be absent).
 pub fn read_csv(path: &Path) -> Result<Vec<DropRecord>, DatasetError> {
-    let mut rdr = csv::Reader::from_path(path).map_err(|e| DatasetError::Csv {
+    // Opened here, not by csv, so that a missing file is an I/O error on
+    // the path rather than a CSV error in "row 0".
+    let bytes = std::fs::read(path).map_err(|source| DatasetError::Io {
         path: path.to_path_buf(),
-        row: 0,
-        source: e,
+        source,
     })?;
+    let mut rdr = csv::Reader::from_reader(bytes.as_slice());
     let mut out = Vec::new();
     for (i, rec) in rdr.deserialize().enumerate() {
         out.push(rec.map_err(|source| DatasetError::Csv {
@@ -253,6 +255,16 @@ pub fn read_csv(path: &Path) -> Result<Vec<DropRecord>, DatasetError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 17 item 4: `collapse missing.csv` said "row 0: ...".
+    #[test]
+    fn a_missing_file_is_named_without_a_row() {
+        let e = read_csv(Path::new("no/such/drops.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("no/such/drops.csv: No such file"), "{e}");
+        assert!(!e.contains("row"), "{e}");
+    }
 
     #[test]
     fn csv_round_trip_keeps_every_field_and_failed_rows() {

@@ -34,6 +34,7 @@ pub mod cache;
 pub mod collapse;
 pub mod config;
 pub mod dataset;
+pub mod dataset_id;
 pub mod detect;
 pub mod events;
 pub mod force;

@@ -55,10 +55,17 @@ enum Command {
     Collapse(dropscope::collapse::CollapseArgs),
     /// Measure drops: per-drop dataset (drops.csv), tracks and overlays.
     Process(dropscope::process::ProcessArgs),
-    /// Write report.html from an output folder's drops.csv, collapse files and plots.
+    /// Write DIR/report.html from the drops.csv, collapse files and plots in DIR.
+    ///
+    /// Refuses a folder whose collapse files were computed from another
+    /// drops.csv than the one in it (each carries its dataset's id).
     Report {
-        /// The output folder (default: the configuration's output.dir).
-        #[arg(long)]
+        /// The output folder to read and write the report into (default:
+        /// the configuration's output.dir).
+        #[arg(value_name = "DIR")]
+        dir: Option<PathBuf>,
+        /// The same as DIR (kept for scripts written before DIR).
+        #[arg(long, hide = true, conflicts_with = "dir")]
         out: Option<PathBuf>,
         /// The configuration file (default: ./pipeline.toml, else the embedded default).
         #[arg(long)]
@@ -241,7 +248,7 @@ fn main() -> ExitCode {
         Command::Render(args) => run_render(&args),
         Command::Collapse(args) => run_collapse(&args),
         Command::Process(args) => run_process(&args),
-        Command::Report { out, config } => run_report(out, config),
+        Command::Report { dir, out, config } => run_report(dir.or(out), config),
     };
     match result {
         Ok(code) => code,

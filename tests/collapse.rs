@@ -557,3 +557,71 @@ fn flight_parabolas_of_a_track_have_free_fall_curvature() {
     let law = d.force_law.unwrap();
     assert!((law.n.value - 2.0).abs() < 1e-9);
 }
+
+/// Issue 17 item 1: `collapse` writes beside its drops.csv, and the report
+/// refuses a folder holding two datasets' files instead of mixing them.
+#[test]
+fn outputs_of_two_datasets_cannot_be_mixed() {
+    let dir = tempfile::tempdir().unwrap();
+    let recs = eq8_dataset(
+        &SyntheticSpec::paper(2, 9),
+        [1.26, -0.3, 0.05],
+        [3.53, -0.5, 0.1],
+        [0.6, 1.8],
+    );
+    for (name, rows) in [("a", &recs[..]), ("b", &recs[..6])] {
+        std::fs::create_dir(dir.path().join(name)).unwrap();
+        dataset::write_csv(&dir.path().join(name).join("drops.csv"), rows).unwrap();
+    }
+    let go = |args: &[&str]| {
+        let o = dropscope()
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        let text =
+            String::from_utf8_lossy(&o.stderr).into_owned() + &String::from_utf8_lossy(&o.stdout);
+        (o.status.code(), text)
+    };
+    let (code, text) = go(&["collapse", "a/drops.csv", "--bootstrap", "50"]);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(dir.path().join("a/fits.json").is_file(), "{text}");
+    assert!(dir.path().join("a/plots/psi_vs_xi.svg").is_file());
+    assert!(!dir.path().join("out").exists(), "wrote into ./out: {text}");
+    let (code, text) = go(&["report", "a"]);
+    assert_eq!(code, Some(0), "{text}");
+    let page = std::fs::read_to_string(dir.path().join("a/report.html")).unwrap();
+    let id = dropscope::dataset_id::of_file(&dir.path().join("a/drops.csv")).unwrap();
+    assert!(page.contains(&id), "the page names its dataset");
+
+    // One figure of b's collapse dropped into a.
+    let (code, text) = go(&["collapse", "b/drops.csv", "--out", "c", "--bootstrap", "50"]);
+    assert_eq!(code, Some(0), "{text}");
+    std::fs::copy(
+        dir.path().join("c/plots/omega_vs_xi.svg"),
+        dir.path().join("a/plots/omega_vs_xi.svg"),
+    )
+    .unwrap();
+    let (code, text) = go(&["report", "a"]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(
+        text.contains("omega_vs_xi.svg was computed from another drops.csv"),
+        "{text}"
+    );
+    // b's whole collapse into a: a's drops.csv with b's fits.
+    let (code, text) = go(&["collapse", "b/drops.csv", "--out", "a", "--bootstrap", "50"]);
+    assert_eq!(code, Some(0), "{text}");
+    let (code, text) = go(&["report", "a"]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(
+        text.contains("a/fits.json was computed from another drops.csv than a/drops.csv")
+            && text.contains("mixes the outputs of two jobs")
+            && text.contains(&id),
+        "{text}"
+    );
+    // Collapsing a again (even without plots) leaves nothing of b's.
+    let (code, text) = go(&["collapse", "a/drops.csv", "--bootstrap", "50", "--no-plots"]);
+    assert_eq!(code, Some(0), "{text}");
+    let (code, text) = go(&["report", "a"]);
+    assert_eq!(code, Some(0), "{text}");
+}

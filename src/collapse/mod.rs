@@ -32,7 +32,8 @@ use groups::{ContactRadius, DropGroups, SkipReason};
 pub struct CollapseArgs {
     /// The per-drop dataset (drops.csv from `process`, or any CSV with its columns).
     pub drops: PathBuf,
-    /// Output folder (default: the configuration's `output.dir`).
+    /// Output folder (default: the folder holding DROPS, so that the
+    /// collapse sits beside the dataset it was computed from).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// The configuration holding the `[surface.<name>]` materials
@@ -174,6 +175,14 @@ pub fn remove_outputs(out_dir: &Path) -> std::io::Result<()> {
     crate::io_util::remove_dir_if_present(&out_dir.join("plots").join("drops"))
 }
 
+/// The folder holding `drops` (`.` for a bare file name).
+fn beside(drops: &Path) -> PathBuf {
+    match drops.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
 /// Run the collapse stage: read `args.drops`, write everything into the
 /// output folder. `config_name` names the configuration in messages.
 pub fn run(
@@ -182,6 +191,11 @@ pub fn run(
     config_name: &str,
 ) -> Result<CollapseSummary, CollapseError> {
     let records = dataset::read_csv(&args.drops)?;
+    let dataset_id =
+        crate::dataset_id::of_file(&args.drops).map_err(|source| DatasetError::Io {
+            path: args.drops.clone(),
+            source,
+        })?;
     if records.is_empty() {
         return Err(CollapseError::Empty {
             path: args.drops.clone(),
@@ -261,6 +275,7 @@ pub fn run(
     let prov = output::Provenance {
         dropscope_version: env!("CARGO_PKG_VERSION"),
         drops_csv: args.drops.display().to_string(),
+        dataset_id: dataset_id.clone(),
         contact_radius: match args.contact_radius {
             ContactRadius::Measured => "measured",
             ContactRadius::Geometric => "geometric",
@@ -270,12 +285,18 @@ pub fn run(
         surfaces,
     };
 
-    let out_dir = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
+    let out_dir = args.out.clone().unwrap_or_else(|| beside(&args.drops));
+    // Nothing of an earlier collapse in this folder (another dataset's, or
+    // figures a --no-plots run would not replace) survives this one.
+    remove_outputs(&out_dir).map_err(|source| CollapseError::Write {
+        path: out_dir.clone(),
+        source,
+    })?;
     let mut files = Vec::new();
     write(
         &out_dir,
         Path::new(TABLES[0]),
-        &output::collapse_csv(&outcomes),
+        &output::collapse_csv(&outcomes, &dataset_id),
         &mut files,
     )?;
     write(
@@ -285,18 +306,22 @@ pub fn run(
         &mut files,
     )?;
     if !args.no_plots {
-        for (name, bytes) in crate::plot::collapse_figures(&used, &fits)? {
-            write(&out_dir, &Path::new("plots").join(name), &bytes, &mut files)?;
-        }
+        let figures = crate::plot::collapse_figures(&used, &fits)?
+            .into_iter()
+            .map(|(name, bytes)| (Path::new("plots").join(name), bytes));
+        let mut per_drop = Vec::new();
         for d in &diags {
             for (name, bytes) in crate::plot::drop_figures(d)? {
-                write(
-                    &out_dir,
-                    &Path::new("plots").join("drops").join(name),
-                    &bytes,
-                    &mut files,
-                )?;
+                per_drop.push((Path::new("plots").join("drops").join(name), bytes));
             }
+        }
+        for (rel, bytes) in figures.chain(per_drop) {
+            let bytes = if rel.extension().is_some_and(|e| e == "svg") {
+                crate::dataset_id::tag_svg(&bytes, &dataset_id)
+            } else {
+                bytes
+            };
+            write(&out_dir, &rel, &bytes, &mut files)?;
         }
     }
     files.sort();

@@ -42,6 +42,8 @@ struct Row<'a> {
     Pi_prime_err: Option<f64>,
     kappa_prime: Option<f64>,
     kappa_prime_err: Option<f64>,
+    /// The drops.csv this row was computed from ([`crate::dataset_id`]).
+    dataset_id: &'a str,
 }
 
 fn v(q: &Quantity) -> Option<f64> {
@@ -49,7 +51,7 @@ fn v(q: &Quantity) -> Option<f64> {
 }
 
 /// collapse.csv as bytes.
-pub fn collapse_csv(outcomes: &[DropOutcome]) -> Vec<u8> {
+pub fn collapse_csv(outcomes: &[DropOutcome], dataset_id: &str) -> Vec<u8> {
     let mut w = csv::Writer::from_writer(Vec::new());
     for o in outcomes {
         let g: Option<&DropGroups> = o.groups.as_ref().ok();
@@ -87,6 +89,7 @@ pub fn collapse_csv(outcomes: &[DropOutcome]) -> Vec<u8> {
             Pi_prime_err: g.and_then(|g| g.pi_prime.err()),
             kappa_prime: g.and_then(|g| v(&g.kappa_prime)),
             kappa_prime_err: g.and_then(|g| g.kappa_prime.err()),
+            dataset_id,
         };
         w.serialize(row)
             .expect("serialising a collapse row into memory cannot fail");
@@ -166,6 +169,8 @@ struct Skipped<'a> {
 pub struct Provenance {
     pub dropscope_version: &'static str,
     pub drops_csv: String,
+    /// [`crate::dataset_id`] of the drops.csv read.
+    pub dataset_id: String,
     pub contact_radius: &'static str,
     pub bootstrap_resamples: usize,
     pub seed: u64,

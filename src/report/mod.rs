@@ -38,6 +38,64 @@ pub enum ReportError {
         #[source]
         source: std::io::Error,
     },
+    /// The collapse files are another dataset's than the folder's drops.csv.
+    #[error(transparent)]
+    Mixed(#[from] crate::dataset_id::Mixed),
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Refuse a folder whose collapse files (`fits.json`, `collapse.csv`, the
+/// SVG figures) were computed from another drops.csv than the one in it
+/// ([`crate::dataset_id`]). A folder without fits.json has nothing to mix.
+pub fn check_one_dataset(out_dir: &Path) -> Result<(), ReportError> {
+    use crate::dataset_id::{check, of_svg};
+    let fits_path = out_dir.join("fits.json");
+    let Ok(fits) = std::fs::read(&fits_path) else {
+        return Ok(());
+    };
+    let drops = out_dir.join("drops.csv");
+    let read = |path: &Path| {
+        std::fs::read(path).map_err(|source| ReportError::Read {
+            path: path.to_path_buf(),
+            source,
+        })
+    };
+    let expected = crate::dataset_id::of_bytes(&read(&drops)?);
+    let doc: serde_json::Value = serde_json::from_slice(&fits).unwrap_or_default();
+    let found = doc["provenance"]["dataset_id"].as_str();
+    check(&fits_path, found, &drops, &expected)?;
+    let collapse = out_dir.join("collapse.csv");
+    if let Ok(mut r) = csv::Reader::from_path(&collapse) {
+        let col = r
+            .headers()
+            .ok()
+            .and_then(|h| h.iter().position(|c| c == "dataset_id"));
+        for row in r.records() {
+            let found = row.ok().and_then(|row| Some(row.get(col?)?.to_string()));
+            check(&collapse, found.as_deref(), &drops, &expected)?;
+        }
+    }
+    for dir in [out_dir.join("plots"), out_dir.join("plots").join("drops")] {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        let mut svgs: Vec<PathBuf> = entries
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|x| x == "svg") && p.is_file())
+            .collect();
+        svgs.sort();
+        for svg in svgs {
+            let text = String::from_utf8_lossy(&read(&svg)?).into_owned();
+            check(&svg, of_svg(&text), &drops, &expected)?;
+        }
+    }
+    Ok(())
 }
 
 const STYLE: &str = include_str!("style.css");
@@ -152,12 +210,15 @@ fn counts(records: &[DropRecord]) -> [usize; 3] {
     ]
 }
 
-fn header(out: &mut String, config_name: &str, records: &[DropRecord]) {
+fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRecord]) {
     let [ok, warning, failed] = counts(records);
+    let dataset = crate::dataset_id::of_file(&out_dir.join("drops.csv"))
+        .map(|id| format!(" · dataset <code title=\"SHA-256 of drops.csv\">{id}</code>"))
+        .unwrap_or_default();
     let _ = write!(
         out,
         "<header><h1>dropscope report</h1><p class=\"meta\">dropscope {version} · configuration \
-         <code>{config}</code></p><p class=\"counts\"><span class=\"count\">{total} runs</span> \
+         <code>{config}</code>{dataset}</p><p class=\"counts\"><span class=\"count\">{total} runs</span> \
          <span class=\"count ok\">{ok} measured</span> <span class=\"count warning\">{warning} \
          measured with warnings</span> <span class=\"count failed\">{failed} failed</span></p></header>",
         version = env!("CARGO_PKG_VERSION"),
@@ -274,7 +335,7 @@ pub fn render_report(out_dir: &Path, config_name: &str, records: &[DropRecord]) 
          <title>dropscope report — {}</title><style>{STYLE}</style></head><body>",
         escape(config_name)
     );
-    header(&mut out, config_name, records);
+    header(&mut out, out_dir, config_name, records);
     collapse_section(&mut out, out_dir, records);
     out.push_str("<section id=\"drops\"><h2>Drops</h2>");
     if records.is_empty() {
@@ -296,6 +357,7 @@ pub fn write_report(
     config_name: &str,
     records: &[DropRecord],
 ) -> Result<PathBuf, ReportError> {
+    check_one_dataset(out_dir)?;
     let path = out_dir.join("report.html");
     crate::io_util::write_atomic(&path, &render_report(out_dir, config_name, records)).map_err(
         |source| ReportError::Write {

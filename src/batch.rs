@@ -33,9 +33,19 @@ pub struct RunArgs {
     /// Reprocess every run, even those whose cached result is still valid.
     #[arg(long)]
     pub force: bool,
-    /// Worker threads (default: one per core).
+    /// Worker threads (default: SLURM_CPUS_PER_TASK inside a Slurm job, else one per core).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
+    /// Process only the K-th of N frame-balanced shares of the runs (0 <= K < N),
+    /// committing each into the output folder's cache, with no drops.csv,
+    /// collapse or report; `slurm` takes K and N from the Slurm array task.
+    /// A plain `run` on the folder afterwards assembles everything.
+    #[arg(long, value_name = "K/N|slurm")]
+    pub shard: Option<String>,
+    /// When another job holds the output folder, wait for it to end
+    /// instead of stopping.
+    #[arg(long)]
+    pub wait: bool,
 }
 
 /// Why the job could not run (a bad run is a row, not this).
@@ -61,6 +71,8 @@ pub enum BatchError {
     NoInput,
     #[error("input.paths: no run folder or .cine file found under {0}")]
     NothingFound(String),
+    #[error(transparent)]
+    Lock(#[from] crate::lock::LockError),
 }
 
 /// How the job runs (not what it computes: outputs do not depend on these).
@@ -70,6 +82,10 @@ pub struct JobOptions {
     pub force: bool,
     /// Worker threads; `None` is rayon's default (one per core).
     pub threads: Option<usize>,
+    /// Only this share of the runs, and no drops.csv, collapse or report.
+    pub shard: Option<crate::shard::Shard>,
+    /// Wait for another job holding the output folder instead of stopping.
+    pub wait: bool,
 }
 
 /// What the job reports while it runs, from the worker threads.
@@ -87,6 +103,8 @@ pub enum RunEvent<'a> {
     },
     /// Every run is done; the collapse (and report) starts.
     Collapsing,
+    /// Something the user should know (a stale lock taken over, a wait).
+    Notice(&'a str),
 }
 
 /// What the job did.
@@ -100,6 +118,8 @@ pub struct JobSummary {
     pub frames: usize,
     /// Whether the collapse stage ran (it needs at least one measured drop).
     pub collapsed: bool,
+    /// The share of the runs this job took (`None`: all, and it assembled them).
+    pub shard: Option<crate::shard::Shard>,
     pub collapse_warnings: Vec<String>,
 }
 
@@ -275,7 +295,11 @@ fn provenance_json(cfg: &PipelineConfig, config_name: &str, entries: &[Entry]) -
 }
 
 /// Process every configured run (reusing valid cached results), then the
-/// collapse of the measured ones.
+/// collapse of the measured ones. With `options.shard`, only that share of
+/// the runs, and nothing assembled.
+///
+/// The output folder is held for the job ([`crate::lock`]): another job
+/// into it is refused (or waited for), shards of this one are let in.
 pub fn run_job(
     cfg: &PipelineConfig,
     config_name: &str,
@@ -289,7 +313,16 @@ pub fn run_job(
         move |source| BatchError::Io { path, source }
     };
     std::fs::create_dir_all(out).map_err(io(out))?;
-    crate::io_util::remove_stale_temporaries(out).map_err(io(out))?;
+    let me = crate::lock::Holder::this_process(
+        &cache::job_id("run", cfg, &runs),
+        options.shard.map(|s| s.to_string()),
+    );
+    let _held = crate::lock::acquire(out, &me, options.wait, &|m| events(RunEvent::Notice(m)))?;
+    crate::io_util::remove_stale_temporaries(out, &crate::lock::writer_is_gone).map_err(io(out))?;
+    let runs = match options.shard {
+        Some(shard) => crate::shard::select(&runs, shard),
+        None => runs,
+    };
     events(RunEvent::Planned { runs: runs.len() });
     let work = || {
         runs.par_iter()
@@ -315,6 +348,17 @@ pub fn run_job(
         .sum();
     let entries: Vec<Entry> = done.into_iter().map(|(e, _)| e).collect();
     let records: Vec<DropRecord> = entries.iter().map(|e| e.record.clone()).collect();
+    if options.shard.is_some() {
+        return Ok(JobSummary {
+            records,
+            out: out.to_path_buf(),
+            cached,
+            frames,
+            collapsed: false,
+            collapse_warnings: Vec::new(),
+            shard: options.shard,
+        });
+    }
     write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
     write_file(
         out,
@@ -354,6 +398,7 @@ pub fn run_job(
         frames,
         collapsed,
         collapse_warnings,
+        shard: None,
     })
 }
 

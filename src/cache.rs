@@ -214,6 +214,32 @@ fn key_for_source(source: &str, cfg: &PipelineConfig, run: &RunSpec, fp: &Finger
     hex(&Sha256::digest(&json))
 }
 
+/// The id of a job writing into an output folder (see [`crate::lock`]):
+/// SHA-256 over what it is (`kind`: `"run"`, `"process"`, …), this build's
+/// sources, the configuration (less the output folder) and its runs. Every
+/// shard of a job computes the same id; another configuration or run list
+/// gives another.
+pub fn job_id(kind: &str, cfg: &PipelineConfig, runs: &[RunSpec]) -> String {
+    #[derive(Serialize)]
+    struct JobParts<'a> {
+        kind: &'a str,
+        schema: u32,
+        source: &'a str,
+        config: PipelineConfig,
+        runs: &'a [RunSpec],
+    }
+    let parts = JobParts {
+        kind,
+        schema: CACHE_SCHEMA,
+        source: SOURCE_SHA256,
+        config: config_for_key(cfg),
+        runs,
+    };
+    // Serialising plain structs to JSON cannot fail.
+    let json = serde_json::to_vec(&parts).unwrap_or_default();
+    hex(&Sha256::digest(&json))
+}
+
 /// Where the entry of run `run` lives.
 pub fn entry_path(out: &Path, run: &str) -> PathBuf {
     out.join("runs").join(format!("{run}.json"))
@@ -328,6 +354,20 @@ mod tests {
         assert!(SOURCE_SHA256.len() == 64 && SOURCE_SHA256.bytes().all(|b| b.is_ascii_hexdigit()));
         assert_eq!(k, key_for_source(SOURCE_SHA256, &c, &r, &fp));
         assert_ne!(k, key_for_source(&"0".repeat(64), &c, &r, &fp));
+    }
+
+    #[test]
+    fn job_id_follows_kind_configuration_and_runs_but_not_output_folder() {
+        let (c, r) = (cfg(), run(Path::new("a.cine")));
+        let id = job_id("run", &c, std::slice::from_ref(&r));
+        assert_eq!(id.len(), 64);
+        let mut c2 = c.clone();
+        c2.output.dir = PathBuf::from("elsewhere");
+        assert_eq!(id, job_id("run", &c2, std::slice::from_ref(&r)));
+        c2.detect.contact_margin_px = 3.0;
+        assert_ne!(id, job_id("run", &c2, std::slice::from_ref(&r)));
+        assert_ne!(id, job_id("process", &c, std::slice::from_ref(&r)));
+        assert_ne!(id, job_id("run", &c, &[r.clone(), r]));
     }
 
     #[test]

@@ -2,12 +2,28 @@
 
 use std::fs;
 use std::io::{self, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-/// Write `bytes` to `path` atomically: a temporary file in the same folder,
-/// flushed and synced, then renamed over the target. A reader never sees a
-/// half-written file, and a crash leaves either the old file or the new one.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+/// This machine's host name (`gethostname`), or `"localhost"` when it has none.
+pub fn this_host() -> &'static str {
+    static HOST: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    HOST.get_or_init(|| {
+        let mut buf = [0u8; 256];
+        // SAFETY: the buffer is valid for its length; the name is cut at its NUL.
+        let r = unsafe { libc::gethostname(buf.as_mut_ptr().cast(), buf.len()) };
+        let end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
+        match std::str::from_utf8(&buf[..end]) {
+            Ok(h) if r == 0 && !h.is_empty() => h.to_string(),
+            _ => "localhost".to_string(),
+        }
+    })
+}
+
+/// The temporary [`write_atomic`] writes `path` through:
+/// `.<name>.tmp-<pid>@<host>` beside it, so that processes on several
+/// machines sharing a folder never write the same temporary, and a
+/// temporary tells whose it is (see [`remove_stale_temporaries`]).
+pub fn temporary_path(path: &Path) -> io::Result<PathBuf> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -15,11 +31,20 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
     let name = path
         .file_name()
         .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "path has no file name"))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
+    Ok(dir.join(format!(
+        ".{}.tmp-{}@{}",
         name.to_string_lossy(),
-        std::process::id()
-    ));
+        std::process::id(),
+        this_host()
+    )))
+}
+
+/// Write `bytes` to `path` atomically: a temporary file in the same folder
+/// ([`temporary_path`]), flushed and synced, then renamed over the target.
+/// A reader never sees a half-written file, and a crash leaves either the
+/// old file or the new one.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let tmp = temporary_path(path)?;
     {
         let mut f = fs::File::create(&tmp)?;
         f.write_all(bytes)?;
@@ -48,18 +73,33 @@ fn absent_is_fine(r: io::Result<()>) -> io::Result<()> {
     }
 }
 
-/// Whether `name` is a temporary of [`write_atomic`]: `.<name>.tmp<pid>`.
-fn is_temporary(name: &str) -> bool {
-    name.starts_with('.')
-        && name.rfind(".tmp").is_some_and(|i| {
-            i > 1 && name[i + 4..].chars().all(|c| c.is_ascii_digit()) && name.len() > i + 4
-        })
+/// The writer of a temporary of [`write_atomic`]: `.<name>.tmp-<pid>@<host>`
+/// gives (pid, host); the older `.<name>.tmp<pid>` gives (pid, this host).
+fn temporary_writer(name: &str) -> Option<(u32, &str)> {
+    if !name.starts_with('.') {
+        return None;
+    }
+    let i = name.rfind(".tmp").filter(|&i| i > 1)?;
+    let rest = &name[i + 4..];
+    let (pid, host) = match rest.strip_prefix('-') {
+        Some(r) => {
+            let (pid, host) = r.split_once('@')?;
+            (pid, host)
+        }
+        None => (rest, this_host()),
+    };
+    if pid.is_empty() || !pid.bytes().all(|c| c.is_ascii_digit()) || host.is_empty() {
+        return None;
+    }
+    Some((pid.parse().ok()?, host))
 }
 
-/// Remove the temporaries that a killed [`write_atomic`] left under `dir`
-/// (searched recursively). Returns how many were removed; a missing `dir`
-/// has none.
-pub fn remove_stale_temporaries(dir: &Path) -> io::Result<usize> {
+/// Remove the temporaries of [`write_atomic`] under `dir` (searched
+/// recursively) whose writer `gone(pid, host)` says has ended: a killed
+/// writer leaves its temporary, while a live one (another shard of the job)
+/// may be about to rename it. Returns how many were removed; a missing
+/// `dir` has none.
+pub fn remove_stale_temporaries(dir: &Path, gone: &dyn Fn(u32, &str) -> bool) -> io::Result<usize> {
     let entries = match fs::read_dir(dir) {
         Ok(e) => e,
         Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(0),
@@ -70,9 +110,12 @@ pub fn remove_stale_temporaries(dir: &Path) -> io::Result<usize> {
         let e = e?;
         let ty = e.file_type()?;
         if ty.is_dir() {
-            removed += remove_stale_temporaries(&e.path())?;
-        } else if ty.is_file() && is_temporary(&e.file_name().to_string_lossy()) {
-            fs::remove_file(e.path())?;
+            removed += remove_stale_temporaries(&e.path(), gone)?;
+        } else if ty.is_file()
+            && temporary_writer(&e.file_name().to_string_lossy())
+                .is_some_and(|(pid, host)| gone(pid, host))
+        {
+            remove_if_present(&e.path())?;
             removed += 1;
         }
     }
@@ -99,19 +142,38 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let sub = dir.path().join("tracks");
         fs::create_dir(&sub).unwrap();
-        for name in [".a.csv.tmp123", "keep.csv", ".hidden", "x.tmp1", ".b.tmp"] {
+        let h = this_host();
+        let names = [
+            ".a.csv.tmp123".to_string(),
+            format!(".b.csv.tmp-77@{h}"),
+            format!(".c.csv.tmp-78@{h}"),
+            ".d.csv.tmp-77@other.host".to_string(),
+            "keep.csv".into(),
+            ".hidden".into(),
+            "x.tmp1".into(),
+            ".b.tmp".into(),
+            ".e.tmp-@h".into(),
+        ];
+        for name in &names {
             fs::write(sub.join(name), b"x").unwrap();
         }
-        assert_eq!(remove_stale_temporaries(dir.path()).unwrap(), 1);
+        // Writers 123 and 77 on this host have ended; 78 and every other host's run on.
+        let gone = |pid: u32, host: &str| host == h && (pid == 123 || pid == 77);
+        assert_eq!(remove_stale_temporaries(dir.path(), &gone).unwrap(), 2);
         let mut left: Vec<String> = fs::read_dir(&sub)
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
         left.sort();
-        assert_eq!(left, [".b.tmp", ".hidden", "keep.csv", "x.tmp1"]);
+        let mut want: Vec<String> = names[2..].to_vec();
+        want.sort();
+        assert_eq!(left, want);
         assert_eq!(
-            remove_stale_temporaries(&dir.path().join("none")).unwrap(),
+            remove_stale_temporaries(&dir.path().join("none"), &gone).unwrap(),
             0
         );
+        let t = temporary_path(&sub.join("a.csv")).unwrap();
+        let name = t.file_name().unwrap().to_string_lossy().into_owned();
+        assert_eq!(temporary_writer(&name), Some((std::process::id(), h)));
     }
 }

@@ -19,6 +19,9 @@
 //! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits (`dropscope collapse`) |
 //! | [`batch`] | the main job (`dropscope run`): process then collapse, with progress |
 //! | [`cache`] | the main job's per-run result cache: input fingerprints and keys |
+//! | [`lock`] | one job at a time per output folder; shards of one job together |
+//! | [`shard`] | `run --shard K/N`: the K-th of N frame-balanced shares of the runs |
+//! | [`slurm`] | `dropscope slurm`: the shards as a Slurm array, then a finishing job |
 //! | [`report`] | `report.html`: counts, collapse plots, fits and every drop on one self-contained page |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | SVG + PNG figures (collapse plots, per-drop diagnostics), embedded font |
@@ -40,6 +43,7 @@ pub mod events;
 pub mod force;
 pub mod io_util;
 pub mod kinematics;
+pub mod lock;
 pub mod lsq;
 pub mod manifest;
 pub mod measure;
@@ -48,6 +52,8 @@ pub mod process;
 pub mod progress;
 pub mod render;
 pub mod report;
+pub mod shard;
+pub mod slurm;
 pub mod source;
 #[cfg(test)]
 mod test_support;

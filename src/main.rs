@@ -52,9 +52,26 @@ enum Command {
     /// Render synthetic drops with exact truth, as PCC-style frame folders.
     Render(Box<dropscope::render::RenderArgs>),
     /// Dimensionless groups, Ψ(Ξ) and Ω(Ξ) fits, exponents and plots from a drops.csv.
-    Collapse(dropscope::collapse::CollapseArgs),
+    Collapse {
+        #[command(flatten)]
+        args: dropscope::collapse::CollapseArgs,
+        /// When another job holds the output folder, wait for it to end.
+        #[arg(long)]
+        wait: bool,
+    },
     /// Measure drops: per-drop dataset (drops.csv), tracks and overlays.
-    Process(dropscope::process::ProcessArgs),
+    Process {
+        #[command(flatten)]
+        args: dropscope::process::ProcessArgs,
+        /// When another job holds the output folder, wait for it to end.
+        #[arg(long)]
+        wait: bool,
+    },
+    /// The main job on a Slurm cluster: an sbatch array whose tasks each run a
+    /// shard (`run --shard slurm`), and a finishing job (`run`) that starts
+    /// once every task succeeded and assembles drops.csv, the collapse and
+    /// the report. Writes both scripts; --submit also submits them.
+    Slurm(dropscope::slurm::SlurmArgs),
     /// Write DIR/report.html from the drops.csv, collapse files and plots in DIR.
     ///
     /// Refuses a folder whose collapse files were computed from another
@@ -70,6 +87,9 @@ enum Command {
         /// The configuration file (default: ./pipeline.toml, else the embedded default).
         #[arg(long)]
         config: Option<PathBuf>,
+        /// When another job holds the output folder, wait for it to end.
+        #[arg(long)]
+        wait: bool,
     },
 }
 
@@ -77,6 +97,24 @@ enum Command {
 /// with its name for messages.
 fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<(PipelineConfig, String)> {
     Ok(PipelineConfig::load_resolved(path)?)
+}
+
+/// Hold output folder `out` for a `kind` command (see `dropscope::lock`),
+/// creating it; a stale lock taken over is said on stderr.
+fn hold_folder(
+    out: &std::path::Path,
+    kind: &str,
+    cfg: &PipelineConfig,
+    runs: &[dropscope::manifest::RunSpec],
+    wait: bool,
+) -> anyhow::Result<dropscope::lock::FolderLock> {
+    std::fs::create_dir_all(out)
+        .map_err(|e| anyhow::anyhow!("{}: cannot create the output folder: {e}", out.display()))?;
+    let me =
+        dropscope::lock::Holder::this_process(&dropscope::cache::job_id(kind, cfg, runs), None);
+    Ok(dropscope::lock::acquire(out, &me, wait, &|m| {
+        eprintln!("{m}")
+    })?)
 }
 
 /// One line per finished run on stderr.
@@ -89,34 +127,64 @@ fn print_run_status(r: &dropscope::dataset::DropRecord) {
     }
 }
 
-/// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
-fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
+/// "N runs: … measured, … reused from the cache; F frames read in T s".
+fn job_counts(job: &dropscope::batch::JobSummary, secs: f64) -> String {
     use dropscope::dataset::DropStatus;
-    let (cfg, name) = load_config(args.config.as_deref())?;
-    let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
-    let start = std::time::Instant::now();
-    let progress = dropscope::progress::JobProgress::new();
-    let options = dropscope::batch::JobOptions {
-        force: args.force,
-        threads: args.threads.map(usize::from),
-    };
-    let job = dropscope::batch::run_job(&cfg, &name, &out, &options, &|e| progress.event(e));
-    progress.finish();
-    let job = job?;
-    for w in &job.collapse_warnings {
-        eprintln!("warning: {w}");
-    }
-    let secs = start.elapsed().as_secs_f64();
-    eprintln!(
+    format!(
         "{} runs: {} measured, {} with warnings, {} failed, {} reused from the cache; \
-         {} frames read in {secs:.2} s ({:.0} frames/s); collapse {}; results in {} \
-         (open report.html there)",
+         {} frames read in {secs:.2} s",
         job.records.len(),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
         job.failed(),
         job.cached,
         job.frames,
+    )
+}
+
+/// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
+fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
+    let (cfg, name) = load_config(args.config.as_deref())?;
+    let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
+    let env = |k: &str| std::env::var(k).ok();
+    let shard = args
+        .shard
+        .as_deref()
+        .map(|spec| dropscope::shard::Shard::parse(spec, &env))
+        .transpose()?;
+    let start = std::time::Instant::now();
+    let progress = dropscope::progress::JobProgress::new();
+    let options = dropscope::batch::JobOptions {
+        force: args.force,
+        threads: args
+            .threads
+            .map(usize::from)
+            .or_else(|| dropscope::shard::slurm_cpus_per_task(&env)),
+        shard,
+        wait: args.wait,
+    };
+    let job = dropscope::batch::run_job(&cfg, &name, &out, &options, &|e| progress.event(e));
+    progress.finish();
+    let job = job?;
+    if let Some(shard) = job.shard {
+        eprintln!(
+            "shard {shard}: {}; committed to {}. Once every shard is done, `dropscope run` on \
+             that folder assembles drops.csv, the collapse and the report",
+            job_counts(&job, start.elapsed().as_secs_f64()),
+            out.display()
+        );
+        // Failed runs are committed rows too: the shard did its work, and
+        // the finishing run (started by Slurm only after every task
+        // succeeded) reports them with exit status 1.
+        return Ok(ExitCode::SUCCESS);
+    }
+    for w in &job.collapse_warnings {
+        eprintln!("warning: {w}");
+    }
+    let secs = start.elapsed().as_secs_f64();
+    eprintln!(
+        "{} ({:.0} frames/s); collapse {}; results in {} (open report.html there)",
+        job_counts(&job, secs),
         job.frames as f64 / secs.max(1e-9),
         if job.collapsed {
             "done"
@@ -133,7 +201,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
 }
 
 /// `dropscope process`: every run in parallel; exit 1 when some runs failed.
-fn run_process(args: &dropscope::process::ProcessArgs) -> anyhow::Result<ExitCode> {
+fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Result<ExitCode> {
     use dropscope::dataset::DropStatus;
     let (cfg, _) = load_config(args.config.as_deref())?;
     let runs = match &args.manifest {
@@ -141,6 +209,7 @@ fn run_process(args: &dropscope::process::ProcessArgs) -> anyhow::Result<ExitCod
         None => dropscope::process::runs_from_inputs(&args.inputs, args.radius_mm, &cfg)?,
     };
     let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
+    let _held = hold_folder(&out, "process", &cfg, &runs, wait)?;
     let start = std::time::Instant::now();
     let records = dropscope::process::process_all_with_overlays(
         &runs,
@@ -169,8 +238,9 @@ fn run_process(args: &dropscope::process::ProcessArgs) -> anyhow::Result<ExitCod
 }
 
 /// `dropscope collapse`: groups, fits and plots; exit 1 when rows were skipped.
-fn run_collapse(args: &dropscope::collapse::CollapseArgs) -> anyhow::Result<ExitCode> {
+fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow::Result<ExitCode> {
     let (cfg, name) = load_config(args.config.as_deref())?;
+    let _held = hold_folder(&args.out_dir(), "collapse", &cfg, &[], wait)?;
     let s = dropscope::collapse::run(args, &cfg, &name)?;
     for w in &s.warnings {
         eprintln!("warning: {w}");
@@ -220,12 +290,59 @@ fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> 
 }
 
 /// `dropscope report`: report.html from what the main job left in a folder.
-fn run_report(out: Option<PathBuf>, config: Option<PathBuf>) -> anyhow::Result<ExitCode> {
+fn run_report(
+    out: Option<PathBuf>,
+    config: Option<PathBuf>,
+    wait: bool,
+) -> anyhow::Result<ExitCode> {
     let (cfg, name) = load_config(config.as_deref())?;
     let out = out.unwrap_or_else(|| cfg.output.dir.clone());
+    let _held = hold_folder(&out, "report", &cfg, &[], wait)?;
     let records = dropscope::dataset::read_csv(&out.join("drops.csv"))?;
     let path = dropscope::report::write_report(&out, &name, &records)?;
     println!("report: {}", path.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `dropscope slurm`: write the scripts, and with --submit submit them.
+fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
+    use dropscope::slurm;
+    let (cfg, _) = load_config(args.config.as_deref())?;
+    // The jobs would fail on a configuration naming no runs: say it now.
+    let runs = dropscope::batch::configured_runs(&cfg)?;
+    let local = std::path::Path::new("pipeline.toml");
+    let plan = slurm::Plan::new(
+        args,
+        &std::env::current_dir()?,
+        &cfg.output.dir,
+        local.exists().then_some(local),
+    )?;
+    let scripts = slurm::write_scripts(args, &plan)?;
+    println!(
+        "{} runs in {} shards into {}; scripts {} and {}, logs in {}",
+        runs.len(),
+        args.array,
+        plan.out.display(),
+        scripts.array.display(),
+        scripts.finish.display(),
+        plan.scripts.join("logs").display()
+    );
+    if !args.submit {
+        println!(
+            "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}",
+            scripts.array.display(),
+            scripts.finish.display()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    let ids = slurm::submit(&scripts)?;
+    println!("array job {} ({} tasks)", ids.array_job, args.array);
+    println!(
+        "finishing job {} (starts when every task of {} has succeeded; then {} holds report.html)",
+        ids.finish_job,
+        ids.array_job,
+        plan.out.display()
+    );
     Ok(ExitCode::SUCCESS)
 }
 
@@ -246,9 +363,15 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }),
         Command::Render(args) => run_render(&args),
-        Command::Collapse(args) => run_collapse(&args),
-        Command::Process(args) => run_process(&args),
-        Command::Report { dir, out, config } => run_report(dir.or(out), config),
+        Command::Collapse { args, wait } => run_collapse(&args, wait),
+        Command::Process { args, wait } => run_process(&args, wait),
+        Command::Report {
+            dir,
+            out,
+            config,
+            wait,
+        } => run_report(dir.or(out), config, wait),
+        Command::Slurm(args) => run_slurm(&args),
     };
     match result {
         Ok(code) => code,

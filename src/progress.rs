@@ -94,6 +94,12 @@ impl JobProgress {
                     }
                 }
             }
+            RunEvent::Notice(message) => match &self.bars {
+                None => eprintln!("{message}"),
+                Some(b) => {
+                    let _ = b.multi.println(message);
+                }
+            },
             RunEvent::Collapsing => match &self.bars {
                 None => eprintln!("collapse …"),
                 Some(b) => b.overall.set_message("collapse …"),

@@ -12,12 +12,12 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn fixture(name: &str) -> PathBuf {
+pub(crate) fn fixture(name: &str) -> PathBuf {
     root().join("fixtures").join(name)
 }
 
 /// `dropscope run --config CONFIG ARGS…`.
-fn run(config: &Path, args: &[&str]) -> Output {
+pub(crate) fn run(config: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_dropscope"))
         .arg("run")
         .arg("--config")
@@ -29,7 +29,7 @@ fn run(config: &Path, args: &[&str]) -> Output {
 
 /// A configuration beside `manifest` (no camera.fps: a folder without an
 /// XML has no frame rate anywhere), writing to `out` next to it.
-fn write_config(dir: &Path, extra: &str) -> PathBuf {
+pub(crate) fn write_config(dir: &Path, extra: &str) -> PathBuf {
     let cfg = dir.join("pipeline.toml");
     std::fs::write(
         &cfg,
@@ -58,7 +58,7 @@ fn fixture_manifest(dir: &Path) {
 }
 
 /// Every file under `dir`, by path relative to it.
-fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+pub(crate) fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     fn walk(base: &Path, d: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
         for e in std::fs::read_dir(d).unwrap() {
             let p = e.unwrap().path();
@@ -75,7 +75,7 @@ fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     out
 }
 
-fn assert_same_tree(a: &Path, b: &Path, what: &str) {
+pub(crate) fn assert_same_tree(a: &Path, b: &Path, what: &str) {
     let (ta, tb) = (tree(a), tree(b));
     assert_eq!(
         ta.keys().collect::<Vec<_>>(),
@@ -87,7 +87,7 @@ fn assert_same_tree(a: &Path, b: &Path, what: &str) {
     }
 }
 
-fn stderr(o: &Output) -> String {
+pub(crate) fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 

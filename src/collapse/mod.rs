@@ -183,6 +183,13 @@ fn beside(drops: &Path) -> PathBuf {
     }
 }
 
+impl CollapseArgs {
+    /// The folder [`run`] writes into: `--out`, else beside DROPS.
+    pub fn out_dir(&self) -> PathBuf {
+        self.out.clone().unwrap_or_else(|| beside(&self.drops))
+    }
+}
+
 /// Run the collapse stage: read `args.drops`, write everything into the
 /// output folder. `config_name` names the configuration in messages.
 pub fn run(
@@ -285,7 +292,7 @@ pub fn run(
         surfaces,
     };
 
-    let out_dir = args.out.clone().unwrap_or_else(|| beside(&args.drops));
+    let out_dir = args.out_dir();
     // Nothing of an earlier collapse in this folder (another dataset's, or
     // figures a --no-plots run would not replace) survives this one.
     remove_outputs(&out_dir).map_err(|source| CollapseError::Write {

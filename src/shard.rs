@@ -1,0 +1,242 @@
+//! One job split over many processes (issue 15): `dropscope run --shard K/N`
+//! takes the K-th of N shares of the configured runs.
+//!
+//! The shares are balanced by frame count and depend only on the run list
+//! and the inputs, so N processes started anywhere (the tasks of a Slurm
+//! array) agree on them without talking to each other. Each shard commits
+//! its runs into the shared output folder like the whole job does (files,
+//! then the cache entry); the whole job run afterwards finds them all in the
+//! cache and only assembles drops.csv, the collapse and the report.
+
+use crate::manifest::RunSpec;
+use crate::source::folder::ImageKind;
+use std::path::Path;
+
+/// Frames a run is counted for on top of its frames: its fixed cost
+/// (background, surface line, fits, figures) weighs about as much as 100
+/// frames of a rendered drop (README, tracking speed).
+pub const FIXED_COST_FRAMES: u64 = 100;
+
+/// The K-th (`index`, from 0) of `count` shares.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+/// Why `--shard` could not be understood.
+#[derive(Debug, thiserror::Error)]
+pub enum ShardError {
+    #[error(
+        "--shard {0}: expected K/N with 0 <= K < N (e.g. 2/8), or `slurm` inside a Slurm array job"
+    )]
+    Syntax(String),
+    #[error(
+        "--shard slurm: {0} is not set: this is not a task of a Slurm array job. Submit with \
+         `sbatch --array=0-<N-1>` (`dropscope slurm` writes the script), or give --shard K/N"
+    )]
+    NotArray(&'static str),
+    #[error("--shard slurm: {name}={value} is not a whole number")]
+    BadVariable { name: &'static str, value: String },
+}
+
+impl Shard {
+    /// `K/N`, or `slurm`: K = `SLURM_ARRAY_TASK_ID` − `SLURM_ARRAY_TASK_MIN`,
+    /// N = `SLURM_ARRAY_TASK_COUNT`, read through `env`.
+    pub fn parse(spec: &str, env: &dyn Fn(&str) -> Option<String>) -> Result<Shard, ShardError> {
+        let (index, count) = if spec == "slurm" {
+            let var = |name: &'static str| -> Result<usize, ShardError> {
+                let value = env(name).ok_or(ShardError::NotArray(name))?;
+                value
+                    .trim()
+                    .parse()
+                    .map_err(|_| ShardError::BadVariable { name, value })
+            };
+            let id = var("SLURM_ARRAY_TASK_ID")?;
+            let min = var("SLURM_ARRAY_TASK_MIN")?;
+            let count = var("SLURM_ARRAY_TASK_COUNT")?;
+            (id.checked_sub(min), Some(count))
+        } else {
+            let (k, n) = spec
+                .split_once('/')
+                .ok_or_else(|| ShardError::Syntax(spec.into()))?;
+            (k.trim().parse().ok(), n.trim().parse().ok())
+        };
+        match (index, count) {
+            (Some(index), Some(count)) if index < count => Ok(Shard { index, count }),
+            _ => Err(ShardError::Syntax(spec.into())),
+        }
+    }
+}
+
+/// Worker threads a Slurm task was given (`SLURM_CPUS_PER_TASK`), if any.
+pub fn slurm_cpus_per_task(env: &dyn Fn(&str) -> Option<String>) -> Option<usize> {
+    env("SLURM_CPUS_PER_TASK")?
+        .trim()
+        .parse()
+        .ok()
+        .filter(|&n| n > 0)
+}
+
+/// Frames of an input without decoding any: a folder's image files, a
+/// `.cine`'s image count from its header; 0 when it cannot be read (the
+/// run will fail quickly).
+pub fn frame_count(path: &Path) -> u64 {
+    if path.is_dir() {
+        return std::fs::read_dir(path).map_or(0, |entries| {
+            entries
+                .flatten()
+                .filter(|e| {
+                    e.path()
+                        .extension()
+                        .and_then(|x| x.to_str())
+                        .is_some_and(|x| ImageKind::from_extension(x).is_some())
+                })
+                .count() as u64
+        });
+    }
+    let options = crate::source::OpenOptions {
+        // The count does not depend on it; a cine carries its own.
+        fps_fallback: Some(1.0),
+        ..Default::default()
+    };
+    crate::source::open(path, &options).map_or(0, |s| s.meta().frame_count as u64)
+}
+
+/// The shard of each of the runs weighing `weights`, `count` shards:
+/// heaviest run first to the lightest shard so far (ties: the earlier run,
+/// the lower shard), which keeps every shard within one run of the mean.
+pub fn assign(weights: &[u64], count: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..weights.len()).collect();
+    order.sort_by_key(|&i| (std::cmp::Reverse(weights[i]), i));
+    let mut load = vec![0u64; count.max(1)];
+    let mut shard_of = vec![0; weights.len()];
+    for i in order {
+        let (k, _) = load
+            .iter()
+            .enumerate()
+            .min_by_key(|&(k, l)| (*l, k))
+            .unwrap_or((0, &0));
+        load[k] += weights[i];
+        shard_of[i] = k;
+    }
+    shard_of
+}
+
+/// The runs of `shard`, in their configured order.
+pub fn select(runs: &[RunSpec], shard: Shard) -> Vec<RunSpec> {
+    let weights: Vec<u64> = runs
+        .iter()
+        .map(|r| frame_count(&r.path) + FIXED_COST_FRAMES)
+        .collect();
+    let shard_of = assign(&weights, shard.count);
+    runs.iter()
+        .zip(shard_of)
+        .filter(|(_, k)| *k == shard.index)
+        .map(|(r, _)| r.clone())
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn env<'a>(vars: &'a [(&'a str, &'a str)]) -> impl Fn(&str) -> Option<String> + 'a {
+        move |k| {
+            vars.iter()
+                .find(|(n, _)| *n == k)
+                .map(|(_, v)| v.to_string())
+        }
+    }
+
+    #[test]
+    fn shard_specs_and_slurm_variables() {
+        let none = env(&[]);
+        assert_eq!(
+            Shard::parse("2/8", &none).unwrap(),
+            Shard { index: 2, count: 8 }
+        );
+        for bad in ["8/8", "-1/3", "1", "a/b", "1/0", "0/"] {
+            let e = Shard::parse(bad, &none).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("--shard {bad}:")) && e.contains("K/N"),
+                "{e}"
+            );
+        }
+        let e = Shard::parse("slurm", &none).unwrap_err().to_string();
+        assert!(
+            e.contains("SLURM_ARRAY_TASK_ID is not set") && e.contains("sbatch --array"),
+            "{e}"
+        );
+        // An array 5-7: task 6 is the second of three.
+        let vars = [
+            ("SLURM_ARRAY_TASK_ID", "6"),
+            ("SLURM_ARRAY_TASK_MIN", "5"),
+            ("SLURM_ARRAY_TASK_COUNT", "3"),
+            ("SLURM_CPUS_PER_TASK", "4"),
+        ];
+        let e6 = env(&vars);
+        assert_eq!(
+            Shard::parse("slurm", &e6).unwrap(),
+            Shard { index: 1, count: 3 }
+        );
+        assert_eq!(slurm_cpus_per_task(&e6), Some(4));
+        assert_eq!(slurm_cpus_per_task(&none), None);
+        let bad = [
+            ("SLURM_ARRAY_TASK_ID", "x"),
+            ("SLURM_ARRAY_TASK_MIN", "0"),
+            ("SLURM_ARRAY_TASK_COUNT", "3"),
+        ];
+        let e = Shard::parse("slurm", &env(&bad)).unwrap_err().to_string();
+        assert!(e.contains("SLURM_ARRAY_TASK_ID=x"), "{e}");
+    }
+
+    #[test]
+    fn shares_cover_every_run_once_and_balance_frames() {
+        // Runs of 90 to 6 000 frames, in a fixed pseudo-random order.
+        let weights: Vec<u64> = (0..37u64).map(|i| 90 + (i * 7919) % 61 * 97).collect();
+        let total: u64 = weights.iter().sum();
+        let max = *weights.iter().max().unwrap();
+        for count in [1, 2, 3, 4, 7, 50] {
+            let shard_of = assign(&weights, count);
+            assert_eq!(shard_of, assign(&weights, count), "not deterministic");
+            let mut load = vec![0u64; count];
+            for (w, k) in weights.iter().zip(&shard_of) {
+                assert!(*k < count);
+                load[*k] += w;
+            }
+            let mean = total / count as u64;
+            for l in &load {
+                // Greedy heaviest-first: no share exceeds the mean by a run.
+                assert!(*l <= mean + max, "{count} shards: {load:?}");
+            }
+            if count <= 4 {
+                let (lo, hi) = (load.iter().min().unwrap(), load.iter().max().unwrap());
+                assert!(hi - lo <= max, "{count} shards: {load:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn frames_are_counted_without_decoding() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path().join("run");
+        std::fs::create_dir(&d).unwrap();
+        for i in 0..12 {
+            std::fs::write(d.join(format!("r_{i:03}.tif")), b"not even a tiff").unwrap();
+        }
+        std::fs::write(d.join("r.xml"), b"<chd/>").unwrap();
+        assert_eq!(frame_count(&d), 12);
+        assert_eq!(frame_count(&dir.path().join("missing")), 0);
+        // A real cine: 97 frames (phantom-samples README).
+        let cine = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data/phantom-samples/pims/cine_legacy.cine");
+        assert_eq!(frame_count(&cine), 97);
+    }
+}

@@ -1,0 +1,349 @@
+//! `dropscope slurm`: the main job on a Slurm cluster (issue 15) — an
+//! array job whose tasks are the shards (`run --shard slurm`, see
+//! [`crate::shard`]), and a finishing job (`run`) that Slurm starts only
+//! after every task succeeded (`--dependency=afterok`), which finds every
+//! run in the cache and assembles drops.csv, the collapse and the report.
+//!
+//! Slurm is the scheduler: this module only writes the two sbatch scripts
+//! and, with `--submit`, hands them to `sbatch`.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The command line of `dropscope slurm`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SlurmArgs {
+    /// Tasks of the array: the runs are split into this many frame-balanced shares.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub array: u32,
+    /// Slurm partition (default: the cluster's default partition).
+    #[arg(long)]
+    pub partition: Option<String>,
+    /// Time limit of each task and of the finishing job, as sbatch takes it (e.g. 2:00:00).
+    #[arg(long)]
+    pub time: Option<String>,
+    /// Memory of each task and of the finishing job, as sbatch takes it (e.g. 4G).
+    #[arg(long)]
+    pub mem: Option<String>,
+    /// CPUs of each task; the task runs that many worker threads.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
+    pub cpus_per_task: u16,
+    /// The configuration file (default: ./pipeline.toml, else the embedded default).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Output folder (default: the configuration's output.dir); it must be
+    /// on a file system every node sees.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Folder for the two scripts and the jobs' logs (default: OUT.slurm beside OUT).
+    #[arg(long)]
+    pub scripts: Option<PathBuf>,
+    /// Submit both jobs with sbatch and print their ids.
+    #[arg(long)]
+    pub submit: bool,
+}
+
+/// Why the scripts could not be written or submitted.
+#[derive(Debug, thiserror::Error)]
+pub enum SlurmError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(
+        "cannot run sbatch ({0}): is this a Slurm login node? The scripts are written; \
+         submit them by hand (see the command printed without --submit)"
+    )]
+    NoSbatch(std::io::Error),
+    #[error("sbatch {script} failed: {message}")]
+    Sbatch { script: PathBuf, message: String },
+}
+
+/// What to run where: absolute paths, so that the jobs do not depend on the
+/// directory they start in.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// The dropscope binary the jobs run (it must be on a shared file system).
+    pub exe: PathBuf,
+    /// `--config` for the jobs (`None`: the embedded default).
+    pub config: Option<PathBuf>,
+    pub out: PathBuf,
+    /// Where the scripts and the logs go.
+    pub scripts: PathBuf,
+    /// The folder the jobs start in.
+    pub workdir: PathBuf,
+}
+
+/// The two scripts written.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scripts {
+    pub array: PathBuf,
+    pub finish: PathBuf,
+}
+
+/// Job ids Slurm gave.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Submitted {
+    pub array_job: String,
+    pub finish_job: String,
+}
+
+impl Plan {
+    /// The plan for `args` from the directory `workdir`, with `out` the
+    /// output folder the configuration names and `local_config` the
+    /// configuration file found there when `--config` is not given.
+    pub fn new(
+        args: &SlurmArgs,
+        workdir: &Path,
+        out: &Path,
+        local_config: Option<&Path>,
+    ) -> std::io::Result<Plan> {
+        let out = workdir.join(args.out.as_deref().unwrap_or(out));
+        let scripts = match &args.scripts {
+            Some(s) => workdir.join(s),
+            None => {
+                let mut name = out.file_name().unwrap_or_default().to_os_string();
+                name.push(".slurm");
+                out.with_file_name(name)
+            }
+        };
+        Ok(Plan {
+            exe: std::env::current_exe()?,
+            config: args
+                .config
+                .as_deref()
+                .or(local_config)
+                .map(|c| workdir.join(c)),
+            out,
+            scripts,
+            workdir: workdir.to_path_buf(),
+        })
+    }
+}
+
+/// `s` quoted for a POSIX shell.
+fn quote(s: &Path) -> String {
+    format!("'{}'", s.to_string_lossy().replace('\'', r"'\''"))
+}
+
+/// The `#SBATCH` lines both jobs share.
+fn resources(args: &SlurmArgs) -> String {
+    let mut s = format!("#SBATCH --cpus-per-task={}\n", args.cpus_per_task);
+    for (flag, value) in [
+        ("partition", &args.partition),
+        ("time", &args.time),
+        ("mem", &args.mem),
+    ] {
+        if let Some(v) = value {
+            s += &format!("#SBATCH --{flag}={v}\n");
+        }
+    }
+    s
+}
+
+/// `dropscope run` with the plan's paths and `extra` arguments.
+fn run_line(plan: &Plan, extra: &str) -> String {
+    let config = plan
+        .config
+        .as_ref()
+        .map(|c| format!(" --config {}", quote(c)))
+        .unwrap_or_default();
+    format!(
+        "exec {} run{extra} --out {}{config}\n",
+        quote(&plan.exe),
+        quote(&plan.out)
+    )
+}
+
+/// The array job's script: task K of N runs shard K/N.
+pub fn array_script(args: &SlurmArgs, plan: &Plan) -> String {
+    format!(
+        "#!/bin/bash\n\
+         # dropscope {version}: the main job's runs in {n} frame-balanced shards, one per task;\n\
+         # each task commits its runs to the output folder (written by `dropscope slurm`).\n\
+         #SBATCH --job-name=dropscope-shards\n\
+         #SBATCH --array=0-{last}\n\
+         {resources}\
+         #SBATCH --chdir={workdir}\n\
+         #SBATCH --output={logs}/shard-%A_%a.out\n\
+         {run}",
+        version = env!("CARGO_PKG_VERSION"),
+        n = args.array,
+        last = args.array - 1,
+        resources = resources(args),
+        workdir = plan.workdir.display(),
+        logs = plan.scripts.join("logs").display(),
+        run = run_line(plan, " --shard slurm"),
+    )
+}
+
+/// The finishing job's script: the whole job, which finds every run in the
+/// cache and assembles drops.csv, the collapse and the report.
+pub fn finish_script(args: &SlurmArgs, plan: &Plan) -> String {
+    format!(
+        "#!/bin/bash\n\
+         # dropscope {version}: after every task of the array succeeded, assemble drops.csv,\n\
+         # the collapse and report.html (runs a shard left undone are processed here).\n\
+         #SBATCH --job-name=dropscope-finish\n\
+         {resources}\
+         #SBATCH --chdir={workdir}\n\
+         #SBATCH --output={logs}/finish-%j.out\n\
+         {run}",
+        version = env!("CARGO_PKG_VERSION"),
+        resources = resources(args),
+        workdir = plan.workdir.display(),
+        logs = plan.scripts.join("logs").display(),
+        run = run_line(plan, ""),
+    )
+}
+
+/// Write both scripts (and the logs folder) into `plan.scripts`.
+pub fn write_scripts(args: &SlurmArgs, plan: &Plan) -> Result<Scripts, SlurmError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| SlurmError::Io { path, source }
+    };
+    let logs = plan.scripts.join("logs");
+    std::fs::create_dir_all(&logs).map_err(io(&logs))?;
+    let scripts = Scripts {
+        array: plan.scripts.join("shards.sbatch"),
+        finish: plan.scripts.join("finish.sbatch"),
+    };
+    for (path, text) in [
+        (&scripts.array, array_script(args, plan)),
+        (&scripts.finish, finish_script(args, plan)),
+    ] {
+        crate::io_util::write_atomic(path, text.as_bytes()).map_err(io(path))?;
+    }
+    Ok(scripts)
+}
+
+/// `sbatch --parsable [extra] script`: the job id.
+fn sbatch(script: &Path, extra: &[String]) -> Result<String, SlurmError> {
+    let o = Command::new("sbatch")
+        .arg("--parsable")
+        .args(extra)
+        .arg(script)
+        .output()
+        .map_err(SlurmError::NoSbatch)?;
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    // --parsable prints "id" or "id;cluster".
+    let id = stdout
+        .trim()
+        .split(';')
+        .next()
+        .unwrap_or_default()
+        .to_string();
+    if !o.status.success() || id.is_empty() || !id.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(SlurmError::Sbatch {
+            script: script.to_path_buf(),
+            message: format!(
+                "{} {}",
+                stdout.trim(),
+                String::from_utf8_lossy(&o.stderr).trim()
+            ),
+        });
+    }
+    Ok(id)
+}
+
+/// Submit the array job, then the finishing job depending on its success.
+pub fn submit(scripts: &Scripts) -> Result<Submitted, SlurmError> {
+    let array_job = sbatch(&scripts.array, &[])?;
+    let finish_job = sbatch(
+        &scripts.finish,
+        &[format!("--dependency=afterok:{array_job}")],
+    )
+    .map_err(|e| match e {
+        SlurmError::Sbatch { script, message } => SlurmError::Sbatch {
+            script,
+            message: format!(
+                "{message} (array job {array_job} is submitted: `scancel {array_job}` to stop it)"
+            ),
+        },
+        e => e,
+    })?;
+    Ok(Submitted {
+        array_job,
+        finish_job,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args() -> SlurmArgs {
+        SlurmArgs {
+            array: 3,
+            partition: None,
+            time: Some("1:00:00".into()),
+            mem: None,
+            cpus_per_task: 4,
+            config: None,
+            out: None,
+            scripts: None,
+            submit: false,
+        }
+    }
+
+    fn plan() -> Plan {
+        Plan {
+            exe: "/opt/bin/dropscope".into(),
+            config: Some("/data/it's here/pipeline.toml".into()),
+            out: "/scratch/out".into(),
+            scripts: "/scratch/out.slurm".into(),
+            workdir: "/data".into(),
+        }
+    }
+
+    #[test]
+    fn scripts_run_the_shards_then_the_whole_job() {
+        let a = array_script(&args(), &plan());
+        for line in [
+            "#!/bin/bash\n",
+            "\n#SBATCH --array=0-2\n",
+            "\n#SBATCH --cpus-per-task=4\n",
+            "\n#SBATCH --time=1:00:00\n",
+            "\n#SBATCH --output=/scratch/out.slurm/logs/shard-%A_%a.out\n",
+            "\nexec '/opt/bin/dropscope' run --shard slurm --out '/scratch/out' \
+             --config '/data/it'\\''s here/pipeline.toml'\n",
+        ] {
+            assert!(a.contains(line), "{line:?} not in\n{a}");
+        }
+        assert!(!a.contains("--partition") && !a.contains("--mem"), "{a}");
+        let f = finish_script(&args(), &plan());
+        assert!(
+            f.ends_with("\nexec '/opt/bin/dropscope' run --out '/scratch/out' --config '/data/it'\\''s here/pipeline.toml'\n"),
+            "{f}"
+        );
+        assert!(!f.contains("--array") && !f.contains("--shard"), "{f}");
+        // The quoted path survives a real shell.
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg(format!("printf %s {}", quote(Path::new("/a/it's b"))))
+            .output()
+            .unwrap();
+        assert_eq!(o.stdout, b"/a/it's b");
+    }
+
+    #[test]
+    fn sbatch_missing_or_failing_is_a_clear_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = plan();
+        p.scripts = dir.path().join("s");
+        let s = write_scripts(&args(), &p).unwrap();
+        assert!(s.array.is_file() && s.finish.is_file() && p.scripts.join("logs").is_dir());
+        // A script sbatch refuses (no Slurm reachable, or a bad option) names it.
+        let bad = dir.path().join("none.sbatch");
+        let e = sbatch(&bad, &["--no-such-option".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("none.sbatch") || e.contains("cannot run sbatch"),
+            "{e}"
+        );
+    }
+}

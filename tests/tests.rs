@@ -7,6 +7,8 @@ mod process;
 mod render;
 mod report;
 mod run;
+mod shards;
+mod slurm;
 mod source;
 mod source_tiff;
 

@@ -625,3 +625,45 @@ fn outputs_of_two_datasets_cannot_be_mixed() {
     let (code, text) = go(&["report", "a"]);
     assert_eq!(code, Some(0), "{text}");
 }
+
+/// Issue 17 item 2: a series fitted far from Ξ = 0 reads its constant term
+/// by extrapolation; fits.json, the report's fits section and the figure
+/// say so, and lead with the exponents and fixed-exponent constants.
+#[test]
+fn a_series_far_from_zero_is_called_an_extrapolation() {
+    let law = ([1.26, -0.3, 0.05], [3.53, -0.5, 0.1]);
+    let narrow = eq8_dataset(&SyntheticSpec::paper(6, 3), law.0, law.1, [1.35, 1.55]);
+    let (dir, fits) = run(&narrow, true);
+    let s = &fits["psi_series"];
+    let lo = f(&s["extrapolated_from_xi"]);
+    assert!((1.35..1.4).contains(&lo), "{s}");
+    assert!(f(&s["condition_number"]) > 1e3, "{s}");
+    assert!(!fits["omega_series"]["extrapolated_from_xi"].is_null());
+    let warnings = fits["warnings"].to_string();
+    assert!(
+        warnings.contains("EXTRAPOLATED: A1 of the series Psi(Xi)")
+            && warnings.contains(&format!("Xi >= {lo:.3}")),
+        "{warnings}"
+    );
+    // fits.json leads with what the data support.
+    let text = std::fs::read_to_string(dir.path().join("out/fits.json")).unwrap();
+    let at = |k: &str| text.find(&format!("\"{k}\"")).unwrap();
+    assert!(at("exponents") < at("asymptotes") && at("asymptotes") < at("psi_series"));
+    let page = dropscope::report::fits::fits_section(&fits);
+    let at = |k: &str| page.find(k).unwrap_or_else(|| panic!("{k} missing"));
+    assert!(at("Local exponents") < at("Asymptotic constants"));
+    assert!(at("Asymptotic constants") < at("Series in Ξ"));
+    assert!(page.contains("EXTRAPOLATED: A1 is read at Ξ = 0 from drops at Ξ ≥ 1.3"));
+    assert!(page.contains("extrapolated to Ξ = 0 from Ξ ≥"));
+    let svg = std::fs::read_to_string(dir.path().join("out/plots/psi_vs_xi.svg")).unwrap();
+    assert!(svg.contains("EXTRAPOLATED: A1 is read at Ξ = 0 from Ξ ≥ 1.3"));
+
+    // Drops reaching small Ξ: the constant is measured, nothing is flagged.
+    let wide = eq8_dataset(&SyntheticSpec::paper(6, 3), law.0, law.1, [0.1, 1.6]);
+    let (dir, fits) = run(&wide, true);
+    assert!(fits["psi_series"]["extrapolated_from_xi"].is_null());
+    assert!(!fits["warnings"].to_string().contains("EXTRAPOLATED"));
+    assert!(!dropscope::report::fits::fits_section(&fits).contains("EXTRAPOLATED"));
+    let svg = std::fs::read_to_string(dir.path().join("out/plots/psi_vs_xi.svg")).unwrap();
+    assert!(!svg.contains("EXTRAPOLATED"));
+}

@@ -80,6 +80,50 @@ pub struct SeriesFit {
     pub chi2_red: Option<f64>,
     /// Ξ range covered by the drops (the series is not valid outside it).
     pub xi_range: [f64; 2],
+    /// Condition number of the design matrix [1, Ξ, Ξ²] (Ξ scaled by its
+    /// largest value, as fitted): how nearly the three terms can stand in
+    /// for each other over the drops' Ξ range. Above ~1e3 the coefficients
+    /// trade off and their individual values mean little.
+    pub condition_number: Option<f64>,
+    /// `Some(Ξ_min)` when the constant term is read at Ξ = 0 from drops at
+    /// Ξ ≥ Ξ_min farther from 0 than their own span: an extrapolation, not
+    /// a measurement of the small-Ξ (theory's) side.
+    pub extrapolated_from_xi: Option<f64>,
+}
+
+/// Whether a fit over `xi_range` reaches Ξ = 0's side: 0 no farther from
+/// the data than their own span (the plots dash the series to 0 only then).
+pub fn reaches_zero(xi_range: [f64; 2]) -> bool {
+    xi_range[0] <= xi_range[1] - xi_range[0]
+}
+
+/// Condition number (largest over smallest singular value) of the design
+/// matrix of a polynomial of `degree` in x scaled by max |x|.
+fn condition_number(x: &[f64], degree: usize) -> Option<f64> {
+    let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if !(scale.is_finite() && scale > 0.0) || x.len() <= degree {
+        return None;
+    }
+    let design =
+        nalgebra::DMatrix::from_fn(x.len(), degree + 1, |i, k| (x[i] / scale).powi(k as i32));
+    let sv = design.singular_values();
+    let (lo, hi) = sv.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &v| {
+        (lo.min(v), hi.max(v))
+    });
+    (lo > 0.0).then(|| hi / lo)
+}
+
+/// The words a warning uses for a fit's internal name.
+fn display_name(name: &str) -> &str {
+    match name {
+        "psi_series" => "the series Psi(Xi) = A1 + A2 Xi + A3 Xi^2",
+        "omega_series" => "the series Omega(Xi) = B1 + B2 Xi + B3 Xi^2",
+        "eq5_c1" => "the constant c1 of Psi = c1 (Eq. 5)",
+        "eq7_c2" => "the constant c2 of Psi/Xi = c2 (Eq. 7)",
+        "eq1e_d1" => "the constant d1 of Omega = d1 (Eq. 1e)",
+        "eq11_d2" => "the constant d2 of Omega/Xi = d2 (Eq. 11)",
+        other => other,
+    }
 }
 
 /// A fixed-exponent asymptote: the constant c in y = c · (known power law).
@@ -272,15 +316,17 @@ fn fit_and_bootstrap(
     let (fit, weighted) = fit_effective_variance(obs, degree)?;
     if !weighted {
         warnings.push(format!(
-            "{name}: unweighted least squares (some of its {} drops have no uncertainty, \
+            "{}: unweighted least squares (some of its {} drops have no uncertainty, \
              or a zero one)",
+            display_name(name),
             obs.len()
         ));
     }
     let (boot, failed) = bootstrap(obs, degree, settings, name, derive);
     if settings.resamples > 0 && failed * 10 > settings.resamples {
         warnings.push(format!(
-            "{name}: {failed} of {} bootstrap resamples could not be fitted; no interval given",
+            "{}: {failed} of {} bootstrap resamples could not be fitted; no interval given",
+            display_name(name),
             settings.resamples
         ));
     }
@@ -315,7 +361,8 @@ fn series(
 ) -> Option<(SeriesFit, Option<Estimate>)> {
     if obs.len() < 4 {
         warnings.push(format!(
-            "{name}: {} drops, at least 4 are needed for three coefficients with errors",
+            "{}: {} drops, at least 4 are needed for three coefficients with errors",
+            display_name(name),
             obs.len()
         ));
         return None;
@@ -323,7 +370,8 @@ fn series(
     let derive = |f: &LsFit| vec![f.coef[0], f.coef[1], f.coef[2], f.coef[0] / f.coef[1]];
     let Some(r) = fit_and_bootstrap(obs, 2, settings, name, &derive, warnings) else {
         warnings.push(format!(
-            "{name}: the quadratic fit is singular (fewer than 3 distinct Xi values)"
+            "{}: the quadratic fit is singular (fewer than 3 distinct Xi values)",
+            display_name(name)
         ));
         return None;
     };
@@ -342,6 +390,20 @@ fn series(
     });
     let lo = obs.iter().map(|o| o.x).fold(f64::INFINITY, f64::min);
     let hi = obs.iter().map(|o| o.x).fold(f64::NEG_INFINITY, f64::max);
+    let xs: Vec<f64> = obs.iter().map(|o| o.x).collect();
+    let condition_number = condition_number(&xs, 2);
+    let extrapolated_from_xi = (!reaches_zero([lo, hi])).then_some(lo);
+    if extrapolated_from_xi.is_some() {
+        let constant = if name == "omega_series" { "B1" } else { "A1" };
+        warnings.push(format!(
+            "EXTRAPOLATED: {constant} of {} is read at Xi = 0 from drops at Xi >= {lo:.3} \
+             (they span Xi {lo:.3}-{hi:.3}; condition number {}): no measurement of the \
+             small-Xi constant. The fixed-exponent constants and the exponents per radius \
+             are what these drops support",
+            display_name(name),
+            condition_number.map_or("-".into(), |c| format!("{c:.2e}")),
+        ));
+    }
     Some((
         SeriesFit {
             coef,
@@ -349,6 +411,8 @@ fn series(
             weighted: r.weighted,
             chi2_red: r.fit.chi2_red,
             xi_range: [lo, hi],
+            condition_number,
+            extrapolated_from_xi,
         },
         cross,
     ))
@@ -364,7 +428,11 @@ fn asymptote(
     warnings: &mut Vec<String>,
 ) -> Option<AsymptoteFit> {
     if obs.len() < 2 {
-        warnings.push(format!("{name}: {} drops selected, need 2", obs.len()));
+        warnings.push(format!(
+            "{}: {} drops selected, need 2",
+            display_name(name),
+            obs.len()
+        ));
         return None;
     }
     let derive = |f: &LsFit| vec![f.coef[0].exp()];

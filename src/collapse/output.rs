@@ -110,6 +110,9 @@ struct Psi<'a> {
     weighted: bool,
     chi2_red: Option<f64>,
     xi_range: [f64; 2],
+    condition_number: Option<f64>,
+    /// Ξ_min when the constant is an extrapolation to Ξ = 0 (else null).
+    extrapolated_from_xi: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -125,6 +128,9 @@ struct Omega<'a> {
     weighted: bool,
     chi2_red: Option<f64>,
     xi_range: [f64; 2],
+    condition_number: Option<f64>,
+    /// Ξ_min when the constant is an extrapolation to Ξ = 0 (else null).
+    extrapolated_from_xi: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -193,12 +199,15 @@ struct FitsJson<'a> {
     n_used: usize,
     n_skipped: usize,
     n_geometric_contact_radius: usize,
+    // What the data support first: the exponents per radius and the
+    // fixed-exponent constants; then the series, whose constant terms may
+    // be extrapolations (see `extrapolated_from_xi`).
+    exponents: &'a [ExponentFit],
+    asymptotes: Asymptotes<'a>,
     psi_series: Option<Psi<'a>>,
     omega_series: Option<Omega<'a>>,
     crossover_xi: Option<Crossover<'a>>,
-    asymptotes: Asymptotes<'a>,
     theory: Theory,
-    exponents: &'a [ExponentFit],
     force_laws: &'a [ForceLaw],
     skipped: Vec<Skipped<'a>>,
     warnings: &'a [String],
@@ -237,6 +246,8 @@ pub fn fits_json(
             weighted: s.weighted,
             chi2_red: s.chi2_red,
             xi_range: s.xi_range,
+            condition_number: s.condition_number,
+            extrapolated_from_xi: s.extrapolated_from_xi,
         }),
         omega_series: fits.omega_series.as_ref().map(|s| Omega {
             b1: &s.coef[0],
@@ -247,6 +258,8 @@ pub fn fits_json(
             weighted: s.weighted,
             chi2_red: s.chi2_red,
             xi_range: s.xi_range,
+            condition_number: s.condition_number,
+            extrapolated_from_xi: s.extrapolated_from_xi,
         }),
         crossover_xi: fits.crossover_xi.as_ref().map(|e| Crossover {
             estimate: e,

@@ -468,8 +468,10 @@ where
     // Extrapolate only when Ξ = 0 is no farther from the data than their own
     // span, and let the axis grow for it by at most 30 % of the data's range.
     let extrapolation = series
-        .filter(|s| s.xi_range[0] <= s.xi_range[1] - s.xi_range[0])
+        .filter(|s| fit::reaches_zero(s.xi_range))
         .map_or(Vec::new(), |s| poly(s, 0.0, s.xi_range[0]));
+    // Far from Ξ = 0 the constant term is no measurement: the figure says so.
+    let far_from_zero = series.and_then(|s| s.extrapolated_from_xi);
     let (xr, yr0) = range(&all, false, &[theory.0]);
     let span = yr0[1] - yr0[0];
     let extra_y: Vec<f64> = extrapolation
@@ -490,10 +492,12 @@ where
             Some(e) => format!("{} = {:.3} ± {:.3}", names[k], s.coef[k].value, e),
             None => format!("{} = {:.3}", names[k], s.coef[k].value),
         };
-        let extra = if extrapolation.is_empty() {
-            ""
+        let extra = if !extrapolation.is_empty() {
+            " (dashed: to Ξ = 0)".to_string()
+        } else if let Some(lo) = far_from_zero {
+            format!(" ({} at Ξ = 0: extrapolated from Ξ ≥ {lo:.3})", names[0])
         } else {
-            " (dashed: to Ξ = 0)"
+            String::new()
         };
         format!("fit: {}, {}, {}{extra}", pm(0), pm(1), pm(2))
     });
@@ -552,20 +556,31 @@ where
         .flat_map(|s| &s.drops)
         .filter(|g| g.a_source.is_geometric())
         .count();
+    let mut alarms = Vec::new();
     if n_geo > 0 {
+        alarms.push(format!(
+            "WARNING: {n_geo} of {} drops use the geometric contact radius; for them \
+             Ξ² = Ψ(2 − Π) by construction",
+            all.len()
+        ));
+    }
+    if let Some(lo) = far_from_zero {
+        alarms.push(format!(
+            "EXTRAPOLATED: {} is read at Ξ = 0 from Ξ ≥ {lo:.3}, no measurement; \
+             see the fixed-exponent constants",
+            names[0]
+        ));
+    }
+    for (i, text) in alarms.iter().enumerate() {
         area.draw(&Text::new(
-            format!(
-                "WARNING: {n_geo} of {} drops use the geometric contact radius; for them \
-                 Ξ² = Ψ(2 − Π) by construction",
-                all.len()
-            ),
-            (100, 4),
+            text.as_str(),
+            (100, 4 + 22 * i as i32),
             ("sans-serif", 18).into_font().color(&RGBColor(200, 0, 0)),
         ))?;
     }
     let mut chart = ChartBuilder::on(&area)
         .margin(18)
-        .margin_top(if n_geo > 0 { 30 } else { 18 })
+        .margin_top(18 + 22 * alarms.len() as u32)
         .x_label_area_size(60)
         .y_label_area_size(80)
         .build_cartesian_2d(xr[0]..xr[1], yr[0]..yr[1])?;

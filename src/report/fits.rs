@@ -84,20 +84,26 @@ fn series_row(
     theory: (&str, Option<f64>, Option<f64>),
 ) {
     let (theory_name, theory_value, z) = theory;
+    let s_ = &doc[key];
+    let extrapolated = f(s_, "extrapolated_from_xi");
     let theory_cell = format!(
         "{theory_name} = {}{}",
         opt_num(theory_value),
         z.map_or_else(String::new, |z| format!(
-            "; {names0} − theory = {} σ",
+            "; {names0} − theory = {} σ{}",
             sig(z, 2),
+            if extrapolated.is_some() {
+                " <span class=\"alarm\">(extrapolated)</span>"
+            } else {
+                ""
+            },
             names0 = names[0]
         ))
     );
-    let s_ = &doc[key];
     if s_.is_null() {
         let _ = write!(
             out,
-            "<tr><th>{symbol}</th><td colspan=\"6\" class=\"missing\">not fitted \
+            "<tr><th>{symbol}</th><td colspan=\"7\" class=\"missing\">not fitted \
              (see the warnings below)</td><td>{theory_cell}</td></tr>"
         );
         return;
@@ -115,23 +121,46 @@ fn series_row(
         "<tr><th>{symbol}<div class=\"law\">{}</div></th>",
         escape(s(s_, "law"))
     );
-    for n in names {
-        let _ = write!(out, "<td>{n} = {}</td>", estimate(s_.get(n)));
+    for (k, n) in names.iter().enumerate() {
+        let mark = match extrapolated {
+            Some(lo) if k == 0 => format!(
+                "<div class=\"alarm\">extrapolated to Ξ = 0 from Ξ ≥ {}</div>",
+                sig(lo, 3)
+            ),
+            _ => String::new(),
+        };
+        let _ = write!(out, "<td>{n} = {}{mark}</td>", estimate(s_.get(*n)));
     }
     let _ = write!(
         out,
-        "<td>{}</td><td>{}</td><td>{range}</td><td>{theory_cell}</td></tr>",
+        "<td>{}</td><td>{}</td><td>{range}</td><td>{}</td><td>{theory_cell}</td></tr>",
         count(s_, "n_drops"),
         opt_short(f(s_, "chi2_red")),
+        opt_short(f(s_, "condition_number")),
     );
 }
 
 fn series(out: &mut String, doc: &Value) {
     let th = &doc["theory"];
+    out.push_str("<h3>Series in Ξ (Eq. 8)</h3>");
+    for (key, constant) in [("psi_series", "A1"), ("omega_series", "B1")] {
+        if let Some(lo) = f(&doc[key], "extrapolated_from_xi") {
+            let _ = write!(
+                out,
+                "<p class=\"alarm\">EXTRAPOLATED: {constant} is read at Ξ = 0 from drops at \
+                 Ξ ≥ {} (condition number {}): it is no measurement of the small-Ξ constant, \
+                 and its distance from the theory says nothing about the theory. The \
+                 fixed-exponent constants and the exponents above are what these drops \
+                 support.</p>",
+                sig(lo, 3),
+                opt_short(f(&doc[key], "condition_number")),
+            );
+        }
+    }
     out.push_str(
-        "<h3>Series in Ξ (Eq. 8)</h3><table class=\"fits\"><thead><tr><th>fit</th>\
+        "<table class=\"fits\"><thead><tr><th>fit</th>\
          <th>constant</th><th>linear</th><th>quadratic</th><th>drops</th><th>χ²<sub>red</sub></th>\
-         <th>Ξ range</th><th>theory at small Ξ</th></tr></thead><tbody>",
+         <th>Ξ range</th><th>condition number</th><th>theory at small Ξ</th></tr></thead><tbody>",
     );
     series_row(
         out,
@@ -344,7 +373,7 @@ fn notes(out: &mut String, doc: &Value) {
         out.push_str("<h3>Warnings of the collapse</h3><ul class=\"warnings\">");
         for w in warnings {
             let w = w.as_str().unwrap_or("");
-            let class = if w.starts_with("GEOMETRIC") {
+            let class = if w.starts_with("GEOMETRIC") || w.starts_with("EXTRAPOLATED") {
                 " class=\"alarm\""
             } else {
                 ""
@@ -358,10 +387,11 @@ fn notes(out: &mut String, doc: &Value) {
 /// The fits section's body from the parsed `fits.json`.
 pub fn fits_section(doc: &Value) -> String {
     let mut out = String::new();
+    // What the data support first, the extrapolations last.
     provenance(&mut out, doc);
-    series(&mut out, doc);
-    asymptotes(&mut out, doc);
     exponents(&mut out, doc);
+    asymptotes(&mut out, doc);
+    series(&mut out, doc);
     force_laws(&mut out, doc);
     notes(&mut out, doc);
     out

@@ -292,6 +292,7 @@ mod tests {
             mm_per_px: None,
             surface: None,
             sphere_density_kg_m3: None,
+            setup: None,
         }
     }
 

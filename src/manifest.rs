@@ -1,7 +1,8 @@
 //! The run manifest `runs.csv` (SPEC §4): one row per drop.
 //!
 //! Required columns `run, path, sphere_radius_mm`; optional `drop_height_cm,
-//! fps, mm_per_px, surface, sphere_density_kg_m3`. Paths are relative to the
+//! fps, mm_per_px, surface, sphere_density_kg_m3, setup` (runs sharing one
+//! camera set-up: the same zoom and position). Paths are relative to the
 //! manifest's folder. Every value is checked; an error names the file, the
 //! row (as a spreadsheet shows it, header = row 1) and the column.
 
@@ -25,6 +26,8 @@ pub struct ManifestRow {
     pub surface: Option<String>,
     #[serde(default)]
     pub sphere_density_kg_m3: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub setup: Option<String>,
 }
 
 /// A validated run: the path resolved against the manifest's folder.
@@ -39,6 +42,9 @@ pub struct RunSpec {
     /// Surface name; `None` means the configuration's default.
     pub surface: Option<String>,
     pub sphere_density_kg_m3: Option<f64>,
+    /// Camera set-up shared with other runs (same zoom and position); `None`: not given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub setup: Option<String>,
 }
 
 /// Why a manifest could not be read.
@@ -118,6 +124,7 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
             mm_per_px,
             surface: r.surface.filter(|s| !s.is_empty()),
             sphere_density_kg_m3: density,
+            setup: r.setup.filter(|s| !s.is_empty()),
         });
     }
     if runs.is_empty() {
@@ -167,6 +174,13 @@ mod tests {
         assert_eq!(runs[1].surface, None);
         let only_required = parse("run,path,sphere_radius_mm\nx,x,4.5\n").unwrap();
         assert_eq!(only_required[0].mm_per_px, None);
+        assert_eq!(only_required[0].setup, None);
+        let with_setup = parse(
+            "run,path,sphere_radius_mm,drop_height_cm,setup\na,a,3,1.5,cam_R3mm_01\nb,b,3,3,\n",
+        )
+        .unwrap();
+        assert_eq!(with_setup[0].setup.as_deref(), Some("cam_R3mm_01"));
+        assert_eq!(with_setup[1].setup, None);
     }
 
     #[test]
@@ -209,6 +223,7 @@ mod tests {
             mm_per_px: Some(0.04),
             surface: Some("pdms".into()),
             sphere_density_kg_m3: None,
+            setup: None,
         }];
         // A second row with other optional cells empty: every row keeps every column.
         rows.push(ManifestRow {

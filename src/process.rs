@@ -108,6 +108,7 @@ pub fn runs_from_inputs(
             mm_per_px: None,
             surface: None,
             sphere_density_kg_m3: None,
+            setup: None,
         });
     }
     Ok(runs)

@@ -20,7 +20,7 @@ struct Cli {
     args: RenderArgs,
 }
 
-fn args(list: &[&str]) -> RenderArgs {
+pub(crate) fn args(list: &[&str]) -> RenderArgs {
     let mut v = vec!["render"];
     v.extend_from_slice(list);
     Cli::try_parse_from(v).expect("valid render arguments").args
@@ -163,7 +163,7 @@ fn later_contacts_follow_the_free_flight_parabola_or_settle() {
 
 // ------------------------------------------------------------------ raster
 
-fn clean_scene(w: usize, h: usize, r: f64, row: f64, slope: f64) -> Scene {
+pub(crate) fn clean_scene(w: usize, h: usize, r: f64, row: f64, slope: f64) -> Scene {
     Scene {
         width_px: w,
         height_px: h,
@@ -314,7 +314,15 @@ fn the_band_below_the_surface_line_hides_the_sphere() {
 
 // -------------------------------------------------------- end to end, files
 
-fn files(dir: &Path) -> Vec<PathBuf> {
+/// A rayon pool of `n` threads.
+pub(crate) fn pool(n: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .unwrap()
+}
+
+pub(crate) fn files(dir: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();
     let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {
@@ -368,12 +376,6 @@ fn rendering_is_byte_identical_across_thread_counts() {
         "--seed",
         "7",
     ];
-    let pool = |n| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .unwrap()
-    };
     pool(1).install(|| small_render(d1.path(), &extra));
     pool(3).install(|| small_render(d2.path(), &extra));
     let f1 = files(d1.path());

@@ -5,6 +5,7 @@ mod collapse;
 mod detect;
 mod process;
 mod render;
+mod render_real;
 mod report;
 mod run;
 mod shards;

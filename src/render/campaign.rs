@@ -18,11 +18,20 @@ pub struct DropSpec {
     pub height_cm: f64,
     /// Position in the campaign (0-based); sets the trigger's wall-clock time.
     pub index: usize,
+    /// The camera set-up it is filmed with: one per radius and repeat
+    /// (`cam_R4.5mm_01`), as when the camera is refocused and zoomed for
+    /// each sphere size.
+    pub setup: String,
 }
 
 /// `R<r>mm_H<h>cm_<repeat:02>`, numbers in their shortest form.
 pub fn run_name(radius_mm: f64, height_cm: f64, repeat: usize) -> String {
     format!("R{radius_mm}mm_H{height_cm}cm_{repeat:02}")
+}
+
+/// `cam_R<r>mm_<repeat:02>`: the set-up of a sphere radius in one repeat.
+pub fn setup_name(radius_mm: f64, repeat: usize) -> String {
+    format!("cam_R{radius_mm}mm_{repeat:02}")
 }
 
 /// Every radius × every height × `repeats`, radius-major.
@@ -36,6 +45,7 @@ pub fn grid(radii_mm: &[f64], heights_cm: &[f64], repeats: usize) -> Vec<DropSpe
                     radius_mm: r,
                     height_cm: h,
                     index: out.len(),
+                    setup: setup_name(r, rep),
                 });
             }
         }
@@ -56,6 +66,7 @@ pub fn from_pairs(pairs: &[(f64, f64)]) -> Vec<DropSpec> {
             radius_mm: r,
             height_cm: h,
             index: out.len(),
+            setup: setup_name(r, rep),
         });
     }
     out
@@ -74,6 +85,20 @@ pub fn parse_pair(text: &str) -> Result<(f64, f64), String> {
             .ok_or_else(|| format!("`{text}`: {what} `{s}` must be a number > 0"))
     };
     Ok((num(r, "radius")?, num(h, "height")?))
+}
+
+/// A row of a `real` campaign's `runs.csv`: what an experimenter knows
+/// (no scale, no surface row; the frame rate is in the PCC XML), plus the
+/// true scale when `--manifest-scale` asks for it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SetupManifestRow {
+    pub run: String,
+    pub path: std::path::PathBuf,
+    pub sphere_radius_mm: f64,
+    pub drop_height_cm: f64,
+    pub setup: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mm_per_px: Option<f64>,
 }
 
 #[cfg(test)]

@@ -6,6 +6,8 @@
 //! | [`physics`] | the contact ODE, its events and the exact motion |
 //! | [`coverage`] | exact pixel coverage of disk, line and pillars |
 //! | [`raster`] | one frame from the sphere centres over the exposure |
+//! | [`optics`] | a real camera's effects: strengths per drop and set-up, roll and distortion |
+//! | [`camera`] | one frame as a real camera records it (`--preset real`) |
 //! | [`export`] | frame files, the PCC XML side file, `truth.json` |
 //! | [`truth`] | the `truth.json` schema |
 //! | `options` | presets, [`RenderArgs`] and [`RenderSettings`] |
@@ -29,9 +31,11 @@
 //! Frames are rendered in parallel; the bytes do not depend on the number of
 //! threads.
 
+pub mod camera;
 pub mod campaign;
 pub mod coverage;
 pub mod export;
+pub mod optics;
 mod options;
 pub mod physics;
 pub mod raster;
@@ -43,6 +47,7 @@ pub use options::{Preset, RenderArgs, RenderSettings};
 use std::path::{Path, PathBuf};
 
 use crate::manifest::ManifestRow;
+use camera::CameraRaster;
 use campaign::DropSpec;
 use export::{CineSink, FolderSink, FrameFormat, FrameSink, PccHeader};
 use physics::{DropParams, Trajectory};
@@ -146,22 +151,43 @@ pub fn render_with_progress(
         }
     }
     if args.writes_manifest() {
-        let rows: Vec<ManifestRow> = report
-            .drops
-            .iter()
-            .map(|d| ManifestRow {
-                run: d.run.clone(),
-                path: export::run_input_path(&d.run, args.format),
-                sphere_radius_mm: d.truth.sphere_radius_mm,
-                drop_height_cm: Some(d.truth.drop_height_cm),
-                fps: Some(d.truth.fps),
-                mm_per_px: args.manifest_scale.then_some(d.truth.mm_per_px),
-                surface: Some(args.surface_name.clone()),
-                sphere_density_kg_m3: Some(d.truth.sphere_density_kg_m3),
-            })
-            .collect();
+        let bytes = if settings.preset == Preset::Real {
+            let rows: Vec<campaign::SetupManifestRow> = report
+                .drops
+                .iter()
+                .map(|d| campaign::SetupManifestRow {
+                    run: d.run.clone(),
+                    path: export::run_input_path(&d.run, args.format),
+                    sphere_radius_mm: d.truth.sphere_radius_mm,
+                    drop_height_cm: d.truth.drop_height_cm,
+                    setup: d
+                        .truth
+                        .camera
+                        .as_ref()
+                        .map_or_else(String::new, |c| c.setup.clone()),
+                    mm_per_px: args.manifest_scale.then_some(d.truth.mm_per_px),
+                })
+                .collect();
+            crate::dataset::csv_bytes(&rows)
+        } else {
+            let rows: Vec<ManifestRow> = report
+                .drops
+                .iter()
+                .map(|d| ManifestRow {
+                    run: d.run.clone(),
+                    path: export::run_input_path(&d.run, args.format),
+                    sphere_radius_mm: d.truth.sphere_radius_mm,
+                    drop_height_cm: Some(d.truth.drop_height_cm),
+                    fps: Some(d.truth.fps),
+                    mm_per_px: args.manifest_scale.then_some(d.truth.mm_per_px),
+                    surface: Some(args.surface_name.clone()),
+                    sphere_density_kg_m3: Some(d.truth.sphere_density_kg_m3),
+                    setup: None,
+                })
+                .collect();
+            crate::manifest::to_csv_bytes(&rows)
+        };
         let path = args.out.join("runs.csv");
-        let bytes = crate::manifest::to_csv_bytes(&rows);
         crate::io_util::write_atomic(&path, &bytes).map_err(|source| export::ExportError::Io {
             path: path.clone(),
             source,
@@ -242,6 +268,12 @@ fn exposure_samples(
         .collect()
 }
 
+/// The plain renderer, or a real camera's.
+enum Painter {
+    Plain(Box<Raster>),
+    Camera(Box<CameraRaster>),
+}
+
 /// Render one drop into `<out>/<run>/`.
 pub fn render_drop(
     spec: &DropSpec,
@@ -280,29 +312,47 @@ pub fn render_drop(
         physics::damping_for_restitution(&params, st.restitution, step).map_err(phys_err)?;
     let t_contact = contact_phase / st.fps;
     let first = Trajectory::simulate(&params, t_contact, t_contact, step).map_err(phys_err)?;
-    let t_rebound = first.bounces()[0].t_rebound_s;
-    let n0 = -(st.frames_before as i64);
-    let n1 = (t_rebound * st.fps).ceil() as i64 + st.frames_after as i64;
-    let t_window_end = n1 as f64 / st.fps + 0.5 * st.exposure_s;
-    let traj = Trajectory::simulate(&params, t_contact, t_window_end, step).map_err(phys_err)?;
-    let b = traj.bounces()[0];
-    if b.delta_max_m >= st.surface.pillar_height_m {
+    let b0 = first.bounces()[0];
+    let optics_on = st.optics.active();
+    // The movie's last contact: the first, or the second when the optics ask
+    // for it and the flight between is short enough.
+    let mut t_last_rebound = b0.t_rebound_s;
+    let flight_s = if g > 0.0 {
+        2.0 * b0.v_rebound_m_s / g
+    } else {
+        f64::INFINITY
+    };
+    if optics_on && flight_s * st.fps <= st.optics.second_bounce_frames as f64 {
+        let probe = Trajectory::simulate(
+            &params,
+            t_contact,
+            b0.t_rebound_s + flight_s + frame_dt,
+            step,
+        )
+        .map_err(phys_err)?;
+        if let Some(b1) = probe.bounces().get(1) {
+            t_last_rebound = b1.t_rebound_s;
+        }
+    }
+    if b0.delta_max_m >= st.surface.pillar_height_m {
         return Err(RenderError::OutsideModel {
             run: run.to_string(),
-            delta_max_mm: b.delta_max_m * 1e3,
+            delta_max_mm: b0.delta_max_m * 1e3,
             pillar_height_mm: st.surface.pillar_height_m * 1e3,
         });
     }
 
-    // ---- geometry
-    let mm_per_px = st
-        .mm_per_px
-        .unwrap_or_else(|| default_mm_per_px(spec.radius_mm));
+    // ---- geometry (a camera set-up may rescale and move things)
+    let setup = optics_on.then(|| optics::draw_setup(&st.optics, st.seed, &spec.setup));
+    let mm_per_px = st.mm_per_px.unwrap_or_else(|| {
+        default_mm_per_px(spec.radius_mm) * setup.map_or(1.0, |s| s.scale_factor)
+    });
     let m_per_px = mm_per_px * 1e-3;
     let radius_px = spec.radius_mm / mm_per_px;
-    let surface_row_px = st
-        .surface_row_px
-        .unwrap_or((0.72 * st.height_px as f64).round() + row_fraction);
+    let surface_row_px = st.surface_row_px.unwrap_or_else(|| match setup {
+        Some(s) => (0.72 * st.height_px as f64).round() + s.surface_shift_px,
+        None => (0.72 * st.height_px as f64).round() + row_fraction,
+    });
     let impact_column_px = 0.5 * st.width_px as f64 + column_offset * st.width_px as f64 / 16.0;
     let pillar_width_px = st.surface.pillar_width_m / m_per_px;
     let channel_width_px = st.surface.channel_width_m / m_per_px;
@@ -318,17 +368,68 @@ pub fn render_drop(
         pillar_phase_px: pillar_phase_frac * (pillar_width_px + channel_width_px),
     };
     let y_s = scene.surface_row_at(impact_column_px);
+    let mut look = st.look.clone();
+    let mut camera = optics_on.then(|| {
+        let frame = optics::FrameGeometry {
+            width_px: st.width_px,
+            height_px: st.height_px,
+            radius_px,
+        };
+        optics::draw(&st.optics, st.seed, &spec.setup, run, frame, &st.look)
+    });
+    if let Some(cam) = &camera {
+        look.blur_sigma_px = cam.truth.blur_sigma0_px;
+    }
+
+    // ---- the movie's frames
+    let n0 = match &mut camera {
+        Some(cam) if cam.truth.start_at_entry => {
+            let entry = optics::entry_frame(
+                &first,
+                &cam.geometry,
+                st.fps,
+                (impact_column_px, y_s - radius_px),
+                radius_px,
+                m_per_px,
+            );
+            cam.truth.release_in_view = entry.release_in_view;
+            cam.truth.t_release_s = entry.t_release_s;
+            entry.first_frame
+        }
+        Some(cam) => {
+            cam.truth.t_release_s = t_contact - v / g;
+            -(st.frames_before as i64)
+        }
+        None => -(st.frames_before as i64),
+    };
+    let n1 = (t_last_rebound * st.fps).ceil() as i64 + st.frames_after as i64;
+    let t_window_end = n1 as f64 / st.fps + 0.5 * st.exposure_s;
+    let traj = Trajectory::simulate(&params, t_contact, t_window_end, step).map_err(phys_err)?;
+    let b = traj.bounces()[0];
     let centre = |t: f64| -> (f64, f64) {
         let (d, _) = traj.state(t);
         (impact_column_px, y_s - radius_px + d / m_per_px)
     };
-    let mut dust_rng = rng_for(st.seed, "", "dust", 0);
-    let raster = Raster::new(scene, st.look.clone(), &mut dust_rng).map_err(|source| {
-        RenderError::Raster {
-            run: run.to_string(),
-            source,
+    if let Some(cam) = &mut camera {
+        if st.format != FrameFormat::Cine {
+            let mut pick = rng_for(st.seed, run, "missing", 0);
+            cam.truth.missing_frames =
+                optics::missing_frames(n0, st.optics.missing_frames, &mut pick);
         }
-    })?;
+    }
+    let mut dust_rng = rng_for(st.seed, "", "dust", 0);
+    let raster_err = |source| RenderError::Raster {
+        run: run.to_string(),
+        source,
+    };
+    let painter = match camera {
+        Some(cam) => Painter::Camera(Box::new(
+            CameraRaster::new(scene, look.clone(), cam, &mut dust_rng).map_err(raster_err)?,
+        )),
+        None => Painter::Plain(Box::new(
+            Raster::new(scene, look.clone(), &mut dust_rng).map_err(raster_err)?,
+        )),
+    };
 
     // ---- frames
     let dir = out.join(run);
@@ -356,14 +457,24 @@ pub fn render_drop(
         }
         FrameFormat::Cine => Box::new(CineSink::create(&dir.join(format!("{run}.cine")), &header)?),
     };
+    let missing: &[i64] = match &painter {
+        Painter::Camera(c) => &c.optics().truth.missing_frames,
+        Painter::Plain(_) => &[],
+    };
+    let span = (n1 - n0).max(1) as f64;
     for chunk in numbers.chunks(64) {
         let frames: Vec<(i64, crate::source::Frame)> = chunk
             .par_iter()
+            .filter(|n| !missing.contains(n))
             .map(|&n| {
                 let t = n as f64 / st.fps;
                 let centres = exposure_samples(&centre, t, st.exposure_s, st.look.motion_blur);
                 let mut rng = rng_for(st.seed, run, "frame", n);
-                (n, raster.frame(&centres, &mut rng))
+                let frame = match &painter {
+                    Painter::Plain(r) => r.frame(&centres, &mut rng),
+                    Painter::Camera(c) => c.frame(&centres, (n - n0) as f64 / span, &mut rng),
+                };
+                (n, frame)
             })
             .collect();
         sink.write_batch(&frames)?;
@@ -381,6 +492,10 @@ pub fn render_drop(
             let t = n as f64 / st.fps;
             let (x, z) = centre(t);
             let d = traj.state(t).0;
+            let image = match &painter {
+                Painter::Camera(c) => Some(c.optics().geometry.forward(x, z)),
+                Painter::Plain(_) => None,
+            };
             FrameTruth {
                 frame: n,
                 t_s: t,
@@ -388,6 +503,8 @@ pub fn render_drop(
                 z_px: z,
                 delta_mm: d.max(0.0) * 1e3,
                 in_contact: d > 0.0,
+                image_x_px: image.map(|p| p.0),
+                image_z_px: image.map(|p| p.1),
             }
         })
         .collect();
@@ -447,7 +564,11 @@ pub fn render_drop(
         damping_n_s_m: params.damping_n_s_m,
         integration_step_s: step,
         first_image_no: n0,
-        look: st.look.clone(),
+        camera: match &painter {
+            Painter::Camera(c) => Some(c.optics().truth.clone()),
+            Painter::Plain(_) => None,
+        },
+        look,
         frames: frames_truth,
     };
     export::write_truth(&dir.join("truth.json"), &truth)?;

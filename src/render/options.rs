@@ -8,6 +8,7 @@ use serde::Serialize;
 
 use super::campaign::{self, DropSpec};
 use super::export::FrameFormat;
+use super::optics::{OpticsSpec, Strength};
 use super::physics;
 use super::raster::Look;
 use super::RenderError;
@@ -27,6 +28,18 @@ pub enum Preset {
     /// flicker, 12 specks, a faint mirror reflection under the surface line,
     /// a slight surface tilt.
     Harsh,
+    /// Real backlit Phantom footage: `realistic`'s sensor plus every effect of
+    /// a real camera, each drawn per drop (or per camera set-up) from a wide
+    /// range: steel-ball rim 0–20 % over 1–4 px, halo 0–8 % over 1–4 px,
+    /// highlight 0–15 %; glossy strip 0–30 % over 1–4 px; top row −25…+25 %
+    /// over 1–2 px; dip 0–30 % of δ; blur σ 0.6–1.2 px at the focal row
+    /// growing to at most 2.5 px; barrel distortion 0–0.5 px at the corners;
+    /// roll −0.5…+0.5°; column pattern 0–1.5 %; 0–50 hot pixels; drift
+    /// 0–5 %; the movie starts as the sphere enters, goes on through a second
+    /// contact when the flight between takes at most 1 500 frames, and misses
+    /// one frame file in flight. Scale ±8 % and surface row ±10 px per set-up
+    /// (one set-up per radius and repeat).
+    Real,
 }
 
 impl Preset {
@@ -35,6 +48,7 @@ impl Preset {
             Preset::Clean => "clean",
             Preset::Realistic => "realistic",
             Preset::Harsh => "harsh",
+            Preset::Real => "real",
         }
     }
 
@@ -62,7 +76,7 @@ impl Preset {
                 bit_depth: 12,
                 ..base
             },
-            Preset::Realistic => Look {
+            Preset::Realistic | Preset::Real => Look {
                 gradient: 0.12,
                 blur_sigma_px: 0.7,
                 motion_blur: true,
@@ -223,6 +237,68 @@ pub struct RenderArgs {
     #[arg(long)]
     pub sphere_transmission: Option<f64>,
 
+    // ---- a real camera (off unless given, drawn per drop with --preset real)
+    /// Steel ball's light rim just inside the outline, fraction of the backlight [real: 0–0.2].
+    #[arg(long)]
+    pub rim: Option<f64>,
+    /// Width over which the rim fades, px [real: 1–4; else 2].
+    #[arg(long)]
+    pub rim_width_px: Option<f64>,
+    /// Faint bright halo just outside the outline, fraction of the backlight [real: 0–0.08].
+    #[arg(long)]
+    pub halo: Option<f64>,
+    /// Width over which the halo fades, px [real: 1–4; else 2].
+    #[arg(long)]
+    pub halo_width_px: Option<f64>,
+    /// Soft highlight near the sphere's middle (Gaussian, σ 0.2–0.35 R), fraction of the backlight [real: 0–0.15].
+    #[arg(long)]
+    pub highlight: Option<f64>,
+    /// Glossy band top: bright strip just below the band's top edge, fraction of the backlight [real: 0–0.3].
+    #[arg(long)]
+    pub gloss: Option<f64>,
+    /// Depth of the glossy strip, px [real: 1–4; else 2].
+    #[arg(long)]
+    pub gloss_width_px: Option<f64>,
+    /// Pillar tops seen edge-on: the band's top rows times (1 + this) [real: −0.25…0.25].
+    #[arg(long, allow_hyphen_values = true)]
+    pub top_row: Option<f64>,
+    /// Depth of the top row, px [real: 1–2; else 1].
+    #[arg(long)]
+    pub top_row_width_px: Option<f64>,
+    /// Band top dipping under the sphere in contact, fraction of the sphere's local depth (≤ δ) [real: 0–0.3].
+    #[arg(long)]
+    pub dip: Option<f64>,
+    /// Defocus: blur σ grows by this many px per row away from --focus-row-px (σ at the focus: --blur-px) [real: up to σ 2.5 px].
+    #[arg(long)]
+    pub defocus_px_per_row: Option<f64>,
+    /// The row in best focus, px [real: anywhere in the frame; else 0].
+    #[arg(long)]
+    pub focus_row_px: Option<f64>,
+    /// Barrel distortion: inward displacement of the image corners, px [real: 0–0.5].
+    #[arg(long)]
+    pub distortion_px: Option<f64>,
+    /// Camera roll about the image centre, degrees [real: −0.5…0.5].
+    #[arg(long, allow_hyphen_values = true)]
+    pub roll_deg: Option<f64>,
+    /// Column fixed-pattern noise: r.m.s. per-column gain and offset (fraction) [real: 0–0.015].
+    #[arg(long)]
+    pub column_noise: Option<f64>,
+    /// Number of stuck-bright hot pixels [real: 0–50].
+    #[arg(long)]
+    pub hot_pixels: Option<usize>,
+    /// Slow illumination drift over the movie, amplitude on each side (fraction) [real: 0–0.05].
+    #[arg(long)]
+    pub drift: Option<f64>,
+    /// Frame files in flight left unwritten per drop [real: 1].
+    #[arg(long)]
+    pub missing_frames: Option<usize>,
+    /// Start the movie as the sphere enters at the top edge (or at its release, when in view) [real: true].
+    #[arg(long)]
+    pub start_at_entry: Option<bool>,
+    /// Go on through a second contact when the flight to it takes at most this many frames; 0: never [real: 1500].
+    #[arg(long)]
+    pub second_bounce_frames: Option<usize>,
+
     /// Write mm_per_px into runs.csv (by default the pipeline must measure it).
     #[arg(long)]
     pub manifest_scale: bool,
@@ -233,6 +309,8 @@ pub struct RenderArgs {
 pub struct RenderSettings {
     pub preset: Preset,
     pub look: Look,
+    /// A real camera's effects (all off outside `--preset real` unless given).
+    pub optics: OpticsSpec,
     pub format: FrameFormat,
     pub seed: u64,
     pub fps: f64,
@@ -368,9 +446,11 @@ impl RenderArgs {
         if self.repeats == 0 || self.repeats > 1000 {
             return Err(invalid("repeats", self.repeats, "must lie in 1‥1000"));
         }
+        let optics = self.optics(&look)?;
         Ok(RenderSettings {
             preset: self.preset,
             look,
+            optics,
             format: self.format,
             seed: self.seed,
             fps,
@@ -387,6 +467,111 @@ impl RenderArgs {
             restitution: self.restitution,
             gravity_m_s2: self.gravity_m_s2,
         })
+    }
+
+    /// The real-camera effects: the preset's ranges, each replaced by its
+    /// option when given.
+    fn optics(&self, look: &Look) -> Result<OpticsSpec, RenderError> {
+        let mut o = if self.preset == Preset::Real {
+            OpticsSpec::real()
+        } else {
+            OpticsSpec::off()
+        };
+        if self.preset == Preset::Real {
+            if let Some(b) = self.blur_px {
+                o.blur_sigma0_px = Strength::Fixed(b);
+            }
+        } else {
+            o.blur_sigma0_px = Strength::Fixed(look.blur_sigma_px);
+        }
+        let fix = |target: &mut Strength,
+                   v: Option<f64>,
+                   name: &'static str,
+                   (lo, hi): (f64, f64)|
+         -> Result<(), RenderError> {
+            if let Some(v) = v {
+                if !(v.is_finite() && (lo..=hi).contains(&v)) {
+                    return Err(invalid(name, v, &format!("must lie in [{lo}, {hi}]")));
+                }
+                *target = Strength::Fixed(v);
+            }
+            Ok(())
+        };
+        fix(&mut o.rim, self.rim, "rim", (0.0, 1.0))?;
+        fix(
+            &mut o.rim_width_px,
+            self.rim_width_px,
+            "rim-width-px",
+            (0.1, 20.0),
+        )?;
+        fix(&mut o.halo, self.halo, "halo", (0.0, 1.0))?;
+        fix(
+            &mut o.halo_width_px,
+            self.halo_width_px,
+            "halo-width-px",
+            (0.1, 20.0),
+        )?;
+        fix(&mut o.highlight, self.highlight, "highlight", (0.0, 1.0))?;
+        fix(&mut o.gloss, self.gloss, "gloss", (0.0, 1.0))?;
+        fix(
+            &mut o.gloss_width_px,
+            self.gloss_width_px,
+            "gloss-width-px",
+            (0.1, 20.0),
+        )?;
+        fix(&mut o.top_row, self.top_row, "top-row", (-1.0, 1.0))?;
+        fix(
+            &mut o.top_row_width_px,
+            self.top_row_width_px,
+            "top-row-width-px",
+            (0.1, 20.0),
+        )?;
+        fix(&mut o.dip, self.dip, "dip", (0.0, 1.0))?;
+        fix(
+            &mut o.defocus_px_per_row,
+            self.defocus_px_per_row,
+            "defocus-px-per-row",
+            (0.0, 0.1),
+        )?;
+        fix(
+            &mut o.focus_row_px,
+            self.focus_row_px,
+            "focus-row-px",
+            (0.0, self.height_px as f64),
+        )?;
+        fix(
+            &mut o.corner_displacement_px,
+            self.distortion_px,
+            "distortion-px",
+            (0.0, 5.0),
+        )?;
+        fix(&mut o.roll_deg, self.roll_deg, "roll-deg", (-5.0, 5.0))?;
+        fix(
+            &mut o.column_noise,
+            self.column_noise,
+            "column-noise",
+            (0.0, 0.2),
+        )?;
+        fix(
+            &mut o.hot_pixels,
+            self.hot_pixels.map(|n| n as f64),
+            "hot-pixels",
+            (0.0, 10_000.0),
+        )?;
+        fix(&mut o.drift, self.drift, "drift", (0.0, 0.5))?;
+        if let Some(n) = self.missing_frames {
+            if n > 100 {
+                return Err(invalid("missing-frames", n, "must be ≤ 100"));
+            }
+            o.missing_frames = n;
+        }
+        if let Some(b) = self.start_at_entry {
+            o.start_at_entry = b;
+        }
+        if let Some(n) = self.second_bounce_frames {
+            o.second_bounce_frames = n;
+        }
+        Ok(o)
     }
 
     /// The drops these options ask for.

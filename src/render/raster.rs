@@ -70,6 +70,17 @@ pub struct Look {
     pub reflection_depth_px: f64,
 }
 
+impl Look {
+    /// The largest DN value: 255 for 8 bits, else 4095.
+    pub fn white_dn(&self) -> u16 {
+        if self.bit_depth == 8 {
+            255
+        } else {
+            4095
+        }
+    }
+}
+
 /// Where things are in the picture, in px.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Scene {
@@ -126,11 +137,11 @@ pub struct Raster {
 
 /// Rows and columns (half-open) where a layer is non-zero.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Region {
-    r0: usize,
-    r1: usize,
-    c0: usize,
-    c1: usize,
+pub(super) struct Region {
+    pub(super) r0: usize,
+    pub(super) r1: usize,
+    pub(super) c0: usize,
+    pub(super) c1: usize,
 }
 
 impl Region {
@@ -144,7 +155,7 @@ impl Region {
     }
 
     /// Grown by `by` on every side, clipped to an `h × w` image.
-    fn grow(self, by: usize, h: usize, w: usize) -> Region {
+    pub(super) fn grow(self, by: usize, h: usize, w: usize) -> Region {
         Region {
             r0: self.r0.saturating_sub(by),
             r1: (self.r1 + by).min(h),
@@ -223,11 +234,7 @@ impl Raster {
 
     /// The largest DN value: 255 or 4095.
     pub fn white_dn(&self) -> u16 {
-        if self.look.bit_depth == 8 {
-            255
-        } else {
-            4095
-        }
+        self.look.white_dn()
     }
 
     /// The noise-free image in fractions of white, for a sphere whose centre
@@ -267,44 +274,13 @@ impl Raster {
         let term = self.sphere_term(centres);
         let (h, w) = (self.scene.height_px, self.scene.width_px);
         let white = f64::from(self.white_dn());
-        let gain = if self.look.flicker > 0.0 {
-            1.0 + self.look.flicker * rng.sample::<f64, _>(StandardNormal)
-        } else {
-            1.0
-        };
-        let e_per_dn = self.look.full_well_e / white;
-        let read = self.look.read_noise_dn;
-        let read_var = read * read;
-        let mut frame = Frame::zeros((h, w));
-        for i in 0..h {
-            for j in 0..w {
-                let v = f64::from(self.pixel(i, j, term.as_ref())) * gain * white;
-                let noisy = if e_per_dn > 0.0 {
-                    let lambda = v.max(0.0) * e_per_dn;
-                    if lambda < 50.0 {
-                        // Exact Poisson where the normal approximation would be poor.
-                        let e = Poisson::new(lambda.max(1e-12)).map_or(0.0, |p| p.sample(rng));
-                        let r: f64 = if read > 0.0 {
-                            rng.sample(StandardNormal)
-                        } else {
-                            0.0
-                        };
-                        e / e_per_dn + read * r
-                    } else {
-                        // Shot (λ/e² DN²) and read noise as one normal draw.
-                        let sd = (lambda / (e_per_dn * e_per_dn) + read_var).sqrt();
-                        v + sd * rng.sample::<f64, _>(StandardNormal)
-                    }
-                } else if read > 0.0 {
-                    v + read * rng.sample::<f64, _>(StandardNormal)
-                } else {
-                    v
-                };
-                // round half up (values are ≥ 0 after the clamp)
-                frame[[i, j]] = (noisy.clamp(0.0, white) + 0.5) as u16;
-            }
-        }
-        frame
+        expose(
+            &self.look,
+            white,
+            (h, w),
+            |i, j| f64::from(self.pixel(i, j, term.as_ref())),
+            rng,
+        )
     }
 
     /// `G ∗ (M + Mr)` on the region around the sphere (and its reflection).
@@ -418,6 +394,58 @@ impl Raster {
     }
 }
 
+/// The sensor: `signal(i, j)` (fraction of white) times the flicker gain,
+/// with shot and read noise, rounded and clipped to `0..=white`. Shot noise
+/// is exact Poisson below 50 electrons and its normal approximation above,
+/// where the two agree far below one DN. `rng` must be seeded for this frame
+/// alone; draws: the gain, then pixels row by row.
+pub(super) fn expose<R: Rng>(
+    look: &Look,
+    white: f64,
+    (h, w): (usize, usize),
+    signal: impl Fn(usize, usize) -> f64,
+    rng: &mut R,
+) -> Frame {
+    let gain = if look.flicker > 0.0 {
+        1.0 + look.flicker * rng.sample::<f64, _>(StandardNormal)
+    } else {
+        1.0
+    };
+    let e_per_dn = look.full_well_e / white;
+    let read = look.read_noise_dn;
+    let read_var = read * read;
+    let mut frame = Frame::zeros((h, w));
+    for i in 0..h {
+        for j in 0..w {
+            let v = signal(i, j) * gain * white;
+            let noisy = if e_per_dn > 0.0 {
+                let lambda = v.max(0.0) * e_per_dn;
+                if lambda < 50.0 {
+                    // Exact Poisson where the normal approximation would be poor.
+                    let e = Poisson::new(lambda.max(1e-12)).map_or(0.0, |p| p.sample(rng));
+                    let r: f64 = if read > 0.0 {
+                        rng.sample(StandardNormal)
+                    } else {
+                        0.0
+                    };
+                    e / e_per_dn + read * r
+                } else {
+                    // Shot (λ/e² DN²) and read noise as one normal draw.
+                    let sd = (lambda / (e_per_dn * e_per_dn) + read_var).sqrt();
+                    v + sd * rng.sample::<f64, _>(StandardNormal)
+                }
+            } else if read > 0.0 {
+                v + read * rng.sample::<f64, _>(StandardNormal)
+            } else {
+                v
+            };
+            // round half up (values are ≥ 0 after the clamp)
+            frame[[i, j]] = (noisy.clamp(0.0, white) + 0.5) as u16;
+        }
+    }
+    frame
+}
+
 /// A layer that is zero outside `region`, stored row-major over it.
 #[derive(Debug)]
 struct Term {
@@ -498,7 +526,7 @@ impl Term {
     }
 }
 
-fn validate(scene: &Scene, look: &Look) -> Result<(), RasterError> {
+pub(super) fn validate(scene: &Scene, look: &Look) -> Result<(), RasterError> {
     let bad = |name, value: f64, allowed| RasterError::Invalid {
         name,
         value: value.to_string(),
@@ -581,7 +609,7 @@ fn validate(scene: &Scene, look: &Look) -> Result<(), RasterError> {
 /// Illumination: `L · (1 + G·(0.6 u + 0.4 v) − 0.5 G·(u² + v²)/2)` with
 /// `u, v ∈ [−1, 1]` the normalised column and row from the frame centre: a
 /// ramp brighter to the lower right and a vignette, both scaled by `G`.
-fn illumination(look: &Look, i: f64, j: f64, h: f64, w: f64) -> f64 {
+pub(super) fn illumination(look: &Look, i: f64, j: f64, h: f64, w: f64) -> f64 {
     let u = (j - 0.5 * (w - 1.0)) / (0.5 * w);
     let v = (i - 0.5 * (h - 1.0)) / (0.5 * h);
     let g = look.gradient;
@@ -677,7 +705,7 @@ fn disk_coverage(region: Region, centres: &[(f64, f64)], r: f64, weight: f64) ->
 
 /// A normalised Gaussian kernel of standard deviation `sigma` (px) sampled
 /// at integer offsets over ±⌈4σ⌉; `[1]` when `sigma` is 0.
-fn gaussian_kernel(sigma: f64) -> Vec<f32> {
+pub(super) fn gaussian_kernel(sigma: f64) -> Vec<f32> {
     if sigma <= 0.0 {
         return vec![1.0];
     }
@@ -747,7 +775,7 @@ fn blur_region(img: &mut Array2<f32>, kernel: &[f32], region: Region) -> Region 
 }
 
 /// Multiplicative sensor dust: a few soft dark specks, `1 − a·exp(−ρ²/2s²)`.
-fn dust_mask<R: Rng>(h: usize, w: usize, count: usize, rng: &mut R) -> Array2<f32> {
+pub(super) fn dust_mask<R: Rng>(h: usize, w: usize, count: usize, rng: &mut R) -> Array2<f32> {
     let mut mask = Array2::<f32>::ones((h, w));
     for _ in 0..count {
         let cx = rng.gen_range(0.0..w as f64);

@@ -6,6 +6,28 @@
 //! `delta_mm = max(0, (z_px + radius_px − y_s(x_px)) · mm_per_px)` with
 //! `y_s(x) = surface_row_px + surface_slope · x` (SPEC §1); `z_px` and
 //! `x_px` are the sphere centre at mid-exposure `t_s = frame / fps`.
+//!
+//! # Under a real camera's optics (`camera` present)
+//!
+//! Every geometric field — `x_px`, `z_px`, `radius_px`, `impact_column_px`,
+//! `surface_row_px`, `surface_slope`, `mm_per_px` — is in the **scene
+//! frame**: the undistorted, unrolled image, in which the surface line is
+//! `y_s(x)`, gravity points along +z (down the columns) and the scale is
+//! `mm_per_px` everywhere. The scale at the image centre of the recorded
+//! picture is the same `mm_per_px` (distortion leaves the centre's scale
+//! unchanged). Physical truths (`v_impact_m_s`, `delta_max_mm`, `a_max_mm`,
+//! `tau_c_s`, `t_contact_s`, …) do not depend on the optics.
+//!
+//! A scene point `(x, z)` appears in the recorded image at `(x_d, z_d)`:
+//! with `c = camera.centre_px = ((W − 1)/2, (H − 1)/2)` (pixel-centre
+//! convention) and `θ = camera.roll_deg`, first the roll
+//! `(x', z') − c = Rot(θ)·((x, z) − c)`, `Rot(θ) = [[cos θ, −sin θ], [sin θ, cos θ]]`
+//! (θ > 0: the surface line's row grows to the right by tan θ per column, and
+//! the sphere falls along `(−sin θ, cos θ)` in (column, row)); then the
+//! barrel distortion `(x_d, z_d) − c = ((x', z') − c)·(1 + k1·r²)`,
+//! `r = |(x', z') − c|`, `k1 = camera.k1_per_px2 < 0`; the corner pixel moves
+//! inward by `camera.corner_displacement_px = |k1|·r_corner³`. Each frame's
+//! `image_x_px, image_z_px` is its sphere centre mapped this way.
 
 use serde::{Deserialize, Serialize};
 
@@ -48,6 +70,12 @@ pub struct FrameTruth {
     pub delta_mm: f64,
     /// δ > 0 at mid-exposure.
     pub in_contact: bool,
+    /// The sphere centre in the recorded image (after roll and distortion),
+    /// when a camera model is on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_x_px: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_z_px: Option<f64>,
 }
 
 /// Everything known exactly about one rendered drop.
@@ -103,5 +131,86 @@ pub struct Truth {
     pub first_image_no: i64,
     /// Every effect as rendered.
     pub look: Look,
+    /// A real camera's optics and sensor as realised for this drop (absent
+    /// when every one of those effects is off, as in `clean`, `realistic`
+    /// and `harsh`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraTruth>,
     pub frames: Vec<FrameTruth>,
+}
+
+/// The optics and sensor of a real camera, as realised for one drop. The
+/// strengths are fractions of the local backlight `B` unless a unit says
+/// otherwise; a shape `g(u; w) = ½(1 + cos(π u / w))` for `0 ≤ u < w` (else
+/// 0) is 1 at `u = 0` and fades smoothly to 0 at `u = w`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraTruth {
+    /// The camera set-up this drop was filmed with: runs sharing it share the
+    /// scale, surface position, distortion, roll, focus, column pattern and
+    /// hot pixels.
+    pub setup: String,
+    /// Centre of distortion and roll, `((W − 1)/2, (H − 1)/2)`, px.
+    pub centre_px: [f64; 2],
+    /// Radial distortion coefficient (px⁻², ≤ 0: barrel), applied after the roll.
+    pub k1_per_px2: f64,
+    /// Inward displacement of the image corners, `|k1|·r_corner³`, px.
+    pub corner_displacement_px: f64,
+    /// Camera roll θ, degrees (see the module doc for the sign).
+    pub roll_deg: f64,
+    /// Optical blur σ(row) = `blur_sigma0_px + defocus_px_per_row·|row − focus_row_px|`
+    /// (Gaussian, in the recorded image's rows).
+    pub blur_sigma0_px: f64,
+    pub defocus_px_per_row: f64,
+    pub focus_row_px: f64,
+    /// σ at the best and worst row of the frame, px.
+    pub blur_sigma_min_px: f64,
+    pub blur_sigma_max_px: f64,
+    /// Light rim inside the outline: `rim · g(R − ρ; rim_width_px)` at distance ρ from the centre.
+    pub rim: f64,
+    pub rim_width_px: f64,
+    /// Halo outside the outline: `halo · g(ρ − R; halo_width_px)`.
+    pub halo: f64,
+    pub halo_width_px: f64,
+    /// Highlight on the sphere: `highlight · exp(−|p − c − offset|² / (2 σ²))`.
+    pub highlight: f64,
+    pub highlight_sigma_px: f64,
+    /// Offset of the highlight from the centre (column, row), px.
+    pub highlight_offset_px: [f64; 2],
+    /// Glossy band top: light `gloss` added in the strip of `gloss_width_px`
+    /// just below the band's top edge, where the sphere's mirror image (in the
+    /// surface line) does not cover it.
+    pub gloss: f64,
+    pub gloss_width_px: f64,
+    /// Pillar tops seen edge-on: the band's top `top_row_width_px` rows have
+    /// `(1 + top_row)` times the band's transmission.
+    pub top_row: f64,
+    pub top_row_width_px: f64,
+    /// Pillars dipping under the sphere: during contact the band's top edge at
+    /// column x lies `dip · max(0, sphere bottom at x − y_s(x))` below `y_s(x)`
+    /// (at most `dip · δ`, at the sphere's column, zero beyond the contact width).
+    pub dip: f64,
+    /// Column fixed pattern: per-column gain `1 + column_gain_rms·n₁` and
+    /// offset `column_offset_rms·n₂` (fraction of white), `n` standard normal.
+    pub column_gain_rms: f64,
+    pub column_offset_rms: f64,
+    /// Stuck-bright pixels `[row, column]` and the value they read (DN).
+    pub hot_pixels: Vec<[usize; 2]>,
+    pub hot_pixel_dn: u16,
+    /// Illumination drift: gain `1 + (1 − u)·drift_left·sin(φ_l + π·cycles·s)
+    /// + u·drift_right·sin(φ_r + π·cycles·s)` with `u = column/(W − 1)` and
+    /// `s ∈ [0, 1]` the time through the movie.
+    pub drift_left: f64,
+    pub drift_right: f64,
+    pub drift_phase_left: f64,
+    pub drift_phase_right: f64,
+    pub drift_cycles: f64,
+    /// Image numbers whose frame file was not written.
+    pub missing_frames: Vec<i64>,
+    /// The movie starts as the sphere enters at the top edge (or at its
+    /// release when that is in view), not `frames_before` images before contact.
+    pub start_at_entry: bool,
+    /// The sphere's release is in view (it hangs still until `t_release_s`).
+    pub release_in_view: bool,
+    /// Release instant, s after the trigger.
+    pub t_release_s: f64,
 }

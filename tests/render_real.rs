@@ -1,0 +1,364 @@
+//! `dropscope render --preset real`: each real-camera effect alone at its
+//! strongest has the stated size, the realised values in `truth.json` are
+//! what was drawn, set-ups are shared, and the files are deterministic.
+
+use std::path::Path;
+
+use dropscope::render::camera::CameraRaster;
+use dropscope::render::optics::{draw, FrameGeometry, OpticsSpec, Strength};
+use dropscope::render::raster::Scene;
+use dropscope::render::truth::Truth;
+use dropscope::render::{default_mm_per_px, render, rng_for, Preset};
+
+use crate::render::{args, clean_scene, files, pool};
+use dropscope::render::export::{frame_file_name, FrameFormat};
+
+/// A clean 12-bit look (uniform backlight 0.75, transmission 0.06, no blur,
+/// no noise) seen through the camera `spec`.
+fn camera(spec: &OpticsSpec, scene: Scene) -> CameraRaster {
+    let look = Preset::Clean.look();
+    let frame = FrameGeometry {
+        width_px: scene.width_px,
+        height_px: scene.height_px,
+        radius_px: scene.radius_px,
+    };
+    let optics = draw(spec, 1, "setup", "run", frame, &look);
+    CameraRaster::new(scene, look, optics, &mut rng_for(1, "", "dust", 0)).unwrap()
+}
+
+fn fade(u: f64, w: f64) -> f64 {
+    if u < w {
+        0.5 * (1.0 + (std::f64::consts::PI * u / w).cos())
+    } else {
+        0.0
+    }
+}
+
+const B: f64 = 0.75;
+const TAU_S: f64 = 0.06;
+
+/// Rim 20 % over 4 px, halo 8 % over 4 px, highlight 15 %, no blur: a row
+/// through the centre shows, pixel by pixel, `B·(τs + rim·g(R − ρ) +
+/// highlight·H)` inside and `B·(1 + halo·g(ρ − R))` outside (pixels wholly
+/// on one side of the outline, where the formula is exact; f32 storage:
+/// 1e-6). The true outline stays the geometric circle: the coverage-weighted
+/// edge pixels carry the rest.
+#[test]
+fn the_steel_ball_look_has_its_stated_levels() {
+    let spec = OpticsSpec {
+        rim: Strength::Fixed(0.2),
+        rim_width_px: Strength::Fixed(4.0),
+        halo: Strength::Fixed(0.08),
+        halo_width_px: Strength::Fixed(4.0),
+        highlight: Strength::Fixed(0.15),
+        ..OpticsSpec::off()
+    };
+    let (cx, cz, r) = (100.0, 60.0, 40.0);
+    let cam = camera(&spec, clean_scene(200, 160, r, 130.0, 0.0));
+    let t = &cam.optics().truth;
+    assert_eq!(
+        (t.rim, t.rim_width_px, t.halo, t.highlight),
+        (0.2, 4.0, 0.08, 0.15)
+    );
+    let sig = cam.signal(&[(cx, cz)]);
+    let hl = |x: f64, z: f64| {
+        let (hx, hz) = (cx + t.highlight_offset_px[0], cz + t.highlight_offset_px[1]);
+        let s = t.highlight_sigma_px;
+        t.highlight * (-((x - hx).powi(2) + (z - hz).powi(2)) / (2.0 * s * s)).exp()
+    };
+    let mut checked = 0;
+    for j in 40..100 {
+        let rho = cx - j as f64;
+        let v = f64::from(sig[[60, j]]);
+        let expected = if rho <= r - 0.75 {
+            B * (TAU_S + 0.2 * fade(r - rho, 4.0) + hl(j as f64, cz))
+        } else if rho >= r + 0.75 {
+            B * (1.0 + 0.08 * fade(rho - r, 4.0))
+        } else {
+            continue;
+        };
+        assert!((v - expected).abs() < 1e-6, "column {j}: {v} vs {expected}");
+        checked += 1;
+    }
+    assert!(checked > 50);
+    // the rim is at its full 20 % just inside the outline, the halo at 8 % just outside
+    let just_in = f64::from(sig[[60, 61]]) / B - TAU_S - hl(61.0, cz);
+    assert!((just_in - 0.2 * fade(1.0, 4.0)).abs() < 1e-6, "{just_in}");
+    let just_out = f64::from(sig[[60, 59]]) / B - 1.0;
+    assert!(
+        (just_out - 0.08 * fade(1.0, 4.0)).abs() < 1e-6,
+        "{just_out}"
+    );
+}
+
+/// The 50 % crossing of the outline's profile (between the background and
+/// the sphere's dark level read 20 px inside) on a blurred image: with the
+/// rim it lies inside the true outline, so that a silhouette radius comes
+/// out small — by 0.1–0.5 px at the strongest rim (20 % over 4 px) under a
+/// blur of σ 1.5 px; without the rim it is on the outline within 0.06 px
+/// (the blurred 40 px circle's 50 % level lies ~σ²/2R = 0.03 px inside it,
+/// plus the linear interpolation between pixels).
+#[test]
+fn the_rim_makes_a_silhouette_radius_small_by_a_fraction_of_a_pixel() {
+    let shrink = |rim: f64| {
+        let spec = OpticsSpec {
+            rim: Strength::Fixed(rim),
+            rim_width_px: Strength::Fixed(4.0),
+            blur_sigma0_px: Strength::Fixed(1.5),
+            ..OpticsSpec::off()
+        };
+        let (cx, cz, r) = (100.25, 60.0, 40.0);
+        let cam = camera(&spec, clean_scene(200, 160, r, 130.0, 0.0));
+        let sig = cam.signal(&[(cx, cz)]);
+        let bg = f64::from(sig[[60, 5]]);
+        let dark = f64::from(sig[[60, 80]]);
+        let half = 0.5 * (bg + dark);
+        // walk in from the left until the profile drops below half
+        let j = (40..100).find(|&j| f64::from(sig[[60, j]]) < half).unwrap();
+        let (a, b) = (f64::from(sig[[60, j - 1]]), f64::from(sig[[60, j]]));
+        let x = (j - 1) as f64 + (a - half) / (a - b);
+        x - (cx - r)
+    };
+    let plain = shrink(0.0);
+    assert!(plain.abs() < 0.06, "{plain}");
+    let with_rim = shrink(0.2);
+    assert!(
+        (0.1..0.5).contains(&(with_rim - plain)),
+        "crossing moved in by {} px",
+        with_rim - plain
+    );
+}
+
+/// Glossy strip 30 % over 3 px and a top row at −25 % over 2 px, against
+/// the same scene without them: far from the sphere the strip adds
+/// `B·gloss` and the top row scales the band by 0.75; where the sphere's
+/// mirror image (the sphere 3 px into the surface) covers the strip, the
+/// gloss is gone.
+#[test]
+fn the_glossy_strip_and_the_top_row_have_their_levels_and_the_mirror_darkens_the_strip() {
+    let (r, row) = (40.0, 130.0);
+    let scene = clean_scene(200, 200, r, row, 0.0);
+    let plain = camera(&OpticsSpec::off(), scene.clone());
+    let gloss = camera(
+        &OpticsSpec {
+            gloss: Strength::Fixed(0.3),
+            gloss_width_px: Strength::Fixed(3.0),
+            ..OpticsSpec::off()
+        },
+        scene.clone(),
+    );
+    let top = camera(
+        &OpticsSpec {
+            top_row: Strength::Fixed(-0.25),
+            top_row_width_px: Strength::Fixed(2.0),
+            ..OpticsSpec::off()
+        },
+        scene,
+    );
+    // the sphere's bottom 3 px below the line: its mirror covers the strip
+    // over the contact chord (±15 px at the line)
+    let centre = [(100.0, row + 3.0 - r)];
+    let p = plain.signal(&centre);
+    let g = gloss.signal(&centre);
+    let t = top.signal(&centre);
+    for i in [131, 132] {
+        // rows 131, 132 lie wholly in the strip (130.5‥132.5 ⊂ 130‥133)
+        for j in [10, 190] {
+            let added = f64::from(g[[i, j]] - p[[i, j]]);
+            assert!((added - B * 0.3).abs() < 1e-6, "row {i} col {j}: {added}");
+        }
+        for j in 95..106 {
+            let added = f64::from(g[[i, j]] - p[[i, j]]);
+            assert!(
+                added.abs() < 1e-6,
+                "row {i} col {j}: {added} under the mirror"
+            );
+        }
+    }
+    // rows 130.5‥131.5 wholly in the top row (130‥132), 133 wholly below it
+    for j in [10, 60, 190] {
+        let ratio = f64::from(t[[131, j]] / p[[131, j]]);
+        assert!((ratio - 0.75).abs() < 1e-5, "col {j}: {ratio}");
+        assert!((t[[133, j]] - p[[133, j]]).abs() < 1e-6);
+    }
+}
+
+fn truth(path: &Path) -> Truth {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// A `real` campaign of two radii × two heights: runs.csv holds only run,
+/// path, R, H and setup; drops of one radius share their set-up's camera
+/// (scale, surface, distortion, roll, focus, column pattern, hot pixels),
+/// other radii get another; the per-drop look differs from drop to drop and
+/// every realised value lies in the preset's range.
+#[test]
+fn a_real_campaign_shares_camera_set_ups_per_radius() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    render(&args(&[
+        "--out",
+        out,
+        "--campaign",
+        "--preset",
+        "real",
+        "--radii-mm",
+        "3,5",
+        "--heights-cm",
+        "25,50",
+        "--start-at-entry",
+        "false",
+        "--frames-before",
+        "2",
+        "--frames-after",
+        "1",
+        "--seed",
+        "4",
+    ]))
+    .unwrap();
+    let csv = std::fs::read_to_string(dir.path().join("runs.csv")).unwrap();
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        "run,path,sphere_radius_mm,drop_height_cm,setup"
+    );
+    let runs = dropscope::manifest::read_manifest(&dir.path().join("runs.csv")).unwrap();
+    assert_eq!(runs.len(), 4);
+    assert_eq!(runs[0].setup.as_deref(), Some("cam_R3mm_01"));
+    assert_eq!(runs[1].setup, runs[0].setup);
+    assert_eq!(runs[2].setup.as_deref(), Some("cam_R5mm_01"));
+    let t: Vec<Truth> = runs
+        .iter()
+        .map(|r| truth(&r.path.join("truth.json")))
+        .collect();
+    let c: Vec<_> = t.iter().map(|t| t.camera.clone().unwrap()).collect();
+    let shared = |a: usize, b: usize| {
+        t[a].mm_per_px == t[b].mm_per_px
+            && t[a].surface_row_px == t[b].surface_row_px
+            && c[a].k1_per_px2 == c[b].k1_per_px2
+            && c[a].roll_deg == c[b].roll_deg
+            && c[a].focus_row_px == c[b].focus_row_px
+            && c[a].blur_sigma0_px == c[b].blur_sigma0_px
+            && c[a].column_gain_rms == c[b].column_gain_rms
+            && c[a].hot_pixels == c[b].hot_pixels
+    };
+    assert!(shared(0, 1) && shared(2, 3));
+    let zoom = |k: usize| t[k].mm_per_px / default_mm_per_px(t[k].sphere_radius_mm);
+    assert!(c[0].k1_per_px2 != c[2].k1_per_px2 && zoom(0) != zoom(2));
+    assert!(c[0].rim != c[1].rim && c[0].gloss != c[1].gloss);
+    for (t, c) in t.iter().zip(&c) {
+        assert_eq!(t.preset, "real");
+        assert!((0.0..=0.2).contains(&c.rim) && (1.0..=4.0).contains(&c.rim_width_px));
+        assert!((0.0..=0.08).contains(&c.halo) && (0.0..=0.3).contains(&c.gloss));
+        assert!((-0.25..=0.25).contains(&c.top_row) && (0.0..=0.3).contains(&c.dip));
+        assert!((0.0..=0.5).contains(&c.corner_displacement_px) && c.roll_deg.abs() <= 0.5);
+        assert!(c.blur_sigma_min_px >= 0.6 && c.blur_sigma_max_px <= 2.5 + 1e-12);
+        assert!(c.hot_pixels.len() <= 50 && c.column_gain_rms <= 0.015);
+        // the scale at R_px 75‥87.5 ± 8 %
+        let r_px = t.sphere_radius_mm / t.mm_per_px;
+        assert!((68.0..96.0).contains(&r_px), "{r_px}");
+        // the mapped centre is the scene centre through roll and distortion
+        let f = &t.frames[0];
+        let th = c.roll_deg.to_radians();
+        let (u, v) = (f.x_px - c.centre_px[0], f.z_px - c.centre_px[1]);
+        let (u, v) = (u * th.cos() - v * th.sin(), u * th.sin() + v * th.cos());
+        let k = 1.0 + c.k1_per_px2 * (u * u + v * v);
+        assert!((f.image_x_px.unwrap() - c.centre_px[0] - u * k).abs() < 1e-9);
+        assert!((f.image_z_px.unwrap() - c.centre_px[1] - v * k).abs() < 1e-9);
+    }
+}
+
+/// The same seed gives the same bytes on one thread or three; the movie
+/// starts with the sphere's bottom just inside the top edge and one frame
+/// file in flight is missing and listed. (A 25 cm drop: ~130 small frames.)
+#[test]
+fn real_renders_are_deterministic_and_miss_one_listed_frame_file() {
+    let d1 = tempfile::tempdir().unwrap();
+    let d2 = tempfile::tempdir().unwrap();
+    let run = |dir: &Path| {
+        render(&args(&[
+            "--out",
+            dir.to_str().unwrap(),
+            "--preset",
+            "real",
+            "--drop",
+            "3:25",
+            "--width-px",
+            "160",
+            "--height-px",
+            "120",
+            "--mm-per-px",
+            "0.2",
+            "--seed",
+            "9",
+        ]))
+        .unwrap()
+    };
+    let report = pool(1).install(|| run(d1.path()));
+    pool(3).install(|| run(d2.path()));
+    let (f1, f2) = (files(d1.path()), files(d2.path()));
+    assert_eq!(f1.len(), f2.len());
+    for (a, b) in f1.iter().zip(&f2) {
+        assert!(
+            std::fs::read(a).unwrap() == std::fs::read(b).unwrap(),
+            "{}",
+            a.display()
+        );
+    }
+    let d = &report.drops[0];
+    let t = &d.truth;
+    let c = t.camera.as_ref().unwrap();
+    let frames = files(&d.dir)
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "tif"))
+        .count();
+    assert_eq!(frames + 1, t.frames.len());
+    assert_eq!(c.missing_frames.len(), 1);
+    let m = c.missing_frames[0];
+    let name = frame_file_name(&d.run, m, FrameFormat::Tiff);
+    assert!(!d.dir.join(name).exists());
+    assert!(m > t.first_image_no + 1 && m < -2);
+    // just inside the top edge: the sphere moves ~1 px per frame there
+    assert!(!c.release_in_view);
+    let bottom = t.frames[0].image_z_px.unwrap() + t.radius_px;
+    assert!((0.0..3.0).contains(&bottom), "{bottom}");
+    // the second contact is 4 600 frames away: not rendered
+    assert!(t.second_bounce.is_none());
+}
+
+/// A 1.5 cm drop: the sphere hangs in view until its release, and the movie
+/// goes on through the rebound's flight (1 100 frames) and a second contact.
+/// (As a .cine: no frame files to write.)
+#[test]
+fn a_low_real_drop_starts_at_the_release_and_shows_a_second_contact() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = render(&args(&[
+        "--out",
+        dir.path().to_str().unwrap(),
+        "--preset",
+        "real",
+        "--drop",
+        "7:1.5",
+        "--width-px",
+        "160",
+        "--height-px",
+        "120",
+        "--mm-per-px",
+        "0.2",
+        "--format",
+        "cine",
+    ]))
+    .unwrap();
+    let t = &report.drops[0].truth;
+    let c = t.camera.as_ref().unwrap();
+    assert!(c.release_in_view && c.missing_frames.is_empty());
+    let first = &t.frames[0];
+    assert!(first.t_s <= c.t_release_s && first.t_s > c.t_release_s - 1e-4);
+    let second = t.second_bounce.as_ref().expect("a second contact");
+    assert!(second.t_contact_s > t.t_rebound_s + 0.1);
+    let last = t.frames.last().unwrap();
+    assert!(last.t_s > second.t_rebound_s);
+    assert!(t
+        .frames
+        .iter()
+        .any(|f| f.in_contact && f.t_s > second.t_contact_s));
+}

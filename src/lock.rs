@@ -213,7 +213,10 @@ fn read_ticket(path: &Path) -> std::io::Result<Option<Holder>> {
 
 /// Take the next free ticket number: one above the highest ticket seen.
 fn take_ticket(dir: &Path, me: &Holder) -> std::io::Result<(u64, PathBuf)> {
-    let tmp = io_util::temporary_path(&dir.join("ticket"))?;
+    // Unique per process (pid, host) and per call (threads of one process).
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = io_util::temporary_path(&dir.join(format!("ticket{call}")))?;
     std::fs::write(&tmp, ticket_bytes(me)?)?;
     let taken = (|| {
         let mut n = tickets(dir)?.last().map_or(1, |(n, _)| n + 1);
@@ -297,7 +300,12 @@ pub fn acquire(
     loop {
         std::fs::create_dir_all(&dir).map_err(io(&dir))?;
         io_util::remove_stale_temporaries(&dir, &writer_is_gone).map_err(io(&dir))?;
-        let (mine, ticket) = take_ticket(&dir, me).map_err(io(&dir))?;
+        let (mine, ticket) = match take_ticket(&dir, me) {
+            Ok(t) => t,
+            // The last holder removed the empty lock folder just now.
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+            Err(e) => return Err(io(&dir)(e)),
+        };
         let mut found = blocker(out, &dir, me, mine, true, notify);
         if let Ok(None) = found {
             let held = Holder {
@@ -441,6 +449,27 @@ mod tests {
         let mut remote = dead.clone();
         remote.host = "elsewhere.example".into();
         assert!(!remote.is_gone());
+    }
+
+    #[test]
+    fn holders_coming_and_going_never_fail_on_the_vanishing_lock_folder() {
+        // Shards of one job take and release the folder over and over: a
+        // release removes the lock folder when it empties, under the feet
+        // of a newcomer, which must simply take a ticket in a new one.
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().to_path_buf();
+        std::thread::scope(|s| {
+            for k in 0..4 {
+                let out = &out;
+                s.spawn(move || {
+                    let me = holder("job", Some(&format!("{k}/4")));
+                    for _ in 0..200 {
+                        drop(acquire(out, &me, false, &quiet).unwrap());
+                    }
+                });
+            }
+        });
+        assert!(!out.join(LOCK_DIR).exists());
     }
 
     #[test]

@@ -297,7 +297,12 @@ fn run_report(
 ) -> anyhow::Result<ExitCode> {
     let (cfg, name) = load_config(config.as_deref())?;
     let out = out.unwrap_or_else(|| cfg.output.dir.clone());
-    let _held = hold_folder(&out, "report", &cfg, &[], wait)?;
+    // A folder that is not there has nothing to hold; the report says what is missing.
+    let _held = if out.is_dir() {
+        Some(hold_folder(&out, "report", &cfg, &[], wait)?)
+    } else {
+        None
+    };
     let records = dropscope::dataset::read_csv(&out.join("drops.csv"))?;
     let path = dropscope::report::write_report(&out, &name, &records)?;
     println!("report: {}", path.display());

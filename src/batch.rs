@@ -244,9 +244,9 @@ fn run_one(
         frames: o.track.len(),
         record: o.record,
     };
-    if key.is_some() {
+    if key.is_some() && crate::run_name::check(&run.run).is_ok() {
         cache::store(out, &entry).map_err(|source| BatchError::Io {
-            path: cache::entry_path(out, &run.run),
+            path: out.join("runs").join(&run.run),
             source,
         })?;
     }

@@ -91,6 +91,13 @@ fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// SHA-256 (hex) of a whole file's bytes.
+pub fn sha256_file(path: &Path) -> std::io::Result<String> {
+    let mut h = Sha256::new();
+    std::io::copy(&mut crate::io_util::open_regular(path)?, &mut h)?;
+    Ok(hex(&h.finalize()))
+}
+
 fn modified_ns(md: &std::fs::Metadata) -> u64 {
     md.modified()
         .ok()
@@ -113,7 +120,7 @@ pub fn fingerprint(path: &Path) -> std::io::Result<Fingerprint> {
     let mut h = Sha256::new();
     if !md.is_dir() {
         let size = md.len();
-        let mut f = File::open(path)?;
+        let mut f = crate::io_util::open_regular(path)?;
         hash_range(&mut h, &mut f, 0, CINE_HEAD_BYTES)?;
         if size > CINE_HEAD_BYTES {
             for k in 0..SAMPLES {
@@ -164,7 +171,7 @@ pub fn fingerprint(path: &Path) -> std::io::Result<Fingerprint> {
         picked.extend(idx.into_iter().map(|i| frames[i]));
     }
     for name in picked {
-        let mut f = File::open(path.join(name))?;
+        let mut f = crate::io_util::open_regular(&path.join(name))?;
         hash_range(&mut h, &mut f, 0, FRAME_FILE_BYTES)?;
     }
     Ok(Fingerprint {
@@ -240,27 +247,30 @@ pub fn job_id(kind: &str, cfg: &PipelineConfig, runs: &[RunSpec]) -> String {
     hex(&Sha256::digest(&json))
 }
 
-/// Where the entry of run `run` lives.
-pub fn entry_path(out: &Path, run: &str) -> PathBuf {
-    out.join("runs").join(format!("{run}.json"))
+/// Where the entry of run `run` lives (`runs/<run>.json`), checked to be
+/// inside `out`.
+pub fn entry_path(out: &Path, run: &str) -> std::io::Result<PathBuf> {
+    crate::io_util::inside(out, &format!("runs/{run}.json"))
 }
 
 /// The entry of `run`, if there is one computed under `key` and every file
 /// it lists is still in `out`. Anything else (no entry, another key, a
 /// damaged entry, a missing output) is a miss.
 pub fn lookup(out: &Path, run: &str, key: &str) -> Option<Entry> {
-    let bytes = std::fs::read(entry_path(out, run)).ok()?;
+    let bytes = std::fs::read(entry_path(out, run).ok()?).ok()?;
     let e: Entry = serde_json::from_slice(&bytes).ok()?;
     let valid = e.schema == CACHE_SCHEMA
         && e.key == key
         && e.record.run == run
-        && e.outputs.iter().all(|p| out.join(p).is_file());
+        && e.outputs
+            .iter()
+            .all(|p| crate::io_util::inside(out, p).is_ok_and(|f| f.is_file()));
     valid.then_some(e)
 }
 
 /// Commit `entry`: written atomically, after the files it lists.
 pub fn store(out: &Path, entry: &Entry) -> std::io::Result<()> {
-    let path = entry_path(out, &entry.record.run);
+    let path = entry_path(out, &entry.record.run)?;
     if let Some(d) = path.parent() {
         std::fs::create_dir_all(d)?;
     }
@@ -399,7 +409,7 @@ mod tests {
         assert_eq!(lookup(out, "b", "k1"), None);
         std::fs::remove_file(out.join("tracks/a.csv")).unwrap();
         assert_eq!(lookup(out, "a", "k1"), None);
-        std::fs::write(entry_path(out, "a"), b"{ damaged").unwrap();
+        std::fs::write(entry_path(out, "a").unwrap(), b"{ damaged").unwrap();
         assert_eq!(lookup(out, "a", "k1"), None);
     }
 }

@@ -12,7 +12,7 @@ use std::path::Path;
 pub enum DropStatus {
     /// Every quantity measured.
     Ok,
-    /// Measured, with a warning in `reason` (e.g. fitted g off by more than 2 %).
+    /// Measured, with quality flags in `flags` and their sentences in `reason`.
     Warning,
     /// Nothing measured; `reason` says why.
     Failed,
@@ -96,6 +96,11 @@ pub struct DropRecord {
     #[serde(default)]
     pub damping_n_s_m_err: Option<f64>,
     pub status: DropStatus,
+    /// Quality flags, space-separated words ([`crate::quality::FLAGS`]);
+    /// empty when nothing weakens the measurement. Any flag makes the
+    /// status `warning`, with its sentence in `reason`.
+    #[serde(default)]
+    pub flags: String,
     /// Why the run failed, or its warnings; empty when all is well.
     #[serde(default)]
     pub reason: String,
@@ -148,6 +153,7 @@ impl DropRecord {
             damping_n_s_m: None,
             damping_n_s_m_err: None,
             status: DropStatus::Failed,
+            flags: String::new(),
             reason: reason.into(),
         }
     }
@@ -273,6 +279,7 @@ mod tests {
         ok.v_impact_m_s = Some(1.7155);
         ok.delta_max_mm = Some(0.812_345_678_9);
         ok.surface = "pdms".into();
+        ok.flags = "gap_at_peak saturated".into();
         let bad = DropRecord::failed("r2", 3.0, "no sphere found in 40 frames");
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("drops.csv");
@@ -281,7 +288,8 @@ mod tests {
         assert_eq!(back, vec![ok, bad]);
         let text = std::fs::read_to_string(&p).unwrap();
         assert!(text.starts_with("run,sphere_radius_mm,"));
-        assert!(text.contains(",failed,no sphere found in 40 frames"));
+        assert!(text.contains(",ok,gap_at_peak saturated,\n"), "{text}");
+        assert!(text.contains(",failed,,no sphere found in 40 frames"));
     }
 
     #[test]

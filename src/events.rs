@@ -131,6 +131,12 @@ pub enum EventError {
     FitFailed(&'static str),
     #[error("the {0} parabola never meets the surface line")]
     NoCrossing(&'static str),
+    #[error("frame {frame}: its time {t_s} s is not after the previous frame's (frame times must be finite and increasing)")]
+    TimesNotIncreasing { frame: i64, t_s: f64 },
+    #[error("impossible result: {0}")]
+    Impossible(String),
+    #[error("frame {frame}: its position or uncertainty is not a finite number")]
+    NotFinite { frame: i64 },
 }
 
 /// A free-flight parabola z(t) = z0 + v0·τ + ½·g·τ² with g fixed, and a
@@ -244,6 +250,12 @@ pub struct PeakFit {
 /// Find the maximum of a polynomial near `t_start` by Newton's method on its
 /// derivative, staying within [lo, hi].
 pub fn poly_max(p: &PolyFit, t_start: f64, lo: f64, hi: f64) -> f64 {
+    if lo
+        .partial_cmp(&hi)
+        .is_none_or(|o| o == std::cmp::Ordering::Greater)
+    {
+        return t_start; // no interval to search (f64::clamp would panic)
+    }
     let mut t = t_start;
     for _ in 0..50 {
         let d1 = p.deriv(t);
@@ -279,6 +291,27 @@ pub struct Events {
     pub second_contact_s: Option<f64>,
 }
 
+/// Times finite and strictly increasing; positions and uncertainties finite
+/// (σ > 0). Every fit below relies on it.
+pub fn check_track(track: &[TrackPoint]) -> Result<(), EventError> {
+    for (i, p) in track.iter().enumerate() {
+        let finite = p.x_px.is_finite()
+            && p.z_px.is_finite()
+            && p.sigma_z_px.is_finite()
+            && p.sigma_z_px > 0.0;
+        if !finite {
+            return Err(EventError::NotFinite { frame: p.frame });
+        }
+        if !p.t_s.is_finite() || (i > 0 && p.t_s <= track[i - 1].t_s) {
+            return Err(EventError::TimesNotIncreasing {
+                frame: p.frame,
+                t_s: p.t_s,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Split the track into flight, contact and flight, and fit each part.
 pub fn find_events(
     track: &[TrackPoint],
@@ -288,6 +321,7 @@ pub fn find_events(
     if track.len() < 2 * cfg.min_flight_frames + 1 {
         return Err(EventError::TooFewFrames(track.len()));
     }
+    check_track(track)?;
     let g_px = geom.g_px_s2(cfg.g_m_s2);
     let pen: Vec<f64> = track
         .iter()

@@ -106,7 +106,20 @@ const CONTACT_STEPS_PER_FRAME: f64 = 20.0;
 /// the damping makes δ̈ jump. In contact, RK4 steps of at most `h_max`; a
 /// step that ends above the surface is redone up to the lift-off, found on
 /// the step's cubic Hermite interpolant of (δ, δ̇), and flight resumes there.
+#[cfg(test)]
 fn integrate(ts: &[f64], theta: &[f64], g: f64, h_max: f64) -> Vec<f64> {
+    integrate_counted(ts, theta, g, h_max).0
+}
+
+/// Steps one trajectory may take, per time asked for: a trajectory takes
+/// at most [`CONTACT_STEPS_PER_FRAME`] RK4 steps per mean frame interval in
+/// contact, plus one step split at each time and a few at each touchdown
+/// and lift-off, so 8 times that is reached only by a θ that chatters at
+/// the surface (steps shrinking to nothing), whose trajectory is then NaN.
+const STEPS_PER_TIME: usize = 8 * (CONTACT_STEPS_PER_FRAME as usize + 3);
+
+/// [`integrate`], also returning the steps taken (flight jumps and RK4 steps).
+fn integrate_counted(ts: &[f64], theta: &[f64], g: f64, h_max: f64) -> (Vec<f64>, usize) {
     let (d0, v0, ln_km, n, cm) = (theta[0], theta[1], theta[2], theta[3], theta[4]);
     let km = ln_km.exp();
     // n held at the model's 2 (the second fit) multiplies instead of pow.
@@ -128,18 +141,17 @@ fn integrate(ts: &[f64], theta: &[f64], g: f64, h_max: f64) -> Vec<f64> {
     };
     let mut out = Vec::with_capacity(ts.len());
     let (mut d, mut v, mut t) = (d0, v0, ts[0]);
-    // Far more steps than any sane θ needs; a θ that chatters at the surface
-    // (steps shrinking to nothing) gets a NaN trajectory, which the fit rejects.
-    let mut budget = 2_000 * ts.len() * CONTACT_STEPS_PER_FRAME as usize;
+    // Far more steps than any sane θ needs (see STEPS_PER_TIME); a θ that
+    // chatters at the surface gets a NaN trajectory, which the fit rejects.
+    let max_steps = STEPS_PER_TIME * ts.len();
+    let mut steps = 0;
     for &target in ts {
         while t < target {
-            budget = match budget.checked_sub(1) {
-                Some(b) => b,
-                None => {
-                    out.resize(ts.len(), f64::NAN);
-                    return out;
-                }
-            };
+            steps += 1;
+            if steps > max_steps {
+                out.resize(ts.len(), f64::NAN);
+                return (out, steps);
+            }
             let span = target - t;
             let in_flight = d < 0.0 || (d == 0.0 && v < 0.0);
             if in_flight {
@@ -192,13 +204,37 @@ fn integrate(ts: &[f64], theta: &[f64], g: f64, h_max: f64) -> Vec<f64> {
         }
         out.push(d);
     }
-    out
+    (out, steps)
 }
+
+/// Why the contact law could not be fitted.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ForceFitError {
+    #[error("only {0} frames around the contact (at least 12 needed)")]
+    TooFewFrames(usize),
+    #[error("the trajectory fit found no solution (singular or not finite)")]
+    NoSolution,
+    #[error("the trajectory fit stopped at its limit of {0}")]
+    Limit(String),
+}
+
+/// The trajectory fit's work limit, in trajectories' worth of steps (a
+/// trajectory of the frames' times at its usual cost): a clean drop's two
+/// fits integrate 23–121 trajectories (the unit tests' drops and the
+/// fixtures), so this is reached only by a fit that wanders (frame times
+/// off their grid, a track that is no bounce).
+pub const FORCE_FIT_MAX_TRAJECTORIES: usize = 5_000;
+
+/// The trajectory fit's time limit, in seconds, a guard beside the work
+/// limit (a clean drop's two fits take 6–54 ms here).
+pub const FORCE_FIT_TIME_LIMIT_S: f64 = 20.0;
 
 /// Fit F = K·δⁿ + c·δ̇ to the trajectory (see the module doc). Uses the
 /// contact and up to [`FLIGHT_FRAMES`] flight frames either side, within the
 /// flight fits' frames (a second bounce is left out). `exposure_s` is a
-/// frame's exposure time (0: the frames are instants).
+/// frame's exposure time (0: the frames are instants). The fit stops with
+/// [`ForceFitError::Limit`] after [`FORCE_FIT_MAX_TRAJECTORIES`] or
+/// [`FORCE_FIT_TIME_LIMIT_S`].
 pub fn fit_force_law(
     track: &[TrackPoint],
     ev: &Events,
@@ -206,11 +242,22 @@ pub fn fit_force_law(
     sphere: &SphereParams,
     g_m_s2: f64,
     exposure_s: f64,
-) -> Option<ForceLaw> {
-    fit_force_law_to(track, ev, geom, sphere, g_m_s2, exposure_s, LM_REL_TOL)
+) -> Result<ForceLaw, ForceFitError> {
+    fit_force_law_to(
+        track,
+        ev,
+        geom,
+        sphere,
+        g_m_s2,
+        exposure_s,
+        LM_REL_TOL,
+        FORCE_FIT_MAX_TRAJECTORIES,
+    )
 }
 
-/// [`fit_force_law`] with the fits stopped at `rel_tol` (see [`LM_REL_TOL`]).
+/// [`fit_force_law`] with the fits stopped at `rel_tol` (see [`LM_REL_TOL`])
+/// and after `max_trajectories` (see [`FORCE_FIT_MAX_TRAJECTORIES`]).
+#[allow(clippy::too_many_arguments)]
 fn fit_force_law_to(
     track: &[TrackPoint],
     ev: &Events,
@@ -219,7 +266,8 @@ fn fit_force_law_to(
     g_m_s2: f64,
     exposure_s: f64,
     rel_tol: f64,
-) -> Option<ForceLaw> {
+    max_trajectories: usize,
+) -> Result<ForceLaw, ForceFitError> {
     let s_m = geom.mm_per_px * 1e-3;
     // The contact and up to FLIGHT_FRAMES flight frames on either side: they
     // fix the state at onset and after the rebound; more flight adds nothing
@@ -237,7 +285,7 @@ fn fit_force_law_to(
         .collect();
     let m_pts = pts.len();
     if m_pts < 12 {
-        return None;
+        return Err(ForceFitError::TooFewFrames(m_pts));
     }
     let ts: Vec<f64> = pts.iter().map(|p| p.t_s).collect();
     let obs: Vec<f64> = pts
@@ -272,8 +320,26 @@ fn fit_force_law_to(
     let dmax = ((z_peak + geom.radius_px - y_imp) * s_m).max(1e-6);
     let v_in = (v0 * v0 + 2.0 * g_m_s2 * (-d0).max(0.0)).sqrt();
 
-    let resid = |th: &[f64]| -> DVector<f64> {
-        let model = integrate(&times, th, g_m_s2, h_max);
+    // The work and time limits, shared by both fits.
+    let usual_steps = (CONTACT_STEPS_PER_FRAME as usize + 3) * times.len();
+    let max_steps = max_trajectories * usual_steps;
+    let steps = std::cell::Cell::new(0usize);
+    let started = std::time::Instant::now();
+    let limit = || -> Option<String> {
+        if steps.get() > max_steps {
+            Some(format!("{max_trajectories} trajectories' work"))
+        } else if started.elapsed().as_secs_f64() > FORCE_FIT_TIME_LIMIT_S {
+            Some(format!("{FORCE_FIT_TIME_LIMIT_S} s"))
+        } else {
+            None
+        }
+    };
+    let resid = |th: &[f64]| -> Result<DVector<f64>, ForceFitError> {
+        if let Some(what) = limit() {
+            return Err(ForceFitError::Limit(what));
+        }
+        let (model, taken) = integrate_counted(&times, th, g_m_s2, h_max);
+        steps.set(steps.get() + taken);
         let seen = |i: usize| {
             if half_exposure > 0.0 {
                 (model[3 * i] + 4.0 * model[3 * i + 1] + model[3 * i + 2]) / 6.0
@@ -281,7 +347,7 @@ fn fit_force_law_to(
                 model[i]
             }
         };
-        DVector::from_fn(m_pts, |i, _| (seen(i) - obs[i]) / sig[i])
+        Ok(DVector::from_fn(m_pts, |i, _| (seen(i) - obs[i]) / sig[i]))
     };
     let theta0 = [d0, v0, (1.5 * v_in * v_in / dmax.powi(3)).ln(), 2.0, 0.0];
     // (δ0, v0, ln K/m, n, c/m) all free; then n held at the model's 2.
@@ -313,7 +379,7 @@ fn fit_force_law_to(
             err: km * mass * sd(fit, 2),
         }
     };
-    Some(ForceLaw {
+    Ok(ForceLaw {
         k: k_of(&free),
         n: Measured {
             value: free.theta[3],
@@ -368,6 +434,9 @@ impl LmFit {
 /// then spent 20 trials failing.
 const LM_REL_TOL: f64 = 1e-10;
 
+/// The scaled residuals of a θ, or why they could not be computed.
+type Residuals<'a> = dyn Fn(&[f64]) -> Result<DVector<f64>, ForceFitError> + 'a;
+
 /// Minimise |r(θ)|² over θ[free] from θ0 (central-difference Jacobian,
 /// multiplicative damping of the diagonal). Stops when an accepted step
 /// lowers the cost by less than `rel_tol` of it ([`LM_REL_TOL`]), or no
@@ -375,12 +444,12 @@ const LM_REL_TOL: f64 = 1e-10;
 fn levenberg_marquardt(
     theta0: &[f64],
     free: &[usize],
-    resid: &dyn Fn(&[f64]) -> DVector<f64>,
+    resid: &Residuals<'_>,
     rel_tol: f64,
-) -> Option<LmFit> {
+) -> Result<LmFit, ForceFitError> {
     const STEPS: [f64; 5] = [1e-9, 1e-6, 1e-6, 1e-6, 1e-3];
     let p = free.len();
-    let jacobian = |th: &[f64], rows: usize| -> DMatrix<f64> {
+    let jacobian = |th: &[f64], rows: usize| -> Result<DMatrix<f64>, ForceFitError> {
         let mut j = DMatrix::zeros(rows, p);
         for (col, &k) in free.iter().enumerate() {
             let h = STEPS[k] * (1.0 + th[k].abs());
@@ -388,17 +457,17 @@ fn levenberg_marquardt(
             let mut tm = th.to_vec();
             tp[k] += h;
             tm[k] -= h;
-            j.set_column(col, &((resid(&tp) - resid(&tm)) / (2.0 * h)));
+            j.set_column(col, &((resid(&tp)? - resid(&tm)?) / (2.0 * h)));
         }
-        j
+        Ok(j)
     };
     let mut theta = theta0.to_vec();
-    let mut r = resid(&theta);
+    let mut r = resid(&theta)?;
     let mut cost = r.norm_squared();
     let mut lambda = 1e-3;
     let mut converged = false;
     for _ in 0..100 {
-        let j = jacobian(&theta, r.len());
+        let j = jacobian(&theta, r.len())?;
         let jtj = j.transpose() * &j;
         let g = j.transpose() * &r;
         let mut improved = false;
@@ -415,7 +484,7 @@ fn levenberg_marquardt(
             for (col, &k) in free.iter().enumerate() {
                 cand[k] += step[col];
             }
-            let rc = resid(&cand);
+            let rc = resid(&cand)?;
             let cc = rc.norm_squared();
             if cc.is_finite() && cc < cost {
                 converged = cost - cc < rel_tol * cost;
@@ -432,10 +501,13 @@ fn levenberg_marquardt(
             break;
         }
     }
-    let j = jacobian(&theta, r.len());
+    let j = jacobian(&theta, r.len())?;
     let dof = r.len().saturating_sub(p).max(1);
-    let inv = (j.transpose() * &j).try_inverse()?;
-    Some(LmFit {
+    let inv = (j.transpose() * &j)
+        .try_inverse()
+        .filter(|m| cost.is_finite() && m.iter().all(|v| v.is_finite()))
+        .ok_or(ForceFitError::NoSolution)?;
+    Ok(LmFit {
         theta,
         free: free.to_vec(),
         cov: &inv * (cost / dof as f64).max(1.0),
@@ -583,7 +655,8 @@ mod tests {
         for seed in [3, 7, 11] {
             let tr = track(&drop, &geom, 0.03, seed);
             let ev = find_events(&tr, &geom, &EventConfig::default()).unwrap();
-            let fit = |tol| fit_force_law_to(&tr, &ev, &geom, &sphere(), 9.81, 0.0, tol).unwrap();
+            let fit =
+                |tol| fit_force_law_to(&tr, &ev, &geom, &sphere(), 9.81, 0.0, tol, 10_000).unwrap();
             let (ours, tight) = (fit(LM_REL_TOL), fit(1e-15));
             for (a, b, what) in [
                 (ours.n, tight.n, "n"),
@@ -655,6 +728,22 @@ mod tests {
                 "n = {n}: worst {worst:e} of δmax {dmax:e}"
             );
         }
+    }
+
+    #[test]
+    fn the_fit_stops_at_its_work_limit_with_a_reason() {
+        let drop = Drop::new(4.5e-3, 1.7, 0.5e-4);
+        let geom = geometry();
+        let tr = track(&drop, &geom, 0.03, 3);
+        let ev = find_events(&tr, &geom, &EventConfig::default()).unwrap();
+        let fit = |max| fit_force_law_to(&tr, &ev, &geom, &sphere(), 9.81, 0.0, LM_REL_TOL, max);
+        // A clean drop needs 23–121 trajectories: 10 stop it, 1 000 do not.
+        let e = fit(10).unwrap_err();
+        assert_eq!(e, ForceFitError::Limit("10 trajectories' work".into()));
+        assert!(e
+            .to_string()
+            .contains("stopped at its limit of 10 trajectories"));
+        assert!(fit(1_000).is_ok());
     }
 
     #[test]

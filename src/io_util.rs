@@ -1,8 +1,62 @@
-//! Small I/O helpers shared by every writer: files are written whole or not at all.
+//! Small I/O helpers shared by every reader and writer: files are written
+//! whole or not at all, only inside the output folder, and only regular
+//! files are opened as inputs.
 
 use std::fs;
 use std::io::{self, Write};
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
+
+/// `out/rel`, when `rel` is a relative path that stays inside `out`: only
+/// plain names, no `..`, no root, no drive. Every output file's path goes
+/// through this, so a run name that slipped past its own check still
+/// cannot write or delete outside the output folder.
+pub fn inside(out: &Path, rel: &str) -> io::Result<PathBuf> {
+    let r = Path::new(rel);
+    let plain = !rel.is_empty() && r.components().all(|c| matches!(c, Component::Normal(_)));
+    if !plain || rel.chars().any(char::is_control) {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("{rel:?} is not a path inside the output folder"),
+        ));
+    }
+    Ok(out.join(r))
+}
+
+/// Open `path` for reading if it is a regular file (or a link to one). A
+/// named pipe, socket or device is refused before `open`, which could
+/// block on it for ever.
+pub fn open_regular(path: &Path) -> io::Result<fs::File> {
+    let md = fs::metadata(path)?;
+    if !md.is_file() {
+        return Err(not_regular(&md));
+    }
+    let f = fs::File::open(path)?;
+    // Replaced between the two calls: check what was opened.
+    let md = f.metadata()?;
+    if !md.is_file() {
+        return Err(not_regular(&md));
+    }
+    Ok(f)
+}
+
+fn not_regular(md: &fs::Metadata) -> io::Error {
+    let what = if md.is_dir() {
+        "a folder"
+    } else {
+        "not a regular file (a named pipe, socket or device)"
+    };
+    io::Error::new(io::ErrorKind::InvalidInput, what)
+}
+
+/// Read at most `limit` bytes of the regular file `path`; `Ok(None)` when it
+/// holds more.
+pub fn read_bounded(path: &Path, limit: u64) -> io::Result<Option<Vec<u8>>> {
+    use std::io::Read;
+    let f = open_regular(path)?;
+    let mut bytes = Vec::new();
+    f.take(limit + 1).read_to_end(&mut bytes)?;
+    Ok((bytes.len() as u64 <= limit).then_some(bytes))
+}
 
 /// This machine's host name (`gethostname`), or `"localhost"` when it has none.
 pub fn this_host() -> &'static str {
@@ -125,6 +179,45 @@ pub fn remove_stale_temporaries(dir: &Path, gone: &dyn Fn(u32, &str) -> bool) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_plain_relative_paths_are_inside() {
+        let out = Path::new("/data/out");
+        assert_eq!(
+            inside(out, "tracks/a b.csv").unwrap(),
+            out.join("tracks/a b.csv")
+        );
+        for bad in [
+            "",
+            "../x.csv",
+            "tracks/../../x.csv",
+            "/etc/passwd",
+            "./x",
+            "a\nb",
+        ] {
+            let e = inside(out, bad).unwrap_err().to_string();
+            assert!(
+                e.contains("not a path inside the output folder"),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_named_pipe_is_refused_without_blocking() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("frame_000001.tif");
+        let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
+        let e = open_regular(&fifo).unwrap_err().to_string();
+        assert!(e.contains("named pipe"), "{e}");
+        assert!(open_regular(dir.path()).is_err());
+        let f = dir.path().join("a.xml");
+        fs::write(&f, b"12345").unwrap();
+        assert_eq!(read_bounded(&f, 5).unwrap().unwrap(), b"12345");
+        assert_eq!(read_bounded(&f, 4).unwrap(), None);
+    }
 
     #[test]
     fn atomic_write_replaces_whole_file_and_leaves_no_temporary() {

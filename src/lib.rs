@@ -13,6 +13,7 @@
 //! | [`kinematics`] | v, δ, a, τc, e with jointly propagated errors |
 //! | [`force`] | F(δ) table and the trajectory-fitted contact law |
 //! | [`measure`] | one drop from track to record |
+//! | [`quality`] | the quality flags of a measured drop (`flags` in drops.csv) |
 //! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
 //! | [`process`] | `dropscope process`: runs in parallel → drops.csv, tracks, overlays |
 //! | [`progress`] | the main job's progress bars, or plain lines off a terminal |
@@ -25,7 +26,8 @@
 //! | [`report`] | `report.html`: counts, collapse plots, fits and every drop on one self-contained page |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | SVG + PNG figures (collapse plots, per-drop diagnostics), embedded font |
-//! | [`lsq`], [`io_util`] | weighted least squares; atomic writes |
+//! | [`run_name`] | run names that are file names, never paths |
+//! | [`lsq`], [`io_util`] | weighted least squares; atomic writes, paths kept inside the output folder |
 //!
 //! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
 //! column `x` grows to the right and row `z` grows downward. Quantities carry
@@ -50,8 +52,10 @@ pub mod measure;
 pub mod plot;
 pub mod process;
 pub mod progress;
+pub mod quality;
 pub mod render;
 pub mod report;
+pub mod run_name;
 pub mod shard;
 pub mod slurm;
 pub mod source;

@@ -90,9 +90,7 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
     for (i, rec) in rdr.deserialize::<ManifestRow>().enumerate() {
         let row = i as u64 + 2;
         let r = rec.map_err(|e| row_err(row, csv_message(&e)))?;
-        if r.run.is_empty() {
-            return Err(row_err(row, "column `run` is empty".into()));
-        }
+        crate::run_name::check(&r.run).map_err(|e| row_err(row, format!("column `run`: {e}")))?;
         if runs.iter().any(|x| x.run == r.run) {
             return Err(row_err(row, format!("run `{}` is listed twice", r.run)));
         }

@@ -3,8 +3,9 @@
 
 use crate::dataset::{DropRecord, DropStatus, TrackRow};
 use crate::events::{find_events, EventConfig, EventError, Geometry, TrackPoint};
-use crate::force::{fit_force_law, force_table};
+use crate::force::{fit_force_law, force_table, ForceFitError, ForceLaw};
 use crate::kinematics::{kinematics, Measured, SphereParams};
+use crate::quality;
 
 /// What the measurement of one drop produced.
 #[derive(Debug, Clone, PartialEq)]
@@ -42,6 +43,14 @@ pub fn measure_drop(
     };
     let ev = find_events(track, geom, cfg)?;
     let kin = kinematics(track, &ev, geom, &sphere, cfg.exposure_s)?;
+    // Physically impossible: the numbers are no measurement.
+    if kin.delta_max_m.value >= sphere.radius_m || !kin.delta_max_m.value.is_finite() {
+        return Err(EventError::Impossible(format!(
+            "maximum penetration {:.4} mm is not below the sphere's radius {} mm",
+            kin.delta_max_m.value * 1e3,
+            info.sphere_radius_mm
+        )));
+    }
     let law = fit_force_law(track, &ev, geom, &sphere, cfg.g_m_s2, cfg.exposure_s);
     let table = force_table(
         track,
@@ -52,26 +61,73 @@ pub fn measure_drop(
         FORCE_TABLE_HALF_WINDOW,
     );
 
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<(&'static str, String)> = Vec::new();
+    // Frames missing in the contact, and at its deepest point.
+    let (c0, c1) = ev.contact_span;
+    let gap = quality::missing_between(track, track[c0 - 1].frame, track[c1 + 1].frame);
+    if !gap.is_empty() {
+        warnings.push((
+            quality::GAP_IN_CONTACT,
+            format!(
+                "{} frame(s) missing in the contact ({})",
+                gap.len(),
+                quality::ranges(&gap)
+            ),
+        ));
+    }
+    let at_peak = quality::missing_between(track, ev.peak.frames.0 - 1, ev.peak.frames.1 + 1);
+    if !at_peak.is_empty() {
+        warnings.push((
+            quality::GAP_AT_PEAK,
+            format!(
+                "{} frame(s) missing at the maximum penetration ({}): δmax is interpolated over them",
+                at_peak.len(),
+                quality::ranges(&at_peak)
+            ),
+        ));
+    }
+    let flight = ev.pre.n_points.min(ev.post.n_points);
+    if flight < quality::MIN_GOOD_FLIGHT_FRAMES {
+        warnings.push((
+            quality::SHORT_FLIGHT,
+            format!(
+                "only {} free-flight frames before and {} after the contact (fewer than {})",
+                ev.pre.n_points,
+                ev.post.n_points,
+                quality::MIN_GOOD_FLIGHT_FRAMES
+            ),
+        ));
+    }
     if let Some(g) = kin.g_fit_m_s2[0] {
         // Off by more than 2 % and more than three of its own σ.
         let off = g.value / cfg.g_m_s2 - 1.0;
         if off.abs() > 0.02 && (g.value - cfg.g_m_s2).abs() > 3.0 * g.err {
-            warnings.push(format!(
+            warnings.push((quality::GRAVITY_OFF, format!(
                 "free-flight gravity {:.3} ± {:.3} m/s² is {:+.1} % off {} m/s²: check the frame rate and the scale",
                 g.value,
                 g.err,
                 off * 100.0,
                 cfg.g_m_s2
-            ));
+            )));
         }
     }
     if ev.second_contact_s.is_some() {
-        warnings.push("a second bounce follows; only the first contact is measured".into());
+        warnings.push((
+            quality::SECOND_CONTACT,
+            "a second bounce follows; only the first contact is measured".into(),
+        ));
     }
-    if law.is_none() {
-        warnings.push("the force law could not be fitted".into());
+    if kin.restitution.value > 1.0 + 3.0 * kin.restitution.err {
+        warnings.push((
+            quality::RESTITUTION_ABOVE_ONE,
+            format!(
+                "restitution {:.4} ± {:.4} is above 1: the sphere cannot gain energy",
+                kin.restitution.value, kin.restitution.err
+            ),
+        ));
     }
+    warnings.extend(law_warnings(&law));
+    let law = law.ok();
 
     let v = |m: Measured| (Some(m.value), Some(m.err));
     let mm = |m: Measured| (Some(m.value * 1e3), Some(m.err * 1e3));
@@ -84,7 +140,7 @@ pub fn measure_drop(
     let (tau, tau_err) = mm(kin.tau_c_s);
     let (tc, tc_err) = v(kin.t_contact_s);
     let (tr, tr_err) = v(kin.t_rebound_s);
-    let record = DropRecord {
+    let mut record = DropRecord {
         run: info.run.clone(),
         sphere_radius_mm: info.sphere_radius_mm,
         sphere_density_kg_m3: info.sphere_density_kg_m3,
@@ -127,19 +183,55 @@ pub fn measure_drop(
         force_k2_n_m2_err: law.as_ref().map(|l| l.k_at_n2.err),
         damping_n_s_m: law.as_ref().map(|l| l.damping_n_s_m.value),
         damping_n_s_m_err: law.as_ref().map(|l| l.damping_n_s_m.err),
-        status: if warnings.is_empty() {
-            DropStatus::Ok
-        } else {
-            DropStatus::Warning
-        },
-        reason: warnings.join("; "),
+        status: DropStatus::Ok,
+        flags: String::new(),
+        reason: String::new(),
     };
-    let (c0, c1) = ev.contact_span;
+    for (word, message) in warnings {
+        quality::flag(&mut record, word, message);
+    }
     Ok(DropMeasurement {
         record,
         forces: table.iter().map(|p| (p.frame, p.force_n)).collect(),
         in_contact: track[c0..=c1].iter().map(|p| p.frame).collect(),
     })
+}
+
+/// The flags of a contact law fit: none fitted, or a fit no physics allows
+/// (n outside [`quality::FORCE_EXPONENT_RANGE`], damping negative by more
+/// than 3σ).
+fn law_warnings(law: &Result<ForceLaw, ForceFitError>) -> Vec<(&'static str, String)> {
+    let l = match law {
+        Err(e) => {
+            return vec![(
+                quality::NO_FORCE_LAW,
+                format!("the force law could not be fitted: {e}"),
+            )]
+        }
+        Ok(l) => l,
+    };
+    let mut out = Vec::new();
+    let (lo, hi) = quality::FORCE_EXPONENT_RANGE;
+    if !(lo..=hi).contains(&l.n.value) {
+        out.push((
+            quality::FORCE_EXPONENT_IMPLAUSIBLE,
+            format!(
+                "force exponent n = {:.3} is outside {lo}–{hi}: the contact law fit is not credible",
+                l.n.value
+            ),
+        ));
+    }
+    let c = l.damping_n_s_m;
+    if c.value < -3.0 * c.err {
+        out.push((
+            quality::NEGATIVE_DAMPING,
+            format!(
+                "damping {:.4e} ± {:.1e} N·s/m is negative: the contact law fit is not credible",
+                c.value, c.err
+            ),
+        ));
+    }
+    out
 }
 
 /// Fill the contact flag, δ and force columns of track rows from a measurement.
@@ -161,7 +253,35 @@ pub fn annotate_track(rows: &mut [TrackRow], m: &DropMeasurement, geom: &Geometr
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::kinematics::Measured;
     use crate::test_support::{geometry, track, Drop};
+
+    #[test]
+    fn an_impossible_contact_law_is_flagged_never_ok() {
+        let m = |value, err| Measured { value, err };
+        let law = |n, c| ForceLaw {
+            k: m(1e9, 1e8),
+            n: m(n, 0.5),
+            damping_n_s_m: m(c, 0.01),
+            k_at_n2: m(8e8, 1e6),
+            chi2_red: 1.0,
+            n_frames: 60,
+        };
+        let words = |l| -> Vec<&str> { law_warnings(&l).iter().map(|w| w.0).collect() };
+        assert!(words(Ok(law(2.01, -0.02))).is_empty());
+        assert_eq!(
+            words(Ok(law(106.0, -0.5))),
+            ["force_exponent_implausible", "negative_damping"]
+        );
+        assert_eq!(words(Ok(law(0.7, 0.0))), ["force_exponent_implausible"]);
+        let e = law_warnings(&Err(ForceFitError::Limit("20 s".into())));
+        assert_eq!(e[0].0, "no_force_law");
+        assert!(
+            e[0].1.contains("stopped at its limit of 20 s"),
+            "{}",
+            e[0].1
+        );
+    }
 
     #[test]
     fn a_clean_drop_gives_an_ok_record_with_every_column() {
@@ -187,6 +307,6 @@ mod tests {
         assert!(m.forces.len() + 2 * FORCE_TABLE_HALF_WINDOW >= m.in_contact.len());
         let bytes = crate::dataset::to_csv_bytes(std::slice::from_ref(r));
         let text = String::from_utf8(bytes).unwrap();
-        assert!(text.lines().nth(1).unwrap().ends_with(",ok,"), "{text}");
+        assert!(text.lines().nth(1).unwrap().ends_with(",ok,,"), "{text}");
     }
 }

@@ -5,13 +5,14 @@
 //! the others. Every file is written whole or not at all.
 
 use crate::config::PipelineConfig;
-use crate::dataset::{DropRecord, DropStatus, TrackRow};
+use crate::dataset::{DropRecord, TrackRow};
 use crate::detect::calibrate::{scale, RadiusCalibration};
 use crate::detect::overlay::{encode_png, overlay, OverlayView};
 use crate::detect::Band;
 use crate::events::{EventConfig, Geometry, TrackPoint};
 use crate::manifest::RunSpec;
 use crate::measure::{annotate_track, measure_drop, DropInfo};
+use crate::quality;
 use crate::source::{open, Frame, OpenOptions};
 use crate::track::{edge_points_in, track, Track, TrackSettings};
 use rayon::prelude::*;
@@ -92,7 +93,7 @@ pub fn runs_from_inputs(
     // name from another parent gets `_2`, `_3`, ….
     let mut runs: Vec<RunSpec> = Vec::with_capacity(inputs.len());
     for p in inputs {
-        let base = crate::source::input_name(p);
+        let base = crate::run_name::from_input(p);
         let mut run = base.clone();
         let mut k = 1;
         while runs.iter().any(|r| r.run == run) {
@@ -114,9 +115,21 @@ pub fn runs_from_inputs(
     Ok(runs)
 }
 
-/// Process one run; never fails: problems become a `failed` record.
+/// Process one run; never fails: problems become a `failed` record, and so
+/// does a panic in any stage (caught here, at the run's boundary, so that
+/// one bad input never ends the job).
 pub fn process_run(run: &RunSpec, cfg: &PipelineConfig, overlay_frames: &[i64]) -> RunOutcome {
-    match try_process_run(run, cfg, overlay_frames) {
+    guarded(run, cfg, || try_process_run(run, cfg, overlay_frames))
+}
+
+/// Run `work` for `run`: its error, or its panic, becomes the run's `failed` record.
+fn guarded(
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+    work: impl FnOnce() -> Result<RunOutcome, String>,
+) -> RunOutcome {
+    let attempt = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
+    match attempt.unwrap_or_else(|payload| Err(panic_reason(&run.path, payload.as_ref()))) {
         Ok(o) => o,
         Err(reason) => {
             let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, reason);
@@ -136,11 +149,26 @@ pub fn process_run(run: &RunSpec, cfg: &PipelineConfig, overlay_frames: &[i64]) 
     }
 }
 
+/// The reason of a run that panicked: the panic's message, which names the
+/// place in dropscope; the input is named too.
+fn panic_reason(input: &Path, payload: &(dyn std::any::Any + Send)) -> String {
+    let msg = payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into());
+    format!(
+        "{}: internal error (a bug in dropscope, please report it with this input): {msg}",
+        input.display()
+    )
+}
+
 fn try_process_run(
     run: &RunSpec,
     cfg: &PipelineConfig,
     overlay_frames: &[i64],
 ) -> Result<RunOutcome, String> {
+    crate::run_name::check(&run.run)?;
     let surface_name = run
         .surface
         .clone()
@@ -172,7 +200,6 @@ fn try_process_run(
         },
         given,
     );
-    let warnings: Vec<String> = sc.warning.into_iter().collect();
     let (mm_per_px, from_radius) = (sc.mm_per_px, given.is_none());
     let xs: Vec<f64> = tr
         .frames
@@ -206,13 +233,38 @@ fn try_process_run(
         .map_err(|e| format!("{}: {e}", run.path.display()))?;
     annotate_track(&mut rows, &m, &geom);
     let mut record = m.record;
-    if !warnings.is_empty() {
-        record.status = DropStatus::Warning;
-        let mut all = warnings;
-        if !record.reason.is_empty() {
-            all.push(record.reason.clone());
+    if let Some(w) = sc.warning {
+        quality::flag(&mut record, quality::SCALE_DISAGREEMENT, w);
+    }
+    if let Some(share) = saturated_share(&tr, meta.bit_depth) {
+        quality::flag(
+            &mut record,
+            quality::SATURATED,
+            format!(
+                "{:.1} % of the background near the sphere's path is clipped at the white level",
+                share * 100.0
+            ),
+        );
+    }
+    for w in &meta.details.warnings {
+        if w.starts_with(crate::source::validate::IRREGULAR_TIMES) {
+            quality::flag(&mut record, quality::TIME_IRREGULAR, w.clone());
+        } else if w.starts_with(crate::source::validate::TIMES_AND_RATE_DISAGREE) {
+            quality::flag(&mut record, quality::FPS_MISMATCH, w.clone());
         }
-        record.reason = all.join("; ");
+    }
+    if let Some(f) = run.fps {
+        if (f / meta.fps - 1.0).abs() > crate::source::validate::FPS_AGREEMENT {
+            quality::flag(
+                &mut record,
+                quality::FPS_MISMATCH,
+                format!(
+                    "the manifest's fps {f} disagrees with the file's frame rate {} frames/s; \
+                     the file's is used",
+                    meta.fps
+                ),
+            );
+        }
     }
 
     // The overlay at the frame nearest the maximum penetration, and those asked for.
@@ -254,6 +306,44 @@ fn try_process_run(
         overlay,
         frame_overlays,
     })
+}
+
+/// The share of the background at the white level (within 1 % of
+/// 2^bits − 1: the background is a median divided by the frames' flicker
+/// gains) in the box the sphere swept above the surface line, when above
+/// [`quality::SATURATED_SHARE`].
+fn saturated_share(tr: &Track, bit_depth: u8) -> Option<f64> {
+    let white = 0.99 * ((1u32 << bit_depth.min(16)) - 1) as f32;
+    let fits: Vec<_> = tr.frames.iter().filter_map(|f| f.held).collect();
+    let bg = &tr.background;
+    let (w, h) = (bg.width as f64, bg.height as f64);
+    let r = tr.radius_px;
+    let clampf = |v: f64, hi: f64| v.clamp(0.0, (hi - 1.0).max(0.0)) as usize;
+    let x0 = clampf(
+        fits.iter().map(|c| c.x_px).fold(f64::INFINITY, f64::min) - 1.2 * r,
+        w,
+    );
+    let x1 = clampf(
+        fits.iter()
+            .map(|c| c.x_px)
+            .fold(f64::NEG_INFINITY, f64::max)
+            + 1.2 * r,
+        w,
+    );
+    let z0 = clampf(
+        fits.iter().map(|c| c.z_px).fold(f64::INFINITY, f64::min) - 1.2 * r,
+        h,
+    );
+    let (mut clipped, mut total) = (0usize, 0usize);
+    for col in x0..=x1 {
+        let z1 = clampf(tr.surface.row_at(col as f64) - 2.0, h);
+        for row in z0..=z1.max(z0) {
+            total += 1;
+            clipped += usize::from(bg.at(row, col) >= white);
+        }
+    }
+    let share = clipped as f64 / total.max(1) as f64;
+    (!fits.is_empty() && share > quality::SATURATED_SHARE).then_some(share)
 }
 
 /// The held-radius fits as event-stage points, with the contact half-width
@@ -365,7 +455,7 @@ pub fn process_all_with_overlays(
 
 /// Write `bytes` to `out/rel` atomically, creating folders.
 pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessError> {
-    let path = out.join(rel);
+    let path = output_path(out, rel)?;
     if let Some(d) = path.parent() {
         std::fs::create_dir_all(d).map_err(|source| ProcessError::Write {
             path: d.to_path_buf(),
@@ -379,10 +469,15 @@ pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessErro
 /// Write one run's track (`tracks/<run>.csv`) and overlays
 /// (`plots/overlays/<run>[_<number>].png`) into `out`, each atomically.
 /// A track or main overlay left by an earlier job for this run, which this
-/// outcome does not have (the run now fails), is removed. Returns the files
-/// written, relative to `out`.
+/// outcome does not have (the run now fails), is removed. A run whose name
+/// is no file name writes and removes nothing. Returns the files written,
+/// relative to `out`.
 pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<String>, ProcessError> {
     let run = &o.record.run;
+    if crate::run_name::check(run).is_err() {
+        // Its row says why it failed; it has no files and removes none.
+        return Ok(Vec::new());
+    }
     let track = format!("tracks/{run}.csv");
     let main_overlay = format!("plots/overlays/{run}.png");
     let mut written = Vec::new();
@@ -407,14 +502,50 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<String>, Proc
     Ok(written)
 }
 
+/// `out/rel`, refused unless it stays inside `out` ([`crate::io_util::inside`]).
+fn output_path(out: &Path, rel: &str) -> Result<PathBuf, ProcessError> {
+    crate::io_util::inside(out, rel).map_err(|source| ProcessError::Write {
+        path: out.join(rel),
+        source,
+    })
+}
+
 fn remove_if_present(out: &Path, rel: &str) -> Result<(), ProcessError> {
-    let path = out.join(rel);
+    let path = output_path(out, rel)?;
     crate::io_util::remove_if_present(&path).map_err(|source| ProcessError::Write { path, source })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_panic_in_a_run_becomes_its_failed_row() {
+        let cfg = PipelineConfig::from_toml_str(
+            crate::config::EMBEDDED_DEFAULT,
+            Path::new("pipeline.toml"),
+            Path::new(""),
+        )
+        .unwrap();
+        let runs = runs_from_inputs(&[PathBuf::from("x/drop.cine")], Some(3.0), &cfg).unwrap();
+        let o = guarded(&runs[0], &cfg, || {
+            let lo = 2.0_f64;
+            Ok(RunOutcome {
+                record: DropRecord::failed("never", 1.0, format!("{}", 1.0_f64.clamp(lo, 1.0))),
+                track: Vec::new(),
+                overlay: None,
+                frame_overlays: Vec::new(),
+            })
+        });
+        assert_eq!(o.record.status, crate::dataset::DropStatus::Failed);
+        assert_eq!(o.record.run, "drop");
+        assert!(
+            o.record.reason.starts_with("x/drop.cine: internal error")
+                && o.record.reason.contains("min > max"),
+            "{}",
+            o.record.reason
+        );
+    }
 
     #[test]
     fn input_runs_get_unique_names_and_need_a_radius() {

@@ -3,6 +3,7 @@
 mod cli;
 mod collapse;
 mod detect;
+mod hostile;
 mod process;
 mod render;
 mod render_real;

@@ -281,7 +281,10 @@ pub fn run(
         .collect();
     let prov = output::Provenance {
         dropscope_version: env!("CARGO_PKG_VERSION"),
-        drops_csv: args.drops.display().to_string(),
+        drops_csv: args
+            .drops
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
         dataset_id: dataset_id.clone(),
         contact_radius: match args.contact_radius {
             ContactRadius::Measured => "measured",

@@ -174,6 +174,8 @@ struct Skipped<'a> {
 #[derive(Debug, Clone, Serialize)]
 pub struct Provenance {
     pub dropscope_version: &'static str,
+    /// The input table's file name (not its path: the same data in two
+    /// folders gives the same bytes).
     pub drops_csv: String,
     /// [`crate::dataset_id`] of the drops.csv read.
     pub dataset_id: String,

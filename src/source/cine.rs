@@ -38,7 +38,7 @@ const MAX_ANNOTATION: u32 = 1 << 20;
 /// Does the file start with the cine magic `"CI"`?
 pub fn has_cine_magic(path: &Path) -> bool {
     let mut magic = [0u8; 2];
-    File::open(path)
+    crate::io_util::open_regular(path)
         .and_then(|mut f| f.read_exact(&mut magic))
         .is_ok()
         && &magic == b"CI"
@@ -554,7 +554,7 @@ impl CineSource {
                 }
             }
         };
-        let mut file = File::open(path).map_err(io)?;
+        let mut file = crate::io_util::open_regular(path).map_err(io)?;
         let file_len = file.metadata().map_err(io)?.len();
         let mut first = Vec::with_capacity(44);
         (&mut file).take(44).read_to_end(&mut first).map_err(io)?;
@@ -568,7 +568,8 @@ impl CineSource {
             .read_to_end(&mut data)
             .map_err(io)?;
         let layout = parse_layout(&data, file_len).map_err(fmt)?;
-        let meta = build_meta(path, &layout, options);
+        let mut meta = build_meta(path, &layout, options);
+        super::validate::check_meta(&mut meta)?;
         let annotation = vec![0; layout.image_offsets.len()];
         let mut src = CineSource {
             meta,

@@ -189,22 +189,28 @@ impl FolderSource {
     pub fn open(dir: &Path, options: &OpenOptions) -> Result<Self, SourceError> {
         let entries = std::fs::read_dir(dir).map_err(io_err(dir))?;
         let mut names = Vec::new();
+        // Named pipes, sockets and devices are never opened (a pipe would
+        // block `open` for ever); links are followed to what they name.
+        let mut not_files = Vec::new();
         for e in entries {
             let e = e.map_err(io_err(dir))?;
-            if let Some(name) = e.file_name().to_str() {
-                names.push(name.to_string());
+            let Some(name) = e.file_name().to_str().map(str::to_string) else {
+                continue;
+            };
+            match std::fs::metadata(e.path()) {
+                Ok(m) if m.is_dir() => {}
+                Ok(m) if m.is_file() => names.push(name),
+                _ => not_files.push(name),
             }
         }
         names.sort();
+        not_files.sort();
         // Group numbered images by (prefix, kind); pick the largest group.
         let mut groups: std::collections::BTreeMap<(String, ImageKind), Vec<(i64, String)>> =
             Default::default();
         let mut xmls = Vec::new();
         let mut others = Vec::new();
         for name in &names {
-            if dir.join(name).is_dir() {
-                continue;
-            }
             if let Some((prefix, number, kind)) = parse_frame_name(name) {
                 groups
                     .entry((prefix, kind))
@@ -255,6 +261,14 @@ impl FolderSource {
                 if others.len() > 5 { ", …" } else { "" }
             ));
         }
+        if !not_files.is_empty() {
+            warnings.push(format!(
+                "ignored {} entries that are not regular files (named pipes, sockets, \
+                 devices or broken links), e.g. {}",
+                not_files.len(),
+                not_files[0]
+            ));
+        }
         let mut frames = groups.remove(&(prefix.clone(), kind)).unwrap_or_default();
         frames.sort();
         if let Some(w) = frames.windows(2).find(|w| w[0].0 == w[1].0) {
@@ -292,7 +306,7 @@ impl FolderSource {
         }
 
         // The PCC XML side file.
-        let xml = pick_xml(dir, &prefix, &xmls)?;
+        let xml = pick_xml(dir, &prefix, &xmls, &mut warnings)?;
         let (xml_path, xml) = match xml {
             Some((p, x)) => (Some(p), Some(x)),
             None => (None, None),
@@ -371,6 +385,7 @@ impl FolderSource {
             row_scratch: Vec::new(),
             u16_scratch: Vec::new(),
         };
+        super::validate::check_meta(&mut src.meta)?;
         src.check_real_bpp()?;
         Ok(src)
     }
@@ -434,17 +449,43 @@ fn per_frame(by_number: &[(i64, f64)], numbers: &[i64]) -> Option<Vec<f64>> {
 
 /// The folder's PCC XML: the one named like the sequence prefix, else the
 /// only `<chd>` XML there. Several candidates without a name match → error.
+/// An XML that is not PCC's (no `<chd`, not UTF-8 text, larger than any
+/// side file) is ignored with a warning, unless it is named like the
+/// sequence: that one must be a readable side file.
 fn pick_xml(
     dir: &Path,
     prefix: &str,
     xmls: &[String],
+    warnings: &mut Vec<String>,
 ) -> Result<Option<(PathBuf, PccXml)>, SourceError> {
+    let trimmed = prefix.trim_end_matches(['_', '-', ' ', '.']);
     let mut parsed = Vec::new();
     for name in xmls {
         let path = dir.join(name);
-        let text = std::fs::read_to_string(&path).map_err(io_err(&path))?;
+        let named_like_sequence = path.file_stem().and_then(|s| s.to_str()) == Some(trimmed);
+        let bytes = crate::io_util::read_bounded(&path, pcc_xml::MAX_XML_BYTES as u64)
+            .map_err(io_err(&path))?;
+        let problem = match &bytes {
+            None => Some(format!(
+                "larger than any PCC side file ({} MiB at most)",
+                pcc_xml::MAX_XML_BYTES >> 20
+            )),
+            Some(b) if std::str::from_utf8(b).is_err() => Some("not UTF-8 text".to_string()),
+            Some(b) if !named_like_sequence && !contains(b, b"<chd") => {
+                continue; // some other XML, not PCC's
+            }
+            Some(_) => None,
+        };
+        if let Some(p) = problem {
+            if named_like_sequence {
+                return Err(format_err(&path, format!("the PCC side file is {p}")));
+            }
+            warnings.push(format!("ignored {name}: {p}, not a PCC side file"));
+            continue;
+        }
+        let text = String::from_utf8(bytes.unwrap_or_default()).unwrap_or_default();
         if !text.contains("<chd") {
-            continue; // some other XML, not PCC's
+            continue; // named like the sequence, but some other XML
         }
         let x = pcc_xml::parse(&text).map_err(|r| format_err(&path, r))?;
         parsed.push((path, x));
@@ -452,7 +493,6 @@ fn pick_xml(
     if parsed.len() <= 1 {
         return Ok(parsed.pop());
     }
-    let trimmed = prefix.trim_end_matches(['_', '-', ' ', '.']);
     let matching: Vec<_> = parsed
         .into_iter()
         .filter(|(p, _)| p.file_stem().and_then(|s| s.to_str()) == Some(trimmed))
@@ -466,6 +506,10 @@ fn pick_xml(
             ),
         )),
     }
+}
+
+fn contains(hay: &[u8], needle: &[u8]) -> bool {
+    hay.windows(needle.len()).any(|w| w == needle)
 }
 
 /// Read `buf.len()` bytes at `offset` (one positioned read on Unix).
@@ -487,7 +531,7 @@ fn open_and_probe(
     kind: ImageKind,
     scratch: &mut Scratch,
 ) -> Result<(File, Probe), SourceError> {
-    let mut file = File::open(path).map_err(io_err(path))?;
+    let mut file = crate::io_util::open_regular(path).map_err(io_err(path))?;
     let p = probe(path, &mut file, kind, scratch)?;
     Ok((file, p))
 }

@@ -18,6 +18,7 @@ pub mod memory;
 mod p10_lut;
 mod packing;
 pub mod pcc_xml;
+pub mod validate;
 mod widen;
 
 /// The name of an input, for run names and file names: a folder's whole name
@@ -137,6 +138,13 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn FrameSource>, 
     })?;
     if md.is_dir() {
         return Ok(Box::new(folder::FolderSource::open(path, options)?));
+    }
+    if !md.is_file() {
+        return Err(SourceError::Unsupported {
+            path: path.to_path_buf(),
+            reason: "not a regular file (a named pipe, socket or device): give a folder or a .cine"
+                .into(),
+        });
     }
     let is_cine_name = path
         .extension()

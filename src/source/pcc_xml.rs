@@ -35,9 +35,31 @@ pub struct PccXml {
     pub exposures: Vec<(i64, f64)>,
 }
 
-/// Parse a PCC XML document. Errors say what is wrong (not XML, wrong root,
-/// a value that is not a number); missing optional elements are `None`.
+/// Largest side file read, in bytes: a TIMEBLOCK and an EXPOSUREBLOCK for
+/// about 500 000 frames (PCC writes ~120 bytes a frame).
+pub const MAX_XML_BYTES: usize = 64 << 20;
+
+/// Deepest element nesting accepted. PCC's files nest 4 deep; the parser
+/// builds its tree recursively, and 100 000 levels overflow a thread's stack.
+pub const MAX_XML_DEPTH: usize = 64;
+
+/// Parse a PCC XML document. Errors say what is wrong (too large or too
+/// deeply nested, checked before parsing; not XML, wrong root, a value that
+/// is not a number or not a possible frame rate or exposure); missing
+/// optional elements are `None`.
 pub fn parse(text: &str) -> Result<PccXml, String> {
+    if text.len() > MAX_XML_BYTES {
+        return Err(format!(
+            "{} bytes: larger than any PCC side file ({} MiB at most)",
+            text.len(),
+            MAX_XML_BYTES >> 20
+        ));
+    }
+    if let Some(line) = too_deep(text, MAX_XML_DEPTH) {
+        return Err(format!(
+            "elements nested more than {MAX_XML_DEPTH} deep (at line {line}): not a PCC side file"
+        ));
+    }
     let doc = roxmltree::Document::parse(text).map_err(|e| format!("not valid XML: {e}"))?;
     let root = doc.root_element();
     if root.tag_name().name() != "chd" {
@@ -71,13 +93,23 @@ pub fn parse(text: &str) -> Result<PccXml, String> {
             _ => None,
         })
     };
-    let fps = match num::<f64>(text_of(setup, "FrameRateDouble"), "FrameRateDouble")? {
-        Some(f) => Some(f),
-        None => num::<f64>(text_of(setup, "FrameRate"), "FrameRate")?,
+    // A frame rate or exposure that is there but impossible is an error,
+    // never replaced by another value.
+    let positive = |name: &str| -> Result<Option<f64>, String> {
+        match num::<f64>(text_of(setup, name), name)? {
+            Some(v) if !(v.is_finite() && v > 0.0) => Err(format!(
+                "<{name}> holds {v}: it must be a finite number above 0"
+            )),
+            v => Ok(v),
+        }
     };
-    let exposure_s = match num::<f64>(text_of(setup, "ShutterNs"), "ShutterNs")? {
+    let fps = match positive("FrameRateDouble")? {
+        Some(f) => Some(f),
+        None => positive("FrameRate")?,
+    };
+    let exposure_s = match positive("ShutterNs")? {
         Some(ns) => Some(ns * 1e-9),
-        None => num::<f64>(text_of(setup, "Shutter"), "Shutter")?.map(|us| us * 1e-6),
+        None => positive("Shutter")?.map(|us| us * 1e-6),
     };
     let trigger = header.and_then(|h| child(h, "TriggerTime")).map(|t| {
         let d = child(t, "Date").and_then(|n| n.text()).unwrap_or("");
@@ -153,6 +185,65 @@ pub fn parse(text: &str) -> Result<PccXml, String> {
         times,
         exposures,
     })
+}
+
+/// The line where elements first nest deeper than `limit`, if they do. A
+/// scan over the text that knows tags, quoted attribute values, comments,
+/// CDATA, processing instructions and declarations; malformed text is left
+/// for the parser to reject, since the scan only has to bound what it
+/// would build.
+fn too_deep(text: &str, limit: usize) -> Option<usize> {
+    let b = text.as_bytes();
+    let line = |i: usize| 1 + b[..i].iter().filter(|&&c| c == b'\n').count();
+    let skip_past = |from: usize, end: &[u8]| -> usize {
+        b[from..]
+            .windows(end.len())
+            .position(|w| w == end)
+            .map_or(b.len(), |k| from + k + end.len())
+    };
+    let mut depth = 0usize;
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] != b'<' {
+            i += 1;
+            continue;
+        }
+        let rest = &b[i..];
+        if rest.starts_with(b"<!--") {
+            i = skip_past(i + 4, b"-->");
+        } else if rest.starts_with(b"<![CDATA[") {
+            i = skip_past(i + 9, b"]]>");
+        } else if rest.starts_with(b"<?") {
+            i = skip_past(i + 2, b"?>");
+        } else if rest.starts_with(b"<!") {
+            i = skip_past(i + 2, b">");
+        } else {
+            // A tag: find its end outside quoted values.
+            let closing = rest.get(1) == Some(&b'/');
+            let mut j = i + 1;
+            let mut quote = None;
+            while j < b.len() {
+                match (quote, b[j]) {
+                    (None, b'"' | b'\'') => quote = Some(b[j]),
+                    (Some(q), c) if c == q => quote = None,
+                    (None, b'>') => break,
+                    _ => {}
+                }
+                j += 1;
+            }
+            let empty = j > i + 1 && b.get(j - 1) == Some(&b'/');
+            if closing {
+                depth = depth.saturating_sub(1);
+            } else if !empty {
+                depth += 1;
+                if depth > limit {
+                    return Some(line(i));
+                }
+            }
+            i = j + 1;
+        }
+    }
+    None
 }
 
 fn child<'a, 'i>(parent: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
@@ -289,6 +380,49 @@ mod tests {
         assert_eq!(x.times[0].0, -2);
         assert!((x.times[0].1 + 0.002).abs() < 1e-9);
         assert!((x.times[1].1 + 0.001).abs() < 1e-9);
+    }
+
+    #[test]
+    fn deep_nesting_is_refused_before_parsing() {
+        // 100 000 levels overflowed the stack in the parser (issue 14).
+        let deep = format!(
+            "<chd>{}{}</chd>",
+            "<a>".repeat(100_000),
+            "</a>".repeat(100_000)
+        );
+        let e = parse(&deep).unwrap_err();
+        assert!(e.contains("nested more than 64 deep"), "{e}");
+        // Comments, CDATA, quoted `>` and empty elements do not nest.
+        let flat = format!(
+            "<?xml version=\"1.0\"?><chd><!-- <a><a> -->{}<x a=\"b>\" b='>'/><![CDATA[<c><c>]]>\
+             <CameraSetup><FrameRate>10</FrameRate></CameraSetup></chd>",
+            "<e/>".repeat(100)
+        );
+        assert_eq!(too_deep(&flat, 3), None);
+        assert_eq!(parse(&flat).unwrap().fps, Some(10.0));
+        assert_eq!(too_deep("<a>\n<b>\n<c>", 2), Some(3));
+        let big = format!("<chd>{}</chd>", " ".repeat(MAX_XML_BYTES));
+        assert!(parse(&big)
+            .unwrap_err()
+            .contains("larger than any PCC side file"));
+    }
+
+    #[test]
+    fn impossible_frame_rates_and_exposures_are_errors() {
+        for (elem, value) in [
+            ("FrameRateDouble", "NaN"),
+            ("FrameRateDouble", "0"),
+            ("FrameRate", "-10000"),
+            ("ShutterNs", "inf"),
+            ("Shutter", "-5"),
+        ] {
+            let xml = format!("<chd><CameraSetup><{elem}>{value}</{elem}></CameraSetup></chd>");
+            let e = parse(&xml).unwrap_err();
+            assert!(
+                e.contains(elem) && e.contains("finite number above 0"),
+                "{e}"
+            );
+        }
     }
 
     #[test]

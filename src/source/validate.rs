@@ -1,0 +1,317 @@
+//! What a file says about its frames, checked before anything uses it
+//! (issue 14): a frame rate that a camera can have, an exposure that fits
+//! in a frame interval, and frame times that are finite, strictly
+//! increasing and on the frame rate's grid. A file that breaks one of these
+//! is an error naming it (and the frame); a small disagreement is a warning
+//! in [`SourceDetails::warnings`](super::SourceDetails::warnings).
+
+use super::{SourceError, SourceMeta};
+
+/// Frame rates outside this range (frames/s) are no camera's: the slowest
+/// sample here records at 24, the fastest Phantoms at under 2 000 000.
+pub const FPS_RANGE: (f64, f64) = (0.1, 1e7);
+
+/// Save decimation (cine `fDecimation`) outside this range is corrupt: one
+/// frame saved of every 1 to 1 000 000.
+pub const DECIMATION_RANGE: (f64, f64) = (1.0, 1e6);
+
+/// An exposure may exceed the frame interval by this fraction (the two are
+/// stored rounded, in ns or µs and in frames/s).
+const EXPOSURE_SLACK: f64 = 1e-3;
+
+/// A frame time off the regular grid by more than this share of a frame
+/// interval is a corrupt time block (an error).
+pub const TIME_ERROR_INTERVALS: f64 = 0.25;
+
+/// A frame time off the grid by more than this share of an interval (and
+/// more than the PCC XML's 10 ns resolution) gives a warning.
+pub const TIME_WARNING_INTERVALS: f64 = 0.01;
+
+/// The frame interval the time stamps show may differ from 1/fps by this
+/// fraction before a warning.
+pub const FPS_AGREEMENT: f64 = 1e-3;
+
+/// How the warning about frame times a little off their grid starts.
+pub const IRREGULAR_TIMES: &str = "frame times are not evenly spaced";
+
+/// How the warning about frame times spaced otherwise than the frame rate says starts.
+pub const TIMES_AND_RATE_DISAGREE: &str = "the frame times are";
+
+/// A number as a person reads it: plain when moderate, else in e-notation
+/// (Rust prints 1e300 with all its 301 digits).
+fn show(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e8).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+fn bad(meta: &SourceMeta, reason: String) -> SourceError {
+    SourceError::Format {
+        path: meta.path.clone(),
+        reason,
+    }
+}
+
+/// Check `meta` (see the module doc); warnings are added to its details.
+pub fn check_meta(meta: &mut SourceMeta) -> Result<(), SourceError> {
+    let fps = meta.fps;
+    if fps.is_nan() {
+        return Err(SourceError::NoFrameRate {
+            path: meta.path.clone(),
+        });
+    }
+    let in_range = |v: f64, (lo, hi): (f64, f64)| v.is_finite() && v >= lo && v <= hi;
+    let d = &meta.details;
+    if let Some(acq) = d.acquisition_fps {
+        if !in_range(acq, FPS_RANGE) {
+            return Err(bad(
+                meta,
+                format!(
+                    "acquisition frame rate {} frames/s is outside {}–{} frames/s: corrupt header",
+                    show(acq),
+                    FPS_RANGE.0,
+                    show(FPS_RANGE.1)
+                ),
+            ));
+        }
+    }
+    if !in_range(d.decimation, DECIMATION_RANGE) {
+        return Err(bad(
+            meta,
+            format!(
+                "save decimation {} is outside {}–{}: corrupt header",
+                show(d.decimation),
+                DECIMATION_RANGE.0,
+                DECIMATION_RANGE.1
+            ),
+        ));
+    }
+    if !in_range(fps, FPS_RANGE) {
+        return Err(bad(
+            meta,
+            format!(
+                "frame rate {} frames/s is outside {}–{} frames/s: corrupt header",
+                show(fps),
+                FPS_RANGE.0,
+                show(FPS_RANGE.1)
+            ),
+        ));
+    }
+    // The exposure fits in the camera's frame interval (before decimation).
+    let interval_s = 1.0 / d.acquisition_fps.unwrap_or(fps);
+    if let Some(e) = meta.exposure_s {
+        if !(e.is_finite() && e > 0.0 && e <= interval_s * (1.0 + EXPOSURE_SLACK)) {
+            return Err(bad(
+                meta,
+                format!(
+                    "exposure {} s is not within 0 and the frame interval {} s \
+                     (1/{} frames/s): corrupt header",
+                    show(e),
+                    show(interval_s),
+                    show(1.0 / interval_s)
+                ),
+            ));
+        }
+    }
+    if let Some(ts) = meta.timestamps_s.clone() {
+        check_times(meta, &ts)?;
+    }
+    Ok(())
+}
+
+/// Frame times: finite, strictly increasing, on a regular grid of the
+/// frame numbers, and spaced as the frame rate says.
+fn check_times(meta: &mut SourceMeta, ts: &[f64]) -> Result<(), SourceError> {
+    let number = |i: usize| meta.frame_numbers.get(i).copied().unwrap_or(i as i64);
+    if let Some(i) = ts.iter().position(|t| !t.is_finite()) {
+        return Err(bad(
+            meta,
+            format!(
+                "frame {}: time stamp {} is not a number: corrupt time block",
+                number(i),
+                ts[i]
+            ),
+        ));
+    }
+    if let Some(i) = (1..ts.len()).find(|&i| ts[i] <= ts[i - 1]) {
+        return Err(bad(
+            meta,
+            format!(
+                "frame {}: time stamp {} s is not after frame {}'s {} s: \
+                 the frame times must increase (corrupt time block)",
+                number(i),
+                show(ts[i]),
+                number(i - 1),
+                show(ts[i - 1])
+            ),
+        ));
+    }
+    if ts.len() < 3 {
+        return Ok(());
+    }
+    // The grid: the median interval per frame number, through the median offset.
+    let mut steps: Vec<f64> = (1..ts.len())
+        .map(|i| (ts[i] - ts[i - 1]) / (number(i) - number(i - 1)) as f64)
+        .collect();
+    let step = median(&mut steps);
+    let mut offsets: Vec<f64> = (0..ts.len())
+        .map(|i| ts[i] - (number(i) - number(0)) as f64 * step)
+        .collect();
+    let t0 = median(&mut offsets);
+    let (worst, off) = (0..ts.len())
+        .map(|i| (i, ts[i] - t0 - (number(i) - number(0)) as f64 * step))
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .unwrap_or((0, 0.0));
+    let intervals = off.abs() / step;
+    if intervals > TIME_ERROR_INTERVALS {
+        return Err(bad(
+            meta,
+            format!(
+                "frame {}: time stamp {} s is {intervals:.2} frame intervals off the other \
+                 frames' regular spacing of {step} s: corrupt time block",
+                number(worst),
+                show(ts[worst])
+            ),
+        ));
+    }
+    if intervals > TIME_WARNING_INTERVALS && off.abs() > 1e-8 {
+        meta.details.warnings.push(format!(
+            "{IRREGULAR_TIMES}: frame {} is {intervals:.3} frame intervals off the regular \
+             spacing of {step} s; the times are used as they are",
+            number(worst)
+        ));
+    }
+    let fps_times = 1.0 / step;
+    if (fps_times / meta.fps - 1.0).abs() > FPS_AGREEMENT {
+        meta.details.warnings.push(format!(
+            "{TIMES_AND_RATE_DISAGREE} {step} s apart ({fps_times:.6} frames/s) but the frame rate \
+             is {} frames/s; the times are used",
+            meta.fps
+        ));
+    }
+    Ok(())
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::source::SourceDetails;
+
+    fn meta(fps: f64, exposure_s: Option<f64>, ts: Option<Vec<f64>>) -> SourceMeta {
+        let n = ts.as_ref().map_or(10, Vec::len);
+        SourceMeta {
+            path: "run.cine".into(),
+            fps,
+            exposure_s,
+            frame_numbers: (0..n as i64).collect(),
+            frame_count: n,
+            timestamps_s: ts,
+            details: SourceDetails {
+                decimation: 1.0,
+                ..SourceDetails::default()
+            },
+            ..SourceMeta::default()
+        }
+    }
+
+    fn grid(n: usize, fps: f64) -> Vec<f64> {
+        (0..n).map(|i| i as f64 / fps).collect()
+    }
+
+    fn err(m: &mut SourceMeta) -> String {
+        check_meta(m).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_regular_recording_passes_without_warning() {
+        let mut m = meta(10_000.0, Some(50e-6), Some(grid(50, 10_000.0)));
+        check_meta(&mut m).unwrap();
+        assert!(m.details.warnings.is_empty(), "{:?}", m.details.warnings);
+        // The exposure may fill the whole frame interval.
+        check_meta(&mut meta(10_000.0, Some(100e-6), None)).unwrap();
+    }
+
+    #[test]
+    fn impossible_rates_and_exposures_are_errors_naming_the_file() {
+        for (m, expect) in [
+            (meta(1e300, None, None), "frame rate 1e300"),
+            (meta(-5.0, None, None), "frame rate -5"),
+            (meta(f64::INFINITY, None, None), "frame rate inf"),
+            (meta(10_000.0, Some(4.0), None), "exposure 4 s"),
+            (meta(10_000.0, Some(0.0), None), "exposure 0 s"),
+            (meta(10_000.0, Some(f64::NAN), None), "exposure NaN s"),
+        ] {
+            let mut m = m;
+            let e = err(&mut m);
+            assert!(e.starts_with("run.cine: ") && e.contains(expect), "{e}");
+        }
+        let mut m = meta(10_000.0, None, None);
+        m.details.decimation = 1e-30;
+        assert!(err(&mut m).contains("save decimation 1e-30"));
+        let mut m = meta(10_000.0, None, None);
+        m.details.acquisition_fps = Some(1e300);
+        assert!(err(&mut m).contains("acquisition frame rate 1e300"));
+        assert!(matches!(
+            check_meta(&mut meta(f64::NAN, None, None)),
+            Err(SourceError::NoFrameRate { .. })
+        ));
+    }
+
+    #[test]
+    fn reversed_garbled_or_jittered_times_are_errors_naming_the_frame() {
+        let mut rev = grid(30, 10_000.0);
+        rev.reverse();
+        let e = err(&mut meta(10_000.0, None, Some(rev)));
+        assert!(
+            e.contains("frame 1: time stamp") && e.contains("must increase"),
+            "{e}"
+        );
+        let mut nan = grid(30, 10_000.0);
+        nan[7] = f64::NAN;
+        assert!(err(&mut meta(10_000.0, None, Some(nan))).contains("frame 7: time stamp NaN"));
+        // Three frames jittered by 0.1–1 ms at 10 000 frames/s.
+        for (k, jitter) in [(5, 0.1e-3), (12, -0.4e-3), (20, 1e-3)] {
+            let mut t = grid(40, 10_000.0);
+            t[k] += jitter;
+            let e = err(&mut meta(10_000.0, None, Some(t)));
+            assert!(e.contains("corrupt time block"), "{e}");
+        }
+        // Still increasing but half an interval off: an error naming it.
+        let mut t = grid(40, 10_000.0);
+        t[12] += 0.45e-4;
+        let e = err(&mut meta(10_000.0, None, Some(t)));
+        assert!(
+            e.contains("frame 12: time stamp") && e.contains("0.45 frame intervals"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn small_irregularities_and_a_disagreeing_rate_are_warnings() {
+        let mut t = grid(40, 10_000.0);
+        t[12] += 0.05e-4;
+        let mut m = meta(10_000.0, None, Some(t));
+        check_meta(&mut m).unwrap();
+        assert!(m.details.warnings[0].contains("frame 12 is 0.050 frame intervals off"));
+        let mut m = meta(9_000.0, None, Some(grid(40, 10_000.0)));
+        check_meta(&mut m).unwrap();
+        assert!(
+            m.details.warnings[0].contains("10000.000000 frames/s")
+                && m.details.warnings[0].contains("frame rate is 9000"),
+            "{:?}",
+            m.details.warnings
+        );
+    }
+}

@@ -112,6 +112,7 @@ fn spec(run: &str, path: &Path) -> RunSpec {
         mm_per_px: None,
         surface: None,
         sphere_density_kg_m3: None,
+        setup: None,
     }
 }
 

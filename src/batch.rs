@@ -198,6 +198,24 @@ pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
     Ok(out)
 }
 
+/// `dropscope process`'s inputs with every folder that holds no frames of
+/// its own replaced by the runs found under it ([`discover_runs`]); any
+/// other input (a run, a path that does not exist) is kept, so that it gets
+/// its own row and reason.
+pub fn expand_inputs(inputs: &[PathBuf]) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for p in inputs {
+        if p.is_dir() && !is_frame_folder(p) {
+            if let Ok(found) = discover_runs(std::slice::from_ref(p)) {
+                out.extend(found);
+                continue;
+            }
+        }
+        out.push(p.clone());
+    }
+    out
+}
+
 /// The runs the configuration names.
 pub fn configured_runs(cfg: &PipelineConfig) -> Result<Vec<RunSpec>, BatchError> {
     if let Some(m) = &cfg.input.manifest {

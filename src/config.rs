@@ -13,6 +13,9 @@ use std::path::{Path, PathBuf};
 /// `pipeline.toml`, pointing at the committed fixtures).
 pub const EMBEDDED_DEFAULT: &str = include_str!("../pipeline.toml");
 
+/// How messages name the embedded default when no file was found.
+pub const EMBEDDED_NAME: &str = "(embedded pipeline.toml)";
+
 /// Why a configuration could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
@@ -246,7 +249,7 @@ impl PipelineConfig {
             Some(p) => Ok((Self::load(p)?, p.display().to_string())),
             None if local.exists() => Ok((Self::load(local)?, "./pipeline.toml".into())),
             None => {
-                let name = "(embedded pipeline.toml)";
+                let name = EMBEDDED_NAME;
                 let cfg = Self::from_toml_str(EMBEDDED_DEFAULT, Path::new(name), Path::new(""))?;
                 Ok((cfg, name.into()))
             }

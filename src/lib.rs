@@ -38,6 +38,7 @@ pub mod batch;
 pub mod cache;
 pub mod collapse;
 pub mod config;
+pub mod config_toml;
 pub mod dataset;
 pub mod dataset_id;
 pub mod detect;
@@ -62,3 +63,12 @@ pub mod source;
 #[cfg(test)]
 mod test_support;
 pub mod track;
+
+/// "1 drop", "3 drops": a count with its noun for messages.
+pub fn plural(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}

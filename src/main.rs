@@ -145,6 +145,18 @@ fn job_counts(job: &dropscope::batch::JobSummary, secs: f64) -> String {
 /// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
 fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     let (cfg, name) = load_config(args.config.as_deref())?;
+    if args.config.is_none() && name == dropscope::config::EMBEDDED_NAME {
+        if let Some(m) = cfg.input.manifest.as_ref().filter(|m| !m.exists()) {
+            anyhow::bail!(
+                "no pipeline.toml in this folder and no --config: the built-in default \
+                 configuration processes the sample drops of the dropscope repository \
+                 ({}), which are not here. Run `dropscope` inside the repository, or save \
+                 `dropscope check-config > pipeline.toml` here and set [input] manifest to \
+                 your runs.csv (or paths to your run folders), or pass --config FILE",
+                m.display()
+            );
+        }
+    }
     let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
     let env = |k: &str| std::env::var(k).ok();
     let shard = args
@@ -206,7 +218,11 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     let (cfg, _) = load_config(args.config.as_deref())?;
     let runs = match &args.manifest {
         Some(m) => dropscope::manifest::read_manifest(m)?,
-        None => dropscope::process::runs_from_inputs(&args.inputs, args.radius_mm, &cfg)?,
+        None => dropscope::process::runs_from_inputs(
+            &dropscope::batch::expand_inputs(&args.inputs),
+            args.radius_mm,
+            &cfg,
+        )?,
     };
     let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
     let _held = hold_folder(&out, "process", &cfg, &runs, wait)?;
@@ -218,14 +234,13 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
         &args.overlay_frames,
         &print_run_status,
     )?;
-    let failed = records
-        .iter()
-        .filter(|r| r.status == DropStatus::Failed)
-        .count();
+    let n = |s: DropStatus| records.iter().filter(|r| r.status == s).count();
+    let failed = n(DropStatus::Failed);
     eprintln!(
-        "{} runs: {} measured, {} failed, in {:.2} s; results in {}",
-        records.len(),
-        records.len() - failed,
+        "{}: {} measured, {} with warnings, {} failed, in {:.2} s; results in {}",
+        dropscope::plural(records.len(), "run"),
+        n(DropStatus::Ok),
+        n(DropStatus::Warning),
         failed,
         start.elapsed().as_secs_f64(),
         out.display()
@@ -246,8 +261,8 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
         eprintln!("warning: {w}");
     }
     println!(
-        "collapse: {} drops used, {} skipped; {} files in {}",
-        s.n_used,
+        "collapse: {} used, {} skipped; {} files in {}",
+        dropscope::plural(s.n_used, "drop"),
         s.n_skipped,
         s.files.len(),
         s.out_dir.display()
@@ -351,13 +366,30 @@ fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// An error and its causes on one line, each cause only when the text so
+/// far does not already say it (our errors often print their source
+/// themselves: "file: No such file or directory" once, not twice).
+fn error_text(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if text.is_empty() {
+            text = c;
+        } else if !text.contains(&c) {
+            text = format!("{text}: {c}");
+        }
+    }
+    text
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let command = cli.command.unwrap_or(Command::Run(cli.run));
     let result: anyhow::Result<ExitCode> = match command {
         Command::Run(args) => run_main_job(&args),
-        Command::CheckConfig { config } => load_config(config.as_deref()).map(|(c, _)| {
-            println!("{c:#?}");
+        Command::CheckConfig { config } => load_config(config.as_deref()).map(|(c, name)| {
+            println!("# {name}: valid; resolved (paths as dropscope will use them):");
+            print!("{}", c.to_toml());
             ExitCode::SUCCESS
         }),
         Command::Inspect(args) => {
@@ -381,7 +413,7 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_text(&e));
             ExitCode::from(2)
         }
     }

@@ -397,7 +397,9 @@ fn track_rows(tr: &Track) -> Vec<TrackRow> {
             let fit = f.held.or(f.free);
             TrackRow {
                 frame: f.frame,
-                t_s: f.t_s,
+                // To the nanosecond: a time computed as frame / fps carries
+                // float noise (-0.0030000000000001137) no clock has.
+                t_s: (f.t_s * 1e9).round() / 1e9,
                 x_px: fit.map(|c| c.x_px),
                 z_px: fit.map(|c| c.z_px),
                 r_px: fit.map(|c| c.r_px),

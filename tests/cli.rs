@@ -65,6 +65,10 @@ fn no_argument_runs_the_main_job_on_the_local_pipeline_toml() {
     let results = dir.path().join("results");
     let drops = dropscope::dataset::read_csv(&results.join("drops.csv")).unwrap();
     assert_eq!(drops.len(), 3);
+    // Times to the nanosecond, without float noise (-0.0030000000000001137).
+    let track = std::fs::read_to_string(results.join("tracks/R3mm_H1.5cm_01.csv")).unwrap();
+    let first = track.lines().nth(1).unwrap();
+    assert!(first.starts_with("-30,-0.003,"), "{first}");
     for f in [
         "collapse.csv",
         "fits.json",
@@ -277,4 +281,95 @@ fn inspect_and_export_without_any_fps_say_where_to_set_it() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(dir.path().join("out/run_0.png").is_file());
+}
+
+/// Issue 17 item 4: outside the checkout, `dropscope` said
+/// "fixtures/runs.csv: No such file … (os error 2): No such file … (os error 2)".
+#[test]
+fn outside_the_checkout_the_errors_say_what_to_do_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dropscope().current_dir(dir.path()).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no pipeline.toml in this folder")
+            && err.contains("fixtures/runs.csv")
+            && err.contains("--config"),
+        "{err}"
+    );
+    let out = dropscope()
+        .args(["collapse", "missing.csv"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        err.trim(),
+        "error: missing.csv: No such file or directory (os error 2)"
+    );
+    // check-config prints TOML with the file's key names, to save and edit.
+    let out = dropscope()
+        .arg("check-config")
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("[surface.pdms]") && text.contains("pillar_height_mm = 3.5"),
+        "{text}"
+    );
+    assert!(
+        !text.contains("radius_m ") && !text.contains("surfaces"),
+        "{text}"
+    );
+}
+
+/// `--radii-mm 3 5 7` as `render --help` shows its default (issue 17 item 8).
+#[test]
+fn list_options_take_spaces_as_well_as_commas() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dropscope()
+        .args([
+            "render",
+            "--campaign",
+            "--radii-mm",
+            "3",
+            "7",
+            "--heights-cm",
+            "1.5",
+        ])
+        .args(["--frames-before", "2", "--frames-after", "2", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let manifest = std::fs::read_to_string(dir.path().join("runs.csv")).unwrap();
+    assert_eq!(manifest.lines().count(), 3, "{manifest}");
+}
+
+/// `process` on a folder of run folders finds the runs (issue 17 item 7:
+/// it said "no numbered frames"), and counts "with warnings" apart.
+#[test]
+fn process_finds_the_runs_in_a_folder_of_run_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let fixtures = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures");
+    let out = dropscope()
+        .arg("process")
+        .arg(&fixtures)
+        .args(["--radius-mm", "4.5", "--out"])
+        .arg(dir.path())
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("3 runs: ") && err.contains(" with warnings, 0 failed"),
+        "{err}"
+    );
+    let drops = dropscope::dataset::read_csv(&dir.path().join("drops.csv")).unwrap();
+    let runs: Vec<&str> = drops.iter().map(|r| r.run.as_str()).collect();
+    assert_eq!(runs, ["R3mm_H1.5cm_01", "R4.5mm_H12cm_01", "R7mm_H50cm_01"]);
 }

@@ -316,10 +316,10 @@ fn fit_and_bootstrap(
     let (fit, weighted) = fit_effective_variance(obs, degree)?;
     if !weighted {
         warnings.push(format!(
-            "{}: unweighted least squares (some of its {} drops have no uncertainty, \
+            "{}: unweighted least squares (some of its {} have no uncertainty, \
              or a zero one)",
             display_name(name),
-            obs.len()
+            crate::plural(obs.len(), "drop")
         ));
     }
     let (boot, failed) = bootstrap(obs, degree, settings, name, derive);
@@ -361,9 +361,9 @@ fn series(
 ) -> Option<(SeriesFit, Option<Estimate>)> {
     if obs.len() < 4 {
         warnings.push(format!(
-            "{}: {} drops, at least 4 are needed for three coefficients with errors",
+            "{}: {}, at least 4 are needed for three coefficients with errors",
             display_name(name),
-            obs.len()
+            crate::plural(obs.len(), "drop")
         ));
         return None;
     }
@@ -429,9 +429,9 @@ fn asymptote(
 ) -> Option<AsymptoteFit> {
     if obs.len() < 2 {
         warnings.push(format!(
-            "{}: {} drops selected, need 2",
+            "{}: {} selected, need 2",
             display_name(name),
-            obs.len()
+            crate::plural(obs.len(), "drop")
         ));
         return None;
     }
@@ -494,7 +494,7 @@ fn exponents(
         if obs.len() < 3 {
             warnings.push(format!(
                 "{name}: {} {what}, need 3 for an exponent",
-                obs.len()
+                crate::plural(obs.len(), "drop")
             ));
             return None;
         }
@@ -528,10 +528,10 @@ fn exponents(
             weighted: false,
         };
         // Each exponent: (estimate, intercept, weighted) when its fit ran.
-        let nu = exponent(&pi_obs, "drops", &format!("nu (R = {radius_mm} mm)"));
+        let nu = exponent(&pi_obs, "in all", &format!("nu (R = {radius_mm} mm)"));
         let mu = exponent(
             &tau_obs,
-            "drops with a contact time",
+            "with a contact time",
             &format!("mu (R = {radius_mm} mm)"),
         );
         if let Some((est, intercept, _)) = &nu {

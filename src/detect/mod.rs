@@ -63,7 +63,11 @@ pub enum DetectError {
     #[error("no frames to build the background from: set detect.background_frames ≥ 1")]
     NoBackgroundFrames,
     /// The flicker reference region holds no light (all zero), so no gain can be measured.
-    #[error("the flicker reference region ({what}) is dark: choose a region of bright background")]
+    #[error(
+        "the flicker reference region ({what}) is dark: the strips at the frames' left and \
+         right edges must show bright background (is the movie underexposed, or something \
+         dark standing at the frame's edges?)"
+    )]
     DarkReference { what: String },
     /// Too few usable points for a fit.
     #[error("{what}: only {found} usable points, at least {needed} needed")]

@@ -120,10 +120,10 @@ pub struct RenderArgs {
     #[arg(long)]
     pub campaign: bool,
     /// Radii of the campaign grid, mm.
-    #[arg(long, value_delimiter = ',', default_values_t = campaign::PAPER_RADII_MM)]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_RADII_MM)]
     pub radii_mm: Vec<f64>,
     /// Drop heights of the campaign grid, cm.
-    #[arg(long, value_delimiter = ',', default_values_t = campaign::PAPER_HEIGHTS_CM)]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_HEIGHTS_CM)]
     pub heights_cm: Vec<f64>,
     /// Repeats of every grid point (each a new contact phase, column and noise).
     #[arg(long, default_value_t = 1)]

@@ -223,9 +223,17 @@ impl FolderSource {
             }
         }
         let Some(best) = groups.values().map(Vec::len).max() else {
+            let has_folders = std::fs::read_dir(dir)
+                .is_ok_and(|entries| entries.flatten().any(|e| e.path().is_dir()));
             return Err(format_err(
                 dir,
-                "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder",
+                if has_folders {
+                    "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder, \
+                     only sub-folders: give the run folders themselves, or list them in a \
+                     runs.csv and use --manifest"
+                } else {
+                    "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder"
+                },
             ));
         };
         let mut tied = groups.iter().filter(|(_, v)| v.len() == best);
@@ -234,8 +242,8 @@ impl FolderSource {
             return Err(format_err(
                 dir,
                 format!(
-                    "two frame sequences of {best} files each ({prefix:?}*.{} and {p2:?}*.{}): \
-                     keep one sequence per folder",
+                    "two frame sequences of {best} files each ({prefix:?}… {} files and \
+                     {p2:?}… {} files): keep one sequence per folder",
                     kind.name(),
                     k2.name()
                 ),

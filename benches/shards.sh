@@ -26,18 +26,23 @@ cfg="$work/pipeline.toml"
 
 now() { date +%s%N; }
 secs() { awk -v ns="$(( $(now) - $1 ))" 'BEGIN { printf "%.2f", ns / 1e9 }'; }
-# One timing: N shards side by side into a fresh folder, then the finishing run.
-sharded() {
+# One timing, "wall s (CPU s)": N shards side by side into a fresh folder,
+# then the finishing run. CPU is user + system of every process.
+TIMEFORMAT='%R %U %S'
+timed() {
+  local t
+  t=$( { time "$@" >/dev/null 2>&1; } 2>&1 )
+  awk -v t="$t" 'BEGIN { split(t, a, " "); printf "%.2f s (CPU %.2f s)", a[1], a[2] + a[3] }'
+}
+shards_then_finish() {
   local n=$1 out="$work/out" threads=${THREADS_PER_SHARD:-$(( cores / $1 > 0 ? cores / $1 : 1 ))}
-  rm -rf "$out"
-  local t0; t0=$(now)
   for k in $(seq 0 $((n - 1))); do
-    "$bin" run --config "$cfg" --out "$out" --shard "$k/$n" --threads "$threads" 2>/dev/null &
+    "$bin" run --config "$cfg" --out "$out" --shard "$k/$n" --threads "$threads" &
   done
   wait
-  "$bin" run --config "$cfg" --out "$out" --threads "$cores" 2>/dev/null || [ $? -eq 1 ]
-  secs "$t0"
+  "$bin" run --config "$cfg" --out "$out" --threads "$cores" || [ $? -eq 1 ]
 }
+sharded() { rm -rf "$work/out"; timed shards_then_finish "$1"; }
 # The same through Slurm: submit, then poll the finishing job's state.
 through_slurm() {
   local n=$1 out="$work/out" cpus=${THREADS_PER_SHARD:-$(( cores / $1 > 0 ? cores / $1 : 1 ))}
@@ -50,22 +55,17 @@ through_slurm() {
     sleep 0.05
   done
   scontrol show job -o "$fin" | grep -q 'JobState=COMPLETED' || { echo "job $fin failed" >&2; exit 1; }
-  secs "$t0"
+  printf "%s s" "$(secs "$t0")"
 }
-whole() {
-  local out="$work/out"
-  rm -rf "$out"
-  local t0; t0=$(now)
-  "$bin" run --config "$cfg" --out "$out" --threads "$cores" 2>/dev/null || [ $? -eq 1 ]
-  secs "$t0"
-}
+whole_job() { "$bin" run --config "$cfg" --out "$work/out" --threads "$cores" || [ $? -eq 1 ]; }
+whole() { rm -rf "$work/out"; timed whole_job; }
 
 echo "$(wc -l < "$manifest") manifest lines, $cores cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 for r in $(seq "$repeats"); do
-  printf 'round %d: whole %s s' "$r" "$(whole)"
+  printf 'round %d: whole %s' "$r" "$(whole)"
   for n in 1 2 4; do
     if [ "${SLURM:-0}" = 1 ]; then t=$(through_slurm "$n"); else t=$(sharded "$n"); fi
-    printf ', %d shard(s) %s s' "$n" "$t"
+    printf ', %d shard(s) %s' "$n" "$t"
   done
   echo
 done

@@ -265,3 +265,64 @@ fn bad_shards_and_slurm_outside_an_array_are_refused() {
         "a refused shard wrote into the folder"
     );
 }
+
+/// `process`, `collapse` and `report` hold their folder too: while another
+/// job holds it (here this test process), each stops with exit status 2
+/// naming the holder, and writes nothing; once it is free they run.
+#[test]
+fn process_collapse_and_report_are_refused_a_held_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    repeated_manifest(d, 1);
+    let out = d.join("out");
+    let held = dropscope::lock::acquire(
+        &out,
+        &dropscope::lock::Holder::this_process("another job", None),
+        false,
+        &|_| {},
+    )
+    .unwrap();
+    let cmd = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_dropscope"))
+            .current_dir(d)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let out_s = out.to_str().unwrap();
+    let drops = d.join("out/drops.csv");
+    let commands: [Vec<&str>; 3] = [
+        vec!["process", "--manifest", "runs.csv", "--out", out_s],
+        vec!["collapse", drops.to_str().unwrap()],
+        vec!["report", out_s],
+    ];
+    for args in &commands {
+        let o = cmd(args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        assert!(
+            e.contains("is in use by job") && e.contains(&format!("pid {}", std::process::id())),
+            "{args:?}: {e}"
+        );
+    }
+    let files: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(
+        files,
+        [".dropscope.lock"],
+        "a refused command wrote into the folder"
+    );
+    drop(held);
+    for args in &commands {
+        let o = cmd(args);
+        assert!(
+            o.status.code().is_some_and(|c| c < 2),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+    assert!(out.join("report.html").is_file());
+}

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use dropscope::render::camera::CameraRaster;
 use dropscope::render::optics::{draw, FrameGeometry, OpticsSpec, Strength};
-use dropscope::render::raster::Scene;
+use dropscope::render::raster::{Look, Scene};
 use dropscope::render::truth::Truth;
 use dropscope::render::{default_mm_per_px, render, rng_for, Preset};
 
@@ -16,7 +16,10 @@ use dropscope::render::export::{frame_file_name, FrameFormat};
 /// A clean 12-bit look (uniform backlight 0.75, transmission 0.06, no blur,
 /// no noise) seen through the camera `spec`.
 fn camera(spec: &OpticsSpec, scene: Scene) -> CameraRaster {
-    let look = Preset::Clean.look();
+    camera_with(Preset::Clean.look(), spec, scene)
+}
+
+fn camera_with(look: Look, spec: &OpticsSpec, scene: Scene) -> CameraRaster {
     let frame = FrameGeometry {
         width_px: scene.width_px,
         height_px: scene.height_px,
@@ -361,4 +364,230 @@ fn a_low_real_drop_starts_at_the_release_and_shows_a_second_contact() {
         .frames
         .iter()
         .any(|f| f.in_contact && f.t_s > second.t_contact_s));
+}
+
+/// A clean look whose band has one grey (0.45) across pillars and channels,
+/// so that the band's top edge in a column is read exactly from the pixel
+/// it crosses.
+fn flat_band() -> Look {
+    Look {
+        channel_grey: 0.45,
+        ..Preset::Clean.look()
+    }
+}
+
+/// The band's top edge in column `j` of a sharp image: the row where the
+/// value crosses from `above` to the band's `B·0.45`, read from the one
+/// pixel that straddles it (value = mix of the two by area).
+fn edge_row(sig: &ndarray::Array2<f32>, j: usize, above: f64) -> f64 {
+    let band = B * 0.45;
+    let i = (1..sig.nrows() - 1)
+        .find(|&i| {
+            (f64::from(sig[[i + 1, j]]) - band).abs() < 1e-6
+                && (f64::from(sig[[i, j]]) - band).abs() > 1e-7
+        })
+        .unwrap();
+    let f = (above - f64::from(sig[[i, j]])) / (above - band);
+    i as f64 + 0.5 - f
+}
+
+/// Barrel distortion at its strongest (0.5 px at the corners): the band's
+/// straight top edge, 10 rows from the top, bends into the distorted image
+/// of the line — read column by column within 0.01 px of `Geometry::forward`
+/// of the scene line (the pixel-square approximation's error is ~1e-3 px) —
+/// so that it bends by 0.19 px between the middle and the ends at this row.
+#[test]
+fn barrel_distortion_bends_a_straight_line_by_the_stated_corner_displacement() {
+    let spec = OpticsSpec {
+        corner_displacement_px: Strength::Fixed(0.5),
+        ..OpticsSpec::off()
+    };
+    let line = 10.0;
+    let cam = camera_with(flat_band(), &spec, clean_scene(512, 384, 40.0, line, 0.0));
+    let t = &cam.optics().truth;
+    assert_eq!(t.corner_displacement_px, 0.5);
+    let r_c = (255.5_f64).hypot(191.5);
+    assert!((t.k1_per_px2 + 0.5 / r_c.powi(3)).abs() < 1e-18);
+    let g = cam.optics().geometry;
+    // corner (0, 0) moves 0.5 px towards the centre
+    let (xd, zd) = g.forward(0.0, 0.0);
+    assert!((xd.hypot(zd) - 0.5).abs() < 1e-12);
+    let sig = cam.signal(&[]);
+    let expected = |j: usize| {
+        // the scene point (x, line) landing on column j
+        let mut x = j as f64;
+        for _ in 0..30 {
+            x += j as f64 - g.forward(x, line).0;
+        }
+        g.forward(x, line).1
+    };
+    let mut worst: f64 = 0.0;
+    for j in (0..512).step_by(7) {
+        worst = worst.max((edge_row(&sig, j, B) - expected(j)).abs());
+    }
+    assert!(worst < 0.01, "worst {worst} px");
+    let bend = edge_row(&sig, 0, B) - edge_row(&sig, 256, B);
+    assert!(
+        (bend - (expected(0) - expected(256))).abs() < 0.01 && bend > 0.15,
+        "{bend}"
+    );
+}
+
+/// Roll at its strongest (0.5°): the band's top edge through the image
+/// centre tilts by tan 0.5° = 0.00873 rows per column (least-squares slope
+/// of the edge rows, within 1e-5), and the truth's mapping makes the fall
+/// direction tilt with it.
+#[test]
+fn camera_roll_tilts_the_band_top_by_the_roll_angle() {
+    let spec = OpticsSpec {
+        roll_deg: Strength::Fixed(0.5),
+        ..OpticsSpec::off()
+    };
+    let cam = camera_with(flat_band(), &spec, clean_scene(512, 384, 40.0, 191.5, 0.0));
+    let sig = cam.signal(&[]);
+    let pts: Vec<(f64, f64)> = (20..492)
+        .map(|j| (j as f64, edge_row(&sig, j, B)))
+        .collect();
+    let n = pts.len() as f64;
+    let (mx, my) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>()
+        / pts.iter().map(|p| (p.0 - mx).powi(2)).sum::<f64>();
+    let want = 0.5_f64.to_radians().tan();
+    assert!((slope - want).abs() < 1e-5, "{slope} vs {want}");
+    assert!((my - 191.5).abs() < 0.01, "{my}");
+    // a fall of 100 px down the scene's columns moves the image point left by 100 sin θ
+    let g = cam.optics().geometry;
+    let (a, b) = (g.forward(255.5, 100.0), g.forward(255.5, 200.0));
+    assert!(((b.0 - a.0) + 100.0 * 0.5_f64.to_radians().sin()).abs() < 1e-9);
+}
+
+/// The pillars dipping under the sphere at their strongest (30 % of δ): with
+/// the sphere 10 px into the surface, the band's top edge (sphere above it,
+/// band below) lies 3 px lower at the sphere's column and on the line far
+/// from it (within 0.01 px).
+#[test]
+fn the_band_top_dips_under_the_sphere_by_the_stated_fraction_of_delta() {
+    let spec = OpticsSpec {
+        dip: Strength::Fixed(0.3),
+        ..OpticsSpec::off()
+    };
+    let (r, line, delta) = (40.0, 130.0, 10.0);
+    let cam = camera_with(flat_band(), &spec, clean_scene(200, 200, r, line, 0.0));
+    let sig = cam.signal(&[(100.0, line - r + delta)]);
+    let at_sphere = edge_row(&sig, 100, B * TAU_S);
+    assert!(
+        (at_sphere - (line + 0.3 * delta)).abs() < 0.01,
+        "{at_sphere}"
+    );
+    for j in [10, 190] {
+        assert!((edge_row(&sig, j, B) - line).abs() < 1e-6);
+    }
+    // no dip out of contact
+    let free = cam.signal(&[(100.0, line - r - 5.0)]);
+    assert!((edge_row(&free, 100, B) - line).abs() < 1e-6);
+}
+
+/// Defocus: σ(row) = 0.6 + g·|row − 40| with g set for σ = 2.5 at row 240.
+/// The blurred step of the band's top edge (on a pixel boundary, so that the
+/// pixels add no spread) has across it the spread of the Gaussian kernel
+/// sampled at σ of its row: within 3 % at row 40 and at row 240.
+#[test]
+fn defocus_grows_the_blur_away_from_the_focal_row() {
+    let kernel_sd = |sigma: f64| {
+        let k: Vec<f64> = (-12..=12)
+            .map(|k| (-0.5 * (f64::from(k) / sigma).powi(2)).exp())
+            .collect();
+        let sum: f64 = k.iter().sum();
+        let var: f64 = k
+            .iter()
+            .zip(-12..=12)
+            .map(|(w, q)| w * f64::from(q * q))
+            .sum::<f64>()
+            / sum;
+        var.sqrt()
+    };
+    let spread = |line: f64| {
+        let spec = OpticsSpec {
+            blur_sigma0_px: Strength::Fixed(0.6),
+            defocus_px_per_row: Strength::Fixed(1.9 / 200.0),
+            focus_row_px: Strength::Fixed(40.5),
+            ..OpticsSpec::off()
+        };
+        let cam = camera_with(flat_band(), &spec, clean_scene(160, 300, 20.0, line, 0.0));
+        let sig = cam.signal(&[]);
+        let col: Vec<f64> = (0..300).map(|i| f64::from(sig[[i, 80]])).collect();
+        let d: Vec<(f64, f64)> = (1..299)
+            .map(|i| (i as f64 + 0.5, col[i] - col[i + 1]))
+            .filter(|&(z, _)| (z - line).abs() < 15.0)
+            .collect();
+        let w: f64 = d.iter().map(|p| p.1).sum();
+        let m = d.iter().map(|p| p.0 * p.1).sum::<f64>() / w;
+        (d.iter().map(|p| (p.0 - m).powi(2) * p.1).sum::<f64>() / w).sqrt()
+    };
+    let near = spread(40.5);
+    let far = spread(240.5);
+    assert!((near / kernel_sd(0.6) - 1.0).abs() < 0.03, "{near}");
+    assert!((far / kernel_sd(2.5) - 1.0).abs() < 0.03, "{far}");
+}
+
+/// Column pattern (1.5 %), 50 hot pixels and a 5 % drift, sensor alone (a
+/// clean 12-bit look: no noise): per-column levels scatter by 1.5 %·√2
+/// (gain and offset) within 15 % (512 columns); every listed hot pixel reads
+/// its value; the ratio of a drifted frame to an undrifted one is the
+/// stated drift gain at the first and last columns (within 12-bit rounding).
+#[test]
+fn column_pattern_hot_pixels_and_drift_have_their_stated_size() {
+    let scene = clean_scene(512, 96, 20.0, 90.0, 0.0);
+    let spec = OpticsSpec {
+        column_noise: Strength::Fixed(0.015),
+        hot_pixels: Strength::Fixed(50.0),
+        ..OpticsSpec::off()
+    };
+    let cam = camera(&spec, scene.clone());
+    let t = &cam.optics().truth;
+    assert_eq!(t.hot_pixels.len(), 50);
+    let mut rng = rng_for(1, "r", "frame", 0);
+    let f = cam.frame(&[], 0.0, &mut rng);
+    for &[i, j] in &t.hot_pixels {
+        assert_eq!(f[[i, j]], t.hot_pixel_dn);
+    }
+    let white = 4095.0;
+    let level: Vec<f64> = (0..512)
+        .map(|j| {
+            let mut v: Vec<f64> = (0..60).map(|i| f64::from(f[[i, j]])).collect();
+            v.sort_by(f64::total_cmp);
+            v[30] / (B * white) - 1.0
+        })
+        .collect();
+    let rms = (level.iter().map(|x| x * x).sum::<f64>() / 512.0).sqrt();
+    let want = 0.015 * 2f64.sqrt();
+    assert!((rms / want - 1.0).abs() < 0.15, "{rms} vs {want}");
+
+    let drifting = camera(
+        &OpticsSpec {
+            drift: Strength::Fixed(0.05),
+            ..OpticsSpec::off()
+        },
+        scene.clone(),
+    );
+    let steady = camera(&OpticsSpec::off(), scene);
+    let o = drifting.optics();
+    for s in [0.0, 0.3, 1.0] {
+        let a = drifting.frame(&[], s, &mut rng_for(1, "r", "frame", 0));
+        let b = steady.frame(&[], s, &mut rng_for(1, "r", "frame", 0));
+        for j in [0, 511] {
+            let ratio = f64::from(a[[10, j]]) / f64::from(b[[10, j]]);
+            assert!(
+                (ratio - o.drift_gain(j, s)).abs() < 5e-4,
+                "{s} {j}: {ratio}"
+            );
+        }
+    }
+    let swing = (0..=10)
+        .map(|k| o.drift_gain(0, k as f64 / 10.0))
+        .fold((f64::MAX, f64::MIN), |(lo, hi), g| (lo.min(g), hi.max(g)));
+    assert!(swing.1 - swing.0 > 0.02 && swing.1 - 1.0 <= 0.05 && 1.0 - swing.0 <= 0.05);
 }

@@ -68,6 +68,7 @@ pub struct CameraRaster {
     /// Scene coordinates `(x, z)` of every pixel centre, row-major.
     map: Vec<(f64, f64)>,
     background: Array2<f32>,
+    /// `D · Blur(S)`: the static scene, blurred, with the dust.
     static_blurred: Array2<f32>,
     /// The blur kernel of every output row.
     kernels: Vec<Vec<f32>>,
@@ -127,8 +128,12 @@ impl CameraRaster {
             c1: w,
         };
         let (_, blurred) = raster.blur(&sharp, all);
-        raster.static_blurred =
+        let mut stat =
             Array2::from_shape_vec((h, w), blurred).expect("the blur keeps the image's size");
+        if let Some(d) = &raster.dust {
+            stat *= d;
+        }
+        raster.static_blurred = stat;
         Ok(raster)
     }
 
@@ -189,12 +194,10 @@ impl CameraRaster {
             let cw = reg.c1 - reg.c0;
             for i in reg.r0..reg.r1 {
                 for j in reg.c0..reg.c1 {
-                    out[[i, j]] += blurred[(i - reg.r0) * cw + (j - reg.c0)];
+                    let d = self.dust.as_ref().map_or(1.0, |d| d[[i, j]]);
+                    out[[i, j]] += d * blurred[(i - reg.r0) * cw + (j - reg.c0)];
                 }
             }
-        }
-        if let Some(d) = &self.dust {
-            out *= d;
         }
         out
     }

@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::truth::Truth;
-use crate::io_util::write_atomic;
+use crate::io_util::{write_atomic, write_atomic_unsynced};
 use crate::source::Frame;
 
 /// Why an output could not be written.
@@ -233,7 +233,9 @@ impl FrameSink for FolderSink {
                     message: e.to_string(),
                 }
             })?;
-            write_atomic(&path, &bytes).map_err(|source| ExportError::Io { path, source })
+            // Frames are renamed into place whole but not synced one by one
+            // (a sync per file cost more than rendering the frame).
+            write_atomic_unsynced(&path, &bytes).map_err(|source| ExportError::Io { path, source })
         })
     }
 

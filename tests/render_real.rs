@@ -591,3 +591,65 @@ fn column_pattern_hot_pixels_and_drift_have_their_stated_size() {
         .fold((f64::MAX, f64::MIN), |(lo, hi), g| (lo.min(g), hi.max(g)));
     assert!(swing.1 - swing.0 > 0.02 && swing.1 - 1.0 <= 0.05 && 1.0 - swing.0 <= 0.05);
 }
+
+/// `--format jpeg`: the same movie as the TIFF render (same frame numbers,
+/// the same missing file), each frame within JPEG's loss of it — mean
+/// |difference| under 1.5 DN and the worst pixel under 40 DN at quality
+/// 85–98, drawn per drop and written to truth — and 12-bit JPEG refused.
+#[test]
+fn jpeg_frames_hold_the_tiff_frames_within_the_compression_loss() {
+    use dropscope::source::{open, Frame, OpenOptions};
+    let dt = tempfile::tempdir().unwrap();
+    let dj = tempfile::tempdir().unwrap();
+    let common = [
+        "--preset",
+        "real",
+        "--drop",
+        "3:25",
+        "--width-px",
+        "160",
+        "--height-px",
+        "120",
+        "--mm-per-px",
+        "0.2",
+        "--seed",
+        "5",
+    ];
+    let with = |dir: &Path, fmt: &str| {
+        let mut a = vec!["--out", dir.to_str().unwrap(), "--format", fmt];
+        a.extend_from_slice(&common);
+        render(&args(&a)).unwrap()
+    };
+    let rt = with(dt.path(), "tiff");
+    let rj = with(dj.path(), "jpeg");
+    let q = rj.drops[0].truth.jpeg_quality.unwrap();
+    assert!((85..=98).contains(&q), "{q}");
+    assert_eq!(rt.drops[0].truth.jpeg_quality, None);
+    let run = &rt.drops[0].run;
+    let mut a = open(&dt.path().join(run), &OpenOptions::default()).unwrap();
+    let mut b = open(&dj.path().join(run), &OpenOptions::default()).unwrap();
+    let (ma, mb) = (a.meta().clone(), b.meta().clone());
+    assert_eq!(ma.frame_numbers, mb.frame_numbers);
+    let mut fa = Frame::zeros((ma.height, ma.width));
+    let mut fb = fa.clone();
+    for i in (0..ma.frame_count).step_by(5) {
+        a.read_into(i, &mut fa).unwrap();
+        b.read_into(i, &mut fb).unwrap();
+        let d: Vec<f64> = fa
+            .iter()
+            .zip(fb.iter())
+            .map(|(x, y)| (f64::from(*x) - f64::from(*y)).abs())
+            .collect();
+        let mean = d.iter().sum::<f64>() / d.len() as f64;
+        let worst = d.iter().cloned().fold(0.0, f64::max);
+        assert!(
+            mean < 1.5 && worst < 40.0,
+            "frame {i}: mean {mean}, worst {worst}"
+        );
+    }
+    let e = args(&["--out", "x", "--format", "jpeg", "--bit-depth", "12"])
+        .settings()
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--format") && e.contains("8 bits"), "{e}");
+}

@@ -12,6 +12,7 @@
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
+use image::codecs::jpeg::JpegEncoder;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::codecs::tiff::TiffEncoder;
 use image::{ExtendedColorType, ImageEncoder};
@@ -48,6 +49,9 @@ pub enum FrameFormat {
     /// PNG (fast deflate, adaptive filters: smaller than `Best` on noisy
     /// frames here and 100× faster), one file per frame.
     Png,
+    /// Baseline JPEG (8-bit only), one file per frame, as PCC's JPEG export;
+    /// the quality is drawn per drop (85–98) unless `--jpeg-quality` fixes it.
+    Jpeg,
     /// One raw Phantom `.cine` per drop (8-bit, or 16-bit containers holding
     /// 12-bit data), `<run>/<run>.cine`, with no XML side file.
     Cine,
@@ -59,6 +63,7 @@ impl FrameFormat {
         match self {
             FrameFormat::Tiff => "tif",
             FrameFormat::Png => "png",
+            FrameFormat::Jpeg => "jpg",
             FrameFormat::Cine => "cine",
         }
     }
@@ -69,7 +74,7 @@ impl FrameFormat {
 pub fn run_input_path(run: &str, format: FrameFormat) -> PathBuf {
     match format {
         FrameFormat::Cine => Path::new(run).join(format!("{run}.cine")),
-        FrameFormat::Tiff | FrameFormat::Png => PathBuf::from(run),
+        FrameFormat::Tiff | FrameFormat::Png | FrameFormat::Jpeg => PathBuf::from(run),
     }
 }
 
@@ -84,11 +89,13 @@ pub fn frame_file_name(run: &str, image_no: i64, format: FrameFormat) -> String 
 }
 
 /// Encode one frame: 8-bit grey for `bit_depth` 8, else 16-bit grey holding
-/// the values as they are (12-bit data stays 0‥4095, LSB-aligned).
+/// the values as they are (12-bit data stays 0‥4095, LSB-aligned). JPEG
+/// (8-bit only) at `jpeg_quality` (1‥100).
 pub fn encode_frame(
     frame: &Frame,
     format: FrameFormat,
     bit_depth: u8,
+    jpeg_quality: u8,
 ) -> Result<Vec<u8>, image::ImageError> {
     let (h, w) = frame.dim();
     let (bytes, color): (Vec<u8>, _) = if bit_depth == 8 {
@@ -123,6 +130,8 @@ pub fn encode_frame(
             PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Adaptive)
                 .write_image(&bytes, w as u32, h as u32, color)?
         }
+        FrameFormat::Jpeg => JpegEncoder::new_with_quality(&mut out, jpeg_quality)
+            .write_image(&bytes, w as u32, h as u32, color)?,
         FrameFormat::Cine => unreachable!("handled above"),
     }
     Ok(out)
@@ -209,15 +218,24 @@ pub struct FolderSink {
     run: String,
     format: FrameFormat,
     bit_depth: u8,
+    jpeg_quality: u8,
 }
 
 impl FolderSink {
-    pub fn new(dir: &Path, run: &str, format: FrameFormat, bit_depth: u8) -> Self {
+    /// `jpeg_quality` (1‥100) is used by JPEG frames only.
+    pub fn new(
+        dir: &Path,
+        run: &str,
+        format: FrameFormat,
+        bit_depth: u8,
+        jpeg_quality: u8,
+    ) -> Self {
         FolderSink {
             dir: dir.to_path_buf(),
             run: run.to_string(),
             format,
             bit_depth,
+            jpeg_quality,
         }
     }
 }
@@ -226,13 +244,12 @@ impl FrameSink for FolderSink {
     fn write_batch(&mut self, frames: &[(i64, Frame)]) -> Result<(), ExportError> {
         frames.par_iter().try_for_each(|(n, frame)| {
             let path = self.dir.join(frame_file_name(&self.run, *n, self.format));
-            let bytes = encode_frame(frame, self.format, self.bit_depth).map_err(|e| {
-                ExportError::Encode {
+            let bytes = encode_frame(frame, self.format, self.bit_depth, self.jpeg_quality)
+                .map_err(|e| ExportError::Encode {
                     path: path.clone(),
                     frame: *n,
                     message: e.to_string(),
-                }
-            })?;
+                })?;
             // Frames are renamed into place whole but not synced one by one
             // (a sync per file cost more than rendering the frame).
             write_atomic_unsynced(&path, &bytes).map_err(|source| ExportError::Io { path, source })

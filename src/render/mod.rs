@@ -417,6 +417,10 @@ pub fn render_drop(
                 optics::missing_frames(n0, st.optics.missing_frames, &mut pick);
         }
     }
+    let jpeg_quality = (st.format == FrameFormat::Jpeg).then(|| {
+        let (lo, hi) = st.jpeg_quality;
+        rng_for(st.seed, run, "jpeg", 0).gen_range(lo..=hi)
+    });
     let mut dust_rng = rng_for(st.seed, "", "dust", 0);
     let raster_err = |source| RenderError::Raster {
         run: run.to_string(),
@@ -452,9 +456,13 @@ pub fn render_drop(
         trigger_10ns: trigger_10ns(spec.index),
     };
     let mut sink: Box<dyn FrameSink> = match st.format {
-        FrameFormat::Tiff | FrameFormat::Png => {
-            Box::new(FolderSink::new(&dir, run, st.format, st.look.bit_depth))
-        }
+        FrameFormat::Tiff | FrameFormat::Png | FrameFormat::Jpeg => Box::new(FolderSink::new(
+            &dir,
+            run,
+            st.format,
+            st.look.bit_depth,
+            jpeg_quality.unwrap_or(95),
+        )),
         FrameFormat::Cine => Box::new(CineSink::create(&dir.join(format!("{run}.cine")), &header)?),
     };
     let missing: &[i64] = match &painter {
@@ -569,6 +577,7 @@ pub fn render_drop(
             Painter::Plain(_) => None,
         },
         look,
+        jpeg_quality,
         frames: frames_truth,
     };
     export::write_truth(&dir.join("truth.json"), &truth)?;

@@ -143,7 +143,7 @@ pub struct RenderArgs {
     /// Starting set of effects; the options below override it one by one.
     #[arg(long, value_enum, default_value_t = Preset::Realistic)]
     pub preset: Preset,
-    /// Frame files: tiff (uncompressed) or png.
+    /// Frame files: tiff (uncompressed), png, jpeg (8-bit) or one cine.
     #[arg(long, value_enum, default_value_t = FrameFormat::Tiff)]
     pub format: FrameFormat,
 
@@ -295,6 +295,9 @@ pub struct RenderArgs {
     /// Start the movie as the sphere enters at the top edge (or at its release, when in view) [real: true].
     #[arg(long)]
     pub start_at_entry: Option<bool>,
+    /// JPEG quality 1‥100 with --format jpeg [real: drawn per drop in 85‥98; else 95].
+    #[arg(long)]
+    pub jpeg_quality: Option<u8>,
     /// Go on through a second contact when the flight to it takes at most this many frames; 0: never [real: 1500].
     #[arg(long)]
     pub second_bounce_frames: Option<usize>,
@@ -312,6 +315,8 @@ pub struct RenderSettings {
     /// A real camera's effects (all off outside `--preset real` unless given).
     pub optics: OpticsSpec,
     pub format: FrameFormat,
+    /// JPEG quality: fixed, or drawn per drop in the range (`--preset real`).
+    pub jpeg_quality: (u8, u8),
     pub seed: u64,
     pub fps: f64,
     pub exposure_s: f64,
@@ -447,11 +452,27 @@ impl RenderArgs {
             return Err(invalid("repeats", self.repeats, "must lie in 1‥1000"));
         }
         let optics = self.optics(&look)?;
+        if self.format == FrameFormat::Jpeg && look.bit_depth != 8 {
+            return Err(invalid(
+                "format",
+                "jpeg",
+                "JPEG frames hold 8 bits: add --bit-depth 8",
+            ));
+        }
+        let jpeg_quality = match (self.jpeg_quality, self.preset) {
+            (Some(q), _) if !(1..=100).contains(&q) => {
+                return Err(invalid("jpeg-quality", q, "must lie in 1‥100"))
+            }
+            (Some(q), _) => (q, q),
+            (None, Preset::Real) => (85, 98),
+            (None, _) => (95, 95),
+        };
         Ok(RenderSettings {
             preset: self.preset,
             look,
             optics,
             format: self.format,
+            jpeg_quality,
             seed: self.seed,
             fps,
             exposure_s,

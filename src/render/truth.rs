@@ -136,6 +136,9 @@ pub struct Truth {
     /// and `harsh`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub camera: Option<CameraTruth>,
+    /// Quality (1‥100) of JPEG frame files; absent for other formats.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jpeg_quality: Option<u8>,
     pub frames: Vec<FrameTruth>,
 }
 

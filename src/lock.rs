@@ -103,8 +103,9 @@ impl Holder {
     }
 }
 
+/// The first 12 characters of a job id (any text, if a ticket was edited).
 fn short(job: &str) -> &str {
-    &job[..job.len().min(12)]
+    job.char_indices().nth(12).map_or(job, |(i, _)| &job[..i])
 }
 
 /// Why the folder could not be taken.
@@ -354,6 +355,13 @@ pub fn acquire(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn job_ids_are_shortened_on_character_boundaries() {
+        assert_eq!(short("0123456789abcdef"), "0123456789ab");
+        assert_eq!(short("ééééééééééééé"), "éééééééééééé");
+        assert_eq!(short("abc"), "abc");
+    }
 
     fn holder(job: &str, shard: Option<&str>) -> Holder {
         Holder::this_process(job, shard.map(String::from))

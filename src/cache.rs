@@ -23,7 +23,8 @@ use std::path::{Path, PathBuf};
 use std::time::UNIX_EPOCH;
 
 /// Bump when the entry layout or anything it depends on changes meaning.
-pub const CACHE_SCHEMA: u32 = 1;
+/// 2: each output listed with its SHA-256.
+pub const CACHE_SCHEMA: u32 = 2;
 
 /// SHA-256 (hex) of the sources this dropscope was built from: every file
 /// under `src/`, `Cargo.toml` and `Cargo.lock`, taken by `build.rs`. Any
@@ -80,11 +81,38 @@ pub struct Entry {
     /// SHA-256 of everything the result depends on (see the module docs).
     pub key: String,
     pub input: Fingerprint,
-    /// Output files of this run, relative to the output folder.
-    pub outputs: Vec<String>,
+    /// Output files of this run, relative to the output folder, with the
+    /// SHA-256 of the bytes written: a file that is missing, emptied or
+    /// altered since makes the entry a miss.
+    pub outputs: Vec<OutputFile>,
     /// Frames the run held (rows of its track).
     pub frames: usize,
     pub record: DropRecord,
+}
+
+/// One output file of a run and the SHA-256 (hex) of its bytes.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct OutputFile {
+    /// Relative to the output folder.
+    pub path: String,
+    pub sha256: String,
+}
+
+impl OutputFile {
+    /// `path` as holding `bytes`.
+    pub fn new(path: String, bytes: &[u8]) -> Self {
+        OutputFile {
+            path,
+            sha256: hex(&Sha256::digest(bytes)),
+        }
+    }
+
+    /// Whether the file is in `out` (and inside it) with the bytes it was written with.
+    fn is_intact(&self, out: &Path) -> bool {
+        crate::io_util::inside(out, &self.path)
+            .and_then(|p| sha256_file(&p))
+            .is_ok_and(|h| h == self.sha256)
+    }
 }
 
 fn hex(bytes: &[u8]) -> String {
@@ -254,17 +282,16 @@ pub fn entry_path(out: &Path, run: &str) -> std::io::Result<PathBuf> {
 }
 
 /// The entry of `run`, if there is one computed under `key` and every file
-/// it lists is still in `out`. Anything else (no entry, another key, a
-/// damaged entry, a missing output) is a miss.
+/// it lists is still in `out` with the SHA-256 it was written with.
+/// Anything else (no entry, another key, a damaged entry, a missing, empty
+/// or altered output) is a miss.
 pub fn lookup(out: &Path, run: &str, key: &str) -> Option<Entry> {
     let bytes = std::fs::read(entry_path(out, run).ok()?).ok()?;
     let e: Entry = serde_json::from_slice(&bytes).ok()?;
     let valid = e.schema == CACHE_SCHEMA
         && e.key == key
         && e.record.run == run
-        && e.outputs
-            .iter()
-            .all(|p| crate::io_util::inside(out, p).is_ok_and(|f| f.is_file()));
+        && e.outputs.iter().all(|f| f.is_intact(out));
     valid.then_some(e)
 }
 
@@ -384,9 +411,9 @@ mod tests {
     #[test]
     fn lookup_misses_on_other_key_missing_output_or_damage() {
         let dir = tempfile::tempdir().unwrap();
-        let out = dir.path();
+        let out = &dir.path().join("out");
         std::fs::create_dir_all(out.join("tracks")).unwrap();
-        std::fs::write(out.join("tracks/a.csv"), b"frame\n").unwrap();
+        std::fs::write(out.join("tracks/a.csv"), b"frame\n1\n").unwrap();
         let entry = Entry {
             schema: CACHE_SCHEMA,
             dropscope_version: env!("CARGO_PKG_VERSION").into(),
@@ -399,14 +426,28 @@ mod tests {
                 modified_ns: 2,
                 content_sha256: "00".into(),
             },
-            outputs: vec!["tracks/a.csv".into()],
+            outputs: vec![OutputFile::new("tracks/a.csv".into(), b"frame\n1\n")],
             frames: 1,
             record: DropRecord::failed("a", 4.5, "why"),
         };
         store(out, &entry).unwrap();
-        assert_eq!(lookup(out, "a", "k1"), Some(entry));
+        assert_eq!(lookup(out, "a", "k1"), Some(entry.clone()));
         assert_eq!(lookup(out, "a", "k2"), None);
         assert_eq!(lookup(out, "b", "k1"), None);
+        // Emptied, or one byte altered: a miss.
+        std::fs::write(out.join("tracks/a.csv"), b"").unwrap();
+        assert_eq!(lookup(out, "a", "k1"), None);
+        std::fs::write(out.join("tracks/a.csv"), b"frame\n2\n").unwrap();
+        assert_eq!(lookup(out, "a", "k1"), None);
+        std::fs::write(out.join("tracks/a.csv"), b"frame\n1\n").unwrap();
+        assert!(lookup(out, "a", "k1").is_some());
+        // Listed outside the output folder: a miss, whatever is there.
+        let mut outside = entry.clone();
+        outside.outputs[0].path = "../a.csv".into();
+        std::fs::write(out.join("../a.csv"), b"frame\n1\n").unwrap();
+        store(out, &outside).unwrap();
+        assert_eq!(lookup(out, "a", "k1"), None);
+        store(out, &entry).unwrap();
         std::fs::remove_file(out.join("tracks/a.csv")).unwrap();
         assert_eq!(lookup(out, "a", "k1"), None);
         std::fs::write(entry_path(out, "a").unwrap(), b"{ damaged").unwrap();

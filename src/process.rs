@@ -4,6 +4,7 @@
 //! cannot be measured gets a `failed` row with its reason and never stops
 //! the others. Every file is written whole or not at all.
 
+use crate::cache::OutputFile;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
 use crate::detect::calibrate::{scale, RadiusCalibration};
@@ -473,8 +474,8 @@ pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessErro
 /// A track or main overlay left by an earlier job for this run, which this
 /// outcome does not have (the run now fails), is removed. A run whose name
 /// is no file name writes and removes nothing. Returns the files written,
-/// relative to `out`.
-pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<String>, ProcessError> {
+/// relative to `out`, with the SHA-256 of their bytes.
+pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, ProcessError> {
     let run = &o.record.run;
     if crate::run_name::check(run).is_err() {
         // Its row says why it failed; it has no files and removes none.
@@ -483,23 +484,22 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<String>, Proc
     let track = format!("tracks/{run}.csv");
     let main_overlay = format!("plots/overlays/{run}.png");
     let mut written = Vec::new();
+    let mut write = |rel: String, bytes: &[u8]| -> Result<(), ProcessError> {
+        write_file(out, &rel, bytes)?;
+        written.push(OutputFile::new(rel, bytes));
+        Ok(())
+    };
     if o.track.is_empty() {
         remove_if_present(out, &track)?;
     } else {
-        write_file(out, &track, &track_csv(&o.track))?;
-        written.push(track);
+        write(track, &track_csv(&o.track))?;
     }
     match &o.overlay {
-        Some(png) => {
-            write_file(out, &main_overlay, png)?;
-            written.push(main_overlay);
-        }
+        Some(png) => write(main_overlay, png)?,
         None => remove_if_present(out, &main_overlay)?,
     }
     for (n, png) in &o.frame_overlays {
-        let rel = format!("plots/overlays/{run}_{n}.png");
-        write_file(out, &rel, png)?;
-        written.push(rel);
+        write(format!("plots/overlays/{run}_{n}.png"), png)?;
     }
     Ok(written)
 }

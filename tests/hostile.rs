@@ -431,3 +431,155 @@ fn named_pipes_are_not_opened() {
         "{text}"
     );
 }
+
+/// What weakens a measurement is flagged, with status `warning` and a
+/// reason, never `ok`: frames 10–19 of a drop deleted (the contact's middle:
+/// δmax came out 0.8 % off, marked ok, before issue 14), a movie starting
+/// 7 frames before contact, a background clipped at white, a manifest
+/// scale 5 % off and a manifest fps that contradicts the file. An
+/// unrelated non-UTF-8 `notes.xml` beside the frames changes nothing.
+#[test]
+fn weakened_measurements_are_flagged_warnings() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let gap = variant(d, "gap", |x| x, &(10..=19).collect::<Vec<_>>());
+    let late = variant(d, "late", |x| x, &(-30..=-8).collect::<Vec<_>>());
+    let notes = variant(d, "notes", |x| x, &[]);
+    std::fs::write(notes.join("notes.xml"), b"\xff\xfe<n\x00o\x00t\x00e\x00>").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .args([
+            "render",
+            "--radius-mm",
+            "4.5",
+            "--height-cm",
+            "12",
+            "--background-level",
+            "1",
+            "--format",
+            "png",
+            "--width-px",
+            "384",
+            "--height-px",
+            "288",
+            "--out",
+        ])
+        .arg(d.join("white"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let fixture = root().join("fixtures").join(DROP);
+    let mut scale = spec("scale", &fixture);
+    scale.mm_per_px = Some(1.05 * 0.055);
+    let mut fps = spec("fps", &fixture);
+    fps.fps = Some(9000.0);
+    let runs = [
+        spec("good", &fixture),
+        spec("gap", &gap),
+        spec("late", &late),
+        spec("notes", &notes),
+        spec("white", &d.join("white").join(DROP)),
+        scale,
+        fps,
+    ];
+    let rows = process_all(&runs, &config(), &d.join("out"), &|_| {}).unwrap();
+    let good = by(&rows, "good");
+    assert_eq!((good.status, good.flags.as_str()), (DropStatus::Ok, ""));
+    assert_eq!(
+        by(&rows, "notes"),
+        &DropRecord {
+            run: "notes".into(),
+            ..good.clone()
+        }
+    );
+    for (run, flags, says) in [
+        (
+            "gap",
+            "gap_in_contact gap_at_peak",
+            "10 frame(s) missing in the contact (10–19)",
+        ),
+        ("late", "short_flight", "free-flight frames before"),
+        (
+            "white",
+            "saturated",
+            "of the background near the sphere's path",
+        ),
+        ("scale", "scale_disagreement", "scale"),
+        (
+            "fps",
+            "fps_mismatch",
+            "the manifest's fps 9000 disagrees with the file's frame rate 10000",
+        ),
+    ] {
+        let r = by(&rows, run);
+        assert_eq!(r.status, DropStatus::Warning, "{run}: {}", r.reason);
+        assert_eq!(r.flags, flags, "{run}: {}", r.reason);
+        assert!(r.reason.contains(says), "{run}: {}", r.reason);
+    }
+    // On disk: the flags column between status and reason.
+    let text = std::fs::read_to_string(d.join("out/drops.csv")).unwrap();
+    assert!(text
+        .lines()
+        .next()
+        .unwrap()
+        .ends_with(",status,flags,reason"));
+    assert!(
+        text.contains(",warning,gap_in_contact gap_at_peak,"),
+        "{text}"
+    );
+}
+
+/// The cache reuses a run only when every file it wrote still has the
+/// SHA-256 it was written with: an emptied track or an altered overlay is
+/// recomputed, back to the same bytes.
+#[test]
+fn the_cache_recomputes_an_emptied_or_altered_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("runs.csv"),
+        format!(
+            "run,path,sphere_radius_mm\nr3,{},3\n",
+            root().join("fixtures/R3mm_H1.5cm_01").display()
+        ),
+    )
+    .unwrap();
+    let cfg = d.join("pipeline.toml");
+    std::fs::write(
+        &cfg,
+        "[input]\nmanifest = \"runs.csv\"\nsurface = \"pdms\"\n\
+         [surface.pdms]\nmodulus_pa = 1.6e6\npillar_height_mm = 3.5\n\
+         pillar_width_mm = 2.5\nchannel_width_mm = 1.5\n[output]\ndir = \"out\"\n",
+    )
+    .unwrap();
+    // The job's last line: "… N reused from the cache …".
+    let reused = || -> String {
+        let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+            .args(["run", "--config"])
+            .arg(&cfg)
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(0), "{e}");
+        let tail = e.lines().last().unwrap_or_default();
+        let k = tail.find(" reused").unwrap_or_else(|| panic!("{tail}"));
+        tail[..k].rsplit(' ').next().unwrap().to_string()
+    };
+    assert_eq!(reused(), "0");
+    assert_eq!(reused(), "1");
+    let track = d.join("out/tracks/r3.csv");
+    let overlay = d.join("out/plots/overlays/r3.png");
+    let (t0, o0) = (
+        std::fs::read(&track).unwrap(),
+        std::fs::read(&overlay).unwrap(),
+    );
+    std::fs::write(&track, b"").unwrap();
+    assert_eq!(reused(), "0");
+    assert_eq!(std::fs::read(&track).unwrap(), t0);
+    let mut altered = o0.clone();
+    let last = altered.len() - 1;
+    altered[last] ^= 1;
+    std::fs::write(&overlay, &altered).unwrap();
+    assert_eq!(reused(), "0");
+    assert_eq!(std::fs::read(&overlay).unwrap(), o0);
+    assert_eq!(reused(), "1");
+}

@@ -656,7 +656,10 @@ fn a_series_far_from_zero_is_called_an_extrapolation() {
     assert!(page.contains("EXTRAPOLATED: A1 is read at Ξ = 0 from drops at Ξ ≥ 1.3"));
     assert!(page.contains("extrapolated to Ξ = 0 from Ξ ≥"));
     let svg = std::fs::read_to_string(dir.path().join("out/plots/psi_vs_xi.svg")).unwrap();
-    assert!(svg.contains("EXTRAPOLATED: A1 is read at Ξ = 0 from Ξ ≥ 1.3"));
+    assert!(
+        svg.contains("EXTRAPOLATED: A1 is read at Ξ = 0 from Ξ ≥ 1.3"),
+        "{svg}"
+    );
 
     // Drops reaching small Ξ: the constant is measured, nothing is flagged.
     let wide = eq8_dataset(&SyntheticSpec::paper(6, 3), law.0, law.1, [0.1, 1.6]);
@@ -666,4 +669,28 @@ fn a_series_far_from_zero_is_called_an_extrapolation() {
     assert!(!dropscope::report::fits::fits_section(&fits).contains("EXTRAPOLATED"));
     let svg = std::fs::read_to_string(dir.path().join("out/plots/psi_vs_xi.svg")).unwrap();
     assert!(!svg.contains("EXTRAPOLATED"));
+}
+
+/// Issue 17 item 5: with no drop to show, a figure says so instead of
+/// drawing axes over nothing.
+#[test]
+fn figures_without_data_say_so() {
+    let fits = dropscope::collapse::fit::fit_all(
+        &[],
+        dropscope::collapse::fit::FitSettings {
+            resamples: 10,
+            seed: 1,
+        },
+    );
+    let figures = dropscope::plot::collapse_figures(&[], &fits).unwrap();
+    let svgs: Vec<String> = figures
+        .iter()
+        .filter(|(name, _)| name.ends_with(".svg"))
+        .map(|(_, b)| String::from_utf8(b.clone()).unwrap())
+        .collect();
+    assert_eq!(svgs.len(), 4);
+    for svg in svgs {
+        assert!(svg.contains("No measured drop to show"), "{svg}");
+        assert!(!svg.contains("<line"), "axes drawn over nothing: {svg}");
+    }
 }

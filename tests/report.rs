@@ -208,6 +208,44 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
         );
     }
 
+    // Issue 17 item 5, in a 1400 px window as a user opens it: every text
+    // of the inline plots (tick labels are the smallest) renders at 11 px
+    // or more, and every plotted point has a hover text (SVG <title>)
+    // naming its run.
+    let probe = work.join("probe-fonts.html");
+    std::fs::write(
+        &probe,
+        html.replace(
+            "</body>",
+            "<script>var least = 1e9, n = 0; \
+             document.querySelectorAll('figure svg').forEach(function (s) { \
+             var k = s.getBoundingClientRect().width / s.viewBox.baseVal.width; \
+             s.querySelectorAll('text').forEach(function (t) { \
+             least = Math.min(least, parseFloat(t.getAttribute('font-size')) * k); }); \
+             n += s.querySelectorAll('circle > title').length; }); \
+             document.body.setAttribute('data-least-font', least.toFixed(2)); \
+             document.body.setAttribute('data-titles', n);</script></body>",
+        ),
+    )
+    .unwrap();
+    let probed = String::from_utf8(chromium(
+        &probe,
+        &["--dump-dom".into(), "--window-size=1400,900".into()],
+        work,
+    ))
+    .unwrap();
+    let attr = |name: &str| -> f64 {
+        let at = probed.find(&format!("{name}=\"")).unwrap() + name.len() + 2;
+        probed[at..at + probed[at..].find('"').unwrap()]
+            .parse()
+            .unwrap()
+    };
+    let least = attr("data-least-font");
+    assert!(least >= 11.0, "smallest plot text {least} px at 1400 px");
+    // Three measured drops, each a point in each of the four figures.
+    assert_eq!(attr("data-titles"), 12.0);
+    assert!(probed.contains("<title>R3mm_H1.5cm_01 · R = 3 mm · η = "));
+
     // The screenshot at the same size: not blank as a whole (measured:
     // 9 % non-white, about 2000 colours; a blank page is one colour), and
     // every plot box visibly drawn (an SVG that did not render leaves its

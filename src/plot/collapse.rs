@@ -14,7 +14,9 @@ use super::layout::{
     free_corner, guide_lines, legend_box, log_ticks, normalised, range, with_band, Guide, Pt,
 };
 use super::marker::{radius_style, Marker, MarkerKind};
-use super::{axis_tick, render, tick, DrawResult, LIGHT_LINES};
+use super::{
+    axis_tick, hover, render, tick, DrawResult, DESC_FONT, LEGEND_FONT, LIGHT_LINES, TICK_FONT,
+};
 use crate::collapse::fit::{self, ExponentFit, Fits, SeriesFit};
 use crate::collapse::groups::{DropGroups, Quantity};
 use crate::collapse::CollapseError;
@@ -64,6 +66,19 @@ fn by_radius<'a>(groups: &'a [DropGroups], fits: &'a Fits) -> Vec<RadiusSet<'a>>
         .collect()
 }
 
+/// A value to 4 significant digits, for hover texts.
+fn sig4(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let digits = (3 - v.abs().log10().floor() as i32).max(0) as usize;
+    if (1e-3..1e5).contains(&v.abs()) {
+        format!("{v:.digits$}")
+    } else {
+        format!("{v:.3e}")
+    }
+}
+
 /// A lighter shade of `c` (for fitted lines, so they never hide the points).
 fn light(c: RGBColor) -> RGBColor {
     let m = |v: u8| ((v as u16 * 5 + 255 * 3) / 8) as u8;
@@ -80,18 +95,40 @@ fn pt(x: &Quantity, y: &Quantity, xs: f64, ys: f64) -> Pt {
 }
 
 /// Error bars (1σ, both directions) and markers of one radius.
+/// `points[i]` is the drop named `names[i]`; `axes` names x and y in its
+/// hover text.
 fn draw_points<'a, DB, CT>(
     chart: &mut ChartContext<'a, DB, CT>,
     set: &RadiusSet,
-    points: &[Pt],
+    (points, names): (&[Pt], &[&str]),
     log: bool,
     label: String,
+    axes: [&str; 2],
 ) -> DrawResult
 where
     DB: DrawingBackend + 'a,
     DB::ErrorType: 'static,
     CT: CoordTranslate<From = (f64, f64)>,
 {
+    let pm = |v: f64, e: Option<f64>| match e {
+        Some(e) => format!("{} ± {}", sig4(v), sig4(e)),
+        None => sig4(v),
+    };
+    for (&(x, y, ex, ey), name) in points.iter().zip(names) {
+        let (px, py) = chart.plotting_area().map_coordinate(&(x, y));
+        hover(
+            px,
+            py,
+            format!(
+                "{name} · R = {} mm · {} = {} · {} = {}",
+                tick(set.radius_mm),
+                axes[0],
+                pm(x, ex),
+                axes[1],
+                pm(y, ey)
+            ),
+        );
+    }
     let bar = set.color.stroke_width(1);
     let clamp = |v: f64, e: f64| if log { (v - e).max(v * 0.5) } else { v - e };
     let mut bars = Vec::new();
@@ -133,8 +170,8 @@ where
         .configure_mesh()
         .x_desc(x_desc)
         .y_desc(y_desc)
-        .axis_desc_style(("sans-serif", 22))
-        .label_style(("sans-serif", 17))
+        .axis_desc_style(("sans-serif", DESC_FONT))
+        .label_style(("sans-serif", TICK_FONT))
         .x_label_formatter(fx)
         .y_label_formatter(fy)
         .light_line_style(RGBColor(235, 235, 235))
@@ -155,7 +192,7 @@ where
         .position(pos)
         .background_style(WHITE.mix(0.9))
         .border_style(RGBColor(120, 120, 120))
-        .label_font(("sans-serif", 17))
+        .label_font(("sans-serif", LEGEND_FONT))
         .margin(12)
         .draw()?;
     Ok(())
@@ -185,9 +222,29 @@ where
         chart.draw_series(std::iter::once(Text::new(
             label.clone(),
             *at,
-            ("sans-serif", 19).into_font().color(&BLACK),
+            ("sans-serif", LEGEND_FONT).into_font().color(&BLACK),
         )))?;
     }
+    Ok(())
+}
+
+/// An empty figure says why, instead of axes over nothing.
+fn no_data<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    let (w, h) = area.dim_in_pixel();
+    area.draw(&Text::new(
+        "No measured drop to show: see the drops table and the collapse's warnings",
+        (w as i32 / 2, h as i32 / 2),
+        ("sans-serif", DESC_FONT)
+            .into_font()
+            .color(&RGBColor(110, 110, 110))
+            .pos(plotters::style::text_anchor::Pos::new(
+                plotters::style::text_anchor::HPos::Center,
+                plotters::style::text_anchor::VPos::Center,
+            )),
+    ))?;
     Ok(())
 }
 
@@ -216,8 +273,8 @@ where
     let (ym, yl) = log_ticks(yr[0], yr[1]);
     Ok(ChartBuilder::on(area)
         .margin(18)
-        .x_label_area_size(60)
-        .y_label_area_size(80)
+        .x_label_area_size(80)
+        .y_label_area_size(110)
         .build_cartesian_2d(
             (xr[0]..xr[1])
                 .log_scale()
@@ -262,8 +319,11 @@ struct LogLog<'s> {
     heading: &'s str,
     x_desc: &'s str,
     y_desc: &'s str,
-    /// Points per radius set.
+    /// Points per radius set, and the runs they are.
     pts: Vec<Vec<Pt>>,
+    names: Vec<Vec<&'s str>>,
+    /// x and y in hover texts.
+    axes: [&'s str; 2],
     /// Per set: (exponent, ln prefactor, y scale) of the fitted line.
     lines: Vec<Option<(f64, f64, f64)>>,
     /// Legend text per set.
@@ -288,6 +348,9 @@ where
 {
     let area = title(root, spec.heading)?;
     let all = spec.pts.concat();
+    if all.is_empty() {
+        return no_data(&area);
+    }
     let (xr, yr) = range(&all, true, &[]);
     let mut yr = [yr[0], yr[1] * (yr[1] / yr[0]).powf(spec.headroom)];
     let lbox = legend_box(&spec.labels);
@@ -320,9 +383,14 @@ where
         &mut chart,
         &guide_lines(xr, yr, spec.guide_at, 0.3, &spec.guides),
     )?;
-    for ((set, p), label) in sets.iter().zip(&spec.pts).zip(&spec.labels) {
+    for (((set, p), label), names) in sets
+        .iter()
+        .zip(&spec.pts)
+        .zip(&spec.labels)
+        .zip(&spec.names)
+    {
         if !p.is_empty() {
-            draw_points(&mut chart, set, p, true, label.clone())?;
+            draw_points(&mut chart, set, (p, names), true, label.clone(), spec.axes)?;
         }
     }
     legend(&mut chart, corner)?;
@@ -347,6 +415,11 @@ where
                     .collect()
             })
             .collect(),
+        names: sets
+            .iter()
+            .map(|s| s.drops.iter().map(|g| g.run.as_str()).collect())
+            .collect(),
+        axes: ["η", "Π"],
         lines: sets
             .iter()
             .map(|s| {
@@ -389,8 +462,20 @@ where
                 .collect()
         })
         .collect();
+    let names: Vec<Vec<&str>> = sets
+        .iter()
+        .map(|s| {
+            s.drops
+                .iter()
+                .filter(|g| g.tau_c_s.is_some())
+                .map(|g| g.run.as_str())
+                .collect()
+        })
+        .collect();
     let spec = LogLog {
         heading: "Contact time τc vs impact velocity v (cf. Fig. 4a)",
+        names,
+        axes: ["v (m/s)", "τc (ms)"],
         x_desc: "impact velocity v (m/s)",
         y_desc: "contact time τc (ms)",
         lines: sets
@@ -452,7 +537,20 @@ where
                 .collect()
         })
         .collect();
+    let run_names: Vec<Vec<&str>> = sets
+        .iter()
+        .map(|s| {
+            s.drops
+                .iter()
+                .filter(|g| y_of(g).is_some())
+                .map(|g| g.run.as_str())
+                .collect()
+        })
+        .collect();
     let all = pts.concat();
+    if all.is_empty() {
+        return no_data(&area);
+    }
     // The fitted series over the data, and its extrapolation to Ξ = 0, where
     // it is to be compared with the theory constant (A1 vs 2^(1/3), B1 vs C0).
     let poly = |s: &SeriesFit, lo: f64, hi: f64| -> Vec<(f64, f64)> {
@@ -492,12 +590,10 @@ where
             Some(e) => format!("{} = {:.3} ± {:.3}", names[k], s.coef[k].value, e),
             None => format!("{} = {:.3}", names[k], s.coef[k].value),
         };
-        let extra = if !extrapolation.is_empty() {
-            " (dashed: to Ξ = 0)".to_string()
-        } else if let Some(lo) = far_from_zero {
-            format!(" ({} at Ξ = 0: extrapolated from Ξ ≥ {lo:.3})", names[0])
+        let extra = if extrapolation.is_empty() {
+            ""
         } else {
-            String::new()
+            " (dashed: to Ξ = 0)"
         };
         format!("fit: {}, {}, {}{extra}", pm(0), pm(1), pm(2))
     });
@@ -559,30 +655,30 @@ where
     let mut alarms = Vec::new();
     if n_geo > 0 {
         alarms.push(format!(
-            "WARNING: {n_geo} of {} drops use the geometric contact radius; for them \
-             Ξ² = Ψ(2 − Π) by construction",
+            "WARNING: {n_geo} of {} drops use the geometric contact radius: Ξ² = Ψ(2 − Π) by construction",
             all.len()
         ));
     }
     if let Some(lo) = far_from_zero {
         alarms.push(format!(
-            "EXTRAPOLATED: {} is read at Ξ = 0 from Ξ ≥ {lo:.3}, no measurement; \
-             see the fixed-exponent constants",
+            "EXTRAPOLATED: {} is read at Ξ = 0 from Ξ ≥ {lo:.3}, no measurement",
             names[0]
         ));
     }
     for (i, text) in alarms.iter().enumerate() {
         area.draw(&Text::new(
             text.as_str(),
-            (100, 4 + 22 * i as i32),
-            ("sans-serif", 18).into_font().color(&RGBColor(200, 0, 0)),
+            (60, 4 + 28 * i as i32),
+            ("sans-serif", LEGEND_FONT)
+                .into_font()
+                .color(&RGBColor(200, 0, 0)),
         ))?;
     }
     let mut chart = ChartBuilder::on(&area)
         .margin(18)
-        .margin_top(18 + 22 * alarms.len() as u32)
-        .x_label_area_size(60)
-        .y_label_area_size(80)
+        .margin_top(18 + 28 * alarms.len() as u32)
+        .x_label_area_size(80)
+        .y_label_area_size(110)
         .build_cartesian_2d(xr[0]..xr[1], yr[0]..yr[1])?;
     mesh(
         &mut chart,
@@ -624,10 +720,10 @@ where
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
     }
     // Markers last, so that no line hides a point.
-    for (set, p) in sets.iter().zip(&pts) {
+    for ((set, p), runs) in sets.iter().zip(&pts).zip(&run_names) {
         if !p.is_empty() {
             let label = format!("R = {} mm (n = {})", tick(set.radius_mm), p.len());
-            draw_points(&mut chart, set, p, false, label)?;
+            draw_points(&mut chart, set, (p, runs), false, label, ["Ξ", y_desc])?;
         }
     }
     legend(&mut chart, corner)?;

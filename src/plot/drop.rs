@@ -85,8 +85,8 @@ where
     )?;
     let cols = root.split_evenly((1, 3));
     let t_range = span(d.rows.iter().map(|r| r.t_s * 1e3));
-    let label = ("sans-serif", 16);
-    let desc = ("sans-serif", 19);
+    let label = ("sans-serif", super::LEGEND_FONT);
+    let desc = ("sans-serif", super::DESC_FONT - 4);
 
     // z(t): rows grow downward, so the axis is reversed (up on the page is up in the lab).
     let zs: Vec<(f64, f64)> = d

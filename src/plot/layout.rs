@@ -22,11 +22,32 @@ pub(super) fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
             f
         } else if f.len() > 12 {
             pick(&[1.0])
-        } else {
+        } else if all.len() >= 3 {
             all.clone()
+        } else {
+            // Less than a factor of ~3 (τc from 2.5 to 3.3 ms gave the one
+            // label "3"): evenly spaced round values, as on a linear axis.
+            linear_ticks(lo, hi)
         }
     };
     (major, all)
+}
+
+/// 3–7 round values (1, 2 or 5 × 10^k apart) within [lo, hi].
+fn linear_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let raw = (hi - lo) / 5.0;
+    if !(raw.is_finite() && raw > 0.0) {
+        return vec![lo];
+    }
+    let p = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * p)
+        .find(|s| (hi - lo) / s <= 7.0)
+        .unwrap_or(10.0 * p);
+    let first = (lo / step).ceil() as i64;
+    let last = (hi / step).floor() as i64;
+    (first..=last).map(|k| k as f64 * step).collect()
 }
 
 /// Points normalised to the plot area (log or linear axes).
@@ -92,10 +113,21 @@ pub(super) fn guide_lines(
 ) -> Vec<Guide> {
     let (lx0, lx1) = (xr[0].ln(), xr[1].ln());
     let (ly0, ly1) = (yr[0].ln(), yr[1].ln());
-    let x0 = lx0 + fx * (lx1 - lx0);
-    let x1 = x0 + len * (lx1 - lx0);
-    let rise = slopes.iter().map(|s| s.0).fold(0.0, f64::max) * (x1 - x0);
-    let y0 = (ly0 + fy * (ly1 - ly0)).min(ly1 - 0.05 * (ly1 - ly0) - rise);
+    // Every guide stays inside the axes, 5 % from their edges: the fan is
+    // shortened when it would be taller than the y range, and its start
+    // moved so that neither the steepest rising nor the steepest falling
+    // guide leaves the plot (they used to run off and be clipped).
+    let (top, bottom) = (ly1 - 0.05 * (ly1 - ly0), ly0 + 0.05 * (ly1 - ly0));
+    let up = slopes.iter().map(|s| s.0).fold(0.0, f64::max);
+    let down = slopes.iter().map(|s| s.0).fold(0.0, f64::min);
+    let mut dx = len * (lx1 - lx0);
+    if (up - down) * dx > top - bottom {
+        dx = (top - bottom) / (up - down);
+    }
+    let x0 = (lx0 + fx * (lx1 - lx0)).min(lx1 - 0.12 * (lx1 - lx0) - dx);
+    let x1 = x0 + dx;
+    let (rise, fall) = (up * dx, down * dx);
+    let y0 = (ly0 + fy * (ly1 - ly0)).min(top - rise).max(bottom - fall);
     slopes
         .iter()
         .map(|&(s, label)| {
@@ -114,13 +146,15 @@ pub(super) fn guide_lines(
 /// Approximate plotting-area size of a collapse figure, for legend layout.
 pub(super) const PLOT_AREA_PX: (f64, f64) = (1000.0, 660.0);
 
-/// Legend box size as fractions of the plotting area (17 px DejaVu Sans:
-/// ≈ 7.6 px per character on average, 22 px per entry, plus the marker and margins).
+/// Legend box size as fractions of the plotting area (DejaVu Sans at
+/// `LEGEND_FONT`: about 0.45 of it per character, 1.3 of it per entry, plus
+/// the marker and margins).
 pub(super) fn legend_box(labels: &[String]) -> (f64, f64) {
+    const LEGEND: f64 = super::LEGEND_FONT as f64;
     let chars = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0) as f64;
     (
-        ((chars * 7.6 + 60.0) / PLOT_AREA_PX.0).min(0.95),
-        ((labels.len() as f64 * 22.0 + 30.0) / PLOT_AREA_PX.1).min(0.9),
+        ((chars * 0.45 * LEGEND + 60.0) / PLOT_AREA_PX.0).min(0.95),
+        ((labels.len() as f64 * 1.3 * LEGEND + 30.0) / PLOT_AREA_PX.1).min(0.9),
     )
 }
 
@@ -181,6 +215,43 @@ mod tests {
         // A narrow range falls back to 1–9 × 10^k: τc from 1.5 to 6 ms.
         let (major, _) = log_ticks(1.5, 6.5);
         assert_eq!(major, vec![2.0, 3.0, 4.0, 5.0, 6.0]);
+        // Narrower still (the fixtures' τc, 2.5–3.3 ms): several round
+        // values, not the single "3" of issue 17.
+        let (major, _) = log_ticks(2.5, 3.3);
+        assert!(major.len() >= 3, "{major:?}");
+        assert!(major.iter().all(|v| (2.5..=3.3).contains(v)), "{major:?}");
+    }
+
+    /// Issue 17 item 5: the τc–v guides (slopes −1/3, −2/3) ran off the
+    /// bottom of a narrow y axis and were clipped into a line along it.
+    #[test]
+    fn guide_slopes_stay_inside_the_axes() {
+        for (xr, yr, slopes) in [
+            (
+                [0.5, 3.2],
+                [2.4, 3.4],
+                [(-1.0 / 3.0, "a"), (-2.0 / 3.0, "b")],
+            ),
+            (
+                [1e-4, 1e-2],
+                [0.05, 0.07],
+                [(1.0 / 3.0, "a"), (1.0 / 6.0, "b")],
+            ),
+            (
+                [0.5, 3.2],
+                [0.1, 30.0],
+                [(-1.0 / 3.0, "a"), (-2.0 / 3.0, "b")],
+            ),
+        ] {
+            for at in [(0.04, 0.95), (0.55, 0.95), (0.9, 0.05)] {
+                for (pts, _, _) in guide_lines(xr, yr, at, 0.3, &slopes) {
+                    for (x, y) in pts {
+                        assert!(x >= xr[0] && x <= xr[1], "x {x} outside {xr:?}");
+                        assert!(y >= yr[0] && y <= yr[1], "y {y} outside {yr:?}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]

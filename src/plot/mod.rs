@@ -36,6 +36,54 @@ pub(crate) type DrawResult = Result<(), Box<dyn std::error::Error>>;
 /// third of a figure's SVG bytes.
 pub(crate) const LIGHT_LINES: usize = 4;
 
+/// Font sizes (plotters' units; an SVG's font-size is 1/1.24 of them),
+/// chosen so that a 1100 px figure shown 650 px wide, two to a row in the
+/// report at a 1400 px window, keeps its tick labels at 11 px or more.
+pub(crate) const TICK_FONT: u32 = 26;
+/// Axis titles.
+pub(crate) const DESC_FONT: u32 = 28;
+/// Legends, guide labels and notes on a figure.
+pub(crate) const LEGEND_FONT: u32 = 24;
+
+thread_local! {
+    /// Hover targets of the SVG being drawn: pixel position and text.
+    static HOVER: std::cell::RefCell<Option<Vec<(i32, i32, String)>>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+/// Give the point drawn at pixel (x, y) a hover text (an SVG `<title>`);
+/// does nothing while the PNG is drawn.
+pub(crate) fn hover(x: i32, y: i32, text: String) {
+    HOVER.with(|h| {
+        if let Some(v) = h.borrow_mut().as_mut() {
+            v.push((x, y, text));
+        }
+    });
+}
+
+/// `svg` with one invisible circle per hover target, each holding its text
+/// as `<title>` (shown by every browser on hover), on top of the drawing.
+fn with_hover(svg: String, targets: &[(i32, i32, String)]) -> String {
+    let Some(end) = svg.rfind("</svg>") else {
+        return svg;
+    };
+    let mut out = String::with_capacity(svg.len() + targets.len() * 120);
+    out.push_str(&svg[..end]);
+    out.push_str("<g fill=\"#000\" fill-opacity=\"0\">");
+    for (x, y, text) in targets {
+        let text = text
+            .replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;");
+        out.push_str(&format!(
+            "<circle cx=\"{x}\" cy=\"{y}\" r=\"9\"><title>{text}</title></circle>"
+        ));
+    }
+    out.push_str("</g>");
+    out.push_str(&svg[end..]);
+    out
+}
+
 /// Register DejaVu Sans as plotters' "sans-serif" (all styles fall back to
 /// regular, bold and oblique are registered). Idempotent.
 pub fn register_fonts() {
@@ -74,10 +122,17 @@ where
     };
     let mut svg = String::new();
     {
+        HOVER.with(|h| *h.borrow_mut() = Some(Vec::new()));
         let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| perr(e.into()))?;
-        draw_svg(&root).map_err(perr)?;
-        root.present().map_err(|e| perr(e.into()))?;
+        let drawn = root
+            .fill(&WHITE)
+            .map_err(|e| perr(e.into()))
+            .and_then(|()| draw_svg(&root).map_err(perr))
+            .and_then(|()| root.present().map_err(|e| perr(e.into())));
+        let targets = HOVER.with(|h| h.borrow_mut().take()).unwrap_or_default();
+        drawn?;
+        drop(root);
+        svg = with_hover(svg, &targets);
     }
     let mut rgb = vec![255u8; size.0 as usize * size.1 as usize * 3];
     {

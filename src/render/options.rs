@@ -192,7 +192,7 @@ pub struct RenderArgs {
     /// Bits per sample, 8 or 12 [default: the preset's].
     #[arg(long)]
     pub bit_depth: Option<u8>,
-    /// Frames before the first contact.
+    /// Frames before the first contact (unless the movie starts at the sphere's entry, --start-at-entry).
     #[arg(long, default_value_t = 30)]
     pub frames_before: usize,
     /// Frames after the loss of contact.

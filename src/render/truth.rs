@@ -174,7 +174,8 @@ pub struct CameraTruth {
     /// Halo outside the outline: `halo · g(ρ − R; halo_width_px)`.
     pub halo: f64,
     pub halo_width_px: f64,
-    /// Highlight on the sphere: `highlight · exp(−|p − c − offset|² / (2 σ²))`.
+    /// Highlight on the sphere: `highlight · exp(−|p − c − offset|² / (2 σ²))`,
+    /// `c` the centre averaged over the exposure.
     pub highlight: f64,
     pub highlight_sigma_px: f64,
     /// Offset of the highlight from the centre (column, row), px.

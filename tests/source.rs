@@ -1003,8 +1003,18 @@ fn export_writes_stored_values_as_16_bit_png_named_by_frame_number() {
         String::from_utf8_lossy(&out.stderr)
     );
     let mut src = open_default(&input).unwrap();
+    // Numbers padded to the movie's widest (issue 17 item 6).
+    let width = src
+        .meta()
+        .frame_numbers
+        .iter()
+        .map(|n| n.unsigned_abs().to_string().len())
+        .max()
+        .unwrap();
     for (i, number) in [(2usize, -5415i64), (3, -5414)] {
-        let p = dir.path().join(format!("cine_781_{number}.png"));
+        let p = dir
+            .path()
+            .join(format!("cine_781_-{:0width$}.png", number.unsigned_abs()));
         let img = image::open(&p).unwrap().into_luma16();
         let f = read_all(src.as_mut(), i);
         for ((r, c), v) in f.indexed_iter() {
@@ -1019,6 +1029,69 @@ fn export_writes_stored_values_as_16_bit_png_named_by_frame_number() {
     };
     let back = open(dir.path(), &opts).unwrap();
     assert_eq!(back.meta().frame_numbers, vec![-5415, -5414]);
+}
+
+/// Issue 17 item 6: camera-number ranges as in the file names, a single
+/// frame, and 12-bit data scaled to fill 16 bits on request.
+#[test]
+fn export_takes_camera_numbers_single_frames_and_scales_to_16_bits() {
+    let input = sample("cinefiles-jl/12bpp.cine");
+    let src = open_default(&input).unwrap();
+    let numbers = src.meta().frame_numbers.clone();
+    assert_eq!(src.meta().bit_depth, 12);
+    let export = |args: &[&str]| {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dropscope()
+            .arg("export")
+            .args(args)
+            .arg("--out")
+            .arg(dir.path())
+            .arg(&input)
+            .output()
+            .unwrap();
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .map(|d| {
+                d.flatten()
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .collect()
+            })
+            .unwrap_or_default();
+        names.sort();
+        (out, names, dir)
+    };
+    let first = numbers[0];
+    let (out, names, _) = export(&["--numbers", &format!("{first}:{}", first + 2)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(names.len(), 2.min(numbers.len()), "{names:?}");
+    let (out, names, dir) = export(&["--numbers", &first.to_string(), "--scale-to-16"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(names.len(), 1, "{names:?}");
+    let img = image::open(dir.path().join(&names[0]))
+        .unwrap()
+        .into_luma16();
+    let mut src = open_default(&input).unwrap();
+    let f = read_all(src.as_mut(), 0);
+    for ((r, c), v) in f.indexed_iter() {
+        assert_eq!(img.get_pixel(c as u32, r as u32).0[0], *v << 4);
+    }
+    let (out, names, _) = export(&["--frames", "0"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(names.len(), 1);
+    let (out, _, _) = export(&["--numbers", "99999:100000"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("camera numbers"));
 }
 
 #[test]

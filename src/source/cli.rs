@@ -110,9 +110,18 @@ pub struct InspectArgs {
 pub struct ExportArgs {
     /// A folder of frames or a `.cine` file.
     pub input: PathBuf,
-    /// Frame indices A..B−1, counted from 0 (e.g. `0:10`; `A:` = to the end).
+    /// Frame indices A..B−1, counted from 0 (e.g. `0:10`; `A:` = to the
+    /// end; `A` alone = that one frame).
+    #[arg(long, required_unless_present = "numbers", conflicts_with = "numbers")]
+    pub frames: Option<String>,
+    /// Camera image numbers A..B−1, as in the file names and `--overlay-frames`
+    /// (e.g. `-100:-90`; `A` alone = that one frame).
+    #[arg(long, allow_hyphen_values = true)]
+    pub numbers: Option<String>,
+    /// Shift the values up to fill 16 bits (12-bit data × 16), so that a
+    /// viewer shows the picture; by default values are written as stored.
     #[arg(long)]
-    pub frames: String,
+    pub scale_to_16: bool,
     /// Output folder (created if needed).
     #[arg(long)]
     pub out: PathBuf,
@@ -259,10 +268,49 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> String {
 }
 
 /// Parse `A:B` (or `A:`) into the index range `A..B` within `count` frames.
+/// `--numbers A:B` (or `A`): the indices of camera numbers A..B−1.
+fn number_range(text: &str, numbers: &[i64]) -> anyhow::Result<std::ops::Range<usize>> {
+    let parse = |s: &str| -> anyhow::Result<i64> {
+        s.trim()
+            .parse()
+            .with_context(|| format!("--numbers {text:?}: {s:?} is not a camera number"))
+    };
+    let (a, b) = match text.split_once(':') {
+        Some((a, b)) => (
+            parse(a)?,
+            if b.trim().is_empty() {
+                i64::MAX
+            } else {
+                parse(b)?
+            },
+        ),
+        None => {
+            let a = parse(text)?;
+            (a, a + 1)
+        }
+    };
+    let first = numbers.iter().position(|n| *n >= a);
+    let end = numbers.iter().rposition(|n| *n < b).map(|i| i + 1);
+    match (first, end, numbers.first(), numbers.last()) {
+        (Some(i), Some(j), _, _) if i < j => Ok(i..j),
+        (_, _, Some(lo), Some(hi)) => {
+            bail!("--numbers {text:?}: no frame in that range (the input holds camera numbers {lo} to {hi})")
+        }
+        _ => bail!("--numbers {text:?}: the input holds no frame"),
+    }
+}
+
 pub fn parse_frame_range(text: &str, count: usize) -> anyhow::Result<std::ops::Range<usize>> {
-    let (a, b) = text
-        .split_once(':')
-        .with_context(|| format!("--frames {text:?}: expected A:B, e.g. 0:10"))?;
+    let Some((a, b)) = text.split_once(':') else {
+        let a: usize = text
+            .trim()
+            .parse()
+            .with_context(|| format!("--frames {text:?}: expected A:B or A, e.g. 0:10"))?;
+        if a >= count {
+            bail!("--frames {text:?}: need A < {count} (the input has {count} frames)");
+        }
+        return Ok(a..a + 1);
+    };
     let a: usize = a
         .trim()
         .parse()
@@ -285,7 +333,24 @@ pub fn parse_frame_range(text: &str, count: usize) -> anyhow::Result<std::ops::R
 pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
     let (mut src, _) = args.source.open_source(&args.input)?;
     let meta = src.meta().clone();
-    let range = parse_frame_range(&args.frames, meta.frame_count)?;
+    let range = match (&args.frames, &args.numbers) {
+        (Some(f), _) => parse_frame_range(f, meta.frame_count)?,
+        (None, Some(n)) => number_range(n, &meta.frame_numbers)?,
+        (None, None) => bail!("give --frames A:B (indices) or --numbers A:B (camera numbers)"),
+    };
+    // Numbers padded to one width (sign apart) so that names sort by number
+    // among the non-negative ones: 12bpp_007.png, not 12bpp_7.png.
+    let width = meta
+        .frame_numbers
+        .iter()
+        .map(|n| n.unsigned_abs().to_string().len())
+        .max()
+        .unwrap_or(1);
+    let shift = if args.scale_to_16 {
+        16u32.saturating_sub(u32::from(meta.bit_depth))
+    } else {
+        0
+    };
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let stem = super::input_name(&args.input);
@@ -294,7 +359,14 @@ pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
     for i in range {
         src.read_into(i, &mut frame)?;
         let number = meta.frame_numbers[i];
-        let path = args.out.join(format!("{stem}_{number}.png"));
+        let sign = if number < 0 { "-" } else { "" };
+        let path = args.out.join(format!(
+            "{stem}_{sign}{:0width$}.png",
+            number.unsigned_abs()
+        ));
+        if shift > 0 {
+            frame.mapv_inplace(|v| (u32::from(v) << shift).min(65535) as u16);
+        }
         let bytes = png16(&frame).with_context(|| format!("encoding {}", path.display()))?;
         crate::io_util::write_atomic(&path, &bytes)
             .with_context(|| format!("writing {}", path.display()))?;

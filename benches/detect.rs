@@ -116,6 +116,7 @@ fn surface() -> SurfaceLine {
         cov: [[0.0; 2]; 2],
         residual_px: 0.0,
         n_used: 0,
+        model_err_px: 0.0,
     }
 }
 

@@ -328,14 +328,15 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
 
 impl Track {
     /// One-sigma uncertainty of the surface row at column `x_px`: the line
-    /// fit's, plus [`SURFACE_SYSTEMATIC_PX`] in quadrature for a detected
-    /// line (a line from the configuration is taken as given).
+    /// fit's, plus [`SURFACE_SYSTEMATIC_PX`] and the edge model's error
+    /// ([`SurfaceLine::model_err_px`]) in quadrature for a detected line (a line from the configuration is taken as given).
     pub fn surface_row_err_px(&self, x_px: f64) -> f64 {
         let fit = self.surface.sigma_row_at(x_px);
         if self.surface_from_config {
             fit
         } else {
             fit.hypot(SURFACE_SYSTEMATIC_PX)
+                .hypot(self.surface.model_err_px)
         }
     }
 }

@@ -162,6 +162,7 @@ fn trial(
         cov: [[0.0; 2]; 2],
         residual_px: 0.0,
         n_used: 0,
+        model_err_px: 0.0,
     });
     let predicted = Circle {
         x_px: truth.0 + rng.gen_range(-1.5..1.5),

@@ -154,6 +154,7 @@ mod tests {
             cov: [[0.0; 2]; 2],
             residual_px: 0.0,
             n_used: 0,
+            model_err_px: 0.0,
         };
         let fits = [
             fit(256.0, 100.0, 80.01),

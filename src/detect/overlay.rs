@@ -155,6 +155,7 @@ mod tests {
             cov: [[0.0; 2]; 2],
             residual_px: 0.0,
             n_used: 0,
+            model_err_px: 0.0,
         };
         let p = [EdgePoint {
             x_px: 30.0,

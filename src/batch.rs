@@ -16,7 +16,7 @@ use crate::collapse::CollapseArgs;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::{read_manifest, RunSpec};
-use crate::process::{process_run, write_file, write_run_outputs};
+use crate::process::{process_setup, write_file, write_run_outputs};
 use crate::source::folder::ImageKind;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -228,52 +228,90 @@ pub fn configured_runs(cfg: &PipelineConfig) -> Result<Vec<RunSpec>, BatchError>
     Ok(crate::process::runs_from_inputs(&found, None, cfg)?)
 }
 
-/// One run: its cached result when still valid, else processed and committed.
-fn run_one(
-    run: &RunSpec,
+/// The runs of one camera set-up (see [`crate::process::setups`]): their
+/// cached results when all are still valid, else all processed together
+/// (their scale is pooled) and committed. A run's key in a set-up of
+/// several also covers the other runs' keys, since its numbers depend on them.
+fn run_setup(
+    members: &[&RunSpec],
     cfg: &PipelineConfig,
     out: &Path,
     force: bool,
     events: &(dyn Fn(RunEvent) + Sync),
-) -> Result<(Entry, bool), BatchError> {
+) -> Result<Vec<(Entry, bool)>, BatchError> {
     // An input that cannot be fingerprinted (missing, unreadable) is
     // processed each time; processing then says what is wrong with it.
-    let fp = cache::fingerprint(&run.path).ok();
-    let key = fp.as_ref().map(|fp| cache::key(cfg, run, fp));
-    if let (false, Some(k)) = (force, &key) {
-        if let Some(e) = cache::lookup(out, &run.run, k) {
-            events(RunEvent::Finished {
-                record: &e.record,
-                cached: true,
-                frames: e.frames,
-            });
-            return Ok((e, true));
+    let fps: Vec<Option<cache::Fingerprint>> = members
+        .iter()
+        .map(|r| cache::fingerprint(&r.path).ok())
+        .collect();
+    let own: Vec<Option<String>> = members
+        .iter()
+        .zip(&fps)
+        .map(|(r, fp)| fp.as_ref().map(|fp| cache::key(cfg, r, fp)))
+        .collect();
+    let keys: Vec<Option<String>> = if members.len() > 1 && own.iter().all(Option::is_some) {
+        let all: Vec<&str> = own.iter().flatten().map(String::as_str).collect();
+        own.iter()
+            .flatten()
+            .map(|k| Some(cache::combine_keys(k, &all)))
+            .collect()
+    } else if members.len() > 1 {
+        vec![None; members.len()]
+    } else {
+        own
+    };
+    if !force && keys.iter().all(Option::is_some) {
+        let hits: Vec<Entry> = members
+            .iter()
+            .zip(&keys)
+            .filter_map(|(r, k)| cache::lookup(out, &r.run, k.as_ref()?))
+            .collect();
+        if hits.len() == members.len() {
+            for e in &hits {
+                events(RunEvent::Finished {
+                    record: &e.record,
+                    cached: true,
+                    frames: e.frames,
+                });
+            }
+            return Ok(hits.into_iter().map(|e| (e, true)).collect());
         }
     }
-    events(RunEvent::Started { run: &run.run });
-    let o = process_run(run, cfg, &[]);
-    let outputs = write_run_outputs(out, &o)?;
-    let entry = Entry {
-        schema: cache::CACHE_SCHEMA,
-        dropscope_version: env!("CARGO_PKG_VERSION").to_string(),
-        key: key.clone().unwrap_or_default(),
-        input: fp.unwrap_or_else(|| cache::Fingerprint::unreadable(&run.path)),
-        outputs,
-        frames: o.track.len(),
-        record: o.record,
-    };
-    if key.is_some() && crate::run_name::check(&run.run).is_ok() {
-        cache::store(out, &entry).map_err(|source| BatchError::Io {
-            path: out.join("runs").join(&run.run),
-            source,
-        })?;
+    for r in members {
+        events(RunEvent::Started { run: &r.run });
     }
-    events(RunEvent::Finished {
-        record: &entry.record,
-        cached: false,
-        frames: entry.frames,
-    });
-    Ok((entry, false))
+    let outcomes = process_setup(members, cfg, &[]);
+    let mut done = Vec::with_capacity(members.len());
+    for ((o, fp), (key, r)) in outcomes
+        .into_iter()
+        .zip(fps)
+        .zip(keys.into_iter().zip(members))
+    {
+        let outputs = write_run_outputs(out, &o)?;
+        let entry = Entry {
+            schema: cache::CACHE_SCHEMA,
+            dropscope_version: env!("CARGO_PKG_VERSION").to_string(),
+            key: key.clone().unwrap_or_default(),
+            input: fp.unwrap_or_else(|| cache::Fingerprint::unreadable(&r.path)),
+            outputs,
+            frames: o.track.len(),
+            record: o.record,
+        };
+        if key.is_some() && crate::run_name::check(&r.run).is_ok() {
+            cache::store(out, &entry).map_err(|source| BatchError::Io {
+                path: out.join("runs").join(&r.run),
+                source,
+            })?;
+        }
+        events(RunEvent::Finished {
+            record: &entry.record,
+            cached: false,
+            frames: entry.frames,
+        });
+        done.push((entry, false));
+    }
+    Ok(done)
 }
 
 /// `provenance.json`: what produced the outputs, without timestamps, so the
@@ -342,10 +380,24 @@ pub fn run_job(
         None => runs,
     };
     events(RunEvent::Planned { runs: runs.len() });
+    let groups = crate::process::setups(&runs);
     let work = || {
-        runs.par_iter()
-            .map(|r| run_one(r, cfg, out, options.force, events))
-            .collect::<Result<Vec<(Entry, bool)>, BatchError>>()
+        groups
+            .par_iter()
+            .map(|g| {
+                let members: Vec<&RunSpec> = g.iter().map(|&i| &runs[i]).collect();
+                run_setup(&members, cfg, out, options.force, events)
+                    .map(|d| g.iter().copied().zip(d).collect::<Vec<_>>())
+            })
+            .collect::<Result<Vec<_>, BatchError>>()
+            .map(|v| {
+                // Back in the manifest's order.
+                let mut all: Vec<(usize, (Entry, bool))> = v.into_iter().flatten().collect();
+                all.sort_by_key(|(i, _)| *i);
+                all.into_iter()
+                    .map(|(_, d)| d)
+                    .collect::<Vec<(Entry, bool)>>()
+            })
     };
     let done = match options.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()

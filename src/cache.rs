@@ -225,6 +225,18 @@ pub fn key(cfg: &PipelineConfig, run: &RunSpec, fp: &Fingerprint) -> String {
     key_for_source(SOURCE_SHA256, cfg, run, fp)
 }
 
+/// The key of a run whose numbers also depend on other runs (a camera
+/// set-up's pooled scale): its own key with every member's, in order.
+pub fn combine_keys(own: &str, members: &[&str]) -> String {
+    let mut h = Sha256::new();
+    h.update(own.as_bytes());
+    for m in members {
+        h.update(b"|");
+        h.update(m.as_bytes());
+    }
+    hex(&h.finalize())
+}
+
 /// [`key`] as the build whose sources hash to `source` would compute it.
 fn key_for_source(source: &str, cfg: &PipelineConfig, run: &RunSpec, fp: &Fingerprint) -> String {
     #[derive(Serialize)]

@@ -63,6 +63,30 @@ pub struct DropRecord {
     pub surface_row_px: Option<f64>,
     #[serde(default)]
     pub surface_row_px_err: Option<f64>,
+    /// Camera set-up (the manifest's `setup`; empty when none).
+    #[serde(default)]
+    pub setup: String,
+    /// Where `mm_per_px` came from: `given`, `setup_free_fall`, `free_fall`
+    /// or `radius` (see `scale.rs`).
+    #[serde(default)]
+    pub scale_source: String,
+    /// The scale from free fall (the set-up's pooled, else the run's own),
+    /// whether used or not: a check on a given scale.
+    #[serde(default)]
+    pub free_fall_mm_per_px: Option<f64>,
+    #[serde(default)]
+    pub free_fall_mm_per_px_err: Option<f64>,
+    /// Apparent (silhouette) radius minus R_mm / mm_per_px, px: a diagnostic
+    /// of the optics (a steel ball's rim and halo); empty when the scale is
+    /// the radius's.
+    #[serde(default)]
+    pub edge_offset_px: Option<f64>,
+    #[serde(default)]
+    pub edge_offset_px_err: Option<f64>,
+    /// Systematic error of the surface line's edge model, px (in
+    /// `surface_row_px_err` and every error that depends on the line).
+    #[serde(default)]
+    pub surface_model_err_px: Option<f64>,
     /// Time of the maximum penetration.
     #[serde(default)]
     pub t_max_s: Option<f64>,
@@ -140,6 +164,13 @@ impl DropRecord {
             mm_per_px_err: None,
             surface_row_px: None,
             surface_row_px_err: None,
+            setup: String::new(),
+            scale_source: String::new(),
+            free_fall_mm_per_px: None,
+            free_fall_mm_per_px_err: None,
+            edge_offset_px: None,
+            edge_offset_px_err: None,
+            surface_model_err_px: None,
             t_max_s: None,
             second_contact_s: None,
             g_fit_m_s2: None,

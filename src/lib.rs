@@ -11,6 +11,7 @@
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
 //! | [`events`] | contact onset, peak and loss of contact from the track |
 //! | [`kinematics`] | v, δ, a, τc, e with jointly propagated errors |
+//! | [`scale`] | mm/px: given, from free fall (pooled per camera set-up), or from the radius |
 //! | [`force`] | F(δ) table and the trajectory-fitted contact law |
 //! | [`measure`] | one drop from track to record |
 //! | [`quality`] | the quality flags of a measured drop (`flags` in drops.csv) |
@@ -57,6 +58,7 @@ pub mod quality;
 pub mod render;
 pub mod report;
 pub mod run_name;
+pub mod scale;
 pub mod shard;
 pub mod slurm;
 pub mod source;

@@ -7,13 +7,13 @@
 use crate::cache::OutputFile;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
-use crate::detect::calibrate::{scale, RadiusCalibration};
 use crate::detect::overlay::{encode_png, overlay, OverlayView};
 use crate::detect::Band;
 use crate::events::{EventConfig, Geometry, TrackPoint};
 use crate::manifest::RunSpec;
 use crate::measure::{annotate_track, measure_drop, DropInfo};
 use crate::quality;
+use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
 use crate::source::{open, Frame, OpenOptions};
 use crate::track::{edge_points_in, track, Track, TrackSettings};
 use rayon::prelude::*;
@@ -120,34 +120,96 @@ pub fn runs_from_inputs(
 /// does a panic in any stage (caught here, at the run's boundary, so that
 /// one bad input never ends the job).
 pub fn process_run(run: &RunSpec, cfg: &PipelineConfig, overlay_frames: &[i64]) -> RunOutcome {
-    guarded(run, cfg, || try_process_run(run, cfg, overlay_frames))
+    process_setup(&[run], cfg, overlay_frames)
+        .pop()
+        .expect("one outcome per run")
 }
 
-/// Run `work` for `run`: its error, or its panic, becomes the run's `failed` record.
-fn guarded(
-    run: &RunSpec,
+/// Process runs that share one camera set-up (the manifest's `setup`
+/// column; a run without one is a set-up of its own): each is tracked, the
+/// curvatures of their free flights are pooled into one scale (see
+/// [`crate::scale`]), and each is measured with it. Never fails: a run that
+/// cannot be measured, or panics, gets a `failed` record; the outcomes come in `runs`'
+/// order.
+pub fn process_setup(
+    runs: &[&RunSpec],
     cfg: &PipelineConfig,
-    work: impl FnOnce() -> Result<RunOutcome, String>,
-) -> RunOutcome {
-    let attempt = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
-    match attempt.unwrap_or_else(|payload| Err(panic_reason(&run.path, payload.as_ref()))) {
-        Ok(o) => o,
-        Err(reason) => {
-            let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, reason);
-            record.surface = run
-                .surface
-                .clone()
-                .unwrap_or_else(|| cfg.input.surface.clone());
-            record.sphere_density_kg_m3 =
-                run.sphere_density_kg_m3.unwrap_or(cfg.sphere.density_kg_m3);
-            RunOutcome {
-                record,
-                track: Vec::new(),
-                overlay: None,
-                frame_overlays: Vec::new(),
-            }
+    overlay_frames: &[i64],
+) -> Vec<RunOutcome> {
+    let tracked: Vec<Result<Tracked, String>> = runs
+        .par_iter()
+        .map(|r| caught(r, || track_run(r, cfg)))
+        .collect();
+    let curvatures: Vec<Curvature> = tracked
+        .iter()
+        .filter_map(|t| t.as_ref().ok()?.curvature)
+        .collect();
+    let pooled = if curvatures.len() >= 2 {
+        crate::scale::pool(&curvatures)
+    } else {
+        None
+    };
+    runs.par_iter()
+        .zip(tracked)
+        .map(|(run, t)| {
+            caught(run, || measure_run(t?, run, cfg, pooled, overlay_frames))
+                .unwrap_or_else(|reason| failed_outcome(run, cfg, reason))
+        })
+        .collect()
+}
+
+/// Run `work` for `run`: its panic becomes an error naming the input.
+fn caught<T>(run: &RunSpec, work: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(work))
+        .unwrap_or_else(|payload| Err(panic_reason(&run.path, payload.as_ref())))
+}
+
+/// The `failed` outcome of `run`, with its reason.
+fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOutcome {
+    let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, reason);
+    record.surface = run
+        .surface
+        .clone()
+        .unwrap_or_else(|| cfg.input.surface.clone());
+    record.sphere_density_kg_m3 = run.sphere_density_kg_m3.unwrap_or(cfg.sphere.density_kg_m3);
+    record.setup = run.setup.clone().unwrap_or_default();
+    RunOutcome {
+        record,
+        track: Vec::new(),
+        overlay: None,
+        frame_overlays: Vec::new(),
+    }
+}
+
+/// Group runs into camera set-ups: runs sharing a `setup` value, in the
+/// order of their first run; a run without one alone. Returns indices.
+pub fn setups(runs: &[RunSpec]) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut named: Vec<(&str, usize)> = Vec::new();
+    for (i, r) in runs.iter().enumerate() {
+        match r.setup.as_deref() {
+            Some(s) => match named.iter().find(|(n, _)| *n == s) {
+                Some(&(_, g)) => groups[g].push(i),
+                None => {
+                    named.push((s, groups.len()));
+                    groups.push(vec![i]);
+                }
+            },
+            None => groups.push(vec![i]),
         }
     }
+    groups
+}
+
+/// A run tracked but not yet measured.
+struct Tracked {
+    source: Box<dyn crate::source::FrameSource>,
+    meta: crate::source::SourceMeta,
+    tr: Track,
+    settings: TrackSettings,
+    surface_name: String,
+    /// The curvature of the run's own free flights.
+    curvature: Option<Curvature>,
 }
 
 /// The reason of a run that panicked: the panic's message, which names the
@@ -164,11 +226,7 @@ fn panic_reason(input: &Path, payload: &(dyn std::any::Any + Send)) -> String {
     )
 }
 
-fn try_process_run(
-    run: &RunSpec,
-    cfg: &PipelineConfig,
-    overlay_frames: &[i64],
-) -> Result<RunOutcome, String> {
+fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
     crate::run_name::check(&run.run)?;
     let surface_name = run
         .surface
@@ -190,35 +248,73 @@ fn try_process_run(
     let tr =
         track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
 
-    // Scale: given (manifest, then configuration), checked against the sphere.
-    let given = run.mm_per_px.or(cfg.camera.mm_per_px);
-    let sc = scale(
-        run.sphere_radius_mm,
-        &RadiusCalibration {
-            r_px: tr.radius_px,
-            sigma_px: tr.radius_err_px,
-            frames: tr.radius_frames,
-        },
-        given,
-    );
-    let (mm_per_px, from_radius) = (sc.mm_per_px, given.is_none());
+    let points = track_points(&tr, |_| (None, None));
+    let curvature = free_fall_curvature(&points, |x| tr.surface.row_at(x), tr.radius_px);
+    Ok(Tracked {
+        source,
+        meta,
+        tr,
+        settings,
+        surface_name,
+        curvature,
+    })
+}
+
+fn measure_run(
+    t: Tracked,
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+    setup: Option<Curvature>,
+    overlay_frames: &[i64],
+) -> Result<RunOutcome, String> {
+    let Tracked {
+        mut source,
+        meta,
+        tr,
+        settings,
+        surface_name,
+        curvature,
+    } = t;
+    let event_cfg = EventConfig {
+        exposure_s: meta.exposure_s.unwrap_or(0.0),
+        ..EventConfig::default()
+    };
+    // Scale: given (manifest, then configuration), else free fall (the
+    // set-up's, else the run's own), else the sphere's apparent radius.
+    let inputs = ScaleInputs {
+        radius_mm: run.sphere_radius_mm,
+        g_m_s2: event_cfg.g_m_s2,
+        given_mm_per_px: run.mm_per_px.or(cfg.camera.mm_per_px),
+        setup,
+        own: curvature,
+        r_app_px: tr.radius_px,
+        r_app_err_px: tr.radius_err_px,
+    };
+    let sc = crate::scale::resolve(&inputs);
+    let (radius_px, radius_err_px) = sc.radius_px(&inputs);
+    let edge_offset = sc.edge_offset_px(&inputs);
     let xs: Vec<f64> = tr
         .frames
         .iter()
         .filter_map(|f| f.held.map(|h| h.x_px))
         .collect();
     let x_mid = xs.iter().sum::<f64>() / xs.len().max(1) as f64;
+    // The scale and the true radius in pixels are tied (R_px = R_mm / s)
+    // whatever the source, so the kinematics carries them as one.
     let geom = Geometry {
         surface_row_px: tr.surface.row0_px,
         surface_slope: tr.surface.slope,
         surface_row_err_px: tr.surface_row_err_px(x_mid),
-        radius_px: tr.radius_px,
-        radius_err_px: tr.radius_err_px,
-        mm_per_px,
-        mm_per_px_err: 0.0,
-        scale_from_radius: from_radius,
+        radius_px,
+        radius_err_px,
+        mm_per_px: sc.mm_per_px,
+        mm_per_px_err: sc.mm_per_px * sc.rel_err,
+        scale_from_radius: true,
     };
-    let points = track_points(&tr, &geom);
+    // The free-radius circle measures the silhouette: its radius, less the
+    // edge offset, is the sphere's.
+    let offset_px = edge_offset.map_or(0.0, |(o, _)| o);
+    let points = track_points(&tr, |f| half_width(f, offset_px, &geom));
     let info = DropInfo {
         run: run.run.clone(),
         sphere_radius_mm: run.sphere_radius_mm,
@@ -226,14 +322,17 @@ fn try_process_run(
         surface: surface_name,
     };
     let mut rows = track_rows(&tr);
-    let event_cfg = EventConfig {
-        exposure_s: meta.exposure_s.unwrap_or(0.0),
-        ..EventConfig::default()
-    };
     let m = measure_drop(&info, &points, &geom, &event_cfg)
         .map_err(|e| format!("{}: {e}", run.path.display()))?;
     annotate_track(&mut rows, &m, &geom);
     let mut record = m.record;
+    record.setup = run.setup.clone().unwrap_or_default();
+    record.scale_source = sc.source.name().to_string();
+    record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
+    record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);
+    record.edge_offset_px = edge_offset.map(|(o, _)| o);
+    record.edge_offset_px_err = edge_offset.map(|(_, e)| e);
+    record.surface_model_err_px = Some(tr.surface.model_err_px);
     if let Some(w) = sc.warning {
         quality::flag(&mut record, quality::SCALE_DISAGREEMENT, w);
     }
@@ -347,18 +446,18 @@ fn saturated_share(tr: &Track, bit_depth: u8) -> Option<f64> {
     (!fits.is_empty() && share > quality::SATURATED_SHARE).then_some(share)
 }
 
-/// The held-radius fits as event-stage points, with the contact half-width
-/// from the free-radius fit where its circle crosses the surface line.
-fn track_points(tr: &Track, geom: &Geometry) -> Vec<TrackPoint> {
+/// The held-radius fits as event-stage points, with the contact
+/// half-width that `half_width` gives from the free-radius fit.
+fn track_points(
+    tr: &Track,
+    half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
+) -> Vec<TrackPoint> {
     tr.frames
         .iter()
         .filter(|f| !f.flags.contains(&"partial"))
         .filter_map(|f| {
             let h = f.held?;
-            let (hw, hw_err) = match f.free {
-                Some(fr) => half_width(&fr, geom),
-                None => (None, None),
-            };
+            let (hw, hw_err) = f.free.as_ref().map_or((None, None), &half_width);
             Some(TrackPoint {
                 frame: f.frame,
                 t_s: f.t_s,
@@ -372,16 +471,22 @@ fn track_points(tr: &Track, geom: &Geometry) -> Vec<TrackPoint> {
         .collect()
 }
 
-/// a = √(r² − d²), d = y_s(x) − z, and its σ from the fit's covariance.
-fn half_width(f: &crate::detect::CircleFit, geom: &Geometry) -> (Option<f64>, Option<f64>) {
+/// a = √(r² − d²), d = y_s(x) − z, with r the fit's radius less the
+/// silhouette's edge offset, and its σ from the fit's covariance.
+fn half_width(
+    f: &crate::detect::CircleFit,
+    edge_offset_px: f64,
+    geom: &Geometry,
+) -> (Option<f64>, Option<f64>) {
     let d = geom.surface_row_at(f.x_px) - f.z_px;
-    if d.abs() >= f.r_px {
+    let r = f.r_px - edge_offset_px;
+    if d.abs() >= r {
         return (None, None);
     }
-    let a = (f.r_px * f.r_px - d * d).sqrt();
+    let a = (r * r - d * d).sqrt();
     let err = match f.cov {
         crate::detect::Covariance::Full(c) => {
-            let (gr, gz) = (f.r_px / a, d / a);
+            let (gr, gz) = (r / a, d / a);
             (gr * gr * c[2][2] + gz * gz * c[1][1] + 2.0 * gr * gz * c[1][2])
                 .max(0.0)
                 .sqrt()
@@ -443,15 +548,25 @@ pub fn process_all_with_overlays(
     overlay_frames: &[i64],
     progress: &(dyn Fn(&DropRecord) + Sync),
 ) -> Result<Vec<DropRecord>, ProcessError> {
-    let records = runs
+    let groups = setups(runs);
+    let done = groups
         .par_iter()
-        .map(|r| {
-            let o = process_run(r, cfg, overlay_frames);
-            write_run_outputs(out, &o)?;
-            progress(&o.record);
-            Ok(o.record)
+        .map(|g| {
+            let members: Vec<&RunSpec> = g.iter().map(|&i| &runs[i]).collect();
+            let outcomes = process_setup(&members, cfg, overlay_frames);
+            let mut recs = Vec::with_capacity(g.len());
+            for (&i, o) in g.iter().zip(outcomes) {
+                write_run_outputs(out, &o)?;
+                progress(&o.record);
+                recs.push((i, o.record));
+            }
+            Ok(recs)
         })
-        .collect::<Result<Vec<DropRecord>, ProcessError>>()?;
+        .collect::<Result<Vec<_>, ProcessError>>()?;
+    // Back in the runs' order.
+    let mut done: Vec<(usize, DropRecord)> = done.into_iter().flatten().collect();
+    done.sort_by_key(|(i, _)| *i);
+    let records: Vec<DropRecord> = done.into_iter().map(|(_, r)| r).collect();
     write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
     Ok(records)
 }
@@ -530,7 +645,7 @@ mod tests {
         )
         .unwrap();
         let runs = runs_from_inputs(&[PathBuf::from("x/drop.cine")], Some(3.0), &cfg).unwrap();
-        let o = guarded(&runs[0], &cfg, || {
+        let o = caught(&runs[0], || -> Result<RunOutcome, String> {
             let lo = 2.0_f64;
             Ok(RunOutcome {
                 record: DropRecord::failed("never", 1.0, format!("{}", 1.0_f64.clamp(lo, 1.0))),
@@ -538,7 +653,8 @@ mod tests {
                 overlay: None,
                 frame_overlays: Vec::new(),
             })
-        });
+        })
+        .unwrap_or_else(|reason| failed_outcome(&runs[0], &cfg, reason));
         assert_eq!(o.record.status, crate::dataset::DropStatus::Failed);
         assert_eq!(o.record.run, "drop");
         assert!(

@@ -130,17 +130,28 @@ pub fn assign(weights: &[u64], count: usize) -> Vec<usize> {
 }
 
 /// The runs of `shard`, in their configured order.
+///
+/// The runs of one camera set-up (the manifest's `setup` column) stay in one
+/// share: their scale is pooled from all of them.
 pub fn select(runs: &[RunSpec], shard: Shard) -> Vec<RunSpec> {
-    let weights: Vec<u64> = runs
+    let groups = crate::process::setups(runs);
+    let weights: Vec<u64> = groups
         .iter()
-        .map(|r| frame_count(&r.path) + FIXED_COST_FRAMES)
+        .map(|g| {
+            g.iter()
+                .map(|&i| frame_count(&runs[i].path) + FIXED_COST_FRAMES)
+                .sum()
+        })
         .collect();
     let shard_of = assign(&weights, shard.count);
-    runs.iter()
+    let mut keep: Vec<usize> = groups
+        .iter()
         .zip(shard_of)
         .filter(|(_, k)| *k == shard.index)
-        .map(|(r, _)| r.clone())
-        .collect()
+        .flat_map(|(g, _)| g.iter().copied())
+        .collect();
+    keep.sort_unstable();
+    keep.into_iter().map(|i| runs[i].clone()).collect()
 }
 
 #[cfg(test)]

@@ -1,0 +1,392 @@
+//! The scale s (mm/px) of a run and where it came from (SPEC §2, Calibration).
+//!
+//! In order of preference:
+//! 1. **given** — the manifest's `mm_per_px`, else `camera.mm_per_px`
+//!    (a calibration target); taken as exact;
+//! 2. **setup free fall** — the frame rate is exact, so the curvature of the
+//!    free flight in px/s² against g gives s = g / z̈_px; runs that the
+//!    manifest's `setup` column puts on one camera set-up share one scale,
+//!    and their curvatures are pooled (weighted mean, error scaled by the
+//!    pool's √χ²_red when above 1);
+//! 3. **free fall** — the run's own flights, when that is more precise than 4;
+//! 4. **radius** — R_mm / R_px, the last resort: a polished ball's
+//!    silhouette is not its outline (a light rim inside, a halo outside), so
+//!    the apparent radius is off by a fraction of a pixel; that offset,
+//!    [`EDGE_OFFSET_SYSTEMATIC_PX`], is carried as a systematic error.
+//!
+//! With 1–3 the sphere's true radius in pixels is R_mm / s, its bottom is
+//! z_c + R_mm / s, and `edge_offset_px` = R_px − R_mm / s is reported as a
+//! diagnostic of the optics. The circle fits keep the apparent radius (the
+//! silhouette's own size), so the fitted centre stays unbiased.
+
+use crate::dataset::DropStatus;
+use crate::events::TrackPoint;
+use crate::lsq::weighted_lsq;
+use nalgebra::DMatrix;
+
+/// One-sigma systematic error of the apparent radius as the sphere's true
+/// radius (px): polished steel balls in backlight measure 0.1–0.5 px small.
+pub const EDGE_OFFSET_SYSTEMATIC_PX: f64 = 0.3;
+
+/// A flight frame has the sphere's apparent bottom at least this far above
+/// the surface line (px), clear of any contact.
+pub const FLIGHT_CLEARANCE_PX: f64 = 1.5;
+
+/// Fewest frames in one flight segment for it to enter the curvature fit.
+pub const MIN_SEGMENT_FRAMES: usize = 6;
+
+/// Where a run's scale came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScaleSource {
+    Given,
+    SetupFreeFall,
+    FreeFall,
+    Radius,
+}
+
+impl ScaleSource {
+    /// The word written in `drops.csv`'s `scale_source` column.
+    pub fn name(self) -> &'static str {
+        match self {
+            ScaleSource::Given => "given",
+            ScaleSource::SetupFreeFall => "setup_free_fall",
+            ScaleSource::FreeFall => "free_fall",
+            ScaleSource::Radius => "radius",
+        }
+    }
+}
+
+/// The free flight's curvature z̈ (px/s²) with its one-sigma error.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Curvature {
+    pub g_px_s2: f64,
+    pub err_px_s2: f64,
+    /// Frames (over all flights, or all runs when pooled) behind it.
+    pub frames: usize,
+}
+
+impl Curvature {
+    /// The scale it gives, mm/px, for gravity `g_m_s2`.
+    pub fn mm_per_px(&self, g_m_s2: f64) -> f64 {
+        1e3 * g_m_s2 / self.g_px_s2
+    }
+
+    /// Relative one-sigma error of that scale.
+    pub fn rel_err(&self) -> f64 {
+        self.err_px_s2 / self.g_px_s2
+    }
+}
+
+/// The curvature of every free flight of a run (before the contact, after
+/// the rebound, after later bounces), fitted jointly: one parabola per
+/// flight with its own position and velocity and one shared z̈. A frame is
+/// in flight when the apparent bottom `z + r_app_px` is
+/// [`FLIGHT_CLEARANCE_PX`] above the surface row `row_at(x)`. `None` with
+/// no flight of [`MIN_SEGMENT_FRAMES`] frames.
+pub fn free_fall_curvature(
+    points: &[TrackPoint],
+    row_at: impl Fn(f64) -> f64,
+    r_app_px: f64,
+) -> Option<Curvature> {
+    // Consecutive in-flight points form a segment.
+    let mut segments: Vec<&[TrackPoint]> = Vec::new();
+    let mut start = None;
+    for (i, p) in points.iter().enumerate() {
+        let flying = p.z_px + r_app_px + FLIGHT_CLEARANCE_PX < row_at(p.x_px);
+        match (flying, start) {
+            (true, None) => start = Some(i),
+            (false, Some(s)) => {
+                segments.push(&points[s..i]);
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        segments.push(&points[s..]);
+    }
+    segments.retain(|s| s.len() >= MIN_SEGMENT_FRAMES);
+    let k = segments.len();
+    let n: usize = segments.iter().map(|s| s.len()).sum();
+    if k == 0 || n < 2 * k + 2 {
+        return None;
+    }
+    // Columns: per segment an offset and a velocity about its mean time,
+    // then ½τ² shared.
+    let mut design = DMatrix::zeros(n, 2 * k + 1);
+    let (mut y, mut sigma) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let mut row = 0;
+    for (j, seg) in segments.iter().enumerate() {
+        let t_ref = seg.iter().map(|p| p.t_s).sum::<f64>() / seg.len() as f64;
+        for p in seg.iter() {
+            let tau = p.t_s - t_ref;
+            design[(row, 2 * j)] = 1.0;
+            design[(row, 2 * j + 1)] = tau;
+            design[(row, 2 * k)] = 0.5 * tau * tau;
+            y.push(p.z_px);
+            sigma.push(p.sigma_z_px);
+            row += 1;
+        }
+    }
+    let fit = weighted_lsq(&design, &y, &sigma)?;
+    let (g, err) = (fit.coef[2 * k], fit.stderr(2 * k));
+    (g.is_finite() && g > 0.0 && err.is_finite()).then_some(Curvature {
+        g_px_s2: g,
+        err_px_s2: err,
+        frames: n,
+    })
+}
+
+/// The weighted mean of runs' curvatures (one camera set-up), its error
+/// scaled by √χ²_red when the runs scatter more than their errors say.
+pub fn pool(curvatures: &[Curvature]) -> Option<Curvature> {
+    let w: Vec<f64> = curvatures
+        .iter()
+        .map(|c| 1.0 / (c.err_px_s2 * c.err_px_s2))
+        .collect();
+    let sw: f64 = w.iter().sum();
+    if curvatures.is_empty() || !(sw.is_finite() && sw > 0.0) {
+        return None;
+    }
+    let mean = curvatures
+        .iter()
+        .zip(&w)
+        .map(|(c, w)| c.g_px_s2 * w)
+        .sum::<f64>()
+        / sw;
+    let chi2: f64 = curvatures
+        .iter()
+        .zip(&w)
+        .map(|(c, w)| (c.g_px_s2 - mean).powi(2) * w)
+        .sum();
+    let dof = curvatures.len().saturating_sub(1).max(1) as f64;
+    Some(Curvature {
+        g_px_s2: mean,
+        err_px_s2: (1.0 / sw).sqrt() * (chi2 / dof).max(1.0).sqrt(),
+        frames: curvatures.iter().map(|c| c.frames).sum(),
+    })
+}
+
+/// What a run's scale is chosen from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScaleInputs {
+    pub radius_mm: f64,
+    pub g_m_s2: f64,
+    /// The manifest's or configuration's scale.
+    pub given_mm_per_px: Option<f64>,
+    /// The pooled curvature of the run's set-up (two runs or more).
+    pub setup: Option<Curvature>,
+    /// The run's own flights.
+    pub own: Option<Curvature>,
+    /// The apparent radius and its statistical error.
+    pub r_app_px: f64,
+    pub r_app_err_px: f64,
+}
+
+/// A run's scale.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scale {
+    pub mm_per_px: f64,
+    /// Relative one-sigma error of `mm_per_px`.
+    pub rel_err: f64,
+    pub source: ScaleSource,
+    /// The scale from free fall (the set-up's, else the run's own) and its
+    /// one-sigma error, mm/px, whether used or not.
+    pub free_fall_mm_per_px: Option<(f64, f64)>,
+    /// Two sources disagree beyond their errors.
+    pub warning: Option<String>,
+}
+
+impl Scale {
+    /// The sphere's radius in pixels that the scale implies (R_px itself
+    /// when the scale comes from it) and its one-sigma error.
+    pub fn radius_px(&self, inp: &ScaleInputs) -> (f64, f64) {
+        match self.source {
+            ScaleSource::Radius => (
+                inp.r_app_px,
+                inp.r_app_err_px.hypot(EDGE_OFFSET_SYSTEMATIC_PX),
+            ),
+            _ => {
+                let r = inp.radius_mm / self.mm_per_px;
+                (r, r * self.rel_err)
+            }
+        }
+    }
+
+    /// Apparent minus true radius (px) and its error; `None` when the
+    /// scale comes from the apparent radius.
+    pub fn edge_offset_px(&self, inp: &ScaleInputs) -> Option<(f64, f64)> {
+        (self.source != ScaleSource::Radius).then(|| {
+            let (r, e) = self.radius_px(inp);
+            (inp.r_app_px - r, inp.r_app_err_px.hypot(e))
+        })
+    }
+
+    /// The status a scale disagreement gives.
+    pub fn status(&self) -> DropStatus {
+        if self.warning.is_some() {
+            DropStatus::Warning
+        } else {
+            DropStatus::Ok
+        }
+    }
+}
+
+/// Choose the scale (module doc) and check the sources against each other.
+pub fn resolve(inp: &ScaleInputs) -> Scale {
+    let by_radius = inp.radius_mm / inp.r_app_px;
+    let radius_rel = inp.r_app_err_px.hypot(EDGE_OFFSET_SYSTEMATIC_PX) / inp.r_app_px;
+    let ff = inp
+        .setup
+        .map(|c| (c, ScaleSource::SetupFreeFall))
+        .or(inp.own.map(|c| (c, ScaleSource::FreeFall)));
+    let free_fall_mm_per_px = ff.map(|(c, _)| {
+        let s = c.mm_per_px(inp.g_m_s2);
+        (s, s * c.rel_err())
+    });
+    let (mm_per_px, rel_err, source) = match (inp.given_mm_per_px, ff) {
+        (Some(s), _) => (s, 0.0, ScaleSource::Given),
+        (None, Some((c, src))) if src == ScaleSource::SetupFreeFall || c.rel_err() < radius_rel => {
+            (c.mm_per_px(inp.g_m_s2), c.rel_err(), src)
+        }
+        _ => (by_radius, radius_rel, ScaleSource::Radius),
+    };
+    let warning = match (inp.given_mm_per_px, free_fall_mm_per_px) {
+        // Beyond three sigma of the free fall, and beyond 0.02 %.
+        (Some(given), Some((s, e))) if (s - given).abs() > (3.0 * e).max(2e-4 * given) => Some(format!(
+            "scale disagreement: mm_per_px {given} given, {s:.6} ± {e:.6} from free fall ({:+.2} %): check the scale or the frame rate",
+            100.0 * (s / given - 1.0)
+        )),
+        (Some(given), None) if (by_radius / given - 1.0).abs() > 0.01 => Some(format!(
+            "scale disagreement: mm_per_px {given} given, {by_radius:.6} from the sphere \
+             (R {} mm = {:.3} px) ({:+.2} %): check the radius or the scale",
+            inp.radius_mm,
+            inp.r_app_px,
+            100.0 * (by_radius / given - 1.0)
+        )),
+        _ => None,
+    };
+    Scale {
+        mm_per_px,
+        rel_err,
+        source,
+        free_fall_mm_per_px,
+        warning,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A drop's track: flights under `g_px` before t = 0 and after the
+    /// rebound at t = τ, contact between, with noise σ from a fixed sequence.
+    fn flights(g_px: f64, sigma: f64) -> Vec<TrackPoint> {
+        let fps = 10_000.0;
+        let v = 30_000.0; // px/s at contact
+        let tau = 0.003;
+        let surface = 300.0;
+        let r = 80.0;
+        let mut out = Vec::new();
+        for i in -40..70 {
+            let t = i as f64 / fps;
+            let z = if t < 0.0 {
+                surface - r + v * t + 0.5 * g_px * t * t
+            } else if t > tau {
+                let u = t - tau;
+                surface - r - 0.9 * v * u + 0.5 * g_px * u * u
+            } else {
+                surface - r + 5.0 // in contact: below the clearance
+            };
+            let noise = sigma * ((i * 7919 % 13) as f64 / 6.0 - 1.0);
+            out.push(TrackPoint {
+                frame: i,
+                t_s: t,
+                x_px: 256.0,
+                z_px: z + noise,
+                sigma_z_px: sigma,
+                half_width_px: None,
+                sigma_half_width_px: None,
+            });
+        }
+        out
+    }
+
+    #[test]
+    fn free_fall_gives_the_curvature_and_the_scale() {
+        let s_mm = 0.06;
+        let g_px = 9.81 / (s_mm * 1e-3);
+        let c = free_fall_curvature(&flights(g_px, 0.003), |_| 300.0, 80.0).unwrap();
+        // Both flights: 40 + ~36 frames; the noise is ±0.003 px.
+        assert!((c.g_px_s2 / g_px - 1.0).abs() < 3.0 * c.rel_err(), "{c:?}");
+        assert!(c.rel_err() < 0.01, "{c:?}");
+        assert!((c.mm_per_px(9.81) / s_mm - 1.0).abs() < 3.0 * c.rel_err());
+        // Exact without noise.
+        let c = free_fall_curvature(&flights(g_px, 1e-9), |_| 300.0, 80.0).unwrap();
+        assert!((c.g_px_s2 / g_px - 1.0).abs() < 1e-9, "{c:?}");
+        assert_eq!(c.frames, 40 + 39);
+    }
+
+    #[test]
+    fn pooling_weights_by_error_and_widens_on_scatter() {
+        let c = |g: f64, e: f64| Curvature {
+            g_px_s2: g,
+            err_px_s2: e,
+            frames: 10,
+        };
+        let p = pool(&[c(100.0, 1.0), c(102.0, 2.0)]).unwrap();
+        assert!((p.g_px_s2 - (100.0 + 102.0 / 4.0) / 1.25).abs() < 1e-12);
+        assert!((p.err_px_s2 - (1.0f64 / 1.25).sqrt()).abs() < 1e-12);
+        let p = pool(&[c(100.0, 1.0), c(110.0, 1.0)]).unwrap();
+        assert!(p.err_px_s2 > 4.0, "{p:?}");
+        assert!(pool(&[]).is_none());
+    }
+
+    #[test]
+    fn the_source_follows_the_preference_and_disagreements_are_said() {
+        let good = Curvature {
+            g_px_s2: 9.81 / 0.06e-3,
+            err_px_s2: 9.81 / 0.06e-3 * 1e-4,
+            frames: 80,
+        };
+        let base = ScaleInputs {
+            radius_mm: 4.8,
+            g_m_s2: 9.81,
+            given_mm_per_px: None,
+            setup: None,
+            own: None,
+            r_app_px: 79.7,
+            r_app_err_px: 0.002,
+        };
+        let s = resolve(&base);
+        assert_eq!(s.source, ScaleSource::Radius);
+        assert!((s.rel_err - 0.3 / 79.7).abs() < 1e-6);
+        let own = ScaleInputs {
+            own: Some(good),
+            ..base.clone()
+        };
+        let s = resolve(&own);
+        assert_eq!(s.source, ScaleSource::FreeFall);
+        assert!((s.mm_per_px - 0.06).abs() < 1e-12);
+        // The true radius is 80 px; the apparent one 0.3 px smaller.
+        let (r, _) = s.radius_px(&own);
+        assert!((r - 80.0).abs() < 1e-9);
+        assert!((s.edge_offset_px(&own).unwrap().0 + 0.3).abs() < 1e-9);
+        let s = resolve(&ScaleInputs {
+            setup: Some(good),
+            ..own.clone()
+        });
+        assert_eq!(s.source, ScaleSource::SetupFreeFall);
+        let s = resolve(&ScaleInputs {
+            given_mm_per_px: Some(0.06),
+            ..own.clone()
+        });
+        assert_eq!((s.source, s.warning.is_none()), (ScaleSource::Given, true));
+        let s = resolve(&ScaleInputs {
+            given_mm_per_px: Some(0.0603),
+            ..own
+        });
+        let w = s.warning.unwrap();
+        assert!(w.contains("0.0603") && w.contains("free fall"), "{w}");
+    }
+}

@@ -268,7 +268,9 @@ fn solve4(m: [[f64; 4]; 4], b: [f64; 4]) -> Option<[f64; 4]> {
     let x = nalgebra::Matrix4::from_fn(|i, j| m[i][j])
         .lu()
         .solve(&nalgebra::Vector4::from(b))?;
-    x.iter().all(|v| v.is_finite()).then(|| [x[0], x[1], x[2], x[3]])
+    x.iter()
+        .all(|v| v.is_finite())
+        .then(|| [x[0], x[1], x[2], x[3]])
 }
 
 /// Disagreement (px) between the flank fit and the area method beyond which

@@ -666,6 +666,33 @@ mod tests {
     }
 
     #[test]
+    fn runs_of_one_setup_are_grouped_in_order_and_the_rest_stand_alone() {
+        let run = |name: &str, setup: Option<&str>| RunSpec {
+            run: name.into(),
+            path: PathBuf::from(name),
+            sphere_radius_mm: 3.0,
+            drop_height_cm: None,
+            fps: None,
+            mm_per_px: None,
+            surface: None,
+            sphere_density_kg_m3: None,
+            setup: setup.map(String::from),
+        };
+        let runs = [
+            run("a", Some("cam1")),
+            run("b", None),
+            run("c", Some("cam2")),
+            run("d", Some("cam1")),
+            run("e", None),
+            run("f", Some("cam2")),
+        ];
+        assert_eq!(
+            setups(&runs),
+            vec![vec![0, 3], vec![1], vec![2, 5], vec![4]]
+        );
+    }
+
+    #[test]
     fn input_runs_get_unique_names_and_need_a_radius() {
         let cfg = PipelineConfig::from_toml_str(
             crate::config::EMBEDDED_DEFAULT,

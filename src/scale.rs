@@ -19,7 +19,6 @@
 //! diagnostic of the optics. The circle fits keep the apparent radius (the
 //! silhouette's own size), so the fitted centre stays unbiased.
 
-use crate::dataset::DropStatus;
 use crate::events::TrackPoint;
 use crate::lsq::weighted_lsq;
 use nalgebra::DMatrix;
@@ -220,15 +219,6 @@ impl Scale {
             let (r, e) = self.radius_px(inp);
             (inp.r_app_px - r, inp.r_app_err_px.hypot(e))
         })
-    }
-
-    /// The status a scale disagreement gives.
-    pub fn status(&self) -> DropStatus {
-        if self.warning.is_some() {
-            DropStatus::Warning
-        } else {
-            DropStatus::Ok
-        }
     }
 }
 

@@ -100,6 +100,8 @@ pub enum RunEvent<'a> {
         record: &'a DropRecord,
         cached: bool,
         frames: usize,
+        /// Seconds this job spent on the run (`None`: taken from the cache).
+        seconds: Option<f64>,
     },
     /// Every run is done; the collapse (and report) starts.
     Collapsing,
@@ -116,6 +118,10 @@ pub struct JobSummary {
     pub cached: usize,
     /// Frames read by this job (cached runs read none).
     pub frames: usize,
+    /// Wall time of processing the runs (not the collapse or report), seconds.
+    pub process_s: f64,
+    /// Worker threads the runs were processed on.
+    pub threads: usize,
     /// Whether the collapse stage ran (it needs at least one measured drop).
     pub collapsed: bool,
     /// The share of the runs this job took (`None`: all, and it assembled them).
@@ -237,6 +243,7 @@ fn run_setup(
     cfg: &PipelineConfig,
     out: &Path,
     force: bool,
+    overlay_frames: &[i64],
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<Vec<(Entry, bool)>, BatchError> {
     // An input that cannot be fingerprinted (missing, unreadable) is
@@ -245,10 +252,19 @@ fn run_setup(
         .iter()
         .map(|r| cache::fingerprint(&r.path).ok())
         .collect();
+    // Extra overlays asked for are outputs of the run: another list, another key.
+    let extra = format!("overlay_frames {overlay_frames:?}");
     let own: Vec<Option<String>> = members
         .iter()
         .zip(&fps)
-        .map(|(r, fp)| fp.as_ref().map(|fp| cache::key(cfg, r, fp)))
+        .map(|(r, fp)| {
+            let k = cache::key(cfg, r, fp.as_ref()?);
+            Some(if overlay_frames.is_empty() {
+                k
+            } else {
+                cache::combine_keys(&k, &[&extra])
+            })
+        })
         .collect();
     let keys: Vec<Option<String>> = if members.len() > 1 && own.iter().all(Option::is_some) {
         let all: Vec<&str> = own.iter().flatten().map(String::as_str).collect();
@@ -273,6 +289,7 @@ fn run_setup(
                     record: &e.record,
                     cached: true,
                     frames: e.frames,
+                    seconds: None,
                 });
             }
             return Ok(hits.into_iter().map(|e| (e, true)).collect());
@@ -281,7 +298,7 @@ fn run_setup(
     for r in members {
         events(RunEvent::Started { run: &r.run });
     }
-    let outcomes = process_setup(members, cfg, &[]);
+    let outcomes = process_setup(members, cfg, overlay_frames);
     let mut done = Vec::with_capacity(members.len());
     for ((o, fp), (key, r)) in outcomes
         .into_iter()
@@ -289,6 +306,7 @@ fn run_setup(
         .zip(keys.into_iter().zip(members))
     {
         let outputs = write_run_outputs(out, &o)?;
+        let seconds = o.seconds;
         let entry = Entry {
             schema: cache::CACHE_SCHEMA,
             dropscope_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -308,6 +326,7 @@ fn run_setup(
             record: &entry.record,
             cached: false,
             frames: entry.frames,
+            seconds: Some(seconds),
         });
         done.push((entry, false));
     }
@@ -316,7 +335,11 @@ fn run_setup(
 
 /// `provenance.json`: what produced the outputs, without timestamps, so the
 /// same inputs and configuration give the same bytes.
-fn provenance_json(cfg: &PipelineConfig, config_name: &str, entries: &[Entry]) -> Vec<u8> {
+pub(crate) fn provenance_json(
+    cfg: &PipelineConfig,
+    config_name: &str,
+    entries: &[Entry],
+) -> Vec<u8> {
     #[derive(serde::Serialize)]
     struct RunProvenance<'a> {
         run: &'a str,
@@ -350,6 +373,70 @@ fn provenance_json(cfg: &PipelineConfig, config_name: &str, entries: &[Entry]) -
     bytes
 }
 
+/// What [`process_runs`] did.
+#[derive(Debug)]
+pub struct Processed {
+    /// One cache entry per run, in the runs' order, and whether it was
+    /// reused from the cache.
+    pub done: Vec<(Entry, bool)>,
+    /// Wall time, seconds.
+    pub seconds: f64,
+    /// Worker threads the runs were processed on.
+    pub threads: usize,
+}
+
+/// Process `runs` into `out` (which the caller holds), a camera set-up at a
+/// time and set-ups in parallel on `options.threads` workers: each set-up's
+/// cached results when still valid (unless `options.force`), else processed
+/// and committed to the cache. `overlay_frames` are extra overlays drawn for
+/// every run (part of the cache key). Writes no drops.csv.
+pub fn process_runs(
+    runs: &[RunSpec],
+    cfg: &PipelineConfig,
+    out: &Path,
+    options: &JobOptions,
+    overlay_frames: &[i64],
+    events: &(dyn Fn(RunEvent) + Sync),
+) -> Result<Processed, BatchError> {
+    let start = std::time::Instant::now();
+    events(RunEvent::Planned { runs: runs.len() });
+    let groups = crate::process::setups(runs);
+    let work = || {
+        let threads = rayon::current_num_threads();
+        groups
+            .par_iter()
+            .map(|g| {
+                let members: Vec<&RunSpec> = g.iter().map(|&i| &runs[i]).collect();
+                run_setup(&members, cfg, out, options.force, overlay_frames, events)
+                    .map(|d| g.iter().copied().zip(d).collect::<Vec<_>>())
+            })
+            .collect::<Result<Vec<_>, BatchError>>()
+            .map(|v| {
+                // Back in the manifest's order.
+                let mut all: Vec<(usize, (Entry, bool))> = v.into_iter().flatten().collect();
+                all.sort_by_key(|(i, _)| *i);
+                let done = all.into_iter().map(|(_, d)| d).collect();
+                (done, threads)
+            })
+    };
+    let (done, threads) = match options.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|e| BatchError::Io {
+                path: out.to_path_buf(),
+                source: std::io::Error::other(e),
+            })?
+            .install(work)?,
+        None => work()?,
+    };
+    Ok(Processed {
+        done,
+        seconds: start.elapsed().as_secs_f64(),
+        threads,
+    })
+}
+
 /// Process every configured run (reusing valid cached results), then the
 /// collapse of the measured ones. With `options.shard`, only that share of
 /// the runs, and nothing assembled.
@@ -379,37 +466,11 @@ pub fn run_job(
         Some(shard) => crate::shard::select(&runs, shard),
         None => runs,
     };
-    events(RunEvent::Planned { runs: runs.len() });
-    let groups = crate::process::setups(&runs);
-    let work = || {
-        groups
-            .par_iter()
-            .map(|g| {
-                let members: Vec<&RunSpec> = g.iter().map(|&i| &runs[i]).collect();
-                run_setup(&members, cfg, out, options.force, events)
-                    .map(|d| g.iter().copied().zip(d).collect::<Vec<_>>())
-            })
-            .collect::<Result<Vec<_>, BatchError>>()
-            .map(|v| {
-                // Back in the manifest's order.
-                let mut all: Vec<(usize, (Entry, bool))> = v.into_iter().flatten().collect();
-                all.sort_by_key(|(i, _)| *i);
-                all.into_iter()
-                    .map(|(_, d)| d)
-                    .collect::<Vec<(Entry, bool)>>()
-            })
-    };
-    let done = match options.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .map_err(|e| BatchError::Io {
-                path: out.to_path_buf(),
-                source: std::io::Error::other(e),
-            })?
-            .install(work)?,
-        None => work()?,
-    };
+    let Processed {
+        done,
+        seconds: process_s,
+        threads,
+    } = process_runs(&runs, cfg, out, options, &[], events)?;
     let cached = done.iter().filter(|(_, hit)| *hit).count();
     let frames = done
         .iter()
@@ -424,6 +485,8 @@ pub fn run_job(
             out: out.to_path_buf(),
             cached,
             frames,
+            process_s,
+            threads,
             collapsed: false,
             collapse_warnings: Vec::new(),
             shard: options.shard,
@@ -466,6 +529,8 @@ pub fn run_job(
         out: out.to_path_buf(),
         cached,
         frames,
+        process_s,
+        threads,
         collapsed,
         collapse_warnings,
         shard: None,

@@ -16,7 +16,8 @@
 //! | [`measure`] | one drop from track to record |
 //! | [`quality`] | the quality flags of a measured drop (`flags` in drops.csv) |
 //! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
-//! | [`process`] | `dropscope process`: runs in parallel → drops.csv, tracks, overlays |
+//! | [`process`] | one run (or camera set-up) → record, track, overlays; runs in parallel |
+//! | [`process_job`] | `dropscope process`: the runs through the main job's cache → drops.csv, per-drop figures |
 //! | [`progress`] | the main job's progress bars, or plain lines off a terminal |
 //! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits (`dropscope collapse`) |
 //! | [`batch`] | the main job (`dropscope run`): process then collapse, with progress |
@@ -53,6 +54,7 @@ pub mod manifest;
 pub mod measure;
 pub mod plot;
 pub mod process;
+pub mod process_job;
 pub mod progress;
 pub mod quality;
 pub mod render;

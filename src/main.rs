@@ -117,28 +117,17 @@ fn hold_folder(
     })?)
 }
 
-/// One line per finished run on stderr.
-fn print_run_status(r: &dropscope::dataset::DropRecord) {
-    use dropscope::dataset::DropStatus;
-    match r.status {
-        DropStatus::Failed => eprintln!("{}: failed: {}", r.run, r.reason),
-        DropStatus::Warning => eprintln!("{}: measured, with warnings: {}", r.run, r.reason),
-        DropStatus::Ok => eprintln!("{}: measured", r.run),
-    }
-}
-
-/// "N runs: … measured, … reused from the cache; F frames read in T s".
-fn job_counts(job: &dropscope::batch::JobSummary, secs: f64) -> String {
+/// "N runs: … measured, … reused from the cache; F frames read in T s on N threads (X frames/s)".
+fn job_counts(job: &dropscope::batch::JobSummary) -> String {
     use dropscope::dataset::DropStatus;
     format!(
-        "{} runs: {} measured, {} with warnings, {} failed, {} reused from the cache; \
-         {} frames read in {secs:.2} s",
-        job.records.len(),
+        "{}: {} measured, {} with warnings, {} failed, {} reused from the cache; {}",
+        dropscope::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
         job.failed(),
         job.cached,
-        job.frames,
+        speed(job.frames, job.process_s, job.threads),
     )
 }
 
@@ -182,7 +171,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         eprintln!(
             "shard {shard}: {}; committed to {}. Once every shard is done, `dropscope run` on \
              that folder assembles drops.csv, the collapse and the report",
-            job_counts(&job, start.elapsed().as_secs_f64()),
+            job_counts(&job),
             out.display()
         );
         // Failed runs are committed rows too: the shard did its work, and
@@ -193,16 +182,15 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     for w in &job.collapse_warnings {
         eprintln!("warning: {w}");
     }
-    let secs = start.elapsed().as_secs_f64();
     eprintln!(
-        "{} ({:.0} frames/s); collapse {}; results in {} (open report.html there)",
-        job_counts(&job, secs),
-        job.frames as f64 / secs.max(1e-9),
+        "{}; collapse {}; {:.2} s in all; results in {} (open report.html there)",
+        job_counts(&job),
         if job.collapsed {
             "done"
         } else {
             "skipped (no measured drop)"
         },
+        start.elapsed().as_secs_f64(),
         out.display()
     );
     Ok(if job.failed() > 0 {
@@ -215,7 +203,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
 /// `dropscope process`: every run in parallel; exit 1 when some runs failed.
 fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Result<ExitCode> {
     use dropscope::dataset::DropStatus;
-    let (cfg, _) = load_config(args.config.as_deref())?;
+    let (cfg, name) = load_config(args.config.as_deref())?;
     let runs = match &args.manifest {
         Some(m) => dropscope::manifest::read_manifest(m)?,
         None => dropscope::process::runs_from_inputs(
@@ -226,23 +214,37 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     };
     let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
     let _held = hold_folder(&out, "process", &cfg, &runs, wait)?;
-    let start = std::time::Instant::now();
-    let records = dropscope::process::process_all_with_overlays(
+    let options = dropscope::batch::JobOptions {
+        force: args.force,
+        threads: args.threads.map(usize::from),
+        shard: None,
+        wait,
+    };
+    let progress = dropscope::progress::JobProgress::new();
+    let job = dropscope::process_job::run(
         &runs,
         &cfg,
+        &name,
         &out,
+        &options,
         &args.overlay_frames,
-        &print_run_status,
-    )?;
-    let n = |s: DropStatus| records.iter().filter(|r| r.status == s).count();
-    let failed = n(DropStatus::Failed);
+        &|e| progress.event(e),
+    );
+    progress.finish();
+    let job = job?;
+    for w in &job.warnings {
+        eprintln!("warning: {w}");
+    }
+    let failed = job.count(DropStatus::Failed);
     eprintln!(
-        "{}: {} measured, {} with warnings, {} failed, in {:.2} s; results in {}",
-        dropscope::plural(records.len(), "run"),
-        n(DropStatus::Ok),
-        n(DropStatus::Warning),
+        "{}: {} measured, {} with warnings, {} failed, {} reused from the cache; {}; \
+         results in {}",
+        dropscope::plural(job.records.len(), "run"),
+        job.count(DropStatus::Ok),
+        job.count(DropStatus::Warning),
         failed,
-        start.elapsed().as_secs_f64(),
+        job.cached,
+        speed(job.frames, job.process_s, job.threads),
         out.display()
     );
     Ok(if failed > 0 {
@@ -250,6 +252,20 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     } else {
         ExitCode::SUCCESS
     })
+}
+
+/// "F frames read in T s on N threads (X frames/s)", T the processing's
+/// wall time (not the collapse's or the report's); "no frames read" when
+/// every run came from the cache.
+fn speed(frames: usize, secs: f64, threads: usize) -> String {
+    if frames == 0 {
+        return "no frames read".into();
+    }
+    format!(
+        "{frames} frames read in {secs:.2} s on {} ({:.0} frames/s)",
+        dropscope::plural(threads, "thread"),
+        frames as f64 / secs.max(1e-9)
+    )
 }
 
 /// `dropscope collapse`: groups, fits and plots; exit 1 when rows were skipped.

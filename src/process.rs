@@ -44,6 +44,13 @@ pub struct ProcessArgs {
     /// e.g. `-5,0,12`) for every run: `plots/overlays/<run>_<number>.png`.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub overlay_frames: Vec<i64>,
+    /// Reprocess every run, even those whose result from an earlier job
+    /// into this folder (OUT/runs/<run>.json) is still valid.
+    #[arg(long)]
+    pub force: bool,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
 }
 
 /// The outcome of one run.
@@ -55,6 +62,9 @@ pub struct RunOutcome {
     pub overlay: Option<Vec<u8>>,
     /// Overlays of the frames asked for: (image number, PNG bytes).
     pub frame_overlays: Vec<(i64, Vec<u8>)>,
+    /// Seconds spent on this run (tracking and measuring), for the speed
+    /// shown to the user; no output depends on it.
+    pub seconds: f64,
 }
 
 /// Why the command could not run at all (a bad run is a row, not this).
@@ -136,10 +146,14 @@ pub fn process_setup(
     cfg: &PipelineConfig,
     overlay_frames: &[i64],
 ) -> Vec<RunOutcome> {
-    let tracked: Vec<Result<Tracked, String>> = runs
+    let (tracked, track_s): (Vec<Result<Tracked, String>>, Vec<f64>) = runs
         .par_iter()
-        .map(|r| caught(r, || track_run(r, cfg)))
-        .collect();
+        .map(|r| {
+            let start = std::time::Instant::now();
+            let t = caught(r, || track_run(r, cfg));
+            (t, start.elapsed().as_secs_f64())
+        })
+        .unzip();
     let curvatures: Vec<Curvature> = tracked
         .iter()
         .filter_map(|t| t.as_ref().ok()?.curvature)
@@ -151,9 +165,13 @@ pub fn process_setup(
     };
     runs.par_iter()
         .zip(tracked)
-        .map(|(run, t)| {
-            caught(run, || measure_run(t?, run, cfg, pooled, overlay_frames))
-                .unwrap_or_else(|reason| failed_outcome(run, cfg, reason))
+        .zip(track_s)
+        .map(|((run, t), track_s)| {
+            let start = std::time::Instant::now();
+            let mut o = caught(run, || measure_run(t?, run, cfg, pooled, overlay_frames))
+                .unwrap_or_else(|reason| failed_outcome(run, cfg, reason));
+            o.seconds = track_s + start.elapsed().as_secs_f64();
+            o
         })
         .collect()
 }
@@ -178,6 +196,7 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
         track: Vec::new(),
         overlay: None,
         frame_overlays: Vec::new(),
+        seconds: 0.0,
     }
 }
 
@@ -405,6 +424,7 @@ fn measure_run(
         track: rows,
         overlay,
         frame_overlays,
+        seconds: 0.0,
     })
 }
 
@@ -652,6 +672,7 @@ mod tests {
                 track: Vec::new(),
                 overlay: None,
                 frame_overlays: Vec::new(),
+                seconds: 0.0,
             })
         })
         .unwrap_or_else(|reason| failed_outcome(&runs[0], &cfg, reason));

@@ -1,4 +1,4 @@
-//! What the main job shows while it runs: on a terminal, an overall bar and
+//! What the main job and `process` show while they run: on a terminal, an overall bar and
 //! a spinner per run in flight (indicatif); otherwise (a log file, CI) one
 //! plain line per finished run. Either way a failed run's reason is printed
 //! when it fails, not only at the end.
@@ -27,9 +27,18 @@ struct Bars {
     cached: AtomicUsize,
 }
 
-/// The line printed for a finished run.
-pub fn run_line(record: &DropRecord, cached: bool) -> String {
-    let from = if cached { " (cached)" } else { "" };
+/// The line printed for a finished run: its status, and for a run this job
+/// measured its frames and speed (`seconds` is its own time, not the job's),
+/// else "(cached)".
+pub fn run_line(record: &DropRecord, frames: usize, seconds: Option<f64>) -> String {
+    let from = match seconds {
+        None => " (cached)".to_string(),
+        Some(_) if record.status == DropStatus::Failed => String::new(),
+        Some(s) => format!(
+            " ({frames} frames in {s:.2} s, {:.0} frames/s)",
+            frames as f64 / s.max(1e-9)
+        ),
+    };
     match record.status {
         DropStatus::Failed => format!("{}: failed{from}: {}", record.run, record.reason),
         DropStatus::Warning => format!(
@@ -104,11 +113,16 @@ impl JobProgress {
                 None => eprintln!("collapse …"),
                 Some(b) => b.overall.set_message("collapse …"),
             },
-            RunEvent::Finished { record, cached, .. } => {
+            RunEvent::Finished {
+                record,
+                cached,
+                frames,
+                seconds,
+            } => {
                 let k = self.done.fetch_add(1, Ordering::Relaxed) + 1;
                 let n = self.total.load(Ordering::Relaxed);
                 match &self.bars {
-                    None => eprintln!("[{k}/{n}] {}", run_line(record, cached)),
+                    None => eprintln!("[{k}/{n}] {}", run_line(record, frames, seconds)),
                     Some(b) => {
                         if let Some(s) = b
                             .running
@@ -124,7 +138,7 @@ impl JobProgress {
                         }
                         if record.status == DropStatus::Failed {
                             b.failed.fetch_add(1, Ordering::Relaxed);
-                            let _ = b.multi.println(run_line(record, cached));
+                            let _ = b.multi.println(run_line(record, frames, seconds));
                         }
                         b.overall.set_message(format!(
                             "({} failed, {} cached)",
@@ -161,11 +175,16 @@ mod tests {
     fn lines_say_status_reason_and_cache() {
         let mut r = DropRecord::failed("R3_01", 3.0, "no sphere found in 97 frames");
         assert_eq!(
-            run_line(&r, false),
+            run_line(&r, 97, Some(0.5)),
             "R3_01: failed: no sphere found in 97 frames"
         );
         r.status = DropStatus::Ok;
-        assert_eq!(run_line(&r, true), "R3_01: measured (cached)");
+        assert_eq!(run_line(&r, 97, None), "R3_01: measured (cached)");
+        // The run's own speed, not the job's.
+        assert_eq!(
+            run_line(&r, 400, Some(0.25)),
+            "R3_01: measured (400 frames in 0.25 s, 1600 frames/s)"
+        );
         // Bars off the terminal take every event without drawing.
         let p = JobProgress::with_bars(true);
         p.event(RunEvent::Planned { runs: 1 });
@@ -174,6 +193,7 @@ mod tests {
             record: &r,
             cached: false,
             frames: 10,
+            seconds: Some(0.1),
         });
         assert_eq!(p.done.load(Ordering::Relaxed), 1);
         assert!(p.bars.as_ref().unwrap().running.lock().unwrap().is_empty());

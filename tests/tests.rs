@@ -5,6 +5,7 @@ mod collapse;
 mod detect;
 mod hostile;
 mod process;
+mod process_job;
 mod render;
 mod render_real;
 mod report;

@@ -8,6 +8,7 @@
 //! | [`stats`] | weighted least squares, quantiles, Γ and B |
 //! | [`diagnostics`] | per-drop flight parabolas and F = K δⁿ from `tracks/<run>.csv` |
 //! | [`output`] | `collapse.csv` and `fits.json` as bytes |
+//! | [`per_drop`] | the per-drop figures from `tracks/<run>.csv` (also drawn by `process`) |
 //! | [`synthetic`] | drops with known laws (Eq. (8), pure power laws) for tests |
 //!
 //! [`run`] is the whole `dropscope collapse` command: it reads, computes,
@@ -18,6 +19,7 @@ pub mod diagnostics;
 pub mod fit;
 pub mod groups;
 pub mod output;
+pub mod per_drop;
 pub mod stats;
 pub mod synthetic;
 
@@ -247,23 +249,10 @@ pub fn run(
     warnings.extend(fits.warnings.iter().cloned());
 
     // Per-drop diagnostics where tracks/<run>.csv exists beside drops.csv.
-    let tracks_dir = args.drops.parent().unwrap_or(Path::new("")).join("tracks");
-    let mut diags = Vec::new();
-    for (rec, o) in records.iter().zip(&outcomes) {
-        // A run name that is not a plain file name never reaches outside tracks/.
-        if crate::plot::file_stem(&rec.run) != rec.run {
-            continue;
-        }
-        let p = tracks_dir.join(format!("{}.csv", rec.run));
-        if rec.status == dataset::DropStatus::Failed || !p.is_file() {
-            continue;
-        }
-        let surface = &cfg.surfaces[&o.surface];
-        match diagnostics::diagnose(rec, surface, &p) {
-            Ok(d) => diags.push(d),
-            Err(e) => warnings.push(format!("track not used: {e}")),
-        }
-    }
+    let (diags, track_warnings) = per_drop::diagnose_all(&args.drops, &records, |i, _| {
+        cfg.surfaces.get(&outcomes[i].surface)
+    });
+    warnings.extend(track_warnings);
     let force_laws: Vec<_> = diags.iter().filter_map(|d| d.force_law.clone()).collect();
 
     let names: std::collections::BTreeSet<&str> = used.iter().map(|g| g.surface.as_str()).collect();
@@ -316,21 +305,16 @@ pub fn run(
         &mut files,
     )?;
     if !args.no_plots {
-        let figures = crate::plot::collapse_figures(&used, &fits)?
-            .into_iter()
-            .map(|(name, bytes)| (Path::new("plots").join(name), bytes));
-        let mut per_drop = Vec::new();
-        for d in &diags {
-            for (name, bytes) in crate::plot::drop_figures(d)? {
-                per_drop.push((Path::new("plots").join("drops").join(name), bytes));
-            }
-        }
-        for (rel, bytes) in figures.chain(per_drop) {
+        for (name, bytes) in crate::plot::collapse_figures(&used, &fits)? {
+            let rel = Path::new("plots").join(&name);
             let bytes = if rel.extension().is_some_and(|e| e == "svg") {
                 crate::dataset_id::tag_svg(&bytes, &dataset_id)
             } else {
                 bytes
             };
+            write(&out_dir, &rel, &bytes, &mut files)?;
+        }
+        for (rel, bytes) in per_drop::figures(&diags, &dataset_id)? {
             write(&out_dir, &rel, &bytes, &mut files)?;
         }
     }

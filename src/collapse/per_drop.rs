@@ -1,0 +1,97 @@
+//! The per-drop figures (`plots/drops/<run>.svg` and `.png`: z(t), δ(t),
+//! F(δ)) of every measured drop whose track lies beside its drops.csv
+//! (`tracks/<run>.csv`). `process` draws them as soon as it has written
+//! drops.csv; `collapse` draws them again with its own figures, from the
+//! same files, to the same bytes.
+
+use std::path::{Path, PathBuf};
+
+use super::diagnostics::{self, DropDiagnostics};
+use super::CollapseError;
+use crate::config::{PipelineConfig, Surface};
+use crate::dataset::{DropRecord, DropStatus};
+
+/// The diagnostics of the drops of `records` (the rows of `drops_csv`)
+/// that were measured and have a track beside it; `surface_of(i, record)`
+/// gives row i's surface (a row without one is skipped). A track that
+/// cannot be used is a warning naming it.
+pub fn diagnose_all<'a>(
+    drops_csv: &Path,
+    records: &[DropRecord],
+    surface_of: impl Fn(usize, &DropRecord) -> Option<&'a Surface>,
+) -> (Vec<DropDiagnostics>, Vec<String>) {
+    let tracks_dir = drops_csv.parent().unwrap_or(Path::new("")).join("tracks");
+    let (mut diags, mut warnings) = (Vec::new(), Vec::new());
+    for (i, rec) in records.iter().enumerate() {
+        // A run name that is not a plain file name never reaches outside tracks/.
+        if crate::plot::file_stem(&rec.run) != rec.run || rec.status == DropStatus::Failed {
+            continue;
+        }
+        let p = tracks_dir.join(format!("{}.csv", rec.run));
+        let Some(surface) = surface_of(i, rec).filter(|_| p.is_file()) else {
+            continue;
+        };
+        match diagnostics::diagnose(rec, surface, &p) {
+            Ok(d) => diags.push(d),
+            Err(e) => warnings.push(format!("track not used: {e}")),
+        }
+    }
+    (diags, warnings)
+}
+
+/// The figures of `diags`, as (path relative to the output folder, bytes),
+/// each SVG tagged with the dataset id of the drops.csv they come from.
+pub fn figures(
+    diags: &[DropDiagnostics],
+    dataset_id: &str,
+) -> Result<Vec<(PathBuf, Vec<u8>)>, CollapseError> {
+    let mut out = Vec::new();
+    for d in diags {
+        for (name, bytes) in crate::plot::drop_figures(d)? {
+            let rel = Path::new("plots").join("drops").join(name);
+            let bytes = if rel.extension().is_some_and(|e| e == "svg") {
+                crate::dataset_id::tag_svg(&bytes, dataset_id)
+            } else {
+                bytes
+            };
+            out.push((rel, bytes));
+        }
+    }
+    Ok(out)
+}
+
+/// Replace `out_dir/plots/drops/` by the figures of the drops in
+/// `drops_csv` (whose rows are `records`), each row's surface taken from
+/// `cfg` by name. Returns the files written (relative to `out_dir`) and the
+/// warnings about tracks that could not be used.
+pub fn write(
+    out_dir: &Path,
+    drops_csv: &Path,
+    records: &[DropRecord],
+    cfg: &PipelineConfig,
+) -> Result<(Vec<PathBuf>, Vec<String>), CollapseError> {
+    let id = crate::dataset_id::of_file(drops_csv).map_err(|source| {
+        CollapseError::Dataset(crate::dataset::DatasetError::Io {
+            path: drops_csv.to_path_buf(),
+            source,
+        })
+    })?;
+    let (diags, warnings) = diagnose_all(drops_csv, records, |_, r| {
+        let name = if r.surface.is_empty() {
+            &cfg.input.surface
+        } else {
+            &r.surface
+        };
+        cfg.surfaces.get(name)
+    });
+    let dir = out_dir.join("plots").join("drops");
+    crate::io_util::remove_dir_if_present(&dir).map_err(|source| CollapseError::Write {
+        path: dir.clone(),
+        source,
+    })?;
+    let mut files = Vec::new();
+    for (rel, bytes) in figures(&diags, &id)? {
+        super::write(out_dir, &rel, &bytes, &mut files)?;
+    }
+    Ok((files, warnings))
+}

@@ -1,0 +1,84 @@
+//! `dropscope process` as a job: the runs named on the command line (or a
+//! manifest) through the main job's processing ([`crate::batch::process_runs`]:
+//! the result cache, `--force`, `--threads`, progress events), then
+//! `drops.csv`, `provenance.json` and the per-drop figures
+//! (`plots/drops/<run>.svg|png`); no collapse and no report.
+
+use std::path::Path;
+
+use crate::batch::{process_runs, provenance_json, BatchError, JobOptions, Processed, RunEvent};
+use crate::config::PipelineConfig;
+use crate::dataset::{DropRecord, DropStatus};
+use crate::manifest::RunSpec;
+use crate::process::write_file;
+
+/// What a `process` job did.
+#[derive(Debug, Clone)]
+pub struct ProcessSummary {
+    /// One record per run, in the runs' order (as in drops.csv).
+    pub records: Vec<DropRecord>,
+    /// Runs whose cached result was reused.
+    pub cached: usize,
+    /// Frames read by this job (cached runs read none).
+    pub frames: usize,
+    /// Wall time of processing the runs, seconds.
+    pub process_s: f64,
+    /// Worker threads the runs were processed on.
+    pub threads: usize,
+    /// Tracks the per-drop figures could not use.
+    pub warnings: Vec<String>,
+}
+
+impl ProcessSummary {
+    /// Runs with status `status`.
+    pub fn count(&self, status: DropStatus) -> usize {
+        self.records.iter().filter(|r| r.status == status).count()
+    }
+}
+
+/// Process `runs` into `out`, which the caller holds ([`crate::lock`]).
+pub fn run(
+    runs: &[RunSpec],
+    cfg: &PipelineConfig,
+    config_name: &str,
+    out: &Path,
+    options: &JobOptions,
+    overlay_frames: &[i64],
+    events: &(dyn Fn(RunEvent) + Sync),
+) -> Result<ProcessSummary, BatchError> {
+    crate::io_util::remove_stale_temporaries(out, &crate::lock::writer_is_gone).map_err(
+        |source| BatchError::Io {
+            path: out.to_path_buf(),
+            source,
+        },
+    )?;
+    let Processed {
+        done,
+        seconds,
+        threads,
+    } = process_runs(runs, cfg, out, options, overlay_frames, events)?;
+    let cached = done.iter().filter(|(_, hit)| *hit).count();
+    let frames = done
+        .iter()
+        .filter(|(_, hit)| !*hit)
+        .map(|(e, _)| e.frames)
+        .sum();
+    let entries: Vec<_> = done.into_iter().map(|(e, _)| e).collect();
+    let records: Vec<DropRecord> = entries.iter().map(|e| e.record.clone()).collect();
+    write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
+    write_file(
+        out,
+        "provenance.json",
+        &provenance_json(cfg, config_name, &entries),
+    )?;
+    let (_, warnings) =
+        crate::collapse::per_drop::write(out, &out.join("drops.csv"), &records, cfg)?;
+    Ok(ProcessSummary {
+        records,
+        cached,
+        frames,
+        process_s: seconds,
+        threads,
+        warnings,
+    })
+}

@@ -1,0 +1,157 @@
+//! `dropscope process` as a user runs it (issue 17 item 7): the result
+//! cache and `--force`, `--threads`, one line per run with its own speed
+//! off a terminal and bars on one, "with warnings" counted apart, and the
+//! per-drop figures written without a collapse.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures")
+}
+
+fn process(out: &Path, extra: &[&str]) -> (Output, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .arg("process")
+        .arg("--manifest")
+        .arg(fixtures().join("runs.csv"))
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    (o, err)
+}
+
+/// The last line's "N reused from the cache".
+fn reused(err: &str) -> usize {
+    let line = err.lines().last().unwrap();
+    let at = line.find(" reused from the cache").expect(line);
+    line[..at].rsplit(' ').next().unwrap().parse().unwrap()
+}
+
+/// A second `process` into the same folder reuses every run and writes the
+/// same drops.csv; `--force` measures them again, to the same bytes;
+/// `--threads 1` runs on one thread. Off a terminal every run prints one
+/// line with its own frames and speed, and no bar is drawn.
+#[test]
+fn process_reuses_its_runs_and_force_measures_them_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let (o, err) = process(&out, &[]);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert_eq!(reused(&err), 0, "{err}");
+    assert!(
+        !err.contains('\x1b') && !err.contains('\r'),
+        "a bar off a terminal: {err:?}"
+    );
+    for run in ["R3mm_H1.5cm_01", "R4.5mm_H12cm_01", "R7mm_H50cm_01"] {
+        // "[k/3] R…: measured (90 frames in 0.20 s, 443 frames/s)"
+        let line = err
+            .lines()
+            .find(|l| l.contains(&format!("] {run}: measured (")))
+            .unwrap_or_else(|| panic!("no line for {run}: {err}"));
+        let frames: usize = line
+            .split(" (")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        let track = std::fs::read_to_string(out.join(format!("tracks/{run}.csv"))).unwrap();
+        assert_eq!(frames, track.lines().count() - 1, "{line}");
+        assert!(line.ends_with(" frames/s)"), "{line}");
+    }
+    let first = std::fs::read(out.join("drops.csv")).unwrap();
+
+    let (o, err) = process(&out, &["--threads", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert_eq!(reused(&err), 3, "{err}");
+    assert_eq!(err.matches(": measured (cached)").count(), 3, "{err}");
+    assert!(err.contains("no frames read"), "{err}");
+    assert_eq!(std::fs::read(out.join("drops.csv")).unwrap(), first);
+
+    let (o, err) = process(&out, &["--force", "--threads", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert_eq!(reused(&err), 0, "{err}");
+    assert!(err.contains(" s on 1 thread ("), "{err}");
+    assert_eq!(std::fs::read(out.join("drops.csv")).unwrap(), first);
+
+    let (o, err) = process(&out, &["--threads", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(err.contains("--threads") && err.contains("1.."), "{err}");
+}
+
+/// On a terminal (a pseudo-terminal from util-linux's `script`) the runs
+/// are shown as bars, not as one line each; the summary still ends the output.
+#[test]
+fn process_on_a_terminal_shows_bars_instead_of_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let cmd = format!(
+        "{} process --manifest {} --out {}",
+        env!("CARGO_BIN_EXE_dropscope"),
+        fixtures().join("runs.csv").display(),
+        out.display()
+    );
+    let o = Command::new("script")
+        .args(["-qec", &cmd, "/dev/null"])
+        .output()
+        .expect("util-linux's `script` (Debian: bsdutils) runs the command on a terminal");
+    let shown = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{shown}");
+    assert!(shown.contains("3 runs: 3 measured"), "{shown}");
+    assert!(
+        !shown.contains("[1/3]"),
+        "plain lines on a terminal: {shown}"
+    );
+    assert_eq!(std::fs::read_dir(out.join("runs")).unwrap().count(), 3);
+}
+
+/// `process` alone draws each measured drop's figure (z(t), δ(t), F(δ)),
+/// tagged with its drops.csv's id, so the report shows the diagnostics
+/// without a collapse; a run with the wrong radius is counted "with
+/// warnings", apart from "measured".
+#[test]
+fn process_draws_the_per_drop_figures_without_a_collapse() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    // Every run as a 4.5 mm sphere: the 3 mm drop's free fall is then off.
+    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .arg("process")
+        .arg(fixtures())
+        .args(["--radius-mm", "4.5", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("3 runs: 2 measured, 1 with warnings, 0 failed"),
+        "{err}"
+    );
+    let id = dropscope::dataset_id::of_file(&out.join("drops.csv")).unwrap();
+    for run in ["R3mm_H1.5cm_01", "R4.5mm_H12cm_01", "R7mm_H50cm_01"] {
+        let svg = std::fs::read_to_string(out.join(format!("plots/drops/{run}.svg"))).unwrap();
+        assert_eq!(dropscope::dataset_id::of_svg(&svg), Some(id.as_str()));
+        assert!(svg.contains("penetration"), "{run}");
+        let png = image::open(out.join(format!("plots/drops/{run}.png"))).unwrap();
+        assert!(png.width() > 1000, "{run}");
+    }
+    assert!(!out.join("fits.json").exists(), "process ran a collapse");
+    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .arg("report")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_eq!(page.matches("class=\"diagram\"").count(), 3);
+}

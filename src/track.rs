@@ -110,6 +110,9 @@ pub struct Track {
     pub background: Background,
     /// Frames that pass 2 had to read again (see the module doc, step 4).
     pub reread_frames: usize,
+    /// Frames of pass 1 measured ahead by other threads and taken as they
+    /// were (see [`speculate`]); 0 on one thread.
+    pub measured_ahead: usize,
 }
 
 /// Why a run could not be tracked.
@@ -148,91 +151,64 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     let (bg, surface, surface_from_config) = background_and_surface(source, st)?;
 
     // 2. Pass 1, radius free.
-    let mut buf = Frame::zeros((h, w));
-    let mut es = EdgeScratch::default();
-    let mut cs = CoarseScratch::default();
-    // The coarse search runs on frames binned 2×2 (a quarter of the
-    // pixels); the measurement's re-centring absorbs its ~1 px error.
-    let mut binned = (w >= 128 && h >= 128).then(|| BinnedBackground::new(&bg));
-    let mut frames: Vec<FrameTrack> = Vec::with_capacity(n);
-    let mut history: Vec<(f64, Circle)> = Vec::new();
-    // Pass 1's edge points, kept for pass 2 (one flat buffer).
-    let mut kept_points: Vec<[f32; 2]> = Vec::new();
-    let mut kept: Vec<Option<Kept>> = Vec::with_capacity(n);
-    let mut misses = 0usize;
-    let mut searching = true;
-    for i in 0..n {
-        let t = meta.time_s(i);
-        let number = meta.frame_numbers.get(i).copied().unwrap_or(i as i64);
-        let mut flags = Vec::new();
-        let predicted = if searching {
-            source.read_into(i, &mut buf)?;
-            let band = Band::frame(&buf).map_err(|e| detect_err(number, e))?;
-            let gain = bg.gain(&band).map_err(|e| detect_err(number, e))?.gain;
-            let found = if anything_dark(&buf, &bg, gain, &surface) {
-                match binned.as_mut() {
-                    Some(b) => b.detect(&band, gain, Some(&surface), &st.coarse, &mut cs),
-                    None => detect_coarse(&band, &bg, gain, Some(&surface), &st.coarse, &mut cs),
-                }
-                .map_err(|e| detect_err(number, e))?
-            } else {
-                None
-            };
-            if found.is_some() && !history.is_empty() {
-                flags.push("recovered");
+    let ctx = Pass1 {
+        bg: &bg,
+        surface: &surface,
+        st,
+        // The coarse search runs on frames binned 2×2 (a quarter of the
+        // pixels); the measurement's re-centring absorbs its ~1 px error.
+        binned: (w >= 128 && h >= 128).then(|| BinnedBackground::new(&bg)),
+    };
+    // Chunks of the movie measured ahead by other threads, while this one
+    // walks the first (see `speculate`).
+    let threads = rayon::current_num_threads();
+    let chunks = (threads * 2).min(n / MIN_CHUNK_FRAMES);
+    let copies: Option<Vec<Box<dyn FrameSource>>> = if threads >= 2 && chunks >= 2 {
+        (1..chunks).map(|_| source.try_clone()).collect()
+    } else {
+        None
+    };
+    let bounds: Vec<usize> = match &copies {
+        Some(_) => (0..=chunks).map(|k| k * n / chunks).collect(),
+        None => vec![0, n],
+    };
+    let mut walk = Walk {
+        frames: Vec::with_capacity(n),
+        kept_points: Vec::new(),
+        kept: Vec::with_capacity(n),
+        state: Pass1State::default(),
+        scratch: LookScratch::new(h, w, &ctx),
+        measured_ahead: 0,
+    };
+    let (head, memo) = rayon::join(
+        || -> Result<(), TrackError> {
+            for i in 0..bounds[1] {
+                walk.frame(source, &ctx, &meta, i, None)?;
             }
-            found.map(|c| c.circle)
-        } else {
-            Some(predict(&history, t))
-        };
-        let fit = match predicted {
-            Some(p) => measure_in_band(source, i, &mut buf, &bg, &p, &surface, None, st, &mut es)?,
-            None => None,
-        };
-        kept.push(fit.map(|_| {
-            let c = es.centre;
-            let start = kept_points.len();
-            kept_points.extend(
-                es.points
-                    .iter()
-                    .map(|p| [(p.x_px - c.x_px) as f32, (p.z_px - c.z_px) as f32]),
-            );
-            Kept {
-                start,
-                len: es.points.len(),
-                centre: c,
-                radial_sigma_px: es.radial_sigma_px,
-            }
-        }));
-        match fit {
-            Some(f) => {
-                misses = 0;
-                searching = false;
-                history.push((t, f.circle()));
-                if f.z_px - f.r_px < 0.0 || f.x_px - f.r_px < 0.0 || f.x_px + f.r_px > w as f64 {
-                    flags.push("partial");
-                }
-            }
-            None => {
-                if predicted.is_some() {
-                    flags.push("missing");
-                }
-                misses += 1;
-                if misses >= 2 {
-                    searching = true;
-                }
+            Ok(())
+        },
+        || copies.map(|c| speculate(c, &bounds, &ctx)),
+    );
+    head?;
+    if let Some(memo) = memo {
+        for (k, ahead) in memo.into_iter().enumerate() {
+            let (first, last) = (bounds[k + 1], bounds[k + 2]);
+            let mut ahead = ahead.into_iter();
+            for i in first..last {
+                walk.frame(source, &ctx, &meta, i, ahead.next())?;
             }
         }
-        frames.push(FrameTrack {
-            index: i,
-            frame: number,
-            t_s: t,
-            free: fit,
-            held: None,
-            flags,
-        });
     }
-    if history.is_empty() {
+    let Walk {
+        mut frames,
+        kept_points,
+        kept,
+        state,
+        scratch,
+        measured_ahead,
+    } = walk;
+    let history = state.fits;
+    if history == 0 {
         return Err(TrackError::NoSphere { frames: n });
     }
 
@@ -253,6 +229,9 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     let (radius_px, m) = (cal.r_px, cal.frames);
 
     // 4. Pass 2, radius held, on pass 1's points.
+    let LookScratch {
+        mut buf, mut es, ..
+    } = scratch;
     let mut points: Vec<EdgePoint> = Vec::new();
     let mut fs = FitScratch::default();
     let mut reread_frames = 0;
@@ -323,6 +302,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         frames,
         background: bg,
         reread_frames,
+        measured_ahead,
     })
 }
 
@@ -349,6 +329,316 @@ struct Kept {
     len: usize,
     centre: Circle,
     radial_sigma_px: f64,
+}
+
+/// Predictions are rounded to multiples of this (px) before a frame is
+/// measured around them. A frame's measurement is then the same bits
+/// whether its prediction came from this thread's fits or from another
+/// thread's fits of the same frames, which differ by ~1e-8 px once both
+/// have a few frames behind them (see [`speculate`]); the rounding moves a
+/// fit by `O(e σ²/R²)` with `e` ≤ 1/2048 px, below 1e-7 px.
+const PREDICTION_GRID_PX: f64 = 1.0 / 1024.0;
+
+/// Pass 1's frames are measured ahead in chunks of at least this many
+/// frames when more than one thread is available.
+const MIN_CHUNK_FRAMES: usize = 256;
+
+/// How pass 1 looks for the sphere in one frame.
+#[derive(Debug, Clone, Copy)]
+enum Look {
+    /// The coarse detector over the whole frame.
+    Search,
+    /// Measured around this circle, predicted from the last fits (on the
+    /// [`PREDICTION_GRID_PX`] grid).
+    At(Circle),
+}
+
+impl Look {
+    /// The same look, bit for bit.
+    fn same(&self, other: &Look) -> bool {
+        let bits = |c: &Circle| [c.x_px.to_bits(), c.z_px.to_bits(), c.r_px.to_bits()];
+        match (self, other) {
+            (Look::Search, Look::Search) => true,
+            (Look::At(a), Look::At(b)) => bits(a) == bits(b),
+            _ => false,
+        }
+    }
+}
+
+/// What pass 1 saw in one frame with one look: a pure function of the
+/// frame and the look.
+#[derive(Debug, Clone)]
+struct Seen {
+    look: Look,
+    /// A search found a sphere (and measured around it).
+    found: bool,
+    fit: Option<CircleFit>,
+    /// With a fit: the circle its normals were centred on, the radial σ and
+    /// the edge points' offsets from that centre.
+    points: Option<(Circle, f64, Vec<[f32; 2]>)>,
+}
+
+/// Pass 1's state between frames: the last three fits (for the
+/// prediction), how many fits so far, misses in a row, searching or not.
+#[derive(Debug, Clone, Default)]
+struct Pass1State {
+    history: Vec<(f64, Circle)>,
+    fits: usize,
+    misses: usize,
+    following: bool,
+}
+
+impl Pass1State {
+    /// How to look at the frame of time `t`.
+    fn look(&self, t: f64) -> Look {
+        if self.following {
+            let p = predict(&self.history, t);
+            let grid = |v: f64| (v / PREDICTION_GRID_PX).round() * PREDICTION_GRID_PX;
+            Look::At(Circle {
+                x_px: grid(p.x_px),
+                z_px: grid(p.z_px),
+                r_px: grid(p.r_px),
+            })
+        } else {
+            Look::Search
+        }
+    }
+
+    /// Take frame `i`'s result: its track entry, the state moved on.
+    fn step(
+        &mut self,
+        meta: &crate::source::SourceMeta,
+        i: usize,
+        seen: &Seen,
+        w: usize,
+    ) -> FrameTrack {
+        let t = meta.time_s(i);
+        let number = meta.frame_numbers.get(i).copied().unwrap_or(i as i64);
+        let mut flags = Vec::new();
+        let looked = match seen.look {
+            Look::Search => {
+                if seen.found && self.fits > 0 {
+                    flags.push("recovered");
+                }
+                seen.found
+            }
+            Look::At(_) => true,
+        };
+        match seen.fit {
+            Some(f) => {
+                self.misses = 0;
+                self.following = true;
+                self.fits += 1;
+                if self.history.len() == 3 {
+                    self.history.remove(0);
+                }
+                self.history.push((t, f.circle()));
+                if f.z_px - f.r_px < 0.0 || f.x_px - f.r_px < 0.0 || f.x_px + f.r_px > w as f64 {
+                    flags.push("partial");
+                }
+            }
+            None => {
+                if looked {
+                    flags.push("missing");
+                }
+                self.misses += 1;
+                if self.misses >= 2 {
+                    self.following = false;
+                }
+            }
+        }
+        FrameTrack {
+            index: i,
+            frame: number,
+            t_s: t,
+            free: seen.fit,
+            held: None,
+            flags,
+        }
+    }
+}
+
+/// What pass 1 measures with, the same for every frame.
+struct Pass1<'a> {
+    bg: &'a Background,
+    surface: &'a SurfaceLine,
+    st: &'a TrackSettings,
+    binned: Option<BinnedBackground>,
+}
+
+/// One thread's buffers for [`Pass1::look_at`].
+struct LookScratch {
+    buf: Frame,
+    es: EdgeScratch,
+    cs: CoarseScratch,
+    binned: Option<BinnedBackground>,
+}
+
+impl LookScratch {
+    fn new(h: usize, w: usize, ctx: &Pass1) -> Self {
+        LookScratch {
+            buf: Frame::zeros((h, w)),
+            es: EdgeScratch::default(),
+            cs: CoarseScratch::default(),
+            binned: ctx.binned.clone(),
+        }
+    }
+}
+
+impl Pass1<'_> {
+    /// Look at frame `i` as `look` says.
+    fn look_at(
+        &self,
+        source: &mut dyn FrameSource,
+        i: usize,
+        look: Look,
+        sc: &mut LookScratch,
+    ) -> Result<Seen, TrackError> {
+        let (bg, surface, st) = (self.bg, self.surface, self.st);
+        let number = source_number(source, i);
+        let predicted = match look {
+            Look::At(p) => Some(p),
+            Look::Search => {
+                source.read_into(i, &mut sc.buf)?;
+                let band = Band::frame(&sc.buf).map_err(|e| detect_err(number, e))?;
+                let gain = bg.gain(&band).map_err(|e| detect_err(number, e))?.gain;
+                if anything_dark(&sc.buf, bg, gain, surface) {
+                    match sc.binned.as_mut() {
+                        Some(b) => b.detect(&band, gain, Some(surface), &st.coarse, &mut sc.cs),
+                        None => {
+                            detect_coarse(&band, bg, gain, Some(surface), &st.coarse, &mut sc.cs)
+                        }
+                    }
+                    .map_err(|e| detect_err(number, e))?
+                    .map(|c| c.circle)
+                } else {
+                    None
+                }
+            }
+        };
+        let fit = match predicted {
+            Some(p) => measure_in_band(
+                source,
+                i,
+                &mut sc.buf,
+                bg,
+                &p,
+                surface,
+                None,
+                st,
+                &mut sc.es,
+            )?,
+            None => None,
+        };
+        let points = fit.map(|_| {
+            let c = sc.es.centre;
+            let pts = sc
+                .es
+                .points
+                .iter()
+                .map(|p| [(p.x_px - c.x_px) as f32, (p.z_px - c.z_px) as f32])
+                .collect();
+            (c, sc.es.radial_sigma_px, pts)
+        });
+        Ok(Seen {
+            look,
+            found: predicted.is_some(),
+            fit,
+            points,
+        })
+    }
+}
+
+fn source_number(source: &dyn FrameSource, i: usize) -> i64 {
+    source
+        .meta()
+        .frame_numbers
+        .get(i)
+        .copied()
+        .unwrap_or(i as i64)
+}
+
+/// Pass 1 in order, frame by frame.
+struct Walk {
+    frames: Vec<FrameTrack>,
+    /// Pass 1's edge points, kept for pass 2 (one flat buffer).
+    kept_points: Vec<[f32; 2]>,
+    kept: Vec<Option<Kept>>,
+    state: Pass1State,
+    scratch: LookScratch,
+    measured_ahead: usize,
+}
+
+impl Walk {
+    /// Frame `i`: taken from `ahead` (what another thread saw there) when
+    /// that thread looked at it as this walk does — a frame's measurement is
+    /// a pure function of the frame and the look — else measured here.
+    fn frame(
+        &mut self,
+        source: &mut dyn FrameSource,
+        ctx: &Pass1,
+        meta: &crate::source::SourceMeta,
+        i: usize,
+        ahead: Option<Seen>,
+    ) -> Result<(), TrackError> {
+        let look = self.state.look(meta.time_s(i));
+        let seen = match ahead.filter(|m| m.look.same(&look)) {
+            Some(m) => {
+                self.measured_ahead += 1;
+                m
+            }
+            None => ctx.look_at(source, i, look, &mut self.scratch)?,
+        };
+        let kept_points = &mut self.kept_points;
+        self.kept.push(seen.points.as_ref().map(|(c, sigma, pts)| {
+            let start = kept_points.len();
+            kept_points.extend_from_slice(pts);
+            Kept {
+                start,
+                len: pts.len(),
+                centre: *c,
+                radial_sigma_px: *sigma,
+            }
+        }));
+        let w = meta.width;
+        self.frames.push(self.state.step(meta, i, &seen, w));
+        Ok(())
+    }
+}
+
+/// Pass 1 measured ahead: chunk `k + 1` of the movie (frames
+/// `bounds[k + 1]..bounds[k + 2]`) followed on `copies[k]` of the source by
+/// another thread, from a search at its first frame, while the calling
+/// thread walks the first chunk. Per chunk, what was seen in each frame up
+/// to the end or an error. Pass 1 proper then walks on in order and takes a
+/// frame's result from here when it looks at the frame in the same way,
+/// measuring it itself otherwise (the first frames of a chunk, until the
+/// predictions from its own fits and from the other thread's meet on the
+/// [`PREDICTION_GRID_PX`] grid). So the track is the same bits for any
+/// number of threads, and the work ahead is lost only where the two
+/// disagree.
+fn speculate(copies: Vec<Box<dyn FrameSource>>, bounds: &[usize], ctx: &Pass1) -> Vec<Vec<Seen>> {
+    use rayon::prelude::*;
+    copies
+        .into_par_iter()
+        .enumerate()
+        .map(|(k, mut src)| {
+            let meta = src.meta().clone();
+            let mut sc = LookScratch::new(meta.height, meta.width, ctx);
+            let mut state = Pass1State::default();
+            let (first, last) = (bounds[k + 1], bounds[k + 2]);
+            let mut seen = Vec::with_capacity(last - first);
+            for i in first..last {
+                let look = state.look(meta.time_s(i));
+                let Ok(s) = ctx.look_at(src.as_mut(), i, look, &mut sc) else {
+                    break;
+                };
+                state.step(&meta, i, &s, meta.width);
+                seen.push(s);
+            }
+            seen
+        })
+        .collect()
 }
 
 /// Stage 1 of [`track`]: the background from `st.background_frames` whole

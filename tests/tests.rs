@@ -4,6 +4,7 @@ mod cli;
 mod collapse;
 mod detect;
 mod hostile;
+mod parallel;
 mod process;
 mod process_job;
 mod render;

@@ -231,11 +231,7 @@ pub fn step_edge_row(v: &[f64], first_row: f64, e0: f64) -> Option<f64> {
     let mut evals = Vec::with_capacity(n);
     let mut cost = |p: &[f64; 4]| -> f64 {
         model(p, &mut evals);
-        evals
-            .iter()
-            .zip(v)
-            .map(|(m, vk)| (m.0 - vk).powi(2))
-            .sum()
+        evals.iter().zip(v).map(|(m, vk)| (m.0 - vk).powi(2)).sum()
     };
     let mut p = [e0, 1.0, v[0].max(v[1]), v[n - 1]];
     let mut c = cost(&p);

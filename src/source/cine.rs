@@ -638,8 +638,8 @@ impl CineSource {
         };
         if self.annotation[index] == 0 {
             let mut head = [0u8; 4];
-            self.file.seek(SeekFrom::Start(start)).map_err(io)?;
-            self.file.read_exact(&mut head).map_err(io)?;
+            // Positioned: copies of the source share the file's offset.
+            read_exact_at(&mut self.file, start, &mut head).map_err(io)?;
             let annot = u32::from_le_bytes(head);
             let expect = self.layout.header.image_bytes();
             // The image must fit before the end of the file and before the
@@ -731,6 +731,21 @@ fn build_meta(path: &Path, layout: &CineLayout, options: &OpenOptions) -> Source
 impl FrameSource for CineSource {
     fn meta(&self) -> &SourceMeta {
         &self.meta
+    }
+
+    /// The same file, through a duplicated descriptor (every pixel read is
+    /// positioned, so the copies share no state).
+    fn try_clone(&self) -> Option<Box<dyn FrameSource>> {
+        Some(Box::new(CineSource {
+            meta: self.meta.clone(),
+            layout: self.layout.clone(),
+            file: self.file.try_clone().ok()?,
+            file_len: self.file_len,
+            options: self.options.clone(),
+            annotation: self.annotation.clone(),
+            bytes: Vec::new(),
+            row_scratch: Vec::new(),
+        }))
     }
 
     fn read_rows_into(

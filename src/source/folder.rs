@@ -197,10 +197,19 @@ impl FolderSource {
             let Some(name) = e.file_name().to_str().map(str::to_string) else {
                 continue;
             };
-            match std::fs::metadata(e.path()) {
-                Ok(m) if m.is_dir() => {}
-                Ok(m) if m.is_file() => names.push(name),
-                _ => not_files.push(name),
+            // The entry's own type costs no system call; only a link is
+            // followed to see what it names.
+            let (is_dir, is_file) = match e.file_type() {
+                Ok(t) if !t.is_symlink() => (t.is_dir(), t.is_file()),
+                _ => match std::fs::metadata(e.path()) {
+                    Ok(m) => (m.is_dir(), m.is_file()),
+                    Err(_) => (false, false),
+                },
+            };
+            if is_file {
+                names.push(name);
+            } else if !is_dir {
+                not_files.push(name);
             }
         }
         names.sort();
@@ -293,9 +302,29 @@ impl FolderSource {
         // Headers only: opening must not read the movie.
         let mut scratch = Scratch::default();
         let (_, first) = open_and_probe(&files[0], kind, &mut scratch)?;
-        for f in &files[1..] {
-            let (_, p) = open_and_probe(f, kind, &mut scratch)?;
-            if (p.width, p.height, p.bits) != (first.width, first.height, first.bits) {
+        // On every thread, in chunks; the first bad file in order is named,
+        // as one thread would name it.
+        use rayon::prelude::*;
+        let bad = files[1..]
+            .par_chunks(256)
+            .map(|chunk| {
+                let mut scratch = Scratch::default();
+                for f in chunk {
+                    match open_and_probe(f, kind, &mut scratch) {
+                        Ok((_, p))
+                            if (p.width, p.height, p.bits)
+                                == (first.width, first.height, first.bits) => {}
+                        Ok((_, p)) => return Some(Ok((f, p))),
+                        Err(e) => return Some(Err(e)),
+                    }
+                }
+                None
+            })
+            .find_first(Option::is_some)
+            .flatten();
+        if let Some(bad) = bad {
+            let (f, p) = bad?;
+            {
                 return Err(format_err(
                     f,
                     format!(
@@ -539,8 +568,8 @@ fn open_and_probe(
     kind: ImageKind,
     scratch: &mut Scratch,
 ) -> Result<(File, Probe), SourceError> {
-    let mut file = crate::io_util::open_regular(path).map_err(io_err(path))?;
-    let p = probe(path, &mut file, kind, scratch)?;
+    let (mut file, len) = crate::io_util::open_regular_len(path).map_err(io_err(path))?;
+    let p = probe(path, &mut file, len, kind, scratch)?;
     Ok((file, p))
 }
 
@@ -548,10 +577,10 @@ fn open_and_probe(
 fn probe(
     path: &Path,
     file: &mut File,
+    len: u64,
     kind: ImageKind,
     scratch: &mut Scratch,
 ) -> Result<Probe, SourceError> {
-    let len = file.metadata().map_err(io_err(path))?.len();
     let bytes = &mut scratch.bytes;
     match kind {
         ImageKind::Tiff => {
@@ -860,6 +889,22 @@ fn probe_bmp(file: &mut File, len: u64, sc: &mut Scratch) -> Result<Option<Probe
 impl FrameSource for FolderSource {
     fn meta(&self) -> &SourceMeta {
         &self.meta
+    }
+
+    /// The same files, with buffers of its own.
+    fn try_clone(&self) -> Option<Box<dyn FrameSource>> {
+        Some(Box::new(FolderSource {
+            meta: self.meta.clone(),
+            files: self.files.clone(),
+            kind: self.kind,
+            container_bits: self.container_bits,
+            scratch: Scratch {
+                read_whole: true,
+                ..Scratch::default()
+            },
+            row_scratch: Vec::new(),
+            u16_scratch: Vec::new(),
+        }))
     }
 
     fn read_rows_into(

@@ -280,6 +280,13 @@ pub trait FrameSource: Send {
         row0: usize,
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), SourceError>;
+
+    /// A second handle on the same frames, for another thread to read
+    /// (tracking measures chunks of one movie on several threads); `None`
+    /// when the source cannot give one (the work then stays on one thread).
+    fn try_clone(&self) -> Option<Box<dyn FrameSource>> {
+        None
+    }
 }
 
 /// Why a frame sequence could not be opened or read.

@@ -16,6 +16,7 @@
 //! | [`measure`] | one drop from track to record |
 //! | [`quality`] | the quality flags of a measured drop (`flags` in drops.csv) |
 //! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
+//! | [`pictures`] | a run's overlays with their captions, and its animated impact |
 //! | [`process`] | one run (or camera set-up) → record, track, overlays; runs in parallel |
 //! | [`process_job`] | `dropscope process`: the runs through the main job's cache → drops.csv, per-drop figures |
 //! | [`progress`] | the main job's progress bars, or plain lines off a terminal |
@@ -52,6 +53,7 @@ pub mod lock;
 pub mod lsq;
 pub mod manifest;
 pub mod measure;
+pub mod pictures;
 pub mod plot;
 pub mod process;
 pub mod process_job;

@@ -1,26 +1,22 @@
 //! `dropscope process`: every run → track → events → kinematics → one row
-//! of `drops.csv`, `tracks/<run>.csv` and an overlay at maximum penetration
-//! (`plots/overlays/<run>.png`). Runs are processed in parallel; a run that
+//! of `drops.csv`, `tracks/<run>.csv`, an overlay at maximum penetration
+//! (`plots/overlays/<run>.png`) and the animated impact
+//! (`plots/impacts/<run>.png`). Runs are processed in parallel; a run that
 //! cannot be measured gets a `failed` row with its reason and never stops
 //! the others. Every file is written whole or not at all.
 
 use crate::cache::OutputFile;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
-use crate::detect::overlay::{encode_png, overlay, OverlayView};
-use crate::detect::Band;
 use crate::events::{EventConfig, Geometry, TrackPoint};
 use crate::manifest::RunSpec;
 use crate::measure::{annotate_track, measure_drop, DropInfo};
 use crate::quality;
 use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
-use crate::source::{open, Frame, OpenOptions};
-use crate::track::{edge_points_in, track, Track, TrackSettings};
+use crate::source::{open, OpenOptions};
+use crate::track::{track, Track, TrackSettings};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
-
-/// Enlargement of the overlay crop around the sphere at maximum penetration.
-const OVERLAY_ZOOM: u32 = 3;
 
 /// The command line of `dropscope process`.
 #[derive(Debug, clap::Args)]
@@ -62,6 +58,8 @@ pub struct RunOutcome {
     pub overlay: Option<Vec<u8>>,
     /// Overlays of the frames asked for: (image number, PNG bytes).
     pub frame_overlays: Vec<(i64, Vec<u8>)>,
+    /// The animated overlay of the impact (animated PNG bytes).
+    pub impact: Option<Vec<u8>>,
     /// Seconds spent on this run (tracking and measuring), for the speed
     /// shown to the user; no output depends on it.
     pub seconds: f64,
@@ -196,6 +194,7 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
         track: Vec::new(),
         overlay: None,
         frame_overlays: Vec::new(),
+        impact: None,
         seconds: 0.0,
     }
 }
@@ -386,23 +385,15 @@ fn measure_run(
         }
     }
 
-    // The overlay at the frame nearest the maximum penetration, and those asked for.
-    let mut draw = |ft: &crate::track::FrameTrack| -> Option<Vec<u8>> {
-        let mut frame = Frame::zeros((meta.height, meta.width));
-        source.read_into(ft.index, &mut frame).ok()?;
-        let pts = edge_points_in(&frame, &tr, ft, &settings);
-        let c = ft.held.or(ft.free)?.circle();
-        let band = Band::frame(&frame).ok()?;
-        let view = OverlayView::around(&band, &c, 12.0, OVERLAY_ZOOM);
-        encode_png(&overlay(
-            &band,
-            meta.bit_depth,
-            &view,
-            &pts,
-            Some(&c),
-            Some(&tr.surface),
-        ))
-        .ok()
+    // The overlay at the frame nearest the maximum penetration, those asked
+    // for, and the animated impact.
+    let mut pictures = crate::pictures::Pictures {
+        source: source.as_mut(),
+        meta: &meta,
+        track: &tr,
+        settings: &settings,
+        rows: &rows,
+        mm_per_px: sc.mm_per_px,
     };
     let overlay = record.t_max_s.and_then(|t_max| {
         let ft = tr
@@ -410,20 +401,24 @@ fn measure_run(
             .iter()
             .filter(|f| f.held.is_some())
             .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
-        draw(ft)
+        pictures.still(ft)
     });
     let frame_overlays = overlay_frames
         .iter()
         .filter_map(|&n| {
             let ft = tr.frames.iter().find(|f| f.frame == n)?;
-            draw(ft).map(|png| (n, png))
+            pictures.still(ft).map(|png| (n, png))
         })
         .collect();
+    let impact = record
+        .t_contact_s
+        .and_then(|t| pictures.impact(t, record.t_rebound_s));
     Ok(RunOutcome {
         record,
         track: rows,
         overlay,
         frame_overlays,
+        impact,
         seconds: 0.0,
     })
 }
@@ -604,8 +599,9 @@ pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessErro
         .map_err(|source| ProcessError::Write { path, source })
 }
 
-/// Write one run's track (`tracks/<run>.csv`) and overlays
-/// (`plots/overlays/<run>[_<number>].png`) into `out`, each atomically.
+/// Write one run's track (`tracks/<run>.csv`), overlays
+/// (`plots/overlays/<run>[_<number>].png`) and animated impact
+/// (`plots/impacts/<run>.png`) into `out`, each atomically.
 /// A track or main overlay left by an earlier job for this run, which this
 /// outcome does not have (the run now fails), is removed. A run whose name
 /// is no file name writes and removes nothing. Returns the files written,
@@ -632,6 +628,11 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, 
     match &o.overlay {
         Some(png) => write(main_overlay, png)?,
         None => remove_if_present(out, &main_overlay)?,
+    }
+    let impact = format!("plots/impacts/{run}.png");
+    match &o.impact {
+        Some(apng) => write(impact, apng)?,
+        None => remove_if_present(out, &impact)?,
     }
     for (n, png) in &o.frame_overlays {
         write(format!("plots/overlays/{run}_{n}.png"), png)?;
@@ -672,6 +673,7 @@ mod tests {
                 track: Vec::new(),
                 overlay: None,
                 frame_overlays: Vec::new(),
+                impact: None,
                 seconds: 0.0,
             })
         })

@@ -155,3 +155,60 @@ fn process_draws_the_per_drop_figures_without_a_collapse() {
     let page = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert_eq!(page.matches("class=\"diagram\"").count(), 3);
 }
+
+/// The overlay at δmax carries its caption band with a scale bar of the
+/// drop's own scale, and the animated impact covers the whole contact
+/// (issue 17 item 5 and "What to build").
+#[test]
+fn overlays_have_a_scale_bar_and_the_impact_is_animated() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .arg("process")
+        .arg(fixtures().join("R4.5mm_H12cm_01"))
+        .args(["--radius-mm", "4.5", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let rec = &dropscope::dataset::read_csv(&out.join("drops.csv")).unwrap()[0];
+    let img = image::open(out.join("plots/overlays/R4.5mm_H12cm_01.png"))
+        .unwrap()
+        .to_rgb8();
+    let (w, h) = img.dimensions();
+    // The bar: the longest run of white in the band's rows.
+    let longest_white = |y: u32| {
+        let (mut best, mut run) = (0, 0);
+        for x in 0..w {
+            run = if img.get_pixel(x, y).0 == dropscope::plot::BAR_RGB {
+                run + 1
+            } else {
+                0
+            };
+            best = best.max(run);
+        }
+        best
+    };
+    let bar_px = (h - 60..h).map(longest_white).max().unwrap();
+    let (mm, px) =
+        dropscope::plot::scale_bar(rec.mm_per_px.unwrap(), 3, 0.4 * f64::from(w)).unwrap();
+    assert_eq!(f64::from(bar_px), px.round(), "bar of {mm} mm");
+    assert!(px > 0.15 * f64::from(w), "a bar of {px} px in {w}");
+    assert_eq!(img.get_pixel(0, h - 1).0, dropscope::plot::BAND_RGB);
+
+    let apng = std::fs::read(out.join("plots/impacts/R4.5mm_H12cm_01.png")).unwrap();
+    let reader = png::Decoder::new(std::io::Cursor::new(apng))
+        .read_info()
+        .unwrap();
+    let frames = reader.info().animation_control().unwrap().num_frames;
+    let contact_frames = rec.tau_c_ms.unwrap() * 1e-3 * 10_000.0;
+    assert!(
+        f64::from(frames) > contact_frames + 4.0 && frames <= 100,
+        "{frames} frames for a contact of {contact_frames} frames"
+    );
+}

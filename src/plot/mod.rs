@@ -7,17 +7,20 @@
 //! | [`collapse`](self::collapse_figures) | Π vs η, τc vs v (log–log), Ψ vs Ξ, Ω vs Ξ |
 //! | [`drop`](self::drop_figures) | per drop: z(t), δ(t), F(δ) |
 //! | `layout` | axis ranges, log ticks, guide slopes, legend placement |
+//! | [`caption`](self::with_caption) | the band under an overlay: frame, time, δ, scale bar |
 //! | `marker` | the per-radius markers of Figs. 3–4 |
 //!
 //! Markers follow Figs. 3–4 of Maruoka 2019: R = 3 mm blue circle, 4 mm
 //! green triangle, 4.5 mm black ×, 5 mm orange diamond, 7 mm red square;
 //! other radii get further colour/marker pairs in order of size.
 
+mod caption;
 mod collapse;
 mod drop;
 mod layout;
 mod marker;
 
+pub use caption::{scale_bar, with_caption, Caption, BAND_RGB, BAR_RGB};
 pub use collapse::{collapse_figures, FIGURE_STEMS};
 pub use drop::drop_figures;
 pub use marker::{radius_style, Marker, MarkerKind};

@@ -1,0 +1,163 @@
+//! The pictures `process` draws of a run from its track: the overlay of one
+//! frame (the frame nearest δmax, and any asked for) with a caption band
+//! (frame, time, δ, scale bar), and the animated overlay of the whole
+//! impact (an animated PNG: every frame from before contact to after the
+//! rebound, with the circle, the edge points and the surface line).
+
+use image::RgbImage;
+
+use crate::dataset::TrackRow;
+use crate::detect::overlay::{overlay, OverlayView};
+use crate::detect::Band;
+use crate::plot::{with_caption, Caption};
+use crate::source::{Frame, FrameSource, SourceMeta};
+use crate::track::{edge_points_in, FrameTrack, Track, TrackSettings};
+
+/// Enlargement of the still overlays.
+pub const STILL_ZOOM: u32 = 3;
+/// Enlargement of the animation's frames.
+pub const MOVIE_ZOOM: u32 = 1;
+/// Frames shown before contact and after the rebound: this share of the
+/// contact time, and at least 3 frames.
+const MOVIE_MARGIN_SHARE: f64 = 0.3;
+/// Most frames in an animation (a longer impact is sampled evenly).
+pub const MAX_MOVIE_FRAMES: usize = 100;
+/// How long each animation frame shows, ms.
+pub const MOVIE_FRAME_MS: u16 = 80;
+/// Frame pixels around the sphere in a crop.
+const MARGIN_PX: f64 = 12.0;
+
+/// What the pictures of one run are drawn from.
+pub struct Pictures<'a> {
+    pub source: &'a mut dyn FrameSource,
+    pub meta: &'a SourceMeta,
+    pub track: &'a Track,
+    pub settings: &'a TrackSettings,
+    /// The track's rows with δ filled in (same order as `track.frames`).
+    pub rows: &'a [TrackRow],
+    pub mm_per_px: f64,
+}
+
+impl Pictures<'_> {
+    /// Frame `ft` drawn in `view` (default: a crop around its circle at
+    /// `zoom`), with its caption; `None` when it cannot be read or has no fit.
+    fn draw(&mut self, ft: &FrameTrack, view: Option<OverlayView>, zoom: u32) -> Option<RgbImage> {
+        let mut frame = Frame::zeros((self.meta.height, self.meta.width));
+        self.source.read_into(ft.index, &mut frame).ok()?;
+        let pts = edge_points_in(&frame, self.track, ft, self.settings);
+        let c = ft.held.or(ft.free)?.circle();
+        let band = Band::frame(&frame).ok()?;
+        let view = view.unwrap_or_else(|| OverlayView::around(&band, &c, MARGIN_PX, zoom));
+        let img = overlay(
+            &band,
+            self.meta.bit_depth,
+            &view,
+            &pts,
+            Some(&c),
+            Some(&self.track.surface),
+        );
+        let delta_mm = self
+            .rows
+            .iter()
+            .find(|r| r.frame == ft.frame)
+            .and_then(|r| r.delta_mm);
+        let caption = Caption {
+            frame: ft.frame,
+            t_s: ft.t_s,
+            delta_mm,
+            mm_per_px: self.mm_per_px,
+            zoom: view.zoom,
+        };
+        with_caption(&img, &caption).ok()
+    }
+
+    /// The overlay of `ft` as PNG bytes.
+    pub fn still(&mut self, ft: &FrameTrack) -> Option<Vec<u8>> {
+        crate::detect::overlay::encode_png(&self.draw(ft, None, STILL_ZOOM)?).ok()
+    }
+
+    /// The frames of the impact: fitted frames from `t_contact_s` less a
+    /// margin to `t_rebound_s` (else the last frame) plus the margin, at
+    /// most [`MAX_MOVIE_FRAMES`], evenly sampled.
+    pub fn impact_frames(&self, t_contact_s: f64, t_rebound_s: Option<f64>) -> Vec<&FrameTrack> {
+        let dt = 1.0 / self.meta.fps;
+        let end = t_rebound_s.unwrap_or(f64::INFINITY);
+        let margin = (MOVIE_MARGIN_SHARE * (end - t_contact_s)).clamp(3.0 * dt, 50.0 * dt);
+        let margin = if margin.is_finite() { margin } else { 3.0 * dt };
+        let chosen: Vec<&FrameTrack> = self
+            .track
+            .frames
+            .iter()
+            .filter(|f| f.held.is_some() && f.t_s >= t_contact_s - margin && f.t_s <= end + margin)
+            .collect();
+        let step = chosen.len().div_ceil(MAX_MOVIE_FRAMES).max(1);
+        chosen.into_iter().step_by(step).collect()
+    }
+
+    /// The animated overlay of the impact (see [`Self::impact_frames`]) as
+    /// animated-PNG bytes: one fixed crop holding every frame's circle, at
+    /// [`MOVIE_ZOOM`], [`MOVIE_FRAME_MS`] per frame, looping. `None` with
+    /// fewer than 2 frames drawn.
+    pub fn impact(&mut self, t_contact_s: f64, t_rebound_s: Option<f64>) -> Option<Vec<u8>> {
+        let frames: Vec<FrameTrack> = self
+            .impact_frames(t_contact_s, t_rebound_s)
+            .into_iter()
+            .cloned()
+            .collect();
+        let circles: Vec<_> = frames
+            .iter()
+            .filter_map(|f| f.held.map(|c| c.circle()))
+            .collect();
+        let (w, h) = (self.meta.width as f64, self.meta.height as f64);
+        let lo = |v: f64, hi: f64| v.clamp(0.0, hi - 1.0).floor() as usize;
+        let x0 = lo(
+            circles
+                .iter()
+                .map(|c| c.x_px - c.r_px)
+                .fold(f64::INFINITY, f64::min)
+                - MARGIN_PX,
+            w,
+        );
+        let z0 = lo(
+            circles
+                .iter()
+                .map(|c| c.z_px - c.r_px)
+                .fold(f64::INFINITY, f64::min)
+                - MARGIN_PX,
+            h,
+        );
+        let x1 = lo(
+            circles
+                .iter()
+                .map(|c| c.x_px + c.r_px)
+                .fold(f64::NEG_INFINITY, f64::max)
+                + MARGIN_PX,
+            w,
+        ) + 1;
+        let z1 = lo(
+            circles
+                .iter()
+                .map(|c| c.z_px + c.r_px)
+                .fold(f64::NEG_INFINITY, f64::max)
+                + MARGIN_PX,
+            h,
+        ) + 1;
+        if circles.len() < 2 || x1 <= x0 || z1 <= z0 {
+            return None;
+        }
+        let view = OverlayView {
+            x0,
+            z0,
+            width: x1 - x0,
+            height: z1 - z0,
+            zoom: MOVIE_ZOOM,
+        };
+        let images: Vec<RgbImage> = frames
+            .iter()
+            .filter_map(|f| self.draw(f, Some(view), MOVIE_ZOOM))
+            .collect();
+        (images.len() >= 2)
+            .then(|| crate::detect::overlay::encode_apng(&images, MOVIE_FRAME_MS).ok())
+            .flatten()
+    }
+}

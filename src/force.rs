@@ -219,11 +219,16 @@ pub enum ForceFitError {
 }
 
 /// The trajectory fit's work limit, in trajectories' worth of steps (a
-/// trajectory of the frames' times at its usual cost): a clean drop's two
-/// fits integrate 23–121 trajectories (the unit tests' drops and the
-/// fixtures), so this is reached only by a fit that wanders (frame times
-/// off their grid, a track that is no bounce).
-pub const FORCE_FIT_MAX_TRAJECTORIES: usize = 5_000;
+/// trajectory at its usual cost: [`CONTACT_STEPS_PER_FRAME`] RK4 steps per
+/// frame interval of the contact, one step per time asked for): a clean
+/// drop's two fits integrate 113–259 trajectories (counted on the unit
+/// tests' drops and the three fixtures), so this is reached only by a fit
+/// that wanders (frame times off their grid, a track that is no bounce).
+/// Until issue 14's fuzzing the usual cost was 23 steps for every time
+/// asked for, flight frames and the three times of an exposure included,
+/// 4–6 times the real cost: 5 000 such trajectories let a wandering fit run
+/// for seconds (1.3–2.2 s on fuzzed tracks).
+pub const FORCE_FIT_MAX_TRAJECTORIES: usize = 1_000;
 
 /// The trajectory fit's time limit, in seconds, a guard beside the work
 /// limit (a clean drop's two fits take 6–54 ms here).
@@ -321,7 +326,7 @@ fn fit_force_law_to(
     let v_in = (v0 * v0 + 2.0 * g_m_s2 * (-d0).max(0.0)).sqrt();
 
     // The work and time limits, shared by both fits.
-    let usual_steps = (CONTACT_STEPS_PER_FRAME as usize + 3) * times.len();
+    let usual_steps = CONTACT_STEPS_PER_FRAME as usize * (c1 - c0 + 2) + times.len();
     let max_steps = max_trajectories * usual_steps;
     let steps = std::cell::Cell::new(0usize);
     let started = std::time::Instant::now();
@@ -737,13 +742,36 @@ mod tests {
         let tr = track(&drop, &geom, 0.03, 3);
         let ev = find_events(&tr, &geom, &EventConfig::default()).unwrap();
         let fit = |max| fit_force_law_to(&tr, &ev, &geom, &sphere(), 9.81, 0.0, LM_REL_TOL, max);
-        // A clean drop needs 23–121 trajectories: 10 stop it, 1 000 do not.
+        // A clean drop needs 113–259 trajectories: 10 stop it, 1 000 do not.
         let e = fit(10).unwrap_err();
         assert_eq!(e, ForceFitError::Limit("10 trajectories' work".into()));
         assert!(e
             .to_string()
             .contains("stopped at its limit of 10 trajectories"));
-        assert!(fit(1_000).is_ok());
+        assert!(fit(FORCE_FIT_MAX_TRAJECTORIES).is_ok());
+    }
+
+    #[test]
+    fn the_work_limit_counts_a_trajectory_at_its_real_cost_with_an_exposure() {
+        // Frames averaged over a 50 µs exposure: the model is asked for
+        // three times per frame. This fit integrates ~240 trajectories of
+        // ~580 steps each; the former count (23 steps per time asked for,
+        // 3 300 per trajectory) saw ~42 of them and let 100 pass, so that
+        // 5 000 allowed a wandering fit to run for seconds.
+        let drop = Drop::new(4.5e-3, 1.7, 0.5e-4);
+        let geom = geometry();
+        let tr = crate::test_support::track_exposed(&drop, &geom, 0.0, 1, 50e-6);
+        let cfg = EventConfig {
+            exposure_s: 50e-6,
+            ..EventConfig::default()
+        };
+        let ev = find_events(&tr, &geom, &cfg).unwrap();
+        let fit = |max| fit_force_law_to(&tr, &ev, &geom, &sphere(), 9.81, 50e-6, LM_REL_TOL, max);
+        assert_eq!(
+            fit(100).unwrap_err(),
+            ForceFitError::Limit("100 trajectories' work".into())
+        );
+        assert!(fit(FORCE_FIT_MAX_TRAJECTORIES).is_ok());
     }
 
     #[test]

@@ -2,6 +2,12 @@
 //! first byte): opening the folder (every header, the frame-name rules) and,
 //! when it opens, reading the frame whole and as a band. Any bytes must give
 //! Ok or Err, never a panic, a hang or an allocation beyond the limits.
+//!
+//! Cost per execution (issue 14 asks for 10 million): the folder lives in
+//! memory (`/dev/shm`), only the previous execution's file is removed, and
+//! a frame is read whole only when it has at most 2^18 pixels (a PNG or
+//! JPEG header may claim far more than the input holds); a larger one is
+//! read as a one-row band, through the same checks and decoders.
 #![no_main]
 
 use dropscope::source::{folder::FolderSource, Frame, FrameSource, OpenOptions};
@@ -20,11 +26,21 @@ fuzz_target!(|data: &[u8]| {
         std::env::temp_dir()
     };
     let dir = base.join(format!("dropscope-fuzz-folder-{}", std::process::id()));
-    let _ = std::fs::create_dir_all(&dir);
-    for ext in EXTS {
-        let _ = std::fs::remove_file(dir.join(format!("f_000003.{ext}")));
-    }
     let ext = EXTS[usize::from(kind) % EXTS.len()];
+    // The previous execution's file, if it had another extension.
+    static LAST: std::sync::Mutex<Option<&str>> = std::sync::Mutex::new(None);
+    let mut last = LAST.lock().unwrap_or_else(|e| e.into_inner());
+    match *last {
+        None => {
+            let _ = std::fs::create_dir_all(&dir);
+        }
+        Some(prev) if prev != ext => {
+            let _ = std::fs::remove_file(dir.join(format!("f_000003.{prev}")));
+        }
+        Some(_) => {}
+    }
+    *last = Some(ext);
+    drop(last);
     if std::fs::write(dir.join(format!("f_000003.{ext}")), bytes).is_err() {
         return;
     }
@@ -36,11 +52,13 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     let (h, w) = (src.meta().height, src.meta().width);
-    if h.saturating_mul(w) > 1 << 22 {
-        return;
+    if h.saturating_mul(w) <= 1 << 18 {
+        let mut frame = Frame::zeros((h, w));
+        let _ = src.read_into(0, &mut frame);
+        let mut band = frame.slice_mut(ndarray::s![h / 3..h / 2, ..]);
+        let _ = src.read_rows_into(0, h / 3, &mut band);
+    } else if w <= 1 << 16 {
+        let mut row = Frame::zeros((1, w));
+        let _ = src.read_rows_into(0, h / 2, &mut row.view_mut());
     }
-    let mut frame = Frame::zeros((h, w));
-    let _ = src.read_into(0, &mut frame);
-    let mut band = frame.slice_mut(ndarray::s![h / 3..h / 2, ..]);
-    let _ = src.read_rows_into(0, h / 3, &mut band);
 });

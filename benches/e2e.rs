@@ -302,6 +302,91 @@ fn tree(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
     out
 }
 
+/// The per-drop cost of `dataset`'s runs stage by stage, on one thread in
+/// this process (each stage timed by calling it on its own; the tracking's
+/// stages run again inside `process_run`, so "measure" is its time less
+/// open and tracking): milliseconds per drop and share of the sum.
+fn stages(manifest: &Path, out: &Path) {
+    use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
+    use dropscope::track::{background_and_surface, track, TrackSettings};
+    let cfg = PipelineConfig::from_toml_str(
+        EMBEDDED_DEFAULT,
+        Path::new("pipeline.toml"),
+        Path::new(env!("CARGO_MANIFEST_DIR")),
+    )
+    .unwrap();
+    let runs = read_manifest(manifest).unwrap();
+    let st = TrackSettings::from_config(&cfg.detect);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(out);
+    let mut t = [0f64; 6];
+    let clock = |t: &mut f64, t0: Instant| *t += t0.elapsed().as_secs_f64();
+    let records = pool.install(|| {
+        let mut records = Vec::new();
+        for r in &runs {
+            let opts = OpenOptions {
+                fps_fallback: r.fps.or(cfg.camera.fps),
+                ..OpenOptions::default()
+            };
+            let t0 = Instant::now();
+            let mut src = open(&r.path, &opts).expect("open");
+            clock(&mut t[0], t0);
+            let t0 = Instant::now();
+            let _ = background_and_surface(src.as_mut(), &st);
+            clock(&mut t[1], t0);
+            let t0 = Instant::now();
+            let _ = track(src.as_mut(), &st);
+            clock(&mut t[2], t0);
+            let t0 = Instant::now();
+            let o = dropscope::process::process_run(r, &cfg, &[]);
+            clock(&mut t[3], t0);
+            let t0 = Instant::now();
+            dropscope::process::write_run_outputs(out, &o).unwrap();
+            clock(&mut t[4], t0);
+            records.push(o.record);
+        }
+        let t0 = Instant::now();
+        dropscope::process::write_file(
+            out,
+            "drops.csv",
+            &dropscope::dataset::to_csv_bytes(&records),
+        )
+        .unwrap();
+        dropscope::collapse::per_drop::write(out, &out.join("drops.csv"), &records, &cfg).unwrap();
+        clock(&mut t[5], t0);
+        records
+    });
+    // track() includes the background; process_run includes open and track.
+    let measure = t[3] - t[0] - t[2];
+    let passes = t[2] - t[1];
+    let parts = [
+        ("open (listing, every header)", t[0]),
+        ("background and surface line", t[1]),
+        ("tracking passes 1 and 2", passes),
+        ("events, kinematics, force fit, overlay", measure),
+        ("track CSV and overlay written", t[4]),
+        ("drops.csv and per-drop figures", t[5]),
+    ];
+    let sum: f64 = parts.iter().map(|p| p.1).sum();
+    let n = records.len() as f64;
+    println!(
+        "          per drop on one thread ({} drops, {:.2} s in all):",
+        records.len(),
+        sum
+    );
+    for (what, s) in parts {
+        println!(
+            "            {:<40} {:>7.2} ms {:>5.1} %",
+            what,
+            s / n * 1e3,
+            s / sum * 100.0
+        );
+    }
+}
+
 fn load() -> String {
     std::fs::read_to_string("/proc/loadavg")
         .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
@@ -403,6 +488,9 @@ fn main() {
             );
         } else {
             println!("          ({})", set.what);
+        }
+        if set.name == "campaign" {
+            stages(&manifest, &work.path().join("stages"));
         }
         per_frame.push((
             set.name,

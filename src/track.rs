@@ -228,66 +228,45 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     let radius_err_px = cal.sigma_px.hypot(RADIUS_SYSTEMATIC_PX);
     let (radius_px, m) = (cal.r_px, cal.frames);
 
-    // 4. Pass 2, radius held, on pass 1's points.
+    // 4. Pass 2, radius held, on pass 1's points: each frame on its own
+    // (on every thread), then the frames whose held circle moved too far
+    // from their normals' centre read again, in order, on this thread.
     let LookScratch {
         mut buf, mut es, ..
     } = scratch;
-    let mut points: Vec<EdgePoint> = Vec::new();
-    let mut fs = FitScratch::default();
+    let held: Vec<Held> = {
+        use rayon::prelude::*;
+        frames
+            .par_iter()
+            .zip(&kept)
+            .with_min_len(64)
+            .map_init(
+                || (Vec::new(), FitScratch::default()),
+                |(points, fs), (ft, k)| {
+                    hold(ft, k.as_ref(), &kept_points, radius_px, st, points, fs)
+                },
+            )
+            .collect()
+    };
     let mut reread_frames = 0;
-    for (ft, k) in frames.iter_mut().zip(&kept) {
-        let (Some(f1), Some(k)) = (ft.free, k) else {
-            continue;
-        };
-        let p = Circle {
-            r_px: radius_px,
-            ..f1.circle()
-        };
-        let c = k.centre;
-        points.clear();
-        points.extend(
-            kept_points[k.start..k.start + k.len]
-                .iter()
-                .map(|q| EdgePoint {
-                    x_px: c.x_px + q[0] as f64,
-                    z_px: c.z_px + q[1] as f64,
-                    weight: 1.0,
-                }),
-        );
-        // Tukey's weights from the first iteration, at the free fit's
-        // residual scale: the start is the free fit on the same points,
-        // whose Huber iterations already brought it from the prediction,
-        // and holding the radius moves it by hundredths of a pixel.
-        let opts = FitOptions {
-            hold_radius: Some(radius_px),
-            radial_sigma_px: k.radial_sigma_px,
-            huber_iterations: 0,
-            scale_px: Some(f1.scale_px),
-            ..FitOptions::default()
-        };
-        let held = fit_circle(&points, Some(p), &opts, &mut fs).ok();
-        let near = held.is_some_and(|f| {
-            (f.x_px - c.x_px)
-                .abs()
-                .max((f.z_px - c.z_px).abs())
-                .max((radius_px - c.r_px).abs())
-                <= st.edge.recentre_px
-        });
-        ft.held = if near {
-            held
-        } else {
-            reread_frames += 1;
-            measure_in_band(
-                source,
-                ft.index,
-                &mut buf,
-                &bg,
-                &p,
-                &surface,
-                Some(radius_px),
-                st,
-                &mut es,
-            )?
+    for (ft, h) in frames.iter_mut().zip(held) {
+        ft.held = match h {
+            Held::NoFit => continue,
+            Held::Fit(f) => f,
+            Held::Reread(p) => {
+                reread_frames += 1;
+                measure_in_band(
+                    source,
+                    ft.index,
+                    &mut buf,
+                    &bg,
+                    &p,
+                    &surface,
+                    Some(radius_px),
+                    st,
+                    &mut es,
+                )?
+            }
         };
         if ft.held.is_none() {
             ft.flags.push("missing");
@@ -318,6 +297,71 @@ impl Track {
             fit.hypot(SURFACE_SYSTEMATIC_PX)
                 .hypot(self.surface.model_err_px)
         }
+    }
+}
+
+/// Pass 2's result in one frame.
+enum Held {
+    /// No free fit in pass 1: nothing to hold.
+    NoFit,
+    /// The held fit on pass 1's points (`None`: it failed).
+    Fit(Option<CircleFit>),
+    /// The held circle lies too far from the normals' centre: the frame is
+    /// read again and measured around this circle.
+    Reread(Circle),
+}
+
+/// Pass 2 of one frame on the points pass 1 kept (see [`track`], step 4).
+fn hold(
+    ft: &FrameTrack,
+    k: Option<&Kept>,
+    kept_points: &[[f32; 2]],
+    radius_px: f64,
+    st: &TrackSettings,
+    points: &mut Vec<EdgePoint>,
+    fs: &mut FitScratch,
+) -> Held {
+    let (Some(f1), Some(k)) = (ft.free, k) else {
+        return Held::NoFit;
+    };
+    let p = Circle {
+        r_px: radius_px,
+        ..f1.circle()
+    };
+    let c = k.centre;
+    points.clear();
+    points.extend(
+        kept_points[k.start..k.start + k.len]
+            .iter()
+            .map(|q| EdgePoint {
+                x_px: c.x_px + q[0] as f64,
+                z_px: c.z_px + q[1] as f64,
+                weight: 1.0,
+            }),
+    );
+    // Tukey's weights from the first iteration, at the free fit's
+    // residual scale: the start is the free fit on the same points,
+    // whose Huber iterations already brought it from the prediction,
+    // and holding the radius moves it by hundredths of a pixel.
+    let opts = FitOptions {
+        hold_radius: Some(radius_px),
+        radial_sigma_px: k.radial_sigma_px,
+        huber_iterations: 0,
+        scale_px: Some(f1.scale_px),
+        ..FitOptions::default()
+    };
+    let held = fit_circle(points, Some(p), &opts, fs).ok();
+    let near = held.is_some_and(|f| {
+        (f.x_px - c.x_px)
+            .abs()
+            .max((f.z_px - c.z_px).abs())
+            .max((radius_px - c.r_px).abs())
+            <= st.edge.recentre_px
+    });
+    if near {
+        Held::Fit(held)
+    } else {
+        Held::Reread(p)
     }
 }
 
@@ -657,13 +701,41 @@ pub fn background_and_surface(
     }
     let (h, w) = (meta.height, meta.width);
     let k = st.background_frames.clamp(3, n);
-    let mut samples: Vec<Frame> = Vec::with_capacity(k);
-    for i in 0..k {
-        let idx = (i * (n - 1) + (k - 1) / 2) / (k - 1).max(1);
-        let mut f = Frame::zeros((h, w));
-        source.read_into(idx.min(n - 1), &mut f)?;
-        samples.push(f);
-    }
+    let indices: Vec<usize> = (0..k)
+        .map(|i| ((i * (n - 1) + (k - 1) / 2) / (k - 1).max(1)).min(n - 1))
+        .collect();
+    // Read on every thread, each with its own copy of the source.
+    let threads = rayon::current_num_threads().min(k);
+    let mut copies: Vec<Box<dyn FrameSource>> = if threads > 1 {
+        (1..threads).map_while(|_| source.try_clone()).collect()
+    } else {
+        Vec::new()
+    };
+    let mut sources: Vec<&mut dyn FrameSource> = std::iter::once(source)
+        .chain(copies.iter_mut().map(|c| c.as_mut()))
+        .collect();
+    let groups = sources.len();
+    let samples: Vec<Frame> = {
+        use rayon::prelude::*;
+        sources
+            .par_iter_mut()
+            .enumerate()
+            .map(|(g, src)| {
+                indices[g * k / groups..(g + 1) * k / groups]
+                    .iter()
+                    .map(|&idx| {
+                        let mut f = Frame::zeros((h, w));
+                        src.read_into(idx, &mut f)?;
+                        Ok(f)
+                    })
+                    .collect::<Result<Vec<Frame>, SourceError>>()
+            })
+            .collect::<Vec<_>>()
+            // The first error in the frames' order, as one thread meets it.
+            .into_iter()
+            .collect::<Result<Vec<_>, _>>()?
+            .concat()
+    };
     let views: Vec<_> = samples.iter().map(|f| f.view()).collect();
     // With the sphere masked out of each sample; if no circle can be fitted
     // to any dark group (no sphere in these frames), the plain median.

@@ -22,6 +22,7 @@ pub fn diagnose_all<'a>(
 ) -> (Vec<DropDiagnostics>, Vec<String>) {
     let tracks_dir = drops_csv.parent().unwrap_or(Path::new("")).join("tracks");
     let (mut diags, mut warnings) = (Vec::new(), Vec::new());
+    let mut todo = Vec::new();
     for (i, rec) in records.iter().enumerate() {
         // A run name that is not a plain file name never reaches outside tracks/.
         if crate::plot::file_stem(&rec.run) != rec.run || rec.status == DropStatus::Failed {
@@ -31,7 +32,16 @@ pub fn diagnose_all<'a>(
         let Some(surface) = surface_of(i, rec).filter(|_| p.is_file()) else {
             continue;
         };
-        match diagnostics::diagnose(rec, surface, &p) {
+        todo.push((rec, surface, p));
+    }
+    // Each drop on its own (on every thread), kept in the records' order.
+    use rayon::prelude::*;
+    let done: Vec<_> = todo
+        .par_iter()
+        .map(|(rec, surface, p)| diagnostics::diagnose(rec, surface, p))
+        .collect();
+    for d in done {
+        match d {
             Ok(d) => diags.push(d),
             Err(e) => warnings.push(format!("track not used: {e}")),
         }
@@ -45,9 +55,12 @@ pub fn figures(
     diags: &[DropDiagnostics],
     dataset_id: &str,
 ) -> Result<Vec<(PathBuf, Vec<u8>)>, CollapseError> {
+    // Each drop's figures on their own (on every thread), in order.
+    use rayon::prelude::*;
+    let drawn: Vec<_> = diags.par_iter().map(crate::plot::drop_figures).collect();
     let mut out = Vec::new();
-    for d in diags {
-        for (name, bytes) in crate::plot::drop_figures(d)? {
+    for d in drawn {
+        for (name, bytes) in d? {
             let rel = Path::new("plots").join("drops").join(name);
             let bytes = if rel.extension().is_some_and(|e| e == "svg") {
                 crate::dataset_id::tag_svg(&bytes, dataset_id)

@@ -146,11 +146,12 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
             }
         }
     }
-    let mut flank = Vec::with_capacity(w + 3);
-    for j in 0..width {
+    // Each column on its own (on every thread), in order.
+    use rayon::prelude::*;
+    let edge = |flank: &mut Vec<f64>, j: usize| -> Option<ColumnEdge> {
         let zs = best_row[j];
         if best_step[j] <= 0.0 {
-            continue;
+            return None;
         }
         // Window rows zs − w ..= zs + 1 + w.
         let top = zs - w;
@@ -158,7 +159,7 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
         let hi = 0.5 * (bg.at(top, j) as f64 + bg.at(top + 1, j) as f64);
         let lo = 0.5 * (bg.at(bot, j) as f64 + bg.at(bot - 1, j) as f64);
         if !(hi > 0.0 && (hi - lo) >= params.min_contrast * hi) {
-            continue;
+            return None;
         }
         let sum: f64 = (top..=bot)
             .map(|i| (bg.at(i, j) as f64 - lo) / (hi - lo))
@@ -166,15 +167,19 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
         let row_area_px = top as f64 - 0.5 + sum;
         flank.clear();
         flank.extend((top..=zs + 2).map(|i| bg.at(i, j) as f64));
-        let Some(row_px) = step_edge_row(&flank, top as f64, zs as f64 + 0.5) else {
-            continue;
-        };
-        out.push(ColumnEdge {
+        let row_px = step_edge_row(flank, top as f64, zs as f64 + 0.5)?;
+        Some(ColumnEdge {
             x_px: j as f64,
             row_px,
             row_area_px,
-        });
-    }
+        })
+    };
+    let edges: Vec<Option<ColumnEdge>> = (0..width)
+        .into_par_iter()
+        .with_min_len(32)
+        .map_init(|| Vec::with_capacity(w + 3), edge)
+        .collect();
+    out.extend(edges.into_iter().flatten());
     out
 }
 

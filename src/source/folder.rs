@@ -151,7 +151,8 @@ const WHOLE_FILE_MAX: u64 = 16 << 20;
 /// A folder of numbered frames opened for random access.
 pub struct FolderSource {
     meta: SourceMeta,
-    files: Vec<PathBuf>,
+    /// Shared by the copies of [`FrameSource::try_clone`].
+    files: std::sync::Arc<[PathBuf]>,
     kind: ImageKind,
     /// Bits per sample of the files (8 or 16).
     container_bits: u8,
@@ -415,7 +416,7 @@ impl FolderSource {
         scratch.read_whole = true;
         let mut src = FolderSource {
             meta,
-            files,
+            files: files.into(),
             kind,
             container_bits: first.bits,
             scratch,

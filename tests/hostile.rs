@@ -583,3 +583,62 @@ fn the_cache_recomputes_an_emptied_or_altered_output() {
     assert_eq!(std::fs::read(&overlay).unwrap(), o0);
     assert_eq!(reused(), "1");
 }
+
+/// Found by the `folder_frame` fuzz target: a 1.9 kB RLE8 BMP whose header
+/// claims 3 072 × 45 319 pixels (its "end of bitmap" code fills the rest)
+/// took the decoder 16 s (at nice 19 on the shared machine) and 600 MB per
+/// read. A compressed frame claiming more than 4 096 pixels per byte of its
+/// file (here 1 080 bytes) is refused when the folder is opened, naming the
+/// file; the same frame at a camera's size reads.
+#[test]
+fn a_compressed_frame_claiming_an_absurd_size_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let bmp_rle8 = |w: u32, h: u32| {
+        let data_offset = 14 + 40 + 1024u32;
+        let rle = [0u8, 1]; // end of bitmap: every pixel left is index 0
+        let mut b = Vec::new();
+        b.extend_from_slice(b"BM");
+        b.extend_from_slice(&(data_offset + rle.len() as u32).to_le_bytes());
+        b.extend_from_slice(&[0; 4]);
+        b.extend_from_slice(&data_offset.to_le_bytes());
+        b.extend_from_slice(&40u32.to_le_bytes());
+        b.extend_from_slice(&w.to_le_bytes());
+        b.extend_from_slice(&h.to_le_bytes());
+        b.extend_from_slice(&1u16.to_le_bytes()); // planes
+        b.extend_from_slice(&8u16.to_le_bytes()); // bits per pixel
+        b.extend_from_slice(&1u32.to_le_bytes()); // BI_RLE8
+        b.extend_from_slice(&(rle.len() as u32).to_le_bytes());
+        b.extend_from_slice(&[0; 8]); // resolution
+        b.extend_from_slice(&256u32.to_le_bytes()); // colours used
+        b.extend_from_slice(&0u32.to_le_bytes());
+        for i in 0..=255u8 {
+            b.extend_from_slice(&[i, i, i, 0]);
+        }
+        b.extend_from_slice(&rle);
+        b
+    };
+    let opts = dropscope::source::OpenOptions {
+        fps_fallback: Some(1000.0),
+        ..Default::default()
+    };
+    let huge = dir.path().join("huge");
+    std::fs::create_dir(&huge).unwrap();
+    std::fs::write(huge.join("f_000003.bmp"), bmp_rle8(3072, 45_319)).unwrap();
+    let Err(e) = dropscope::source::open(&huge, &opts) else {
+        panic!("a 3072×45319 frame in 1 080 bytes was opened");
+    };
+    let e = e.to_string();
+    assert!(
+        e.contains("f_000003.bmp")
+            && e.contains("implausible size 3072×45319 for a 1080-byte file"),
+        "{e}"
+    );
+    // The same file at a camera's size is a frame (all black).
+    let small = dir.path().join("small");
+    std::fs::create_dir(&small).unwrap();
+    std::fs::write(small.join("f_000003.bmp"), bmp_rle8(64, 16)).unwrap();
+    let mut src = dropscope::source::open(&small, &opts).unwrap();
+    let mut frame = dropscope::source::Frame::zeros((16, 64));
+    src.read_into(0, &mut frame).unwrap();
+    assert!(frame.iter().all(|&v| v == 0));
+}

@@ -606,7 +606,7 @@ fn probe(
                 png_info(std::io::BufReader::new(&mut *file))
             }
             .map_err(|e| format_err(path, format!("not a readable PNG: {e}")))?;
-            return Ok(info);
+            return check_compressed_size(path, info, len);
         }
         ImageKind::Jpeg => {}
     }
@@ -625,12 +625,41 @@ fn probe(
     } else {
         8
     };
-    Ok(Probe {
-        width: w as usize,
-        height: h as usize,
-        bits,
-        layout: Layout::Generic,
-    })
+    check_compressed_size(
+        path,
+        Probe {
+            width: w as usize,
+            height: h as usize,
+            bits,
+            layout: Layout::Generic,
+        },
+        len,
+    )
+}
+
+/// Most pixels a compressed frame may claim per byte of its file. Deflate
+/// cannot do better than ~1 032:1 (a black 8-bit PNG), a flat JPEG or LZW
+/// TIFF ~200:1, so no camera frame comes near; but a BMP's RLE8 "end of
+/// bitmap" or a forged header can claim any size in a few bytes, and the
+/// decoder then spends seconds and hundreds of MB on it (issue 14's
+/// fuzzing: a 1.9 kB BMP claiming 3 072 × 45 319 took 16 s per read).
+const MAX_PIXELS_PER_BYTE: u64 = 4096;
+
+/// `probe` for a frame the decoders decompress: refused when its size is
+/// implausible for its file's (see [`MAX_PIXELS_PER_BYTE`]).
+fn check_compressed_size(path: &Path, p: Probe, len: u64) -> Result<Probe, SourceError> {
+    let pixels = p.width as u64 * p.height as u64;
+    if pixels > len.saturating_mul(MAX_PIXELS_PER_BYTE) {
+        return Err(format_err(
+            path,
+            format!(
+                "implausible size {}×{} for a {len}-byte file (more than {MAX_PIXELS_PER_BYTE} \
+                 pixels per byte): corrupt or forged header",
+                p.width, p.height
+            ),
+        ));
+    }
+    Ok(p)
 }
 
 /// Size, depth and layout of a PNG from its header chunks.

@@ -1,8 +1,16 @@
 //! The drops table: one row per record of drops.csv, its numbers with
 //! their one-sigma uncertainties in the units of SPEC §4, its status and
-//! reason, the overlay at maximum penetration (`plots/overlays/<run>.png`)
-//! and, folded under the row, the per-drop diagnostic figure that the
-//! collapse draws (`plots/drops/<run>.svg`: z(t), δ(t), F(δ)).
+//! reason, a thumbnail of the overlay at maximum penetration (the full
+//! picture `plots/overlays/<run>.png` and the animated impact
+//! `plots/impacts/<run>.png` open from it) and, folded under the row, the
+//! per-drop diagnostic figure (`plots/drops/<run>.svg`: z(t), δ(t), F(δ)),
+//! loaded when unfolded.
+//!
+//! Built for archives of thousands of drops: only the thumbnails are
+//! inline (a small JPEG each); the full-size pictures are the files beside
+//! the page, loaded when asked for. Every row carries its sort keys, and
+//! the page's script sorts the table by any column and filters it by name,
+//! reason and status.
 
 use std::fmt::Write;
 use std::path::Path;
@@ -13,21 +21,49 @@ use crate::dataset::{DropRecord, DropStatus};
 /// Columns of a row, for the failed rows' reason cell and the diagnostics row.
 const N_COLUMNS: usize = 11;
 
-/// A figure file of the output folder, when the run name is a plain file
-/// name (the writers use it as one; any other name could point outside
-/// `plots/`) and the run was measured (a failed run's files, if any, are
-/// from an earlier job).
-fn figure(out_dir: &Path, rec: &DropRecord, sub: &str, ext: &str) -> Option<Vec<u8>> {
+/// Width of an inline overlay thumbnail, pixels (shown at 100 CSS px).
+pub const THUMB_PX: u32 = 100;
+/// JPEG quality of the thumbnails.
+const THUMB_QUALITY: u8 = 75;
+
+/// The path of a figure file of the output folder relative to it, when the
+/// run name is a plain file name (the writers use it as one; any other name
+/// could point outside `plots/`), the run was measured (a failed run's
+/// files, if any, are from an earlier job) and the file is there.
+fn figure(out_dir: &Path, rec: &DropRecord, sub: &str, ext: &str) -> Option<String> {
     if rec.status == DropStatus::Failed || crate::plot::file_stem(&rec.run) != rec.run {
         return None;
     }
-    std::fs::read(
-        out_dir
-            .join("plots")
-            .join(sub)
-            .join(format!("{}.{ext}", rec.run)),
-    )
-    .ok()
+    let rel = format!("plots/{sub}/{}.{ext}", rec.run);
+    out_dir.join(&rel).is_file().then_some(rel)
+}
+
+/// A relative path as a URL path: every byte but the unreserved characters
+/// and `/` percent-encoded (run names may hold `#`, `?`, `%` or spaces).
+pub fn url_path(rel: &str) -> String {
+    let mut out = String::with_capacity(rel.len());
+    for b in rel.bytes() {
+        if b.is_ascii_alphanumeric() || b"-._~/".contains(&b) {
+            out.push(b as char);
+        } else {
+            let _ = write!(out, "%{b:02X}");
+        }
+    }
+    out
+}
+
+/// The overlay at `rel` shrunk to [`THUMB_PX`] wide, as JPEG bytes.
+fn thumbnail(out_dir: &Path, rel: &str) -> Option<Vec<u8>> {
+    let img = image::open(out_dir.join(rel)).ok()?.to_rgb8();
+    let (w, h) = img.dimensions();
+    let tw = THUMB_PX.min(w).max(1);
+    let th = ((u64::from(h) * u64::from(tw)) / u64::from(w.max(1))).max(1) as u32;
+    let small = image::imageops::thumbnail(&img, tw, th);
+    let mut out = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, THUMB_QUALITY)
+        .encode_image(&small)
+        .ok()?;
+    Some(out)
 }
 
 fn cell(value: Option<f64>, err: Option<f64>) -> String {
@@ -45,30 +81,90 @@ fn status(rec: &DropRecord) -> (&'static str, &'static str) {
     }
 }
 
-/// The table of every drop, in the records' order.
+/// The sortable columns: the key a row carries (`data-<key>`) and its head.
+const SORT_KEYS: [(&str, &str); 10] = [
+    ("n", "#"),
+    ("run", "run"),
+    ("r", "R (mm)"),
+    ("status", "status"),
+    ("v", "v<sub>impact</sub> (m/s)"),
+    ("delta", "δ<sub>max</sub> (mm)"),
+    ("a", "a<sub>max</sub> (mm)"),
+    ("tau", "τ<sub>c</sub> (ms)"),
+    ("e", "e"),
+    ("vr", "v<sub>rebound</sub> (m/s)"),
+];
+
+/// A sort key's attribute: a number in full precision, or nothing.
+fn key(name: &str, v: Option<f64>) -> String {
+    v.filter(|v| v.is_finite())
+        .map_or_else(String::new, |v| format!(" data-{name}=\"{v}\""))
+}
+
+/// The filter controls above the table.
+fn controls(n: usize) -> String {
+    format!(
+        "<div class=\"filter\"><label>filter <input id=\"drop-filter\" type=\"search\" \
+         placeholder=\"run name or reason\"></label> <label>status <select id=\"drop-status\">\
+         <option value=\"\">all</option><option>ok</option><option>warning</option>\
+         <option>failed</option></select></label> <span id=\"drop-count\">{n} of {n} drops\
+         </span> · click a column head to sort</div>"
+    )
+}
+
+/// The table of every drop, in the records' order, with its filter controls.
 pub fn drops_table(out_dir: &Path, records: &[DropRecord]) -> String {
-    let mut out = String::from(
-        "<table class=\"drops\"><thead><tr><th>#</th><th>run</th><th>R (mm)</th>\
-         <th>status</th><th>v<sub>impact</sub> (m/s)</th><th>δ<sub>max</sub> (mm)</th>\
-         <th>a<sub>max</sub> (mm)</th><th>τ<sub>c</sub> (ms)</th><th>e</th>\
-         <th>v<sub>rebound</sub> (m/s)</th><th>overlay at δ<sub>max</sub></th></tr></thead>",
-    );
-    for (i, rec) in records.iter().enumerate() {
-        let (class, label) = status(rec);
-        let run = escape(&rec.run);
+    let mut out = controls(records.len());
+    out.push_str("<table class=\"drops\"><thead><tr>");
+    for (k, head) in SORT_KEYS {
         let _ = write!(
             out,
-            "<tbody class=\"{class}\" id=\"drop-{n}\"><tr><td class=\"num\">{n}</td>\
+            "<th data-sort=\"{k}\" title=\"click to sort\">{head}</th>"
+        );
+    }
+    out.push_str("<th>overlay at δ<sub>max</sub></th></tr></thead>");
+    // The thumbnails on every core: a thousand overlays to decode and shrink.
+    use rayon::prelude::*;
+    let thumbs: Vec<Option<(String, Vec<u8>)>> = records
+        .par_iter()
+        .map(|rec| {
+            let rel = figure(out_dir, rec, "overlays", "png")?;
+            let jpeg = thumbnail(out_dir, &rel)?;
+            Some((rel, jpeg))
+        })
+        .collect();
+    for ((i, rec), thumb) in records.iter().enumerate().zip(thumbs) {
+        let (class, label) = status(rec);
+        let run = escape(&rec.run);
+        let measured = rec.status != DropStatus::Failed;
+        let keys: String = [
+            ("v", rec.v_impact_m_s),
+            ("delta", rec.delta_max_mm),
+            ("a", rec.a_max_mm),
+            ("tau", rec.tau_c_ms),
+            ("e", rec.restitution),
+            ("vr", rec.v_rebound_m_s),
+        ]
+        .into_iter()
+        .filter(|_| measured)
+        .map(|(k, v)| key(k, v))
+        .collect();
+        let _ = write!(
+            out,
+            "<tbody class=\"{class}\" id=\"drop-{n}\" data-n=\"{n}\" data-run=\"{run}\" \
+             data-status=\"{class}\"{r}{keys} data-text=\"{text}\"><tr><td class=\"num\">{n}</td>\
              <th class=\"run\">{run}</th><td class=\"num\">{}</td><td class=\"status\">\
              <span class=\"badge {class}\">{label}</span>",
             num(rec.sphere_radius_mm),
-            n = i + 1
+            n = i + 1,
+            r = key("r", Some(rec.sphere_radius_mm)),
+            text = escape(&format!("{} {}", rec.run, rec.reason).to_lowercase()),
         );
         if rec.status == DropStatus::Warning && !rec.reason.is_empty() {
             let _ = write!(out, "<div class=\"reason\">{}</div>", escape(&rec.reason));
         }
         out.push_str("</td>");
-        if rec.status == DropStatus::Failed {
+        if !measured {
             let _ = write!(
                 out,
                 "<td colspan=\"{}\" class=\"reason\">{}</td>",
@@ -86,14 +182,24 @@ pub fn drops_table(out_dir: &Path, records: &[DropRecord]) -> String {
             out.push_str(&cell(rec.tau_c_ms, rec.tau_c_ms_err));
             out.push_str(&cell(rec.restitution, rec.restitution_err));
             out.push_str(&cell(rec.v_rebound_m_s, rec.v_rebound_m_s_err));
-            match figure(out_dir, rec, "overlays", "png") {
-                Some(png) => {
+            match thumb {
+                Some((rel, jpeg)) => {
                     let _ = write!(
                         out,
-                        "<td><img class=\"thumb\" src=\"{}\" alt=\"overlay of {run}\" \
-                         title=\"click to enlarge\" loading=\"lazy\"></td>",
-                        data_uri("image/png", &png)
+                        "<td><img class=\"thumb\" src=\"{}\" data-full=\"{}\" \
+                         alt=\"overlay of {run}\" title=\"click to enlarge\">",
+                        data_uri("image/jpeg", &jpeg),
+                        url_path(&rel)
                     );
+                    if let Some(movie) = figure(out_dir, rec, "impacts", "png") {
+                        let _ = write!(
+                            out,
+                            "<a class=\"movie\" href=\"{}\" title=\"the impact, frame by frame\">\
+                             ▶ impact</a>",
+                            url_path(&movie)
+                        );
+                    }
+                    out.push_str("</td>");
                 }
                 None => out.push_str("<td class=\"missing\">no overlay</td>"),
             }
@@ -104,14 +210,28 @@ pub fn drops_table(out_dir: &Path, records: &[DropRecord]) -> String {
                 out,
                 "<tr class=\"diag\"><td></td><td colspan=\"{}\"><details><summary>diagnostics of \
                  {run}: z(t) with the flight parabolas and events, δ(t), F(δ)</summary>\
-                 <img class=\"diagram\" src=\"{}\" alt=\"diagnostics of {run}\" loading=\"lazy\">\
-                 </details></td></tr>",
+                 <img class=\"diagram\" data-src=\"{url}\" alt=\"diagnostics of {run}\">\
+                 <a href=\"{url}\">the figure alone</a></details></td></tr>",
                 N_COLUMNS - 1,
-                data_uri("image/svg+xml", &svg)
+                url = url_path(&svg)
             );
         }
         out.push_str("</tbody>");
     }
     out.push_str("</table>");
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_names_become_url_paths() {
+        assert_eq!(
+            url_path("plots/overlays/R3 #1?%.png"),
+            "plots/overlays/R3%20%231%3F%25.png"
+        );
+        assert_eq!(url_path("plots/drops/Rä.svg"), "plots/drops/R%C3%A4.svg");
+    }
 }

@@ -10,11 +10,15 @@
 //!
 //! The page reads what the other stages wrote into the output folder
 //! (`collapse.csv`, `fits.json`, `plots/*.svg`, `plots/overlays/<run>.png`,
-//! `plots/drops/<run>.svg`) and recomputes nothing. It refers to no other
-//! file and no URL: the collapse plots are inline SVG, the overlays PNG and
-//! the per-drop figures SVG in `data:` URIs, the style sheet and the few
-//! lines of script inline. It holds no date and no output path, so the same
-//! inputs give the same bytes wherever the output folder is.
+//! `plots/impacts/<run>.png`, `plots/drops/<run>.svg`) and recomputes
+//! nothing. It stays small for thousands of drops: the collapse plots are
+//! inline SVG and each overlay an inline thumbnail (a JPEG `data:` URI);
+//! the full-size overlay, the animated impact and the per-drop figure are
+//! the files beside the page, named by relative paths inside `plots/` and
+//! loaded only when opened. The style sheet and the script (enlarging,
+//! sorting and filtering the drops table) are inline; no URL anywhere. It
+//! holds no date and no output path, so the same inputs give the same bytes
+//! wherever the output folder is.
 
 pub mod drops;
 pub mod fits;
@@ -100,12 +104,59 @@ pub fn check_one_dataset(out_dir: &Path) -> Result<(), ReportError> {
 
 const STYLE: &str = include_str!("style.css");
 
-/// Click a thumbnail to see it at full size over the page; click again to close.
-const SCRIPT: &str = "var z = document.getElementById('zoom'), zi = z.querySelector('img');\
-     document.querySelectorAll('img.thumb').forEach(function (i) {\
-     i.addEventListener('click', function () { zi.src = i.src; zi.alt = i.alt; z.hidden = false; });\
-     });\
-     z.addEventListener('click', function () { z.hidden = true; });";
+/// Click a thumbnail (or "▶ impact") to see the full-size picture (or the
+/// animation) over the page, click again to close; unfold a drop's
+/// diagnostics to load its figure (a thousand figures loaded with the page
+/// would take it half a minute to load); click a column head of
+/// the drops table to sort by it (again: the other way; rows without the
+/// value last); type in the filter box or pick a status to show only the
+/// matching drops.
+const SCRIPT: &str = r#"
+var z = document.getElementById('zoom'), zi = z.querySelector('img');
+function show(src, alt) { zi.src = src; zi.alt = alt; z.hidden = false; }
+document.querySelectorAll('img.thumb').forEach(function (i) {
+  i.addEventListener('click', function () { show(i.getAttribute('data-full') || i.src, i.alt); });
+});
+document.querySelectorAll('a.movie').forEach(function (a) {
+  a.addEventListener('click', function (e) { e.preventDefault(); show(a.getAttribute('href'), a.title); });
+});
+z.addEventListener('click', function () { z.hidden = true; zi.removeAttribute('src'); });
+document.querySelectorAll('details').forEach(function (d) {
+  d.addEventListener('toggle', function () {
+    var i = d.querySelector('img[data-src]');
+    if (d.open && i && !i.getAttribute('src')) { i.src = i.getAttribute('data-src'); }
+  });
+});
+var t = document.querySelector('table.drops');
+if (t) {
+  var f = document.getElementById('drop-filter'), s = document.getElementById('drop-status'),
+    c = document.getElementById('drop-count'), rows = Array.prototype.slice.call(t.tBodies);
+  var filter = function () {
+    var q = f.value.trim().toLowerCase(), st = s.value, n = 0;
+    rows.forEach(function (b) {
+      var on = (!st || b.getAttribute('data-status') === st) &&
+        (!q || b.getAttribute('data-text').indexOf(q) >= 0);
+      b.hidden = !on; n += on ? 1 : 0;
+    });
+    c.textContent = n + ' of ' + rows.length + ' drops';
+  };
+  f.addEventListener('input', filter); s.addEventListener('change', filter);
+  t.querySelectorAll('th[data-sort]').forEach(function (th) {
+    th.addEventListener('click', function () {
+      var k = 'data-' + th.getAttribute('data-sort'), text = k === 'data-run' || k === 'data-status',
+        dir = th.getAttribute('aria-sort') === 'ascending' ? -1 : 1;
+      t.querySelectorAll('th[aria-sort]').forEach(function (h) { h.removeAttribute('aria-sort'); });
+      th.setAttribute('aria-sort', dir > 0 ? 'ascending' : 'descending');
+      rows.sort(function (a, b) {
+        var x = a.getAttribute(k), y = b.getAttribute(k);
+        if (x === null || y === null) { return (x === null) - (y === null); }
+        return dir * (text ? x.localeCompare(y) : parseFloat(x) - parseFloat(y));
+      });
+      rows.forEach(function (b) { t.appendChild(b); });
+    });
+  });
+}
+"#;
 
 /// The collapse figures in reading order, with their captions; any other
 /// SVG the collapse writes into `plots/` follows, sorted by name.

@@ -48,10 +48,11 @@ fn collapse_into(out: &Path, recs: &[DropRecord]) {
     crate::collapse::run(&args, &cfg, "pipeline.toml").unwrap();
 }
 
-/// Every value of a `src="…"` or `href="…"` attribute and every CSS `url(…)`.
+/// Every value of a `src="…"`, `data-src="…"`, `data-full="…"` or `href="…"` attribute
+/// and every CSS `url(…)`.
 fn references(page: &str) -> Vec<&str> {
     let mut refs = Vec::new();
-    for key in ["src=\"", "href=\"", "url("] {
+    for key in [" src=\"", "data-src=\"", "data-full=\"", "href=\"", "url("] {
         let mut rest = page;
         while let Some(i) = rest.find(key) {
             rest = &rest[i + key.len()..];
@@ -131,12 +132,17 @@ fn input_cannot_inject_markup_and_the_page_names_no_url() {
     let dir = tempfile::tempdir().unwrap();
     let recs = records();
     collapse_into(dir.path(), &recs);
-    // An overlay and a diagnostic figure for the first drop.
+    // An overlay, an animation and a diagnostic figure for the first drop.
     let plots = dir.path().join("plots");
     std::fs::create_dir_all(plots.join("overlays")).unwrap();
+    std::fs::create_dir_all(plots.join("impacts")).unwrap();
     std::fs::create_dir_all(plots.join("drops")).unwrap();
-    image::RgbImage::from_pixel(4, 4, image::Rgb([9, 9, 9]))
+    let overlay = image::RgbImage::from_pixel(400, 300, image::Rgb([9, 9, 9]));
+    overlay
         .save(plots.join(format!("overlays/{}.png", recs[0].run)))
+        .unwrap();
+    overlay
+        .save(plots.join(format!("impacts/{}.png", recs[0].run)))
         .unwrap();
     std::fs::write(
         plots.join(format!("drops/{}.svg", recs[0].run)),
@@ -149,15 +155,30 @@ fn input_cannot_inject_markup_and_the_page_names_no_url() {
     assert!(!page.contains("<img src=x"));
     assert!(!page.contains("<b>cfg"));
     assert!(page.contains(&escape(EVIL_RUN)));
-    // Self-contained: every reference is a data: URI, and no URL at all.
+    // The thumbnail inline (a JPEG 120 px wide, not the 400 px picture),
+    // the full-size files beside the page by relative paths; no URL at all.
+    let run = &recs[0].run;
     let refs = references(&page);
-    assert_eq!(refs.len(), 2, "{refs:.80?}");
-    assert!(refs[0].starts_with("data:image/png;base64,iVBORw0KGgo"));
-    assert!(refs[1].starts_with("data:image/svg+xml;base64,PHN2Zy"));
+    assert_eq!(refs.len(), 5, "{refs:.80?}");
+    assert!(
+        refs[0].starts_with("data:image/jpeg;base64,/9j/"),
+        "{:.40}",
+        refs[0]
+    );
+    let jpeg = base64_decode(&refs[0]["data:image/jpeg;base64,".len()..]);
+    let thumb = image::load_from_memory(&jpeg).unwrap();
+    assert_eq!((thumb.width(), thumb.height()), (100, 75));
+    assert_eq!(refs[1], format!("plots/drops/{run}.svg"));
+    assert_eq!(refs[2], format!("plots/overlays/{run}.png"));
+    assert_eq!(refs[3], format!("plots/impacts/{run}.png"));
+    assert_eq!(refs[4], format!("plots/drops/{run}.svg"));
     for r in refs {
-        assert!(r.starts_with("data:"), "external reference {r:.80}");
+        assert!(
+            r.starts_with("data:") || (r.starts_with("plots/") && !r.contains("..")),
+            "reference {r:.80}"
+        );
     }
-    assert!(!page.contains("http://") && !page.contains("https://"));
+    assert!(!page.contains("://"));
 }
 
 #[test]
@@ -231,4 +252,58 @@ fn captioned_plots_are_the_collapse_figures() {
     captioned.sort_unstable();
     drawn.sort_unstable();
     assert_eq!(captioned, drawn);
+}
+
+/// Standard base64 back to bytes (the inverse of [`super::html::base64`]).
+fn base64_decode(text: &str) -> Vec<u8> {
+    const B64: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let vals: Vec<u32> = text
+        .bytes()
+        .filter(|&b| b != b'=')
+        .map(|b| B64.iter().position(|&c| c == b).unwrap() as u32)
+        .collect();
+    let mut out = Vec::new();
+    for chunk in vals.chunks(4) {
+        let n = chunk
+            .iter()
+            .enumerate()
+            .fold(0, |n, (i, v)| n | v << (18 - 6 * i));
+        for k in 0..chunk.len() - 1 {
+            out.push((n >> (16 - 8 * k)) as u8);
+        }
+    }
+    out
+}
+
+#[test]
+fn base64_decodes_back() {
+    for bytes in [&b""[..], b"a", b"ab", b"abc", b"\xff\x00\x10dropscope"] {
+        assert_eq!(base64_decode(&super::html::base64(bytes)), bytes);
+    }
+}
+
+/// Rows carry their sort keys (full precision; none for a failed row's
+/// measurements), their status and their lower-cased name and reason for
+/// the filter.
+#[test]
+fn rows_carry_their_sort_and_filter_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let recs = records();
+    let page = String::from_utf8(render_report(dir.path(), "p.toml", &recs)).unwrap();
+    let r = &recs[0];
+    assert!(page.contains(&format!(
+        "data-n=\"1\" data-run=\"{}\" data-status=\"ok\" data-r=\"{}\" data-v=\"{}\"",
+        r.run,
+        r.sphere_radius_mm,
+        r.v_impact_m_s.unwrap()
+    )));
+    let failed = page.split("<tbody").last().unwrap();
+    assert!(failed.contains("data-status=\"failed\""));
+    assert!(!failed.contains("data-v=") && !failed.contains("data-tau="));
+    assert!(failed.contains(&format!(
+        "data-text=\"{}\"",
+        escape(&format!("{EVIL_RUN} {EVIL_REASON}").to_lowercase())
+    )));
+    assert_eq!(page.matches("<th data-sort=").count(), 10);
+    assert!(page.contains("<span id=\"drop-count\">21 of 21 drops</span>"));
 }

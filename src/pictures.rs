@@ -42,33 +42,20 @@ impl Pictures<'_> {
     /// Frame `ft` drawn in `view` (default: a crop around its circle at
     /// `zoom`), with its caption; `None` when it cannot be read or has no fit.
     fn draw(&mut self, ft: &FrameTrack, view: Option<OverlayView>, zoom: u32) -> Option<RgbImage> {
-        let mut frame = Frame::zeros((self.meta.height, self.meta.width));
-        self.source.read_into(ft.index, &mut frame).ok()?;
-        let pts = edge_points_in(&frame, self.track, ft, self.settings);
-        let c = ft.held.or(ft.free)?.circle();
-        let band = Band::frame(&frame).ok()?;
-        let view = view.unwrap_or_else(|| OverlayView::around(&band, &c, MARGIN_PX, zoom));
-        let img = overlay(
-            &band,
-            self.meta.bit_depth,
-            &view,
-            &pts,
-            Some(&c),
-            Some(&self.track.surface),
-        );
-        let delta_mm = self
-            .rows
-            .iter()
-            .find(|r| r.frame == ft.frame)
-            .and_then(|r| r.delta_mm);
-        let caption = Caption {
-            frame: ft.frame,
-            t_s: ft.t_s,
-            delta_mm,
+        let (source, on) = self.split();
+        on.draw(source, ft, view, zoom)
+    }
+
+    /// The source, and the rest to draw from.
+    fn split(&mut self) -> (&mut dyn FrameSource, Drawn<'_>) {
+        let on = Drawn {
+            meta: self.meta,
+            track: self.track,
+            settings: self.settings,
+            rows: self.rows,
             mm_per_px: self.mm_per_px,
-            zoom: view.zoom,
         };
-        with_caption(&img, &caption).ok()
+        (&mut *self.source, on)
     }
 
     /// The overlay of `ft` as PNG bytes.
@@ -152,12 +139,86 @@ impl Pictures<'_> {
             height: z1 - z0,
             zoom: MOVIE_ZOOM,
         };
-        let images: Vec<RgbImage> = frames
-            .iter()
-            .filter_map(|f| self.draw(f, Some(view), MOVIE_ZOOM))
+        // The frames drawn on every thread, each with its own copy of the
+        // source and a run of consecutive frames, kept in order.
+        let threads = rayon::current_num_threads().min(frames.len()).max(1);
+        let mut copies: Vec<Box<dyn FrameSource>> = (1..threads)
+            .map_while(|_| self.source.try_clone())
             .collect();
+        let (source, on) = self.split();
+        let mut sources: Vec<&mut dyn FrameSource> = std::iter::once(source)
+            .chain(copies.iter_mut().map(|c| c.as_mut()))
+            .collect();
+        let (n, groups) = (frames.len(), sources.len());
+        let images: Vec<RgbImage> = {
+            use rayon::prelude::*;
+            sources
+                .par_iter_mut()
+                .enumerate()
+                .map(|(g, src)| {
+                    frames[g * n / groups..(g + 1) * n / groups]
+                        .iter()
+                        .map(|f| on.draw(&mut **src, f, Some(view), MOVIE_ZOOM))
+                        .collect::<Vec<_>>()
+                })
+                .collect::<Vec<_>>()
+                .into_iter()
+                .flatten()
+                .flatten()
+                .collect()
+        };
         (images.len() >= 2)
             .then(|| crate::detect::overlay::encode_apng(&images, MOVIE_FRAME_MS).ok())
             .flatten()
+    }
+}
+
+/// What a frame's picture is drawn from, but the source: shared by the
+/// threads that draw an animation's frames, each from its own source.
+struct Drawn<'a> {
+    meta: &'a SourceMeta,
+    track: &'a Track,
+    settings: &'a TrackSettings,
+    rows: &'a [TrackRow],
+    mm_per_px: f64,
+}
+
+impl Drawn<'_> {
+    /// See [`Pictures::draw`].
+    fn draw(
+        &self,
+        source: &mut dyn FrameSource,
+        ft: &FrameTrack,
+        view: Option<OverlayView>,
+        zoom: u32,
+    ) -> Option<RgbImage> {
+        let mut frame = Frame::zeros((self.meta.height, self.meta.width));
+        source.read_into(ft.index, &mut frame).ok()?;
+
+        let pts = edge_points_in(&frame, self.track, ft, self.settings);
+        let c = ft.held.or(ft.free)?.circle();
+        let band = Band::frame(&frame).ok()?;
+        let view = view.unwrap_or_else(|| OverlayView::around(&band, &c, MARGIN_PX, zoom));
+        let img = overlay(
+            &band,
+            self.meta.bit_depth,
+            &view,
+            &pts,
+            Some(&c),
+            Some(&self.track.surface),
+        );
+        let delta_mm = self
+            .rows
+            .iter()
+            .find(|r| r.frame == ft.frame)
+            .and_then(|r| r.delta_mm);
+        let caption = Caption {
+            frame: ft.frame,
+            t_s: ft.t_s,
+            delta_mm,
+            mm_per_px: self.mm_per_px,
+            zoom: view.zoom,
+        };
+        with_caption(&img, &caption).ok()
     }
 }

@@ -87,6 +87,18 @@ pub struct DropRecord {
     /// `surface_row_px_err` and every error that depends on the line).
     #[serde(default)]
     pub surface_model_err_px: Option<f64>,
+    /// Where `surface_row_px` came from: `image` (the band's top edge),
+    /// `contact_law` (the trajectory fitted with F = K·δ² put it where the
+    /// image line is inconsistent with it) or `image+contact_law` (the two
+    /// agree and are averaged). See `measure::surface_from_law`.
+    #[serde(default)]
+    pub surface_source: String,
+    /// Offset (px, positive down) of the surface the contact law finds from
+    /// the image's line, whether used or not: a check on the image line.
+    #[serde(default)]
+    pub surface_law_offset_px: Option<f64>,
+    #[serde(default)]
+    pub surface_law_offset_px_err: Option<f64>,
     /// Time of the maximum penetration.
     #[serde(default)]
     pub t_max_s: Option<f64>,
@@ -135,7 +147,8 @@ fn default_density() -> f64 {
 }
 
 impl DropRecord {
-    /// A row for a run that could not be measured.
+    /// A row for a run that could not be measured: every measured column
+    /// empty (and the start of a measured row).
     pub fn failed(run: &str, sphere_radius_mm: f64, reason: impl Into<String>) -> Self {
         DropRecord {
             run: run.to_string(),
@@ -171,6 +184,9 @@ impl DropRecord {
             edge_offset_px: None,
             edge_offset_px_err: None,
             surface_model_err_px: None,
+            surface_source: String::new(),
+            surface_law_offset_px: None,
+            surface_law_offset_px_err: None,
             t_max_s: None,
             second_contact_s: None,
             g_fit_m_s2: None,

@@ -88,6 +88,10 @@ pub struct ForceLaw {
     /// compare with π E φ R / h (K and n are strongly correlated when both
     /// are free: with δ in metres, an error Δn moves K by δ^Δn ≈ −7·Δn).
     pub k_at_n2: Measured,
+    /// Where the contact law puts the surface: the offset (px, positive
+    /// down) of the undeformed surface from the geometry's line, fitted
+    /// with n held at 2 (see [`fit_force_law`]). `None` when that fit fails.
+    pub surface_offset_px: Option<Measured>,
     /// χ² per degree of freedom of the trajectory fit.
     pub chi2_red: f64,
     /// Frames used.
@@ -352,12 +356,31 @@ fn fit_force_law_to(
                 model[i]
             }
         };
-        Ok(DVector::from_fn(m_pts, |i, _| (seen(i) - obs[i]) / sig[i]))
+        // θ[5]: the surface's offset below the line, in metres of δ.
+        Ok(DVector::from_fn(m_pts, |i, _| {
+            (seen(i) - (obs[i] - th[5])) / sig[i]
+        }))
     };
-    let theta0 = [d0, v0, (1.5 * v_in * v_in / dmax.powi(3)).ln(), 2.0, 0.0];
-    // (δ0, v0, ln K/m, n, c/m) all free; then n held at the model's 2.
+    let theta0 = [
+        d0,
+        v0,
+        (1.5 * v_in * v_in / dmax.powi(3)).ln(),
+        2.0,
+        0.0,
+        0.0,
+    ];
+    // (δ0, v0, ln K/m, n, c/m) all free; then n held at the model's 2; then
+    // n held and the surface free: with n free the surface and n trade off
+    // (σ ≈ 0.2–0.7 px on the real preset), with n = 2 the trajectory pins
+    // the surface to 0.01–0.05 px.
     let free = levenberg_marquardt(&theta0, &[0, 1, 2, 3, 4], &resid, rel_tol)?;
     let held = levenberg_marquardt(&theta0, &[0, 1, 2, 4], &resid, rel_tol)?;
+    let surface_offset_px = levenberg_marquardt(&held.theta, &[0, 1, 2, 4, 5], &resid, rel_tol)
+        .ok()
+        .map(|f| Measured {
+            value: f.theta[5] / s_m,
+            err: f.sd_with(5, &[]) / s_m,
+        });
     // The geometry's errors (see the module doc): ∂r_i/∂q = −(∂obs_i/∂q)/σ_i
     // with obs_i = δ_i·s, times σ_q. With the scale from the radius,
     // s = R_mm/R_px, so ∂obs/∂R = s·(1 − δ_px/R_px); a scale given
@@ -395,6 +418,7 @@ fn fit_force_law_to(
             err: mass * sd(&free, 4),
         },
         k_at_n2: k_of(&held),
+        surface_offset_px,
         chi2_red: free.cost / free.dof as f64,
         n_frames: m_pts,
     })
@@ -452,7 +476,7 @@ fn levenberg_marquardt(
     resid: &Residuals<'_>,
     rel_tol: f64,
 ) -> Result<LmFit, ForceFitError> {
-    const STEPS: [f64; 5] = [1e-9, 1e-6, 1e-6, 1e-6, 1e-3];
+    const STEPS: [f64; 6] = [1e-9, 1e-6, 1e-6, 1e-6, 1e-3, 1e-9];
     let p = free.len();
     let jacobian = |th: &[f64], rows: usize| -> Result<DMatrix<f64>, ForceFitError> {
         let mut j = DMatrix::zeros(rows, p);
@@ -554,6 +578,33 @@ mod tests {
                 (f.k_at_n2.value / k_model() - 1.0).abs() < tol_k,
                 "σ={sigma}: K(n=2) = {:?}",
                 f.k_at_n2
+            );
+        }
+    }
+
+    #[test]
+    fn the_law_at_n_2_finds_a_surface_line_that_is_off() {
+        // Frames made on the true surface (row 300), measured against a line
+        // put 0.8 px too high or 0.5 px too low, as a glossy band top or a
+        // dark top row moves the image's line. With σ = 0.005 px per frame
+        // the law's offset must recover the true surface within 0.01 px
+        // (seen: < 0.002 px) and within 3 of its own σ; with the line right
+        // it must say 0 within 3σ.
+        let drop = Drop::new(4.5e-3, 1.2, 0.5e-4);
+        let truth = geometry();
+        let tr = track(&drop, &truth, 0.005, 7);
+        for line_error_px in [-0.8, 0.0, 0.5] {
+            let geom = Geometry {
+                surface_row_px: truth.surface_row_px + line_error_px,
+                ..truth
+            };
+            let ev = find_events(&tr, &geom, &EventConfig::default()).unwrap();
+            let f = fit_force_law(&tr, &ev, &geom, &sphere(), 9.81, 0.0).unwrap();
+            let d = f.surface_offset_px.expect("the surface fit converges");
+            let miss = d.value + line_error_px;
+            assert!(
+                miss.abs() < 0.01 && miss.abs() < 3.0 * d.err,
+                "line off by {line_error_px} px: law offset {d:?}"
             );
         }
     }

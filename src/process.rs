@@ -10,7 +10,7 @@ use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
 use crate::events::{EventConfig, Geometry, TrackPoint};
 use crate::manifest::RunSpec;
-use crate::measure::{annotate_track, measure_drop, DropInfo};
+use crate::measure::{annotate_track, measure_drop, measure_drop_with, surface_from_law, DropInfo};
 use crate::quality;
 use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
 use crate::source::{open, OpenOptions};
@@ -331,8 +331,8 @@ fn measure_run(
     };
     // The free-radius circle measures the silhouette: its radius, less the
     // edge offset, is the sphere's.
-    let offset_px = edge_offset.map_or(0.0, |(o, _)| o);
-    let points = track_points(&tr, |f| half_width(f, offset_px, &geom));
+    let offset_px_edge = edge_offset.map_or(0.0, |(o, _)| o);
+    let points = track_points(&tr, |f| half_width(f, offset_px_edge, &geom));
     let info = DropInfo {
         run: run.run.clone(),
         sphere_radius_mm: run.sphere_radius_mm,
@@ -340,10 +340,30 @@ fn measure_run(
         surface: surface_name,
     };
     let mut rows = track_rows(&tr);
-    let m = measure_drop(&info, &points, &geom, &event_cfg)
-        .map_err(|e| format!("{}: {e}", run.path.display()))?;
+    let failed = |e: crate::events::EventError| format!("{}: {e}", run.path.display());
+    let mut m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
+    // The surface: the image's line, checked against (and moved to) where
+    // the contact law puts it, unless the configuration gave the line.
+    let by_law = m
+        .law
+        .as_ref()
+        .ok()
+        .and_then(|law| surface_from_law(law, geom.surface_row_err_px));
+    let mut geom = geom;
+    let mut surface_source = "image";
+    if let (Some((offset_px, err_px, source)), false) = (by_law, tr.surface_from_config) {
+        geom.surface_row_px += offset_px;
+        geom.surface_row_err_px = err_px;
+        surface_source = source;
+        let points = track_points(&tr, |f| half_width(f, offset_px_edge, &geom));
+        m = measure_drop_with(&info, &points, &geom, &event_cfg, Some(&m.law)).map_err(failed)?;
+    }
     annotate_track(&mut rows, &m, &geom);
+    let law_offset = m.law.as_ref().ok().and_then(|l| l.surface_offset_px);
     let mut record = m.record;
+    record.surface_source = surface_source.to_string();
+    record.surface_law_offset_px = law_offset.map(|d| d.value);
+    record.surface_law_offset_px_err = law_offset.map(|d| d.err);
     record.setup = run.setup.clone().unwrap_or_default();
     record.scale_source = sc.source.name().to_string();
     record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);

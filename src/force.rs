@@ -92,6 +92,12 @@ pub struct ForceLaw {
     /// down) of the undeformed surface from the geometry's line, fitted
     /// with n held at 2 (see [`fit_force_law`]). `None` when that fit fails.
     pub surface_offset_px: Option<Measured>,
+    /// K at n = 2 fitted on the surface of `surface_offset_px` (its fit).
+    pub k_at_n2_on_law_surface: Option<Measured>,
+    /// How n and K (n free) move per px that the surface moves down: to
+    /// widen their errors by an uncertainty of the surface found later.
+    pub n_per_surface_px: f64,
+    pub k_per_surface_px: f64,
     /// χ² per degree of freedom of the trajectory fit.
     pub chi2_red: f64,
     /// Frames used.
@@ -375,12 +381,7 @@ fn fit_force_law_to(
     // the surface to 0.01–0.05 px.
     let free = levenberg_marquardt(&theta0, &[0, 1, 2, 3, 4], &resid, rel_tol)?;
     let held = levenberg_marquardt(&theta0, &[0, 1, 2, 4], &resid, rel_tol)?;
-    let surface_offset_px = levenberg_marquardt(&held.theta, &[0, 1, 2, 4, 5], &resid, rel_tol)
-        .ok()
-        .map(|f| Measured {
-            value: f.theta[5] / s_m,
-            err: f.sd_with(5, &[]) / s_m,
-        });
+    let on_law_surface = levenberg_marquardt(&held.theta, &[0, 1, 2, 4, 5], &resid, rel_tol).ok();
     // The geometry's errors (see the module doc): ∂r_i/∂q = −(∂obs_i/∂q)/σ_i
     // with obs_i = δ_i·s, times σ_q. With the scale from the radius,
     // s = R_mm/R_px, so ∂obs/∂R = s·(1 − δ_px/R_px); a scale given
@@ -398,6 +399,8 @@ fn fit_force_law_to(
     if !geom.scale_from_radius && geom.mm_per_px > 0.0 {
         nuisances.push(per_frame(&|i| obs[i]) * (geom.mm_per_px_err / geom.mm_per_px));
     }
+    // The residuals' change per px of surface moved down (obs shrinks by s).
+    let per_surface_px = per_frame(&|_| -s_m);
     let sd = |fit: &LmFit, i: usize| fit.sd_with(i, &nuisances);
     let mass = sphere.mass_kg();
     let k_of = |fit: &LmFit| {
@@ -418,7 +421,19 @@ fn fit_force_law_to(
             err: mass * sd(&free, 4),
         },
         k_at_n2: k_of(&held),
-        surface_offset_px,
+        surface_offset_px: on_law_surface.as_ref().map(|f| Measured {
+            value: f.theta[5] / s_m,
+            err: f.sd_with(5, &[]) / s_m,
+        }),
+        k_at_n2_on_law_surface: on_law_surface.as_ref().map(|f| {
+            let km = f.theta[2].exp();
+            Measured {
+                value: km * mass,
+                err: km * mass * f.sd_with(2, &[]),
+            }
+        }),
+        n_per_surface_px: free.response_to(3, &per_surface_px),
+        k_per_surface_px: free.theta[2].exp() * mass * free.response_to(2, &per_surface_px),
         chi2_red: free.cost / free.dof as f64,
         n_frames: m_pts,
     })
@@ -443,6 +458,14 @@ impl LmFit {
     /// nuisances added: each
     /// `dr` is the change of the residuals that one standard deviation of
     /// a nuisance makes.
+    /// How θ[i] moves when the residuals change by `dr` (0 when held).
+    fn response_to(&self, i: usize, dr: &DVector<f64>) -> f64 {
+        self.free
+            .iter()
+            .position(|&k| k == i)
+            .map_or(0.0, |p| -self.response.row(p).dot(&dr.transpose()))
+    }
+
     fn sd_with(&self, i: usize, nuisances: &[DVector<f64>]) -> f64 {
         let Some(p) = self.free.iter().position(|&k| k == i) else {
             return 0.0;

@@ -332,6 +332,9 @@ mod tests {
                 err: 1e6,
             },
             surface_offset_px: offset.map(|(value, err)| Measured { value, err }),
+            k_at_n2_on_law_surface: None,
+            n_per_surface_px: 0.0,
+            k_per_surface_px: 0.0,
             chi2_red: 1.0,
             n_frames: 60,
         };
@@ -360,6 +363,9 @@ mod tests {
             damping_n_s_m: m(c, 0.01),
             k_at_n2: m(8e8, 1e6),
             surface_offset_px: None,
+            k_at_n2_on_law_surface: None,
+            n_per_surface_px: 0.0,
+            k_per_surface_px: 0.0,
             chi2_red: 1.0,
             n_frames: 60,
         };

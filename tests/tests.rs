@@ -1,5 +1,6 @@
 //! The integration tests, compiled into one binary (one module per stage).
 
+mod accuracy_effects;
 mod cli;
 mod collapse;
 mod detect;

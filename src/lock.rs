@@ -299,8 +299,20 @@ pub fn acquire(
     };
     let mut told_waiting = false;
     loop {
-        std::fs::create_dir_all(&dir).map_err(io(&dir))?;
-        io_util::remove_stale_temporaries(&dir, &writer_is_gone).map_err(io(&dir))?;
+        // Another holder's release may remove the empty folder at any
+        // moment: between create_dir's "exists" and its check that a folder
+        // is there (create_dir_all then says AlreadyExists), or before the
+        // sweep lists it (NotFound). Both mean: again. Only something that
+        // is not a folder in its place is an error.
+        let not_a_folder = || std::fs::symlink_metadata(&dir).is_ok_and(|m| !m.is_dir());
+        match std::fs::create_dir_all(&dir) {
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && !not_a_folder() => continue,
+            r => r.map_err(io(&dir))?,
+        }
+        match io_util::remove_stale_temporaries(&dir, &writer_is_gone) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+            r => r.map(drop).map_err(io(&dir))?,
+        }
         let (mine, ticket) = match take_ticket(&dir, me) {
             Ok(t) => t,
             // The last holder removed the empty lock folder just now.

@@ -30,6 +30,14 @@ pub struct DropRecord {
     /// Key of the `[surface.<name>]` table of pipeline.toml holding the material.
     #[serde(default)]
     pub surface: String,
+    /// The release height from the manifest (`drop_height_cm`), kept for
+    /// the record; empty when the manifest has none.
+    #[serde(default)]
+    pub drop_height_cm: Option<f64>,
+    /// The run's input (a folder of frames or a `.cine`) as the manifest
+    /// resolved it.
+    #[serde(default)]
+    pub path: String,
     pub v_impact_m_s: Option<f64>,
     #[serde(default)]
     pub v_impact_m_s_err: Option<f64>,
@@ -155,6 +163,8 @@ impl DropRecord {
             sphere_radius_mm,
             sphere_density_kg_m3: default_density(),
             surface: String::new(),
+            drop_height_cm: None,
+            path: String::new(),
             v_impact_m_s: None,
             v_impact_m_s_err: None,
             v_rebound_m_s: None,

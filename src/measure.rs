@@ -163,6 +163,8 @@ pub fn measure_drop_with(
         sphere_radius_mm: info.sphere_radius_mm,
         sphere_density_kg_m3: info.sphere_density_kg_m3,
         surface: info.surface.clone(),
+        drop_height_cm: None,
+        path: String::new(),
         v_impact_m_s: v_in,
         v_impact_m_s_err: v_in_err,
         v_rebound_m_s: v_out,

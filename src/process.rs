@@ -189,6 +189,8 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
         .unwrap_or_else(|| cfg.input.surface.clone());
     record.sphere_density_kg_m3 = run.sphere_density_kg_m3.unwrap_or(cfg.sphere.density_kg_m3);
     record.setup = run.setup.clone().unwrap_or_default();
+    record.drop_height_cm = run.drop_height_cm;
+    record.path = run.path.display().to_string();
     RunOutcome {
         record,
         track: Vec::new(),
@@ -381,6 +383,8 @@ fn measure_run(
     widen_a_max_err(&mut record, &geom, edge_offset.map_or(0.0, |(_, e)| e));
     widen_speed_err(&mut record, &sc);
     record.setup = run.setup.clone().unwrap_or_default();
+    record.drop_height_cm = run.drop_height_cm;
+    record.path = run.path.display().to_string();
     record.scale_source = sc.source.name().to_string();
     record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
     record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);

@@ -488,6 +488,7 @@ fn weakened_measurements_are_flagged_warnings() {
         by(&rows, "notes"),
         &DropRecord {
             run: "notes".into(),
+            path: notes.display().to_string(),
             ..good.clone()
         }
     );

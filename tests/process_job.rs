@@ -212,3 +212,51 @@ fn overlays_have_a_scale_bar_and_the_impact_is_animated() {
         "{frames} frames for a contact of {contact_frames} frames"
     );
 }
+
+/// `render` of one drop writes its runs.csv too, and drops.csv keeps the
+/// manifest's drop height and the run's input path (issue 17 item 8).
+#[test]
+fn one_rendered_drop_has_a_manifest_and_drops_csv_keeps_height_and_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .args(["render", "--radius-mm", "4.5", "--height-cm", "12"])
+        .args(["--frames-before", "20", "--frames-after", "20", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let manifest = dir.path().join("runs.csv");
+    let runs = dropscope::manifest::read_manifest(&manifest).expect("render wrote runs.csv");
+    assert_eq!(runs.len(), 1);
+    assert_eq!(runs[0].drop_height_cm, Some(12.0));
+    assert!(runs[0].path.is_dir(), "{}", runs[0].path.display());
+    let out = dir.path().join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .args(["process", "--manifest"])
+        .arg(&manifest)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let rec = &dropscope::dataset::read_csv(&out.join("drops.csv")).unwrap()[0];
+    assert_eq!(rec.drop_height_cm, Some(12.0));
+    assert_eq!(rec.path, runs[0].path.display().to_string());
+    let text = std::fs::read_to_string(out.join("drops.csv")).unwrap();
+    let header = text.lines().next().unwrap();
+    assert!(
+        header
+            .starts_with("run,sphere_radius_mm,sphere_density_kg_m3,surface,drop_height_cm,path,"),
+        "{header}"
+    );
+}

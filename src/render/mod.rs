@@ -150,7 +150,9 @@ pub fn render_with_progress(
             Err(e) => report.failures.push((spec.run.clone(), e.to_string())),
         }
     }
-    if args.writes_manifest() {
+    // The manifest of what was rendered, one drop or many, ready for
+    // `dropscope process --manifest`.
+    {
         let bytes = if settings.preset == Preset::Real {
             let rows: Vec<campaign::SetupManifestRow> = report
                 .drops

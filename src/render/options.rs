@@ -625,9 +625,4 @@ impl RenderArgs {
             Ok(campaign::from_pairs(&[(self.radius_mm, self.height_cm)]))
         }
     }
-
-    /// Whether a `runs.csv` manifest is written (campaigns and drop lists).
-    pub fn writes_manifest(&self) -> bool {
-        self.campaign || !self.drops.is_empty()
-    }
 }

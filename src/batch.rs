@@ -345,6 +345,9 @@ pub(crate) fn provenance_json(
         run: &'a str,
         key: &'a str,
         input: &'a cache::Fingerprint,
+        /// The files the run wrote (what [`crate::leftovers`] removes when
+        /// a later job into the folder does not write them again).
+        outputs: &'a [cache::OutputFile],
     }
     #[derive(serde::Serialize)]
     struct Provenance<'a> {
@@ -365,12 +368,37 @@ pub(crate) fn provenance_json(
                 run: &e.record.run,
                 key: &e.key,
                 input: &e.input,
+                outputs: &e.outputs,
             })
             .collect(),
     };
     let mut bytes = serde_json::to_vec_pretty(&p).unwrap_or_default();
     bytes.push(b'\n');
     bytes
+}
+
+/// Remove what the previous job in `out` wrote and this one did not
+/// ([`crate::leftovers`]), saying so, then write this job's `provenance.json`.
+pub(crate) fn replace_provenance(
+    out: &Path,
+    cfg: &PipelineConfig,
+    config_name: &str,
+    entries: &[Entry],
+    events: &(dyn Fn(RunEvent) + Sync),
+) -> Result<(), BatchError> {
+    let removed = crate::leftovers::remove(out, entries).map_err(|source| BatchError::Io {
+        path: out.to_path_buf(),
+        source,
+    })?;
+    if let Some(m) = removed.message() {
+        events(RunEvent::Notice(&m));
+    }
+    write_file(
+        out,
+        "provenance.json",
+        &provenance_json(cfg, config_name, entries),
+    )?;
+    Ok(())
 }
 
 /// What [`process_runs`] did.
@@ -493,11 +521,7 @@ pub fn run_job(
         });
     }
     write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
-    write_file(
-        out,
-        "provenance.json",
-        &provenance_json(cfg, config_name, &entries),
-    )?;
+    replace_provenance(out, cfg, config_name, &entries, events)?;
     let measured = records
         .iter()
         .filter(|r| r.status != DropStatus::Failed)

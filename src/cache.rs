@@ -108,7 +108,7 @@ impl OutputFile {
     }
 
     /// Whether the file is in `out` (and inside it) with the bytes it was written with.
-    fn is_intact(&self, out: &Path) -> bool {
+    pub(crate) fn is_intact(&self, out: &Path) -> bool {
         crate::io_util::inside(out, &self.path)
             .and_then(|p| sha256_file(&p))
             .is_ok_and(|h| h == self.sha256)

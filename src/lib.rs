@@ -23,6 +23,7 @@
 //! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits (`dropscope collapse`) |
 //! | [`batch`] | the main job (`dropscope run`): process then collapse, with progress |
 //! | [`cache`] | the main job's per-run result cache: input fingerprints and keys |
+//! | [`leftovers`] | an earlier job's files in the output folder that this job did not write again |
 //! | [`lock`] | one job at a time per output folder; shards of one job together |
 //! | [`shard`] | `run --shard K/N`: the K-th of N frame-balanced shares of the runs |
 //! | [`slurm`] | `dropscope slurm`: the shards as a Slurm array, then a finishing job |
@@ -49,6 +50,7 @@ pub mod events;
 pub mod force;
 pub mod io_util;
 pub mod kinematics;
+pub mod leftovers;
 pub mod lock;
 pub mod lsq;
 pub mod manifest;

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use crate::batch::{process_runs, provenance_json, BatchError, JobOptions, Processed, RunEvent};
+use crate::batch::{process_runs, replace_provenance, BatchError, JobOptions, Processed, RunEvent};
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::RunSpec;
@@ -66,11 +66,7 @@ pub fn run(
     let entries: Vec<_> = done.into_iter().map(|(e, _)| e).collect();
     let records: Vec<DropRecord> = entries.iter().map(|e| e.record.clone()).collect();
     write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
-    write_file(
-        out,
-        "provenance.json",
-        &provenance_json(cfg, config_name, &entries),
-    )?;
+    replace_provenance(out, cfg, config_name, &entries, events)?;
     let (_, warnings) =
         crate::collapse::per_drop::write(out, &out.join("drops.csv"), &records, cfg)?;
     Ok(ProcessSummary {

@@ -260,3 +260,88 @@ fn one_rendered_drop_has_a_manifest_and_drops_csv_keeps_height_and_path() {
         "{header}"
     );
 }
+
+/// A manifest of some fixture runs, with absolute paths, at `path`.
+fn manifest_of(path: &Path, runs: &[&str]) {
+    let text = std::fs::read_to_string(fixtures().join("runs.csv")).unwrap();
+    let mut lines = text.lines();
+    let mut out = format!("{}\n", lines.next().unwrap());
+    for line in lines.filter(|l| runs.iter().any(|r| l.starts_with(&format!("{r},")))) {
+        let (run, rest) = line.split_once(',').unwrap();
+        let (_, rest) = rest.split_once(',').unwrap();
+        let dir = fixtures().join(run);
+        out += &format!("{run},{},{rest}\n", dir.display());
+    }
+    std::fs::write(path, out).unwrap();
+}
+
+/// A second job into a folder with fewer runs (and no `--overlay-frames`)
+/// removes what the first wrote and it did not — the tracks, overlays,
+/// animations and cache entries of the runs it no longer has, the extra
+/// overlays of the one it kept — and nothing else: the user's own files,
+/// and a track the user edited, stay.
+#[test]
+fn a_rerun_with_fewer_runs_leaves_no_file_of_the_earlier_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let (all, one) = (dir.path().join("all.csv"), dir.path().join("one.csv"));
+    let runs = ["R3mm_H1.5cm_01", "R4.5mm_H12cm_01", "R7mm_H50cm_01"];
+    manifest_of(&all, &runs);
+    manifest_of(&one, &runs[..1]);
+    let job = |manifest: &Path, extra: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+            .args(["process", "--manifest"])
+            .arg(manifest)
+            .arg("--out")
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(0), "{err}");
+        err
+    };
+    job(&all, &["--overlay-frames", "0"]);
+    let files = |run: &str| {
+        [
+            format!("tracks/{run}.csv"),
+            format!("plots/overlays/{run}.png"),
+            format!("plots/overlays/{run}_0.png"),
+            format!("plots/impacts/{run}.png"),
+            format!("runs/{run}.json"),
+        ]
+    };
+    for run in runs {
+        for f in files(run) {
+            assert!(out.join(&f).is_file(), "the first job wrote no {f}");
+        }
+    }
+    std::fs::write(out.join("plots/overlays/my_sketch.png"), b"mine").unwrap();
+    std::fs::write(out.join("notes.txt"), b"mine").unwrap();
+    let edited = out.join(format!("tracks/{}.csv", runs[2]));
+    let mut edited_bytes = std::fs::read(&edited).unwrap();
+    edited_bytes.extend_from_slice(b"# checked by hand\n");
+    std::fs::write(&edited, &edited_bytes).unwrap();
+
+    let err = job(&one, &[]);
+    // R4.5: track, overlays, animation; R7: the same but its edited track;
+    // R3: its extra overlay.
+    assert!(err.contains("removed 8 files"), "{err}");
+    let [track, overlay, extra, impact, entry] = files(runs[0]);
+    for f in [&track, &overlay, &impact, &entry] {
+        assert!(out.join(f).is_file(), "the kept run's {f} was removed");
+    }
+    assert!(!out.join(&extra).exists(), "{extra} was not written again");
+    for run in &runs[1..] {
+        for f in files(run) {
+            let kept = f == format!("tracks/{}.csv", runs[2]);
+            assert_eq!(out.join(&f).exists(), kept, "{f}");
+        }
+    }
+    assert_eq!(std::fs::read(&edited).unwrap(), edited_bytes);
+    for f in ["plots/overlays/my_sketch.png", "notes.txt"] {
+        assert_eq!(std::fs::read(out.join(f)).unwrap(), b"mine", "{f}");
+    }
+    let drops = dropscope::dataset::read_csv(&out.join("drops.csv")).unwrap();
+    assert_eq!(drops.len(), 1);
+}

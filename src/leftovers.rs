@@ -1,0 +1,171 @@
+//! An earlier job's leftovers in the output folder (issue 17): when a job
+//! into a folder has fewer runs than the one before it (or a run now writes
+//! fewer files: it failed, or no `--overlay-frames`), the earlier job's
+//! tracks, overlays and animations of those runs would stay beside the new
+//! ones and mix two jobs.
+//!
+//! `provenance.json` lists, for every run, the files the job wrote and the
+//! SHA-256 of their bytes. Before a job writes its own, the files the
+//! previous one listed that this job did not write are removed — only
+//! those, and only while they still hold the bytes dropscope wrote (a file
+//! the user changed, or any file no provenance lists, is never touched),
+//! with the cache entries (`runs/<run>.json`) of the runs no longer in the
+//! job. A provenance written before it listed files (or without one) names
+//! its runs only: their files are then those their cache entries list.
+
+use std::collections::BTreeSet;
+use std::path::Path;
+
+use serde::Deserialize;
+
+use crate::cache::{self, Entry, OutputFile};
+
+/// The part of an earlier `provenance.json` read here.
+#[derive(Deserialize)]
+struct Previous {
+    runs: Vec<PreviousRun>,
+}
+
+#[derive(Deserialize)]
+struct PreviousRun {
+    run: String,
+    /// Absent in provenance written before the files were listed.
+    outputs: Option<Vec<OutputFile>>,
+}
+
+/// A provenance larger than this is not read (1 000 runs take ~1 MB).
+const PROVENANCE_MAX_BYTES: u64 = 256 << 20;
+
+/// What [`remove`] removed.
+#[derive(Debug, Default, Clone, PartialEq, Eq)]
+pub struct Removed {
+    /// Runs of the previous job that are not in this one.
+    pub runs: usize,
+    /// Output files removed (cache entries not counted).
+    pub files: usize,
+}
+
+impl Removed {
+    /// A line for the user, or `None` when nothing was removed.
+    pub fn message(&self) -> Option<String> {
+        (self.files > 0 || self.runs > 0).then(|| {
+            format!(
+                "removed {} that the previous job in this folder wrote (its provenance.json \
+                 lists them) and this one did not; {} of that job no longer in this one",
+                crate::plural(self.files, "file"),
+                crate::plural(self.runs, "run")
+            )
+        })
+    }
+}
+
+/// Remove from `out` what the previous job's `provenance.json` lists and
+/// `current` (this job's runs) did not write; call it before this job's
+/// provenance replaces the previous one. No previous provenance, or one that
+/// cannot be read, removes nothing.
+pub fn remove(out: &Path, current: &[Entry]) -> std::io::Result<Removed> {
+    let path = out.join("provenance.json");
+    let previous: Previous = match crate::io_util::read_bounded(&path, PROVENANCE_MAX_BYTES) {
+        Ok(Some(bytes)) => match serde_json::from_slice(&bytes) {
+            Ok(p) => p,
+            Err(_) => return Ok(Removed::default()),
+        },
+        _ => return Ok(Removed::default()),
+    };
+    let runs_now: BTreeSet<&str> = current.iter().map(|e| e.record.run.as_str()).collect();
+    let written: BTreeSet<&str> = current
+        .iter()
+        .flat_map(|e| e.outputs.iter().map(|f| f.path.as_str()))
+        .collect();
+    let mut removed = Removed::default();
+    for p in &previous.runs {
+        let gone = !runs_now.contains(p.run.as_str());
+        let entry = cache::entry_path(out, &p.run).ok();
+        let listed = match &p.outputs {
+            Some(files) => files.clone(),
+            None if gone => entry
+                .as_deref()
+                .and_then(|e| std::fs::read(e).ok())
+                .and_then(|b| serde_json::from_slice::<Entry>(&b).ok())
+                .filter(|e| e.record.run == p.run)
+                .map(|e| e.outputs)
+                .unwrap_or_default(),
+            None => Vec::new(),
+        };
+        for f in listed.iter().filter(|f| !written.contains(f.path.as_str())) {
+            if f.is_intact(out) {
+                let file = crate::io_util::inside(out, &f.path)?;
+                crate::io_util::remove_if_present(&file)?;
+                removed.files += 1;
+            }
+        }
+        if gone {
+            removed.runs += 1;
+            if let Some(e) = entry {
+                crate::io_util::remove_if_present(&e)?;
+            }
+        }
+    }
+    Ok(removed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cache::{Fingerprint, CACHE_SCHEMA};
+    use crate::dataset::DropRecord;
+
+    fn entry(run: &str, outputs: Vec<OutputFile>) -> Entry {
+        Entry {
+            schema: CACHE_SCHEMA,
+            dropscope_version: env!("CARGO_PKG_VERSION").into(),
+            key: "k".into(),
+            input: Fingerprint::unreadable(Path::new("x")),
+            outputs,
+            frames: 1,
+            record: DropRecord::failed(run, 4.5, "why"),
+        }
+    }
+
+    /// A provenance written before it listed files names its runs: the
+    /// files of a run no longer in the job are those its cache entry lists,
+    /// removed while they hold the listed bytes, with the entry. A listed
+    /// path outside the folder, or a file that changed, is left alone.
+    #[test]
+    fn old_provenance_falls_back_on_the_cache_entries() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = &dir.path().join("out");
+        std::fs::create_dir_all(out.join("tracks")).unwrap();
+        std::fs::write(out.join("tracks/a.csv"), b"a").unwrap();
+        std::fs::write(out.join("tracks/b.csv"), b"b, edited").unwrap();
+        std::fs::write(dir.path().join("outside.csv"), b"o").unwrap();
+        let a = entry(
+            "a",
+            vec![
+                OutputFile::new("tracks/a.csv".into(), b"a"),
+                OutputFile::new("../outside.csv".into(), b"o"),
+            ],
+        );
+        let b = entry("b", vec![OutputFile::new("tracks/b.csv".into(), b"b")]);
+        cache::store(out, &a).unwrap();
+        cache::store(out, &b).unwrap();
+        std::fs::write(
+            out.join("provenance.json"),
+            br#"{"runs": [{"run": "a", "key": "k"}, {"run": "b", "key": "k"}]}"#,
+        )
+        .unwrap();
+        let removed = remove(out, std::slice::from_ref(&b)).unwrap();
+        assert_eq!(removed, Removed { runs: 1, files: 1 });
+        assert!(!out.join("tracks/a.csv").exists());
+        assert!(!out.join("runs/a.json").exists());
+        assert!(out.join("runs/b.json").exists());
+        assert_eq!(
+            std::fs::read(out.join("tracks/b.csv")).unwrap(),
+            b"b, edited"
+        );
+        assert_eq!(std::fs::read(dir.path().join("outside.csv")).unwrap(), b"o");
+        // No provenance, or a damaged one: nothing removed.
+        std::fs::write(out.join("provenance.json"), b"{ damaged").unwrap();
+        assert_eq!(remove(out, &[]).unwrap(), Removed::default());
+    }
+}

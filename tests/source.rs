@@ -7,7 +7,8 @@ use std::process::Command;
 
 use dropscope::source::cine::{self, CineSource};
 use dropscope::source::cine_write::{CinePacking, CineSpec, CineWriter};
-use dropscope::source::folder::FolderSource;
+use dropscope::source::folder::{FolderSource, ImageKind};
+use dropscope::source::frame_decode::FrameDecoder;
 use dropscope::source::{open, pcc_xml, Frame, FrameSource, OpenOptions, P10Mode, SourceError};
 use ndarray::s;
 
@@ -838,6 +839,35 @@ fn folders_of_every_format_read_back_their_values() {
             src.read_rows_into(i, 3, &mut band.view_mut()).unwrap();
             assert_eq!(band, f.slice(s![3..7, ..]), "{ext} band");
         }
+        // The same bytes decoded from memory (the `folder_frame` fuzz
+        // target's path) give the same header, frame and band; cut short,
+        // an error naming them.
+        let bytes = std::fs::read(dir.path().join(format!("run_000002.{ext}"))).unwrap();
+        let kind = ImageKind::from_extension(ext).unwrap();
+        let name = Path::new("in-memory.frame");
+        let bits = if *max > 255 { 16 } else { 8 };
+        let header = FrameDecoder::for_headers().probe_bytes(name, kind, &bytes);
+        assert_eq!(header.unwrap(), (w, h, bits), "{ext} {max} from memory");
+        let mut dec = FrameDecoder::for_frames();
+        let mut got = Frame::zeros((h, w));
+        dec.read_rows_from_bytes(name, kind, &bytes, (w, h), 0, &mut got.view_mut())
+            .unwrap();
+        assert_eq!(got, frames[1], "{ext} {max} frame from memory");
+        let mut band = Frame::zeros((4, w));
+        dec.read_rows_from_bytes(name, kind, &bytes, (w, h), 3, &mut band.view_mut())
+            .unwrap();
+        assert_eq!(
+            band,
+            frames[1].slice(s![3..7, ..]),
+            "{ext} band from memory"
+        );
+        let cut = &bytes[..bytes.len() / 2];
+        let e = FrameDecoder::for_headers()
+            .probe_bytes(name, kind, cut)
+            .and_then(|_| dec.read_rows_from_bytes(name, kind, cut, (w, h), 0, &mut got.view_mut()))
+            .expect_err(&format!("{ext} {max} cut short was read"))
+            .to_string();
+        assert!(e.contains("in-memory.frame"), "{ext} {max} cut short: {e}");
     }
 }
 

@@ -14,6 +14,7 @@ pub mod cine;
 pub mod cine_write;
 pub mod cli;
 pub mod folder;
+pub mod frame_decode;
 pub mod memory;
 mod p10_lut;
 mod packing;

@@ -1,0 +1,716 @@
+//! Decoding one frame file's bytes (TIFF, PNG, BMP or JPEG): its header
+//! (`probe`, which opening a folder runs on every file) and its rows. The
+//! bytes are read from the file by [`super::folder::FolderSource`], or
+//! taken from memory by [`FrameDecoder::probe_bytes`] and
+//! [`FrameDecoder::read_rows_from_bytes`] (the `folder_frame` fuzz target):
+//! one decoding path for both, generic over [`FrameBytes`].
+//!
+//! Speed: uncompressed single-sample TIFFs are parsed here (a whole frame
+//! with one read of the file into a reused buffer, a band of fewer than half
+//! the rows by its first 4 KiB and the band's rows only); PNGs are
+//! decoded row by row with the `png` crate into reused buffers and stop after
+//! the last requested row; BMP 8-bit is parsed here; everything else goes
+//! through the `image` crate.
+
+use std::fs::File;
+use std::io::{Cursor, Read, Seek, SeekFrom};
+use std::path::Path;
+
+use ndarray::{s, ArrayViewMut2};
+
+use super::folder::ImageKind;
+use super::widen::widen_u8;
+use super::{fill_row, fill_rows, SourceError};
+
+/// How one file's pixels are laid out, found by reading its header only.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Probe {
+    pub(super) width: usize,
+    pub(super) height: usize,
+    /// Container bits per sample: 8 or 16.
+    pub(super) bits: u8,
+    layout: Layout,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Layout {
+    /// Uncompressed one-sample TIFF: strips of `rows_per_strip` rows at the
+    /// offsets left in [`Scratch::strips`] (merged into one when contiguous).
+    TiffRaw {
+        big_endian: bool,
+        rows_per_strip: usize,
+    },
+    /// 8-bit paletted BMP with a grey palette, rows bottom-up unless `top_down`.
+    Bmp8 {
+        data_offset: u64,
+        stride: usize,
+        top_down: bool,
+    },
+    /// Grey 8/16-bit PNG decoded row by row.
+    PngGrey,
+    /// Anything else: whole-image decode by the `image` crate, then grey.
+    Generic,
+}
+
+/// Buffers reused from frame to frame: header bytes, IFD entries, strip
+/// offsets, file bytes / rows read.
+#[derive(Debug, Default)]
+struct Scratch {
+    head: Vec<u8>,
+    entries: Vec<u8>,
+    raw: Vec<u8>,
+    strips: Vec<u64>,
+    bytes: Vec<u8>,
+    /// Grey value of each BMP palette index.
+    palette: Vec<u8>,
+    /// `head` holds the whole file (small TIFFs), not just its start.
+    whole: bool,
+    /// Read small TIFFs whole (frame reads) or only their headers (open).
+    read_whole: bool,
+    /// The current request is a band of fewer than half the rows: a TIFF
+    /// is read by its header and the band's rows only, not whole.
+    small_band: bool,
+}
+
+/// TIFFs up to this size are read with one call and decoded from memory.
+const WHOLE_FILE_MAX: u64 = 16 << 20;
+
+pub(super) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> SourceError + '_ {
+    move |source| SourceError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+pub(super) fn format_err(path: &Path, reason: impl Into<String>) -> SourceError {
+    SourceError::Format {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}
+
+/// Where a frame file's bytes are read from: the open file, or memory.
+pub trait FrameBytes: Read + Seek {
+    /// Read `buf.len()` bytes at `offset`.
+    fn read_at(&mut self, offset: u64, buf: &mut [u8]) -> std::io::Result<()>;
+}
+
+impl FrameBytes for File {
+    /// One positioned read on Unix.
+    fn read_at(&mut self, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
+        #[cfg(unix)]
+        {
+            std::os::unix::fs::FileExt::read_exact_at(self, buf, offset)
+        }
+        #[cfg(not(unix))]
+        {
+            self.seek(SeekFrom::Start(offset))?;
+            self.read_exact(buf)
+        }
+    }
+}
+
+impl FrameBytes for Cursor<&[u8]> {
+    fn read_at(&mut self, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
+        self.set_position(offset);
+        self.read_exact(buf)
+    }
+}
+
+/// Decodes frame files one after another, keeping its buffers from one to
+/// the next.
+#[derive(Debug, Default)]
+pub struct FrameDecoder {
+    scratch: Scratch,
+    row_scratch: Vec<u16>,
+    u16_scratch: Vec<u16>,
+}
+
+impl FrameDecoder {
+    /// For reading headers, as opening a folder does: a file is read only as
+    /// far as its header.
+    pub fn for_headers() -> Self {
+        FrameDecoder::default()
+    }
+
+    /// For reading frames: small TIFFs and PNGs are read whole in one call.
+    pub fn for_frames() -> Self {
+        let mut d = FrameDecoder::default();
+        d.scratch.read_whole = true;
+        d
+    }
+
+    /// Read a file's header and decide how to decode it.
+    pub(super) fn probe<F: FrameBytes>(
+        &mut self,
+        path: &Path,
+        file: &mut F,
+        len: u64,
+        kind: ImageKind,
+    ) -> Result<Probe, SourceError> {
+        probe(path, file, len, kind, &mut self.scratch)
+    }
+
+    /// The header of a frame file held in memory, read as a folder's
+    /// opening reads each file's: `(width, height, bits per sample)`.
+    /// `name` names it in errors.
+    pub fn probe_bytes(
+        &mut self,
+        name: &Path,
+        kind: ImageKind,
+        bytes: &[u8],
+    ) -> Result<(usize, usize, u8), SourceError> {
+        let p = self.probe(name, &mut Cursor::new(bytes), bytes.len() as u64, kind)?;
+        Ok((p.width, p.height, p.bits))
+    }
+
+    /// Rows `row0..row0 + out.nrows()` of a frame file held in memory whose
+    /// header said `(width, height)`, decoded as a folder's frame reads
+    /// decode them.
+    pub fn read_rows_from_bytes(
+        &mut self,
+        name: &Path,
+        kind: ImageKind,
+        bytes: &[u8],
+        (width, height): (usize, usize),
+        row0: usize,
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
+        let row_end = row0.saturating_add(out.nrows());
+        if row_end > height {
+            return Err(SourceError::RowsOutOfRange {
+                path: name.to_path_buf(),
+                row0,
+                row_end,
+                height,
+            });
+        }
+        if out.ncols() != width {
+            return Err(SourceError::BufferShape {
+                path: name.to_path_buf(),
+                width,
+                got: out.ncols(),
+            });
+        }
+        let len = bytes.len() as u64;
+        let mut file = Cursor::new(bytes);
+        self.read_rows(name, 0, &mut file, len, kind, (width, height), row0, out)
+    }
+
+    /// Rows `row0..row0 + out.nrows()` of frame `index` (for messages) from
+    /// `file` of `len` bytes, whose header must still say `(width, height)`.
+    /// The caller has checked the band against that size.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn read_rows<F: FrameBytes>(
+        &mut self,
+        path: &Path,
+        index: usize,
+        file: &mut F,
+        len: u64,
+        kind: ImageKind,
+        (width, height): (usize, usize),
+        row0: usize,
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
+        let frame_err = |reason: String| SourceError::Frame {
+            path: path.to_path_buf(),
+            index,
+            reason,
+        };
+        self.scratch.small_band = 2 * out.nrows() < height;
+        let p = probe(path, file, len, kind, &mut self.scratch).map_err(|e| match e {
+            SourceError::Format { reason, .. } => frame_err(reason),
+            other => other,
+        })?;
+        if (p.width, p.height) != (width, height) {
+            return Err(frame_err(format!(
+                "size changed to {}×{} since the folder was opened",
+                p.width, p.height
+            )));
+        }
+        let n = out.nrows();
+        let w = p.width;
+        match &p.layout {
+            Layout::TiffRaw {
+                big_endian,
+                rows_per_strip,
+            } => {
+                let sc = &mut self.scratch;
+                let bpp = usize::from(p.bits / 8);
+                let row_bytes = w * bpp;
+                let rps = *rows_per_strip;
+                let row_at =
+                    |strips: &[u64], r: usize| strips[r / rps] as usize + (r % rps) * row_bytes;
+                if !sc.whole {
+                    // A small band or a large file: read only the band's
+                    // rows, one read per strip they lie in.
+                    sc.bytes.clear();
+                    sc.bytes.resize(n * row_bytes, 0);
+                    let mut r = row0;
+                    while r < row0 + n {
+                        let take = (rps - r % rps).min(row0 + n - r);
+                        let dst =
+                            &mut sc.bytes[(r - row0) * row_bytes..(r - row0 + take) * row_bytes];
+                        file.read_at(row_at(&sc.strips, r) as u64, dst)
+                            .map_err(|e| frame_err(format!("reading rows: {e}")))?;
+                        r += take;
+                    }
+                }
+                let (whole, head, bytes, strips) = (sc.whole, &sc.head, &sc.bytes, &sc.strips);
+                let big_endian = *big_endian;
+                fill_rows(out, &mut self.row_scratch, |j, dst| {
+                    let src = if whole {
+                        let o = row_at(strips, row0 + j);
+                        &head[o..o + row_bytes]
+                    } else {
+                        &bytes[j * row_bytes..(j + 1) * row_bytes]
+                    };
+                    if bpp == 1 {
+                        widen_u8(src, dst);
+                    } else if big_endian {
+                        for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                            *d = u16::from_be_bytes([s[0], s[1]]);
+                        }
+                    } else {
+                        for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                            *d = u16::from_le_bytes([s[0], s[1]]);
+                        }
+                    }
+                });
+            }
+            Layout::Bmp8 {
+                data_offset,
+                stride,
+                top_down,
+            } => {
+                let palette = &self.scratch.palette;
+                let h = p.height;
+                // Stored rows for the band are contiguous; bottom-up reverses them.
+                let first_stored = if *top_down { row0 } else { h - row0 - n };
+                let bytes = &mut self.scratch.bytes;
+                bytes.clear();
+                bytes.resize(n * stride, 0);
+                file.read_at(data_offset + (first_stored * stride) as u64, bytes)
+                    .map_err(|e| frame_err(format!("reading rows: {e}")))?;
+                for j in 0..n {
+                    let k = if *top_down { j } else { n - 1 - j };
+                    let src = &bytes[k * stride..k * stride + w];
+                    fill_row(out.slice_mut(s![j, ..]), &mut self.row_scratch, |dst| {
+                        for (d, s) in dst.iter_mut().zip(src) {
+                            *d = u16::from(palette[usize::from(*s)]);
+                        }
+                    });
+                }
+            }
+            Layout::PngGrey => {
+                // `probe` left the whole file in `self.bytes`.
+                let mut reader = png::Decoder::new(Cursor::new(&self.scratch.bytes[..]))
+                    .read_info()
+                    .map_err(|e| frame_err(format!("PNG: {e}")))?;
+                let sixteen = p.bits == 16;
+                for r in 0..row0 + n {
+                    let row = reader
+                        .next_row()
+                        .map_err(|e| frame_err(format!("PNG: {e}")))?
+                        .ok_or_else(|| frame_err("PNG ends early".into()))?;
+                    if r < row0 {
+                        continue;
+                    }
+                    let src = row.data();
+                    fill_row(
+                        out.slice_mut(s![r - row0, ..]),
+                        &mut self.row_scratch,
+                        |dst| {
+                            if sixteen {
+                                for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                                    *d = u16::from_be_bytes([s[0], s[1]]);
+                                }
+                            } else {
+                                widen_u8(src, dst);
+                            }
+                        },
+                    );
+                }
+            }
+            Layout::Generic => {
+                let bytes = &mut self.scratch.bytes;
+                bytes.clear();
+                file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
+                file.read_to_end(bytes).map_err(io_err(path))?;
+                let img = image::ImageReader::new(Cursor::new(&bytes[..]))
+                    .with_guessed_format()
+                    .map_err(io_err(path))?
+                    .decode()
+                    .map_err(|e| frame_err(format!("cannot decode: {e}")))?;
+                self.u16_scratch.clear();
+                if p.bits == 16 {
+                    self.u16_scratch.extend(img.into_luma16().into_raw());
+                } else {
+                    self.u16_scratch
+                        .extend(img.into_luma8().into_raw().into_iter().map(u16::from));
+                }
+                if self.u16_scratch.len() < (row0 + n) * w {
+                    return Err(frame_err("decoded image is smaller than its header".into()));
+                }
+                for j in 0..n {
+                    let src = &self.u16_scratch[(row0 + j) * w..(row0 + j + 1) * w];
+                    fill_row(out.slice_mut(s![j, ..]), &mut self.row_scratch, |dst| {
+                        dst.copy_from_slice(src)
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Read a file's header and decide how to decode it. `bytes` is scratch.
+fn probe<F: FrameBytes>(
+    path: &Path,
+    file: &mut F,
+    len: u64,
+    kind: ImageKind,
+    scratch: &mut Scratch,
+) -> Result<Probe, SourceError> {
+    let bytes = &mut scratch.bytes;
+    match kind {
+        ImageKind::Tiff => {
+            if let Some(p) = probe_tiff(file, len, scratch).map_err(|r| format_err(path, r))? {
+                return Ok(p);
+            }
+        }
+        ImageKind::Bmp => {
+            if let Some(p) = probe_bmp(file, len, scratch).map_err(|r| format_err(path, r))? {
+                return Ok(p);
+            }
+        }
+        ImageKind::Png => {
+            // Frame reads keep the whole file in `bytes` for the decoder;
+            // opening reads only as far as the header chunks.
+            let info = if scratch.read_whole {
+                bytes.clear();
+                bytes.reserve(len as usize);
+                file.read_to_end(bytes).map_err(io_err(path))?;
+                png_info(Cursor::new(&bytes[..]))
+            } else {
+                png_info(std::io::BufReader::new(&mut *file))
+            }
+            .map_err(|e| format_err(path, format!("not a readable PNG: {e}")))?;
+            return check_compressed_size(path, info, len);
+        }
+        ImageKind::Jpeg => {}
+    }
+    // Generic: dimensions and depth from the image crate's header reader.
+    file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
+    let reader = image::ImageReader::new(std::io::BufReader::new(&mut *file))
+        .with_guessed_format()
+        .map_err(io_err(path))?;
+    let dec = reader
+        .into_decoder()
+        .map_err(|e| format_err(path, format!("not a readable image: {e}")))?;
+    use image::ImageDecoder;
+    let (w, h) = dec.dimensions();
+    let bits = if dec.color_type().bytes_per_pixel() / dec.color_type().channel_count() >= 2 {
+        16
+    } else {
+        8
+    };
+    check_compressed_size(
+        path,
+        Probe {
+            width: w as usize,
+            height: h as usize,
+            bits,
+            layout: Layout::Generic,
+        },
+        len,
+    )
+}
+
+/// Most pixels a compressed frame may claim per byte of its file. Deflate
+/// cannot do better than ~1 032:1 (a black 8-bit PNG), a flat JPEG or LZW
+/// TIFF ~200:1, so no camera frame comes near; but a BMP's RLE8 "end of
+/// bitmap" or a forged header can claim any size in a few bytes, and the
+/// decoder then spends seconds and hundreds of MB on it (issue 14's
+/// fuzzing: a 1.9 kB BMP claiming 3 072 × 45 319 took 16 s per read).
+const MAX_PIXELS_PER_BYTE: u64 = 4096;
+
+/// `probe` for a frame the decoders decompress: refused when its size is
+/// implausible for its file's (see [`MAX_PIXELS_PER_BYTE`]).
+fn check_compressed_size(path: &Path, p: Probe, len: u64) -> Result<Probe, SourceError> {
+    let pixels = p.width as u64 * p.height as u64;
+    if pixels > len.saturating_mul(MAX_PIXELS_PER_BYTE) {
+        return Err(format_err(
+            path,
+            format!(
+                "implausible size {}×{} for a {len}-byte file (more than {MAX_PIXELS_PER_BYTE} \
+                 pixels per byte): corrupt or forged header",
+                p.width, p.height
+            ),
+        ));
+    }
+    Ok(p)
+}
+
+/// Size, depth and layout of a PNG from its header chunks.
+fn png_info<R: std::io::BufRead + Seek>(r: R) -> Result<Probe, png::DecodingError> {
+    let reader = png::Decoder::new(r).read_info()?;
+    let info = reader.info();
+    let bits = match info.bit_depth {
+        png::BitDepth::Sixteen => 16,
+        _ => 8,
+    };
+    let grey = info.color_type == png::ColorType::Grayscale
+        && matches!(
+            info.bit_depth,
+            png::BitDepth::Eight | png::BitDepth::Sixteen
+        )
+        && !info.interlaced;
+    Ok(Probe {
+        width: info.width as usize,
+        height: info.height as usize,
+        bits,
+        layout: if grey {
+            Layout::PngGrey
+        } else {
+            Layout::Generic
+        },
+    })
+}
+
+/// Parse a classic TIFF's first IFD. `Ok(None)` = valid but not the simple
+/// uncompressed grey layout (left to the generic decoder).
+fn probe_tiff<F: FrameBytes>(
+    file: &mut F,
+    len: u64,
+    sc: &mut Scratch,
+) -> Result<Option<Probe>, String> {
+    // Files up to WHOLE_FILE_MAX are read whole, in one call, and decoded
+    // from memory; larger ones by their first 4 KiB, then the rows needed.
+    let head_len = if sc.read_whole && !sc.small_band && len <= WHOLE_FILE_MAX {
+        len
+    } else {
+        len.min(4096)
+    };
+    // Grow the reused buffer only when needed and never shrink it (no
+    // zeroing frame after frame): the file's bytes are `head[..head_len]`.
+    let head_usize = head_len as usize;
+    if sc.head.len() < head_usize {
+        sc.head.resize(head_usize, 0);
+    }
+    file.read_exact(&mut sc.head[..head_usize])
+        .map_err(|e| format!("not a TIFF (reading {head_len} bytes: {e})"))?;
+    sc.whole = head_len == len;
+    if head_len < 8 {
+        return Err(format!("not a TIFF ({len} bytes)"));
+    }
+    let head = &sc.head[..head_usize];
+    let fetch = |file: &mut F, off: u64, out: &mut Vec<u8>, n: usize| {
+        out.clear();
+        if off + n as u64 <= head.len() as u64 {
+            out.extend_from_slice(&head[off as usize..off as usize + n]);
+            Ok(())
+        } else {
+            out.resize(n, 0);
+            file.read_at(off, out).map_err(|e| e.to_string())
+        }
+    };
+    let big_endian = match &head[0..4] {
+        b"II*\0" => false,
+        b"MM\0*" => true,
+        _ => return Ok(None), // BigTIFF or not a TIFF: let the generic path decide
+    };
+    let u16_ = |b: &[u8]| {
+        let a = [b[0], b[1]];
+        if big_endian {
+            u16::from_be_bytes(a)
+        } else {
+            u16::from_le_bytes(a)
+        }
+    };
+    let u32_ = |b: &[u8]| {
+        let a = [b[0], b[1], b[2], b[3]];
+        if big_endian {
+            u32::from_be_bytes(a)
+        } else {
+            u32::from_le_bytes(a)
+        }
+    };
+    let ifd = u64::from(u32_(&head[4..8]));
+    if ifd + 2 > len {
+        return Err(format!("IFD offset {ifd} is past the end ({len} bytes)"));
+    }
+    fetch(file, ifd, &mut sc.entries, 2)?;
+    let n = usize::from(u16_(&sc.entries));
+    if ifd + 2 + 12 * n as u64 > len {
+        return Err(format!("IFD with {n} entries runs past the end"));
+    }
+    fetch(file, ifd + 2, &mut sc.entries, 12 * n)?;
+    let entries = &sc.entries;
+    // (type, count, value-or-offset bytes)
+    let tag = |t: u16| {
+        entries
+            .chunks_exact(12)
+            .find(|e| u16_(&e[0..2]) == t)
+            .map(|e| (u16_(&e[2..4]), u32_(&e[4..8]), [e[8], e[9], e[10], e[11]]))
+    };
+    let scalar = |e: Option<(u16, u32, [u8; 4])>| -> Option<u64> {
+        let (ty, count, v) = e?;
+        if count < 1 {
+            return None;
+        }
+        match ty {
+            3 => Some(u64::from(u16_(&v[0..2]))),
+            4 => Some(u64::from(u32_(&v))),
+            _ => None,
+        }
+    };
+    let width = scalar(tag(256)).ok_or("TIFF without ImageWidth")? as usize;
+    let height = scalar(tag(257)).ok_or("TIFF without ImageLength")? as usize;
+    let bits = scalar(tag(258)).unwrap_or(1);
+    let compression = scalar(tag(259)).unwrap_or(1);
+    let photometric = scalar(tag(262)).unwrap_or(1);
+    let spp = scalar(tag(277)).unwrap_or(1);
+    let rows_per_strip = scalar(tag(278)).unwrap_or(u64::from(u32::MAX));
+    let sample_format = scalar(tag(339)).unwrap_or(1);
+    let predictor = scalar(tag(317)).unwrap_or(1);
+    let tiled = tag(322).is_some();
+    if width == 0 || height == 0 || (width as u64) * (height as u64) > 1 << 28 {
+        return Err(format!("implausible TIFF size {width}×{height}"));
+    }
+    let simple = compression == 1
+        && photometric == 1
+        && spp == 1
+        && (bits == 8 || bits == 16)
+        && sample_format == 1
+        && predictor == 1
+        && !tiled;
+    if !simple {
+        return Ok(None);
+    }
+    let strips = tag(273).ok_or("TIFF without StripOffsets")?;
+    let (ty, count, v) = strips;
+    let rps = rows_per_strip.clamp(1, height as u64) as usize;
+    let need = height.div_ceil(rps);
+    if (count as usize) < need {
+        return Err(format!(
+            "{count} strip offsets for {height} rows of {rps} per strip"
+        ));
+    }
+    let size = match ty {
+        3 => 2,
+        4 => 4,
+        _ => return Err(format!("StripOffsets of TIFF type {ty}")),
+    };
+    if need * size <= 4 {
+        sc.raw.clear();
+        sc.raw.extend_from_slice(&v[..need * size]);
+    } else {
+        let off = u64::from(u32_(&v));
+        if off + (need * size) as u64 > len {
+            return Err("StripOffsets array runs past the end".into());
+        }
+        fetch(file, off, &mut sc.raw, need * size)?;
+    }
+    sc.strips.clear();
+    for c in sc.raw.chunks_exact(size) {
+        sc.strips.push(if size == 2 {
+            u64::from(u16_(c))
+        } else {
+            u64::from(u32_(c))
+        });
+    }
+    let row_bytes = width as u64 * bits / 8;
+    for (i, &o) in sc.strips.iter().enumerate() {
+        let rows = rps.min(height - i * rps) as u64;
+        if o + rows * row_bytes > len {
+            return Err(format!(
+                "strip {i} runs past the end of the file: truncated?"
+            ));
+        }
+    }
+    // Strips back to back: one strip of all rows, read in one call.
+    let strip_bytes = rps as u64 * row_bytes;
+    let contiguous = sc.strips.windows(2).all(|w| w[1] == w[0] + strip_bytes);
+    let rps = if contiguous {
+        sc.strips.truncate(1);
+        height
+    } else {
+        rps
+    };
+    Ok(Some(Probe {
+        width,
+        height,
+        bits: bits as u8,
+        layout: Layout::TiffRaw {
+            big_endian,
+            rows_per_strip: rps,
+        },
+    }))
+}
+
+/// Parse an 8-bit paletted BMP with a grey palette; `Ok(None)` for any
+/// other BMP (decoded generically).
+fn probe_bmp<F: FrameBytes>(
+    file: &mut F,
+    len: u64,
+    sc: &mut Scratch,
+) -> Result<Option<Probe>, String> {
+    let mut h = [0u8; 54];
+    file.read_at(0, &mut h)
+        .map_err(|e| format!("not a BMP (header: {e})"))?;
+    if &h[0..2] != b"BM" {
+        return Err("not a BMP (no \"BM\" magic)".into());
+    }
+    let le32 = |o: usize| u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]);
+    let data_offset = u64::from(le32(10));
+    let dib = le32(14);
+    let width = le32(18) as i32;
+    let height = le32(22) as i32;
+    let bpp = u16::from_le_bytes([h[28], h[29]]);
+    let compression = le32(30);
+    let colours = le32(46);
+    if dib < 40 || bpp != 8 || compression != 0 || width <= 0 || height == 0 {
+        return Ok(None);
+    }
+    let (w, hh) = (width as usize, height.unsigned_abs() as usize);
+    if (w as u64) * (hh as u64) > 1 << 28 {
+        return Err(format!("implausible BMP size {w}×{hh}"));
+    }
+    let n_pal = if colours == 0 {
+        256
+    } else {
+        colours.min(256) as usize
+    };
+    let pal_off = 14 + u64::from(dib);
+    if pal_off + 4 * n_pal as u64 > len {
+        return Err("BMP palette runs past the end".into());
+    }
+    let pal = &mut sc.raw;
+    pal.clear();
+    pal.resize(4 * n_pal, 0);
+    file.read_at(pal_off, pal).map_err(|e| e.to_string())?;
+    // Grey palette: B = G = R for every entry; the value is that grey.
+    sc.palette.clear();
+    sc.palette.resize(256, 0);
+    for (p, c) in sc.palette.iter_mut().zip(pal.chunks_exact(4)) {
+        if c[0] != c[1] || c[1] != c[2] {
+            return Ok(None);
+        }
+        *p = c[0];
+    }
+    let stride = w.div_ceil(4) * 4;
+    if data_offset + (stride * hh) as u64 > len {
+        return Err("BMP pixel data runs past the end: truncated?".into());
+    }
+    Ok(Some(Probe {
+        width: w,
+        height: hh,
+        bits: 8,
+        layout: Layout::Bmp8 {
+            data_offset,
+            stride,
+            top_down: height < 0,
+        },
+    }))
+}

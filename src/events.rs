@@ -92,6 +92,10 @@ pub struct EventConfig {
     /// [t − T/2, t + T/2] = z(t) + z̈(t)·T²/24 + O(T⁴). The peak values are
     /// corrected by that term (0 switches the correction off).
     pub exposure_s: f64,
+    /// The contact-law fit's work limit, in trajectories' worth of steps
+    /// (default [`crate::force::FORCE_FIT_MAX_TRAJECTORIES`]; a clean drop
+    /// needs 113–259). The fit stops beyond it with a reason.
+    pub force_fit_max_trajectories: usize,
 }
 
 impl Default for EventConfig {
@@ -102,6 +106,7 @@ impl Default for EventConfig {
             min_flight_frames: 5,
             peak_fraction: 0.75,
             exposure_s: 0.0,
+            force_fit_max_trajectories: crate::force::FORCE_FIT_MAX_TRAJECTORIES,
         }
     }
 }

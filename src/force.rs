@@ -248,8 +248,9 @@ pub const FORCE_FIT_TIME_LIMIT_S: f64 = 20.0;
 /// contact and up to [`FLIGHT_FRAMES`] flight frames either side, within the
 /// flight fits' frames (a second bounce is left out). `exposure_s` is a
 /// frame's exposure time (0: the frames are instants). The fit stops with
-/// [`ForceFitError::Limit`] after [`FORCE_FIT_MAX_TRAJECTORIES`] or
-/// [`FORCE_FIT_TIME_LIMIT_S`].
+/// [`ForceFitError::Limit`] after `max_trajectories` trajectories' work
+/// (the product's is [`FORCE_FIT_MAX_TRAJECTORIES`], set by
+/// `EventConfig::force_fit_max_trajectories`) or [`FORCE_FIT_TIME_LIMIT_S`].
 pub fn fit_force_law(
     track: &[TrackPoint],
     ev: &Events,
@@ -257,6 +258,7 @@ pub fn fit_force_law(
     sphere: &SphereParams,
     g_m_s2: f64,
     exposure_s: f64,
+    max_trajectories: usize,
 ) -> Result<ForceLaw, ForceFitError> {
     fit_force_law_to(
         track,
@@ -266,7 +268,7 @@ pub fn fit_force_law(
         g_m_s2,
         exposure_s,
         LM_REL_TOL,
-        FORCE_FIT_MAX_TRAJECTORIES,
+        max_trajectories,
     )
 }
 
@@ -572,6 +574,25 @@ fn levenberg_marquardt(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The product's fit: [`fit_force_law`] on the test sphere at g = 9.81
+    /// with the default work limit.
+    fn fit(
+        tr: &[TrackPoint],
+        ev: &Events,
+        geom: &Geometry,
+        exposure_s: f64,
+    ) -> Result<ForceLaw, ForceFitError> {
+        fit_force_law(
+            tr,
+            ev,
+            geom,
+            &sphere(),
+            9.81,
+            exposure_s,
+            FORCE_FIT_MAX_TRAJECTORIES,
+        )
+    }
     use crate::events::{find_events, EventConfig};
     use crate::test_support::{geometry, sphere, track, Drop};
 
@@ -587,7 +608,7 @@ mod tests {
         for (sigma, tol_n, tol_k) in [(0.0, 1e-3, 1e-3), (0.03, 0.05, 0.03)] {
             let tr = track(&drop, &geom, sigma, 7);
             let ev = find_events(&tr, &geom, &EventConfig::default()).unwrap();
-            let f = fit_force_law(&tr, &ev, &geom, &sphere(), 9.81, 0.0).unwrap();
+            let f = fit(&tr, &ev, &geom, 0.0).unwrap();
             assert!((f.n.value - 2.0).abs() < tol_n, "σ={sigma}: n = {:?}", f.n);
             // K with n free carries n's error (δ^Δn): check it against its own σ.
             assert!(
@@ -622,7 +643,7 @@ mod tests {
                 ..truth
             };
             let ev = find_events(&tr, &geom, &EventConfig::default()).unwrap();
-            let f = fit_force_law(&tr, &ev, &geom, &sphere(), 9.81, 0.0).unwrap();
+            let f = fit(&tr, &ev, &geom, 0.0).unwrap();
             let d = f.surface_offset_px.expect("the surface fit converges");
             let miss = d.value + line_error_px;
             assert!(
@@ -647,8 +668,8 @@ mod tests {
             ..EventConfig::default()
         };
         let ev = find_events(&tr, &geom, &cfg).unwrap();
-        let naive = fit_force_law(&tr, &ev, &geom, &sphere(), 9.81, 0.0).unwrap();
-        let averaged = fit_force_law(&tr, &ev, &geom, &sphere(), 9.81, exposure_s).unwrap();
+        let naive = fit(&tr, &ev, &geom, 0.0).unwrap();
+        let averaged = fit(&tr, &ev, &geom, exposure_s).unwrap();
         // Averaged: n within 2e-5 and K(n = 2) within 2e-5 (seen: 2.2e-7 and
         // 1e-7); as instants n came out 1.9977, the −0.002 of the rendered
         // campaign.
@@ -679,11 +700,11 @@ mod tests {
             ..geometry()
         };
         let tr = track(&drop, &exact, 0.03, 5);
-        let fit = |g: &Geometry| {
+        let fit_with = |g: &Geometry| {
             let ev = find_events(&tr, g, &EventConfig::default()).unwrap();
-            fit_force_law(&tr, &ev, g, &sphere(), 9.81, 0.0).unwrap()
+            fit(&tr, &ev, g, 0.0).unwrap()
         };
-        let base = fit(&exact);
+        let base = fit_with(&exact);
         let shift = 0.05;
         let r_mm = exact.radius_px * exact.mm_per_px;
         for (with_error, shifted) in [
@@ -709,7 +730,7 @@ mod tests {
                 },
             ),
         ] {
-            let (e, s) = (fit(&with_error), fit(&shifted));
+            let (e, s) = (fit_with(&with_error), fit_with(&shifted));
             for (b, e, s, what) in [
                 (base.k_at_n2, e.k_at_n2, s.k_at_n2, "K(n = 2)"),
                 (base.n, e.n, s.n, "n"),

@@ -67,7 +67,15 @@ pub fn measure_drop_with(
     }
     let law = match law {
         Some(l) => l.clone(),
-        None => fit_force_law(track, &ev, geom, &sphere, cfg.g_m_s2, cfg.exposure_s),
+        None => fit_force_law(
+            track,
+            &ev,
+            geom,
+            &sphere,
+            cfg.g_m_s2,
+            cfg.exposure_s,
+            cfg.force_fit_max_trajectories,
+        ),
     };
     let table = force_table(
         track,
@@ -388,7 +396,7 @@ mod tests {
     }
 
     #[test]
-    fn a_clean_drop_gives_an_ok_record_with_every_column() {
+    fn a_clean_drop_gives_an_ok_record_with_every_column_and_a_warning_past_the_fit_limit() {
         let drop = Drop::new(4.5e-3, 1.7, 0.4e-4);
         let geom = geometry();
         let tr = track(&drop, &geom, 0.02, 3);
@@ -412,5 +420,26 @@ mod tests {
         let bytes = crate::dataset::to_csv_bytes(std::slice::from_ref(r));
         let text = String::from_utf8(bytes).unwrap();
         assert!(text.lines().nth(1).unwrap().ends_with(",ok,,"), "{text}");
+
+        // The configured work limit reaches the contact-law fit: these fits
+        // need 113–259 trajectories, 20 stop them, and the record says why
+        // (a warning, never ok).
+        let cfg = EventConfig {
+            force_fit_max_trajectories: 20,
+            ..EventConfig::default()
+        };
+        let m = measure_drop(&info, &tr, &geom, &cfg).unwrap();
+        assert_eq!(
+            m.law,
+            Err(ForceFitError::Limit("20 trajectories' work".into()))
+        );
+        assert_eq!(m.record.status, DropStatus::Warning);
+        assert!(
+            m.record
+                .reason
+                .contains("stopped at its limit of 20 trajectories' work"),
+            "{}",
+            m.record.reason
+        );
     }
 }

@@ -245,9 +245,29 @@ pub struct TrackRow {
     /// Contact force F = m (g − z̈) from the smoothed trajectory, in contact only.
     #[serde(default)]
     pub force_n: Option<f64>,
-    /// Space-separated flags (`missing`, `partial`, `recovered`, …); empty when clean.
-    #[serde(default)]
+    /// Space-separated flags (`missing`, `partial`, `recovered`, …); empty
+    /// when clean, written as [`NO_FLAG`].
+    #[serde(default, serialize_with = "flags_out", deserialize_with = "flags_in")]
     pub flags: String,
+}
+
+/// What a track's `flags` column holds for a frame without flags: a word,
+/// never an empty field, so that a reader takes the column as text in every
+/// file (pandas read an all-empty column as float, issue 17 item 8).
+pub const NO_FLAG: &str = "-";
+
+fn flags_out<S: serde::Serializer>(flags: &str, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(if flags.is_empty() { NO_FLAG } else { flags })
+}
+
+/// [`NO_FLAG`] (or an empty field, as written before) reads as no flag.
+fn flags_in<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
+    let text = String::deserialize(d)?;
+    Ok(if text.trim() == NO_FLAG {
+        String::new()
+    } else {
+        text
+    })
 }
 
 /// Why `drops.csv` could not be read or written.

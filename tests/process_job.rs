@@ -345,3 +345,48 @@ fn a_rerun_with_fewer_runs_leaves_no_file_of_the_earlier_job() {
     let drops = dropscope::dataset::read_csv(&out.join("drops.csv")).unwrap();
     assert_eq!(drops.len(), 1);
 }
+
+/// Issue 17 item 8: a track whose frames have no flag wrote an empty
+/// `flags` column, which pandas reads as float (text in the other files).
+/// Every frame's field is now a word — `-` for none — and reads back as no
+/// flag.
+#[test]
+fn the_tracks_flags_column_is_text_in_every_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let manifest = dir.path().join("runs.csv");
+    // R3's frames have no flag at all; R4.5's first ones are `partial`.
+    let runs = ["R3mm_H1.5cm_01", "R4.5mm_H12cm_01"];
+    manifest_of(&manifest, &runs);
+    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .args(["process", "--manifest"])
+        .arg(&manifest)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0));
+    let words = ["-", "partial", "recovered", "missing"];
+    for (run, flagged) in runs.iter().zip([false, true]) {
+        let path = out.join(format!("tracks/{run}.csv"));
+        let mut rdr = csv::Reader::from_path(&path).unwrap();
+        let col = rdr.headers().unwrap().iter().position(|h| h == "flags");
+        let col = col.expect("a flags column");
+        let fields: Vec<String> = rdr.records().map(|r| r.unwrap()[col].to_string()).collect();
+        assert!(!fields.is_empty());
+        for f in &fields {
+            assert!(
+                !f.is_empty() && f.split(' ').all(|w| words.contains(&w)),
+                "{run}: flags {f:?}"
+            );
+        }
+        let rows = dropscope::collapse::diagnostics::read_track(&path).unwrap();
+        assert!(rows.iter().all(|r| r.flags != "-"), "{run}");
+        let any = rows.iter().any(|r| !r.flags.is_empty());
+        assert_eq!(any, flagged, "{run}: {fields:?}");
+        assert!(
+            fields.iter().any(|f| f == "-"),
+            "{run}: no frame without flags"
+        );
+    }
+}

@@ -137,8 +137,18 @@ fn process_draws_the_per_drop_figures_without_a_collapse() {
         let svg = std::fs::read_to_string(out.join(format!("plots/drops/{run}.svg"))).unwrap();
         assert_eq!(dropscope::dataset_id::of_svg(&svg), Some(id.as_str()));
         assert!(svg.contains("penetration"), "{run}");
-        let png = image::open(out.join(format!("plots/drops/{run}.png"))).unwrap();
+        let png = image::open(out.join(format!("plots/drops/{run}.png")))
+            .unwrap()
+            .to_rgb8();
         assert!(png.width() > 1000, "{run}");
+        // Nothing runs off the figure's right edge: the F(δ) legend was
+        // clipped there ("K = 4.04 N" of "K = 4.04 N/mm^n", issue 17).
+        let (w, h) = png.dimensions();
+        let inked = (w - 6..w)
+            .flat_map(|x| (0..h).map(move |y| (x, y)))
+            .filter(|&(x, y)| png.get_pixel(x, y).0.iter().any(|&c| c < 200))
+            .count();
+        assert_eq!(inked, 0, "{run}: {inked} dark pixels at the right edge");
     }
     assert!(!out.join("fits.json").exists(), "process ran a collapse");
     let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))

@@ -83,7 +83,11 @@ where
         &format!("Drop {}: trajectory, penetration, force", d.run),
         ("sans-serif", 24),
     )?;
-    let cols = root.split_evenly((1, 3));
+    // F(δ) gets 40 % of the width: its legend carries the fit's numbers.
+    let (w, _) = root.dim_in_pixel();
+    let (left, force_panel) = root.split_horizontally((f64::from(w) * 0.6) as i32);
+    let mut cols = left.split_evenly((1, 2));
+    cols.push(force_panel);
     let t_range = span(d.rows.iter().map(|r| r.t_s * 1e3));
     let label = ("sans-serif", super::LEGEND_FONT);
     let desc = ("sans-serif", super::DESC_FONT - 4);
@@ -191,9 +195,38 @@ where
         y_all.push(l.model_k_n_per_mm2 * xr[1].powi(2));
         y_all.push(l.k_n_per_mm_pow_n.value * xr[1].max(0.0).powf(l.n.value));
     }
-    let fr = span(y_all.into_iter());
+    // The legend, upper left, in a band kept free above the data and in a
+    // font small enough for its longest line to fit the panel (it ran off
+    // the figure's right edge).
+    let mut labels = vec!["F = m(g − d²z/dt²)".to_string()];
+    if let Some(l) = &d.force_law {
+        let digits = |e: Option<f64>| if e.is_some_and(|e| e < 0.01) { 4 } else { 2 };
+        let p = digits(l.n.stderr);
+        let se = l.n.stderr.map_or(String::new(), |e| format!(" ± {e:.p$}"));
+        labels.push(format!(
+            "fit ({}): n = {:.p$}{se}, K = {} N/mmⁿ",
+            l.source,
+            l.n.value,
+            tick(l.k_n_per_mm_pow_n.value)
+        ));
+        labels.push(format!(
+            "model πEφR/h · δ²: K = {} N/mm²",
+            tick(l.model_k_n_per_mm2)
+        ));
+    }
+    let (panel_w, panel_h) = cols[2].dim_in_pixel();
+    // Plotting area: the panel less its margins (14, and 30 on the right
+    // for the last x tick label at the figure's edge) and label areas.
+    let (plot_w, plot_h) = (
+        f64::from(panel_w) - 70.0 - 44.0,
+        f64::from(panel_h) - 50.0 - 28.0,
+    );
+    let font = legend_font(&cols[2], &labels, plot_w)?;
+    let band = (labels.len() as f64 * 1.3 * f64::from(font) + 24.0) / plot_h;
+    let fr = super::layout::with_band(span(y_all.into_iter()), band, false);
     let mut c = ChartBuilder::on(&cols[2])
         .margin(14)
+        .margin_right(30)
         .x_label_area_size(50)
         .y_label_area_size(70)
         .build_cartesian_2d(xr[0]..xr[1], fr[0]..fr[1])?;
@@ -211,7 +244,7 @@ where
         fs.iter()
             .map(|&p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
     )?
-    .label("F = m(g − d²z/dt²), contact frames")
+    .label(&labels[0])
     .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
     if let Some(l) = &d.force_law {
         let (k, n) = (l.k_n_per_mm_pow_n.value, l.n.value);
@@ -222,24 +255,8 @@ where
                 (x, kk * x.powf(nn))
             })
         };
-        let se = l.n.stderr.map_or(String::new(), |e| {
-            if e < 0.01 {
-                format!(" ± {e:.4}")
-            } else {
-                format!(" ± {e:.2}")
-            }
-        });
         c.draw_series(LineSeries::new(curve(k, n), FIT.stroke_width(2)))?
-            .label(format!(
-                "{} fit: n = {}{se}, K = {} N/mm^n",
-                l.source,
-                if l.n.stderr.is_some_and(|e| e < 0.01) {
-                    format!("{n:.4}")
-                } else {
-                    format!("{n:.2}")
-                },
-                tick(k)
-            ))
+            .label(&labels[1])
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], FIT.stroke_width(2)));
         let km = l.model_k_n_per_mm2;
         c.draw_series(DashedLineSeries::new(
@@ -248,7 +265,7 @@ where
             5,
             RGBColor(90, 90, 90).stroke_width(2),
         ))?
-        .label(format!("model πEφR/h · δ²: K = {} N/mm²", tick(km)))
+        .label(&labels[2])
         .legend(|(x, y)| {
             PathElement::new(
                 vec![(x, y), (x + 20, y)],
@@ -260,9 +277,35 @@ where
         .position(SeriesLabelPosition::UpperLeft)
         .background_style(WHITE.mix(0.9))
         .border_style(RGBColor(120, 120, 120))
-        .label_font(label)
+        .label_font(("sans-serif", font))
         .draw()?;
     Ok(())
+}
+
+/// The legend font size, at most [`super::LEGEND_FONT`] (and at least 12),
+/// at which the longest of `labels`, with the legend's marker and margins,
+/// fits `width_px`.
+fn legend_font<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    labels: &[String],
+    width_px: f64,
+) -> Result<u32, Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    // Marker, gaps and box margins around the text (plotters' series labels).
+    const CHROME_PX: f64 = 60.0;
+    let base = super::LEGEND_FONT;
+    let mut widest = 0.0f64;
+    for l in labels {
+        let (w, _) = area.estimate_text_size(l, &("sans-serif", base).into_text_style(area))?;
+        widest = widest.max(f64::from(w));
+    }
+    let room = 0.97 * width_px - CHROME_PX;
+    if widest <= room {
+        return Ok(base);
+    }
+    Ok(((f64::from(base) * room / widest).floor() as u32).max(12))
 }
 
 /// The diagnostics figure of one drop as `(file name, bytes)`, SVG and PNG.

@@ -46,6 +46,10 @@ pub struct RunArgs {
     /// instead of stopping.
     #[arg(long)]
     pub wait: bool,
+    /// Draw no animated impact (`plots/impacts/<run>.png`, about 0.5 MB a
+    /// drop): the configuration's `output.animation = false`.
+    #[arg(long)]
+    pub no_animation: bool,
 }
 
 /// Why the job could not run (a bad run is a row, not this).

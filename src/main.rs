@@ -133,7 +133,8 @@ fn job_counts(job: &dropscope::batch::JobSummary) -> String {
 
 /// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
 fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
-    let (cfg, name) = load_config(args.config.as_deref())?;
+    let (mut cfg, name) = load_config(args.config.as_deref())?;
+    cfg.output.animation &= !args.no_animation;
     if args.config.is_none() && name == dropscope::config::EMBEDDED_NAME {
         if let Some(m) = cfg.input.manifest.as_ref().filter(|m| !m.exists()) {
             anyhow::bail!(
@@ -203,7 +204,8 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
 /// `dropscope process`: every run in parallel; exit 1 when some runs failed.
 fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Result<ExitCode> {
     use dropscope::dataset::DropStatus;
-    let (cfg, name) = load_config(args.config.as_deref())?;
+    let (mut cfg, name) = load_config(args.config.as_deref())?;
+    cfg.output.animation &= !args.no_animation;
     let runs = match &args.manifest {
         Some(m) => dropscope::manifest::read_manifest(m)?,
         None => dropscope::process::runs_from_inputs(

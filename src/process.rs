@@ -47,6 +47,10 @@ pub struct ProcessArgs {
     /// Worker threads (default: one per core).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
+    /// Draw no animated impact (`plots/impacts/<run>.png`, about 0.5 MB a
+    /// drop): the configuration's `output.animation = false`.
+    #[arg(long)]
+    pub no_animation: bool,
 }
 
 /// The outcome of one run.
@@ -452,6 +456,7 @@ fn measure_run(
         .collect();
     let impact = record
         .t_contact_s
+        .filter(|_| cfg.output.animation)
         .and_then(|t| pictures.impact(t, record.t_rebound_s));
     Ok(RunOutcome {
         record,

@@ -400,3 +400,67 @@ fn the_tracks_flags_column_is_text_in_every_file() {
         );
     }
 }
+
+/// The animated impact can be turned off, by `--no-animation` (process
+/// and the main job) or by `output.animation = false`: no
+/// `plots/impacts/<run>.png` (an earlier job's is removed), the still
+/// overlay as before, and no "▶ impact" link in the report.
+#[test]
+fn the_animation_can_be_turned_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let manifest = dir.path().join("runs.csv");
+    let run = "R4.5mm_H12cm_01";
+    manifest_of(&manifest, &[run]);
+    let impact = format!("plots/impacts/{run}.png");
+    let overlay = format!("plots/overlays/{run}.png");
+    let dropscope = |args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+            .args(args)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        text
+    };
+    let (m, o) = (manifest.to_str().unwrap(), out.to_str().unwrap());
+    dropscope(&["process", "--manifest", m, "--out", o]);
+    assert!(out.join(&impact).is_file());
+    dropscope(&["process", "--manifest", m, "--out", o, "--no-animation"]);
+    assert!(!out.join(&impact).exists(), "--no-animation drew {impact}");
+    assert!(out.join(&overlay).is_file());
+
+    let config = dir.path().join("pipeline.toml");
+    let out2 = dir.path().join("out2");
+    let text = dropscope::config::EMBEDDED_DEFAULT
+        .replace("fixtures/runs.csv", &m.replace('\\', "/"))
+        .replace("animation = true", "animation = false");
+    std::fs::write(&config, text).unwrap();
+    let c = config.to_str().unwrap();
+    let printed = dropscope(&["check-config", "--config", c]);
+    assert!(printed.contains("animation = false"), "{printed}");
+    dropscope(&["run", "--config", c, "--out", out2.to_str().unwrap()]);
+    assert!(
+        !out2.join(&impact).exists(),
+        "animation = false drew {impact}"
+    );
+    assert!(out2.join(&overlay).is_file());
+    let page = std::fs::read_to_string(out2.join("report.html")).unwrap();
+    assert!(
+        !page.contains("plots/impacts/"),
+        "the report links an animation"
+    );
+    let page = {
+        dropscope(&["report", o]);
+        std::fs::read_to_string(out.join("report.html")).unwrap()
+    };
+    assert!(
+        !page.contains("plots/impacts/"),
+        "the report links an animation"
+    );
+}

@@ -1277,6 +1277,49 @@ fn a_folder_holding_a_real_pcc_export_reads_its_xml() {
     }
 }
 
+/// Issue 17 item 8: PCC names a single-image export after its cine, not
+/// numbered (`cam_1.tif`, `12bpp.tif`, beside `cam_1.xml`, `12bpp.xml`).
+/// `cam_1.tif` was read as image 1 with image 1's time and no warning, and
+/// `12bpp.tif` refused. Each is now the XML's FirstImageNo, with that
+/// image's time (equal to the cine's own time stamp of it) and a warning.
+#[test]
+fn a_single_image_pcc_export_is_the_image_its_xml_names() {
+    for (name, number) in [("cam_1", 0), ("12bpp", -100), ("packed_10", 0)] {
+        let dir = tempfile::tempdir().unwrap();
+        for ext in ["tif", "xml"] {
+            let file = format!("{name}.{ext}");
+            std::fs::copy(
+                sample(&format!("cinefiles-jl/{file}")),
+                dir.path().join(&file),
+            )
+            .unwrap();
+        }
+        let src = open_default(dir.path()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let m = src.meta().clone();
+        assert_eq!((m.frame_count, m.first_frame), (1, number), "{name}");
+        assert!(
+            m.details
+                .warnings
+                .iter()
+                .any(|w| w.contains("single-frame PCC export")
+                    && w.contains(&format!("image {number}"))),
+            "{name}: {:?}",
+            m.details.warnings
+        );
+        let cine = open_default(&sample(&format!("cinefiles-jl/{name}.cine"))).unwrap();
+        let c = cine.meta();
+        let at = c.frame_numbers.iter().position(|n| *n == number).unwrap();
+        let t = m.timestamps_s.as_ref().map(|t| t[0]);
+        let t_cine = c.timestamps_s.as_ref().map(|t| t[at]);
+        match (t, t_cine) {
+            (Some(t), Some(tc)) => assert!((t - tc).abs() < 5e-8, "{name}: {t} vs {tc}"),
+            // packed_10's cine carries no time stamps: its frame number's time.
+            (Some(t), None) => assert!((t - number as f64 / m.fps).abs() < 1e-5, "{name}: {t}"),
+            other => panic!("{name}: times {other:?}"),
+        }
+    }
+}
+
 #[test]
 fn reading_into_a_non_contiguous_view_gives_the_same_rows() {
     // The caller's buffer may be a window of a wider array (rows not back to back).

@@ -155,6 +155,13 @@ impl FolderSource {
                 others.push(name.clone());
             }
         }
+        let lone = lone_export(&names, &xmls);
+        if let Some((name, stem, kind)) = &lone {
+            // Its number comes from the XML below; the name is not parsed.
+            groups.clear();
+            groups.insert((stem.clone(), *kind), vec![(0, name.clone())]);
+            others.retain(|o| o != name);
+        }
         let Some(best) = groups.values().map(Vec::len).max() else {
             let has_folders = std::fs::read_dir(dir)
                 .is_ok_and(|entries| entries.flatten().any(|e| e.path().is_dir()));
@@ -219,8 +226,14 @@ impl FolderSource {
             ));
         }
         let files: Vec<PathBuf> = frames.iter().map(|(_, n)| dir.join(n)).collect();
-        let frame_numbers: Vec<i64> = frames.iter().map(|(n, _)| *n).collect();
+        let mut frame_numbers: Vec<i64> = frames.iter().map(|(n, _)| *n).collect();
         let gaps = gaps_of(&frame_numbers);
+        if let ([(n, name)], None) = (frames.as_slice(), &lone) {
+            warnings.push(format!(
+                "one frame file only, {name}: its image number {n} is read from its name \
+                 (no PCC side file named like it to say which image it is)"
+            ));
+        }
 
         // Every header: same size and depth as the first frame.
         // Headers only: opening must not read the movie.
@@ -287,6 +300,27 @@ impl FolderSource {
             Some(b) if (1..=first.bits).contains(&b) => b,
             _ => first.bits,
         };
+        if let Some((name, stem, _)) = &lone {
+            let from_xml = xml.as_ref().and_then(|x| {
+                x.first_image_no
+                    .map(|n| (n, "FirstImageNo"))
+                    .or_else(|| x.times.first().map(|t| (t.0, "first time stamp")))
+            });
+            let in_name = parse_frame_name(name).map(|(_, n, _)| n);
+            let (number, why) = match (from_xml, in_name) {
+                (Some((n, field)), Some(m)) if m != n => {
+                    (n, format!("the XML's {field}, not the {m} in its name"))
+                }
+                (Some((n, field)), _) => (n, format!("the XML's {field}")),
+                (None, Some(m)) => (m, "the number in its name: the XML says none".into()),
+                (None, None) => (0, "0: neither its name nor the XML says which".into()),
+            };
+            frame_numbers[0] = number;
+            warnings.push(format!(
+                "{name} is a single-frame PCC export (named like its side file {stem}.xml, \
+                 not numbered): read as image {number}, {why}"
+            ));
+        }
         let timestamps_s = xml
             .as_ref()
             .and_then(|x| per_frame(&x.times, &frame_numbers));
@@ -375,6 +409,29 @@ impl FolderSource {
     pub fn files(&self) -> &[PathBuf] {
         &self.files
     }
+}
+
+/// The folder's only image when an XML side file is named like it
+/// (`cam_1.tif` beside `cam_1.xml`, `12bpp.tif` beside `12bpp.xml`): PCC's
+/// export of a single image, named after its cine rather than numbered, so
+/// that a number at the end of its name (the 1 of `cam_1`) is no image
+/// number. Returns (file name, stem, kind).
+fn lone_export(names: &[String], xmls: &[String]) -> Option<(String, String, ImageKind)> {
+    let split = |n: &str| {
+        n.rsplit_once('.')
+            .map(|(a, b)| (a.to_string(), b.to_string()))
+    };
+    let mut images = names.iter().filter_map(|n| {
+        let (stem, ext) = split(n)?;
+        Some((n.clone(), stem, ImageKind::from_extension(&ext)?))
+    });
+    let only = images.next()?;
+    if images.next().is_some() {
+        return None;
+    }
+    xmls.iter()
+        .any(|x| split(x).is_some_and(|(stem, _)| stem == only.1))
+        .then_some(only)
 }
 
 /// Missing numbers between consecutive present ones, as inclusive ranges.

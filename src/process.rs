@@ -385,7 +385,7 @@ fn measure_run(
     record.surface_law_offset_px = law_offset.map(|d| d.value);
     record.surface_law_offset_px_err = law_offset.map(|d| d.err);
     widen_a_max_err(&mut record, &geom, edge_offset.map_or(0.0, |(_, e)| e));
-    widen_speed_err(&mut record, &sc);
+    speeds_at_the_impact_scale(&mut record, &sc);
     record.setup = run.setup.clone().unwrap_or_default();
     record.drop_height_cm = run.drop_height_cm;
     record.path = run.path.display().to_string();
@@ -531,26 +531,34 @@ fn track_points(
         .collect()
 }
 
-/// With a given scale, the speeds (px/s at the contact times s) also carry
-/// the image's magnification at the contact relative to the given scale,
-/// which lens distortion moves and which is not corrected: the free-fall
-/// scale, measured on the same pixels over the flight, shows it, so their
-/// relative difference (beyond its own error) is added to the speeds'
-/// errors. On the real preset with the true scale given, v_impact was
-/// 0.03 % high (barrel distortion) with bars covering 11 of 60 drops.
-fn widen_speed_err(record: &mut DropRecord, sc: &crate::scale::Scale) {
+/// With a given scale, the speeds use [`crate::scale::Scale::for_speeds`]:
+/// the magnification at the impact that free fall measures, where it is
+/// precise and disagrees with the given one. Where free fall is too
+/// imprecise to be used (one drop's own flight), its disagreement beyond
+/// its error is still added to the speeds' errors, since the given scale
+/// need not be the magnification at the impact. On the real preset with
+/// the true scale given, v_impact was 0.03 % high (barrel distortion) with
+/// the given scale alone.
+fn speeds_at_the_impact_scale(record: &mut DropRecord, sc: &crate::scale::Scale) {
     let (crate::scale::ScaleSource::Given, Some((ff, ff_err))) =
         (sc.source, sc.free_fall_mm_per_px)
     else {
         return;
     };
-    let rel = ((ff / sc.mm_per_px - 1.0).abs() - ff_err / ff).max(0.0);
+    let (factor, rel) = match sc.for_speeds() {
+        Some((s, rel)) => (s / sc.mm_per_px, rel),
+        None => (
+            1.0,
+            ((ff / sc.mm_per_px - 1.0).abs() - ff_err / ff).max(0.0),
+        ),
+    };
     for (v, err) in [
-        (record.v_impact_m_s, &mut record.v_impact_m_s_err),
-        (record.v_rebound_m_s, &mut record.v_rebound_m_s_err),
+        (&mut record.v_impact_m_s, &mut record.v_impact_m_s_err),
+        (&mut record.v_rebound_m_s, &mut record.v_rebound_m_s_err),
     ] {
-        if let (Some(v), Some(e)) = (v, err.as_mut()) {
-            *e = e.hypot(v.abs() * rel);
+        if let (Some(v), Some(e)) = (v.as_mut(), err.as_mut()) {
+            *v *= factor;
+            *e = (*e * factor).hypot(v.abs() * rel);
         }
     }
 }

@@ -2,7 +2,9 @@
 //!
 //! In order of preference:
 //! 1. **given** — the manifest's `mm_per_px`, else `camera.mm_per_px`
-//!    (a calibration target); taken as exact;
+//!    (a calibration target); taken as exact for lengths; the speeds take
+//!    precise free fall's magnification where it disagrees
+//!    ([`Scale::for_speeds`]: lens distortion);
 //! 2. **setup free fall** — the frame rate is exact, so the curvature of the
 //!    free flight in px/s² against g gives s = g / z̈_px; runs that the
 //!    manifest's `setup` column puts on one camera set-up share one scale,
@@ -54,6 +56,19 @@ impl ScaleSource {
         }
     }
 }
+
+/// How many of free fall's σ a given scale must be off before the speeds
+/// take free fall's magnification into account ([`Scale::for_speeds`]); the
+/// same three σ beyond which the run warns of a scale disagreement.
+pub const SPEED_SCALE_SIGNIFICANCE: f64 = 3.0;
+
+/// The largest relative error of free fall's scale that [`Scale::for_speeds`]
+/// uses against a given scale: lens distortion moves the magnification at
+/// the impact by a few 1e-4, which a less precise free fall cannot resolve
+/// (one drop's own flight is 0.2–2 % precise, a set-up's pool of ten
+/// 0.01–0.03 %); a grosser disagreement is warned of and the given scale
+/// kept.
+pub const SPEED_SCALE_MAX_REL_ERR: f64 = 1e-3;
 
 /// The free flight's curvature z̈ (px/s²) with its one-sigma error.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -210,6 +225,42 @@ impl Scale {
                 (r, r * self.rel_err)
             }
         }
+    }
+
+    /// The scale for the speeds at the contact, mm/px, and its relative
+    /// one-sigma error, when it is not [`Scale::mm_per_px`] taken as exact.
+    ///
+    /// A speed is a velocity in px/s at the point of impact, so it needs the
+    /// magnification there. A given scale is a nominal one (a calibration
+    /// target, somewhere in the field); lens distortion moves the magnification
+    /// at the impact by a few 1e-4, and the centre of a distorted disc moves
+    /// faster still than the distortion of one point. The free flight
+    /// measures the magnification on the same pixels, against gravity and
+    /// the exact frame rate. So when both exist, the given scale carries
+    /// their disagreement beyond the free fall's error as a systematic
+    /// (σ² = d² − σ_ff², the way inconsistent measurements are combined) and
+    /// the two are averaged with inverse-variance weights: the given scale
+    /// stands where free fall agrees with it or is imprecise, free fall takes
+    /// over where it is precise and disagrees. A disagreement within
+    /// [`SPEED_SCALE_SIGNIFICANCE`] of free fall's σ is no evidence, and a
+    /// free fall less precise than [`SPEED_SCALE_MAX_REL_ERR`] cannot see
+    /// what distortion does. `None`: the speeds use `mm_per_px` (no given
+    /// scale, no precise free fall, or no significant disagreement).
+    pub fn for_speeds(&self) -> Option<(f64, f64)> {
+        let (ScaleSource::Given, Some((ff, ff_err))) = (self.source, self.free_fall_mm_per_px)
+        else {
+            return None;
+        };
+        let given = self.mm_per_px;
+        let d = ff - given;
+        let precise = ff_err > 0.0 && ff_err < SPEED_SCALE_MAX_REL_ERR * ff;
+        if !(precise && d.abs() > SPEED_SCALE_SIGNIFICANCE * ff_err) {
+            return None;
+        }
+        let systematic_sq = d * d - ff_err * ff_err;
+        let (w_given, w_ff) = (1.0 / systematic_sq, 1.0 / (ff_err * ff_err));
+        let s = (w_given * given + w_ff * ff) / (w_given + w_ff);
+        Some((s, (w_given + w_ff).sqrt().recip() / s))
     }
 
     /// Apparent minus true radius (px) and its error; `None` when the
@@ -388,5 +439,38 @@ mod tests {
         });
         let w = s.warning.unwrap();
         assert!(w.contains("0.0603") && w.contains("free fall"), "{w}");
+    }
+
+    #[test]
+    fn speeds_take_free_fall_where_it_is_precise_and_disagrees_with_a_given_scale() {
+        let scale = |given: f64, ff: Option<(f64, f64)>| Scale {
+            mm_per_px: given,
+            rel_err: 0.0,
+            source: ScaleSource::Given,
+            free_fall_mm_per_px: ff,
+            warning: None,
+        };
+        // Agreement within free fall's error: the given scale stands.
+        assert_eq!(scale(0.06, Some((0.06001, 0.00002))).for_speeds(), None);
+        // Free fall 20 σ off: the given scale's systematic is √(d² − σ²),
+        // and the weighted mean sits near free fall.
+        let (ff, ff_err) = (0.0602, 0.00001);
+        let (s, rel) = scale(0.06, Some((ff, ff_err))).for_speeds().unwrap();
+        let sys_sq = 0.0002f64.powi(2) - ff_err * ff_err;
+        let w = (1.0 / sys_sq, 1.0 / (ff_err * ff_err));
+        let want = (w.0 * 0.06 + w.1 * ff) / (w.0 + w.1);
+        assert!((s - want).abs() < 1e-15, "{s} {want}");
+        assert!((s - ff).abs() < 0.01 * 0.0002, "{s}");
+        assert!((rel * s - (w.0 + w.1).sqrt().recip()).abs() < 1e-15);
+        // Beyond 3 σ only, and free fall precise to 0.1 % (a 5 % error
+        // 5 σ off is a wrong scale or frame rate, warned of, not averaged)...
+        assert_eq!(scale(0.06, Some((0.06008, 0.00003))).for_speeds(), None);
+        assert!(scale(0.06, Some((0.06010, 0.00003))).for_speeds().is_some());
+        assert_eq!(scale(0.06, Some((0.063, 0.0006))).for_speeds(), None);
+        // ...and scales that are not given are not touched.
+        let mut sc = scale(0.06, Some((0.0602, 0.00001)));
+        sc.source = ScaleSource::SetupFreeFall;
+        assert_eq!(sc.for_speeds(), None);
+        assert_eq!(scale(0.06, None).for_speeds(), None);
     }
 }

@@ -342,7 +342,9 @@ fn plots_are_valid_svg_and_png_showing_every_point() {
     let plots = ["pi_vs_eta", "tau_vs_v", "psi_vs_xi", "omega_vs_xi"];
     for name in plots {
         // SVG: well-formed XML; each point is one marker of its radius's
-        // colour, plus one in the legend: 12 + 1 blue circles, 9 + 1 red squares.
+        // colour, plus one in the legend, plus one in the residual panel
+        // under the fit (every radius has its power law, Ψ and Ω their
+        // series): 12 + 1 + 12 blue circles, 9 + 1 + 9 red squares.
         let text = std::fs::read_to_string(out.join(format!("plots/{name}.svg"))).unwrap();
         let doc = roxmltree::Document::parse(&text).unwrap_or_else(|e| panic!("{name}.svg: {e}"));
         let count = |tag: &str, fill: &str| {
@@ -350,8 +352,9 @@ fn plots_are_valid_svg_and_png_showing_every_point() {
                 .filter(|n| n.has_tag_name(tag) && n.attribute("fill") == Some(fill))
                 .count()
         };
-        assert_eq!(count("circle", "#0000E6"), 13, "{name}: blue circles");
-        assert_eq!(count("polygon", "#DC0000"), 10, "{name}: red squares");
+        assert_eq!(count("circle", "#0000E6"), 25, "{name}: blue circles");
+        assert_eq!(count("polygon", "#DC0000"), 19, "{name}: red squares");
+        assert!(text.contains("fit"), "{name}: the residual panel's axis");
         assert!(
             text.contains("R = 3 mm") && text.contains("R = 7 mm"),
             "{name}: legend"
@@ -361,7 +364,7 @@ fn plots_are_valid_svg_and_png_showing_every_point() {
         let img = image::open(out.join(format!("plots/{name}.png")))
             .unwrap_or_else(|e| panic!("{name}.png: {e}"))
             .to_rgb8();
-        assert_eq!(img.dimensions(), (1100, 800));
+        assert_eq!(img.dimensions(), (1100, 1040));
         let mut colours = std::collections::BTreeSet::new();
         for p in img.pixels() {
             colours.insert(p.0);
@@ -376,7 +379,9 @@ fn plots_are_valid_svg_and_png_showing_every_point() {
         // drawn in lighter shades, so only markers and their error bars
         // count). In Ψ(Ξ) and Ω(Ξ) this data set's R = 7 mm points overlap.
         if !name.ends_with("_xi") {
-            count_blobs(&img, name);
+            // The fit's panel ends above row 740 (in the residual panel
+            // under it, points of both radii overlap).
+            count_blobs(&img, name, 0..740, [13, 10]);
         }
     }
     // The per-drop figure exists for the one drop with a track, and its
@@ -518,10 +523,12 @@ fn failed_rows_are_skipped_counted_and_exit_1() {
     );
 }
 
-fn count_blobs(img: &image::RgbImage, name: &str) {
-    for (rgb, want) in [([0u8, 0, 230], 13), ([220, 0, 0], 10)] {
-        let mask = image::GrayImage::from_fn(1100, 800, |x, y| {
-            image::Luma([if img.get_pixel(x, y).0 == rgb { 255 } else { 0 }])
+/// Blobs of blue and red marker pixels in the rows `rows` of `img`.
+fn count_blobs(img: &image::RgbImage, name: &str, rows: std::ops::Range<u32>, want: [u32; 2]) {
+    for (rgb, want) in [([0u8, 0, 230], want[0]), ([220, 0, 0], want[1])] {
+        let mask = image::GrayImage::from_fn(img.width(), img.height(), |x, y| {
+            let on = rows.contains(&y) && img.get_pixel(x, y).0 == rgb;
+            image::Luma([if on { 255 } else { 0 }])
         });
         let labels = imageproc::region_labelling::connected_components(
             &mask,

@@ -204,11 +204,11 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
         .collect();
     assert_eq!(rects.len(), 4, "{rects:?}");
     for [_, _, w, h] in &rects {
-        // Drawn 1100 × 800 and scaled to the column: the aspect ratio is kept.
+        // Drawn 1100 × 1040 and scaled to the column: the aspect ratio is kept.
         assert!(*w >= 400, "a plot only {w} px wide");
         let aspect = f64::from(*w) / f64::from(*h);
         assert!(
-            (aspect / (1100.0 / 800.0) - 1.0).abs() < 0.02,
+            (aspect / (1100.0 / 1040.0) - 1.0).abs() < 0.02,
             "aspect {aspect}"
         );
     }

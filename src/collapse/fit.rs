@@ -91,6 +91,14 @@ pub struct SeriesFit {
     pub extrapolated_from_xi: Option<f64>,
 }
 
+impl SeriesFit {
+    /// The series at Ξ = `xi`: c1 + c2 Ξ + c3 Ξ².
+    pub fn eval(&self, xi: f64) -> f64 {
+        let c = &self.coef;
+        c[0].value + xi * (c[1].value + xi * c[2].value)
+    }
+}
+
 /// Whether a fit over `xi_range` reaches Ξ = 0's side: 0 no farther from
 /// the data than their own span (the plots dash the series to 0 only then).
 pub fn reaches_zero(xi_range: [f64; 2]) -> bool {

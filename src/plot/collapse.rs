@@ -5,13 +5,14 @@
 //! constants). Error bars are the first-order one-sigma errors of collapse.csv.
 
 use plotters::coord::combinators::{BindKeyPoints, LogCoord, WithKeyPoints};
-use plotters::coord::ranged1d::ValueFormatter;
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::collections::BTreeMap;
 
 use super::layout::{
-    free_corner, guide_lines, legend_box, log_ticks, normalised, range, with_band, Guide, Pt,
+    free_corner, guide_lines, legend_box, log_ticks, normalised, range, residual_range, residuals,
+    with_band, Guide, Pt,
 };
 use super::marker::{radius_style, Marker, MarkerKind};
 use super::{
@@ -22,7 +23,11 @@ use crate::collapse::groups::{DropGroups, Quantity};
 use crate::collapse::CollapseError;
 
 /// Size of every collapse figure, in pixels (SVG user units).
-pub const FIGURE_SIZE: (u32, u32) = (1100, 800);
+pub const FIGURE_SIZE: (u32, u32) = (1100, 1040);
+/// Share of a figure's height (below its title) taken by the fit; the
+/// residual panel under it has the rest. Without a fit, the figure is all
+/// points.
+pub const FIT_SHARE: f64 = 0.72;
 const MARKER: i32 = 5;
 
 /// Drops of one sphere radius with its plotting style and exponent fit.
@@ -129,18 +134,7 @@ where
             ),
         );
     }
-    let bar = set.color.stroke_width(1);
-    let clamp = |v: f64, e: f64| if log { (v - e).max(v * 0.5) } else { v - e };
-    let mut bars = Vec::new();
-    for &(x, y, ex, ey) in points {
-        if let Some(e) = ey.filter(|e| *e > 0.0) {
-            bars.push(PathElement::new(vec![(x, clamp(y, e)), (x, y + e)], bar));
-        }
-        if let Some(e) = ex.filter(|e| *e > 0.0) {
-            bars.push(PathElement::new(vec![(clamp(x, e), y), (x + e, y)], bar));
-        }
-    }
-    chart.draw_series(bars)?;
+    draw_bars(chart, set, points, log)?;
     let (kind, color) = (set.kind, set.color);
     chart
         .draw_series(
@@ -153,12 +147,102 @@ where
     Ok(())
 }
 
+/// The one-sigma error bars of `points` in the colour of `set` (on a log
+/// axis the lower end stays positive).
+fn draw_bars<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    set: &RadiusSet,
+    points: &[Pt],
+    log: bool,
+) -> DrawResult
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    let bar = set.color.stroke_width(1);
+    let clamp = |v: f64, e: f64| if log { (v - e).max(v * 0.5) } else { v - e };
+    let mut bars = Vec::new();
+    for &(x, y, ex, ey) in points {
+        if let Some(e) = ey.filter(|e| *e > 0.0) {
+            bars.push(PathElement::new(vec![(x, clamp(y, e)), (x, y + e)], bar));
+        }
+        if let Some(e) = ex.filter(|e| *e > 0.0) {
+            bars.push(PathElement::new(vec![(clamp(x, e), y), (x + e, y)], bar));
+        }
+    }
+    chart.draw_series(bars)?;
+    Ok(())
+}
+
+/// The fit's area and, when some points have a fit, the residual panel
+/// under it.
+type Panels<DB> = (DrawingArea<DB, Shift>, Option<DrawingArea<DB, Shift>>);
+
+fn fit_and_residuals<DB: DrawingBackend>(
+    area: DrawingArea<DB, Shift>,
+    res: &[Vec<Pt>],
+) -> Panels<DB> {
+    if res.iter().all(Vec::is_empty) {
+        return (area, None);
+    }
+    let h = f64::from(area.dim_in_pixel().1);
+    let (top, bottom) = area.split_vertically((h * FIT_SHARE) as i32);
+    (top, Some(bottom))
+}
+
+/// The residual panel under a fit: each point's residual from its fit
+/// (`res[i]` for `sets[i]`) with its error bar, in its radius's colour and
+/// marker, about a zero line; the x axis is the fit's (`x`, spanning `xr`).
+#[allow(clippy::too_many_arguments)]
+fn residual_panel<DB, X>(
+    area: &DrawingArea<DB, Shift>,
+    x: X,
+    xr: [f64; 2],
+    x_desc: &str,
+    fx: &dyn Fn(&f64) -> String,
+    y_desc: &str,
+    sets: &[RadiusSet],
+    res: &[Vec<Pt>],
+) -> DrawResult
+where
+    DB: DrawingBackend,
+    DB::ErrorType: 'static,
+    X: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+{
+    let yr = residual_range(&res.concat());
+    let mut chart = ChartBuilder::on(area)
+        .margin(18)
+        .margin_top(4)
+        .x_label_area_size(80)
+        .y_label_area_size(110)
+        .build_cartesian_2d(x, yr[0]..yr[1])?;
+    // Five y labels in the short panel (plotters' ten crowd it).
+    let fy = |v: &f64| axis_tick(*v, yr[1] - yr[0]);
+    mesh(&mut chart, x_desc, y_desc, fx, &fy, 5)?;
+    chart.draw_series(LineSeries::new(
+        vec![(xr[0], 0.0), (xr[1], 0.0)],
+        BLACK.stroke_width(1),
+    ))?;
+    for (set, r) in sets.iter().zip(res) {
+        draw_bars(&mut chart, set, r, false)?;
+        let (kind, color) = (set.kind, set.color);
+        chart.draw_series(
+            r.iter()
+                .map(|&(x, y, _, _)| Marker::new((x, y), kind, color, MARKER)),
+        )?;
+    }
+    Ok(())
+}
+
 fn mesh<'a, DB, X, Y>(
     chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
     x_desc: &str,
     y_desc: &str,
     fx: &dyn Fn(&X::ValueType) -> String,
     fy: &dyn Fn(&Y::ValueType) -> String,
+    y_labels: usize,
 ) -> DrawResult
 where
     DB: DrawingBackend + 'a,
@@ -174,6 +258,7 @@ where
         .label_style(("sans-serif", TICK_FONT))
         .x_label_formatter(fx)
         .y_label_formatter(fy)
+        .y_labels(y_labels)
         .light_line_style(RGBColor(235, 235, 235))
         .bold_line_style(RGBColor(200, 200, 200))
         .max_light_lines(LIGHT_LINES)
@@ -265,26 +350,25 @@ fn log_log_chart<'a, DB: DrawingBackend + 'a>(
     area: &DrawingArea<DB, Shift>,
     xr: [f64; 2],
     yr: [f64; 2],
+    x_label_px: u32,
 ) -> Result<ChartContext<'a, DB, Cartesian2d<LogAxis, LogAxis>>, Box<dyn std::error::Error>>
 where
     DB::ErrorType: 'static,
 {
-    let (xm, xl) = log_ticks(xr[0], xr[1]);
-    let (ym, yl) = log_ticks(yr[0], yr[1]);
     Ok(ChartBuilder::on(area)
         .margin(18)
-        .x_label_area_size(80)
+        .x_label_area_size(x_label_px)
         .y_label_area_size(110)
-        .build_cartesian_2d(
-            (xr[0]..xr[1])
-                .log_scale()
-                .with_key_points(xm)
-                .with_light_points(xl),
-            (yr[0]..yr[1])
-                .log_scale()
-                .with_key_points(ym)
-                .with_light_points(yl),
-        )?)
+        .build_cartesian_2d(log_axis(xr), log_axis(yr))?)
+}
+
+/// A log axis over `r` with ticks from [`log_ticks`].
+fn log_axis(r: [f64; 2]) -> LogAxis {
+    let (major, minor) = log_ticks(r[0], r[1]);
+    (r[0]..r[1])
+        .log_scale()
+        .with_key_points(major)
+        .with_light_points(minor)
 }
 
 /// Fitted power law y = scale · exp(b) x^k over the x range of `p`.
@@ -351,6 +435,16 @@ where
     if all.is_empty() {
         return no_data(&area);
     }
+    let res: Vec<Vec<Pt>> = spec
+        .pts
+        .iter()
+        .zip(&spec.lines)
+        .map(|(p, line)| match line {
+            Some((k, b, scale)) => residuals(p, &|x| scale * (b + k * x.ln()).exp(), true),
+            None => Vec::new(),
+        })
+        .collect();
+    let (area, below) = fit_and_residuals(area, &res);
     let (xr, yr) = range(&all, true, &[]);
     let mut yr = [yr[0], yr[1] * (yr[1] / yr[0]).powf(spec.headroom)];
     let lbox = legend_box(&spec.labels);
@@ -369,10 +463,20 @@ where
             spec.legend_corners[2].clone()
         }
     };
-    let mut chart = log_log_chart(&area, xr, yr)?;
-    mesh(&mut chart, spec.x_desc, spec.y_desc, &|v| tick(*v), &|v| {
-        tick(*v)
-    })?;
+    // With a residual panel, the x axis is named under it.
+    let (x_desc, x_label_px) = match below {
+        Some(_) => ("", 50),
+        None => (spec.x_desc, 80),
+    };
+    let mut chart = log_log_chart(&area, xr, yr, x_label_px)?;
+    mesh(
+        &mut chart,
+        x_desc,
+        spec.y_desc,
+        &|v| tick(*v),
+        &|v| tick(*v),
+        10,
+    )?;
     // Lines first, markers last, so that no line hides a point.
     for ((set, p), line) in sets.iter().zip(&spec.pts).zip(&spec.lines) {
         if let Some(l) = line {
@@ -394,6 +498,21 @@ where
         }
     }
     legend(&mut chart, corner)?;
+    if let Some(below) = below {
+        residual_panel(
+            &below,
+            log_axis(xr),
+            xr,
+            spec.x_desc,
+            &|v| tick(*v),
+            &format!(
+                "{} / fit − 1 (%)",
+                spec.axes[1].split(" (").next().unwrap_or_default()
+            ),
+            sets,
+            &res,
+        )?;
+    }
     Ok(())
 }
 
@@ -551,14 +670,21 @@ where
     if all.is_empty() {
         return no_data(&area);
     }
+    let res: Vec<Vec<Pt>> = pts
+        .iter()
+        .map(|p| match series {
+            Some(s) => residuals(p, &|x| s.eval(x), false),
+            None => Vec::new(),
+        })
+        .collect();
+    let (area, below) = fit_and_residuals(area, &res);
     // The fitted series over the data, and its extrapolation to Ξ = 0, where
     // it is to be compared with the theory constant (A1 vs 2^(1/3), B1 vs C0).
     let poly = |s: &SeriesFit, lo: f64, hi: f64| -> Vec<(f64, f64)> {
         (0..=60)
             .map(|i| {
                 let x = lo + (hi - lo) * i as f64 / 60.0;
-                let c = &s.coef;
-                (x, c[0].value + c[1].value * x + c[2].value * x * x)
+                (x, s.eval(x))
             })
             .collect()
     };
@@ -674,18 +800,26 @@ where
                 .color(&RGBColor(200, 0, 0)),
         ))?;
     }
+    const XI_DESC: &str = "Ξ = ξ φ^(1/6) κ^(−1/6) η^(−1/6)";
+    // With a residual panel, the x axis is named under it.
+    let (x_desc, x_label_px) = match below {
+        Some(_) => ("", 50),
+        None => (XI_DESC, 80),
+    };
     let mut chart = ChartBuilder::on(&area)
         .margin(18)
         .margin_top(18 + 28 * alarms.len() as u32)
-        .x_label_area_size(80)
+        .x_label_area_size(x_label_px)
         .y_label_area_size(110)
         .build_cartesian_2d(xr[0]..xr[1], yr[0]..yr[1])?;
+    let fx = |v: &f64| axis_tick(*v, xr[1] - xr[0]);
     mesh(
         &mut chart,
-        "Ξ = ξ φ^(1/6) κ^(−1/6) η^(−1/6)",
+        x_desc,
         y_desc,
-        &|v| axis_tick(*v, xr[1] - xr[0]),
+        &fx,
         &|v| axis_tick(*v, yr[1] - yr[0]),
+        10,
     )?;
     chart
         .draw_series(DashedLineSeries::new(
@@ -727,6 +861,18 @@ where
         }
     }
     legend(&mut chart, corner)?;
+    if let Some(below) = below {
+        residual_panel(
+            &below,
+            xr[0]..xr[1],
+            xr,
+            XI_DESC,
+            &fx,
+            &format!("{y_desc} − fit"),
+            sets,
+            &res,
+        )?;
+    }
     Ok(())
 }
 

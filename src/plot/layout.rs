@@ -199,9 +199,68 @@ pub(super) fn with_band(yr: [f64; 2], h: f64, log: bool) -> [f64; 2] {
     }
 }
 
+/// Residuals of `points` from a fitted curve `fit`: `(x, y − fit(x), −,
+/// σy)`, or with `relative` (log axes) `(x, 100·(y/fit(x) − 1), −,
+/// 100·σy/fit(x))` in percent. Points where the fit is not finite (or, for
+/// `relative`, not positive) are left out.
+pub(super) fn residuals(points: &[Pt], fit: &dyn Fn(f64) -> f64, relative: bool) -> Vec<Pt> {
+    points
+        .iter()
+        .filter_map(|&(x, y, _, ey)| {
+            let f = fit(x);
+            if !f.is_finite() || (relative && f <= 0.0) {
+                return None;
+            }
+            Some(if relative {
+                (x, 100.0 * (y / f - 1.0), None, ey.map(|e| 100.0 * e / f))
+            } else {
+                (x, y - f, None, ey)
+            })
+        })
+        .collect()
+}
+
+/// A y range symmetric about 0 holding every residual with its error bar,
+/// 15 % to spare; [−1, 1] when there is nothing to show.
+pub(super) fn residual_range(res: &[Pt]) -> [f64; 2] {
+    let m = res
+        .iter()
+        .map(|&(_, r, _, e)| r.abs() + e.unwrap_or(0.0))
+        .fold(0.0, f64::max);
+    let m = if m.is_finite() && m > 0.0 {
+        1.15 * m
+    } else {
+        1.0
+    };
+    [-m, m]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn residuals_are_taken_from_the_fit_with_the_points_errors() {
+        let pts: Vec<Pt> = vec![
+            (1.0, 2.0, Some(0.1), Some(0.2)),
+            (2.0, 4.4, None, Some(0.4)),
+            (3.0, 5.7, None, None),
+        ];
+        let line = |x: f64| 2.0 * x;
+        let r = residuals(&pts, &line, false);
+        let want = [(0.0, Some(0.2)), (0.4, Some(0.4)), (-0.3, None)];
+        for (got, (res, err)) in r.iter().zip(want) {
+            assert!((got.1 - res).abs() < 1e-12, "{r:?}");
+            assert_eq!(got.3, err);
+        }
+        // Relative, in percent: 10 % above the fit, its 0.4 as 10 %.
+        let r = residuals(&pts, &line, true);
+        assert!((r[1].1 - 10.0).abs() < 1e-9 && (r[1].3.unwrap() - 10.0).abs() < 1e-9);
+        // A fit that is not positive has no relative residual.
+        assert!(residuals(&pts, &|x| x - 2.0, true).len() == 1);
+        let [lo, hi] = residual_range(&residuals(&pts, &line, false));
+        assert!((hi - 1.15 * 0.8).abs() < 1e-12 && lo == -hi);
+    }
 
     #[test]
     fn log_ticks_are_round_numbers_inside_the_range() {

@@ -243,7 +243,8 @@ pub const LAW_SURFACE_SYSTEMATIC_PX: f64 = 0.05;
 /// model's reading of the band's top, which a glossy strip or a bright top
 /// row moves by up to 2 px without its model error showing it. So: when the
 /// two disagree beyond 3σ of their combined error the law's is taken;
-/// otherwise the two are averaged by their weights.
+/// otherwise the two are averaged by their weights, the mean's error scaled
+/// by √χ² of their disagreement when above 1.
 pub fn surface_from_law(law: &ForceLaw, image_err_px: f64) -> Option<(f64, f64, &'static str)> {
     let d = law.surface_offset_px?;
     if !(d.value.is_finite() && d.err.is_finite() && d.err > 0.0) {
@@ -254,10 +255,13 @@ pub fn surface_from_law(law: &ForceLaw, image_err_px: f64) -> Option<(f64, f64, 
     if d.value.abs() > 3.0 * law_err.hypot(image_err) {
         return Some((d.value, law_err, "contact_law"));
     }
+    // The mean's error grows by √χ² when the two scatter more than their
+    // errors say (the scale factor of inconsistent measurements).
     let (wi, wl) = (image_err.powi(-2), law_err.powi(-2));
+    let chi2 = d.value.powi(2) / (law_err.powi(2) + image_err.powi(2));
     Some((
         d.value * wl / (wi + wl),
-        (wi + wl).powf(-0.5),
+        (wi + wl).powf(-0.5) * chi2.sqrt().max(1.0),
         "image+contact_law",
     ))
 }
@@ -359,6 +363,20 @@ mod tests {
         assert_eq!(src, "image+contact_law");
         assert!(o < 0.0 && o > -0.1, "{o}");
         assert!(e < 0.03f64.hypot(LAW_SURFACE_SYSTEMATIC_PX) && e < 0.1);
+        let mean_err = |law_err: f64| {
+            let (wi, wl) = (
+                0.1f64.powi(-2),
+                law_err.hypot(LAW_SURFACE_SYSTEMATIC_PX).powi(-2),
+            );
+            (wi + wl).powf(-0.5)
+        };
+        assert!((e - mean_err(0.03)).abs() < 1e-12, "χ² < 1: {e}");
+        // 2.5 σ apart: averaged, the error scaled by √χ² = 2.5.
+        let law_err = 0.03f64.hypot(LAW_SURFACE_SYSTEMATIC_PX);
+        let d = -2.5 * law_err.hypot(0.1);
+        let (_, e, src) = surface_from_law(&law(Some((d, 0.03))), 0.1).unwrap();
+        assert_eq!(src, "image+contact_law");
+        assert!((e / mean_err(0.03) - 2.5).abs() < 1e-9, "{e}");
         // No law's surface, or a degenerate one: the image's line stands.
         assert_eq!(surface_from_law(&law(None), 0.1), None);
         assert_eq!(surface_from_law(&law(Some((0.2, f64::NAN))), 0.1), None);

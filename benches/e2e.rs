@@ -231,7 +231,7 @@ fn decode(inputs: &[PathBuf], threads: usize) -> (f64, f64, usize) {
                     let m = srcs.iter().flatten().next().map(|s| s.meta().clone());
                     let mut buf =
                         m.map_or(Frame::zeros((1, 1)), |m| Frame::zeros((m.height, m.width)));
-                    let c0 = cpu_thread_s();
+                    let c0 = dropscope::timings::thread_cpu_s();
                     let t0 = Instant::now();
                     for &(i, f, _) in job {
                         srcs[i]
@@ -240,7 +240,7 @@ fn decode(inputs: &[PathBuf], threads: usize) -> (f64, f64, usize) {
                             .read_into(f, &mut buf)
                             .expect("read");
                     }
-                    (t0, Instant::now(), cpu_thread_s() - c0)
+                    (t0, Instant::now(), dropscope::timings::thread_cpu_s() - c0)
                 })
             })
             .collect();
@@ -250,16 +250,6 @@ fn decode(inputs: &[PathBuf], threads: usize) -> (f64, f64, usize) {
     let t1 = spans.iter().map(|s| s.1).max().unwrap();
     let cpu: f64 = spans.iter().map(|s| s.2).sum();
     (total as f64 / (t1 - t0).as_secs_f64(), cpu, total)
-}
-
-fn cpu_thread_s() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: a valid, writable timespec.
-    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
 /// `process` of `manifest` into `out` on `threads` threads, `repeats` times.
@@ -302,88 +292,23 @@ fn tree(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
     out
 }
 
-/// The per-drop cost of `dataset`'s runs stage by stage, on one thread in
-/// this process (each stage timed by calling it on its own; the tracking's
-/// stages run again inside `process_run`, so "measure" is its time less
-/// open and tracking): milliseconds per drop and share of the sum.
+/// The per-drop cost of `manifest`'s runs stage by stage: the table of
+/// `dropscope process --timings` on one thread (`RAYON_NUM_THREADS=1`).
 fn stages(manifest: &Path, out: &Path) {
-    use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
-    use dropscope::track::{background_and_surface, track, TrackSettings};
-    let cfg = PipelineConfig::from_toml_str(
-        EMBEDDED_DEFAULT,
-        Path::new("pipeline.toml"),
-        Path::new(env!("CARGO_MANIFEST_DIR")),
-    )
-    .unwrap();
-    let runs = read_manifest(manifest).unwrap();
-    let st = TrackSettings::from_config(&cfg.detect);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
     let _ = std::fs::remove_dir_all(out);
-    let mut t = [0f64; 6];
-    let clock = |t: &mut f64, t0: Instant| *t += t0.elapsed().as_secs_f64();
-    let records = pool.install(|| {
-        let mut records = Vec::new();
-        for r in &runs {
-            let opts = OpenOptions {
-                fps_fallback: r.fps.or(cfg.camera.fps),
-                ..OpenOptions::default()
-            };
-            let t0 = Instant::now();
-            let mut src = open(&r.path, &opts).expect("open");
-            clock(&mut t[0], t0);
-            let t0 = Instant::now();
-            let _ = background_and_surface(src.as_mut(), &st);
-            clock(&mut t[1], t0);
-            let t0 = Instant::now();
-            let _ = track(src.as_mut(), &st);
-            clock(&mut t[2], t0);
-            let t0 = Instant::now();
-            let o = dropscope::process::process_run(r, &cfg, &[]);
-            clock(&mut t[3], t0);
-            let t0 = Instant::now();
-            dropscope::process::write_run_outputs(out, &o).unwrap();
-            clock(&mut t[4], t0);
-            records.push(o.record);
-        }
-        let t0 = Instant::now();
-        dropscope::process::write_file(
-            out,
-            "drops.csv",
-            &dropscope::dataset::to_csv_bytes(&records),
-        )
-        .unwrap();
-        dropscope::collapse::per_drop::write(out, &out.join("drops.csv"), &records, &cfg).unwrap();
-        clock(&mut t[5], t0);
-        records
-    });
-    // track() includes the background; process_run includes open and track.
-    let measure = t[3] - t[0] - t[2];
-    let passes = t[2] - t[1];
-    let parts = [
-        ("open (listing, every header)", t[0]),
-        ("background and surface line", t[1]),
-        ("tracking passes 1 and 2", passes),
-        ("events, kinematics, force fit, overlay", measure),
-        ("track CSV and overlay written", t[4]),
-        ("drops.csv and per-drop figures", t[5]),
-    ];
-    let sum: f64 = parts.iter().map(|p| p.1).sum();
-    let n = records.len() as f64;
-    println!(
-        "          per drop on one thread ({} drops, {:.2} s in all):",
-        records.len(),
-        sum
-    );
-    for (what, s) in parts {
-        println!(
-            "            {:<40} {:>7.2} ms {:>5.1} %",
-            what,
-            s / n * 1e3,
-            s / sum * 100.0
-        );
+    let o = Command::new(BIN)
+        .args(["process", "--timings", "--manifest"])
+        .arg(manifest)
+        .arg("--out")
+        .arg(out)
+        .env("RAYON_NUM_THREADS", "1")
+        .output()
+        .expect("start dropscope");
+    let err = String::from_utf8_lossy(&o.stderr);
+    let table = err.find("timings, ").map_or("", |at| &err[at..]);
+    assert!(!table.is_empty(), "no --timings table: {err}");
+    for line in table.lines() {
+        println!("          {line}");
     }
 }
 

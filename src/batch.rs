@@ -18,6 +18,7 @@ use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::{read_manifest, RunSpec};
 use crate::process::{process_setup, write_file, write_run_outputs};
 use crate::source::folder::ImageKind;
+use crate::timings::{self, Stage};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -50,6 +51,12 @@ pub struct RunArgs {
     /// drop): the configuration's `output.animation = false`.
     #[arg(long)]
     pub no_animation: bool,
+    /// After the job, print on stderr where its time went: wall and CPU
+    /// seconds per stage (reading, tracking passes, force fits, pictures,
+    /// writes, …) summed over runs, each stage's share and its mean per
+    /// drop. Changes no output.
+    #[arg(long)]
+    pub timings: bool,
 }
 
 /// Why the job could not run (a bad run is a row, not this).
@@ -250,6 +257,7 @@ fn run_setup(
     overlay_frames: &[i64],
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<Vec<(Entry, bool)>, BatchError> {
+    let fingerprint = timings::start(Stage::Fingerprint);
     // An input that cannot be fingerprinted (missing, unreadable) is
     // processed each time; processing then says what is wrong with it.
     let fps: Vec<Option<cache::Fingerprint>> = members
@@ -288,6 +296,7 @@ fn run_setup(
             .filter_map(|(r, k)| cache::lookup(out, &r.run, k.as_ref()?))
             .collect();
         if hits.len() == members.len() {
+            drop(fingerprint);
             for e in &hits {
                 events(RunEvent::Finished {
                     record: &e.record,
@@ -299,6 +308,7 @@ fn run_setup(
             return Ok(hits.into_iter().map(|e| (e, true)).collect());
         }
     }
+    drop(fingerprint);
     for r in members {
         events(RunEvent::Started { run: &r.run });
     }
@@ -309,6 +319,7 @@ fn run_setup(
         .zip(fps)
         .zip(keys.into_iter().zip(members))
     {
+        let writes = timings::start(Stage::Writes);
         let outputs = write_run_outputs(out, &o)?;
         let seconds = o.seconds;
         let entry = Entry {
@@ -326,6 +337,7 @@ fn run_setup(
                 source,
             })?;
         }
+        drop(writes);
         events(RunEvent::Finished {
             record: &entry.record,
             cached: false,
@@ -524,8 +536,11 @@ pub fn run_job(
             shard: options.shard,
         });
     }
-    write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
-    replace_provenance(out, cfg, config_name, &entries, events)?;
+    timings::time(Stage::Writes, || -> Result<(), BatchError> {
+        write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
+        replace_provenance(out, cfg, config_name, &entries, events)
+    })?;
+    let collapse = timings::start(Stage::Collapse);
     let measured = records
         .iter()
         .filter(|r| r.status != DropStatus::Failed)
@@ -551,7 +566,10 @@ pub fn run_job(
     } else {
         (false, Vec::new())
     };
-    crate::report::write_report(out, config_name, &records)?;
+    drop(collapse);
+    timings::time(Stage::Report, || {
+        crate::report::write_report(out, config_name, &records)
+    })?;
     Ok(JobSummary {
         records,
         out: out.to_path_buf(),

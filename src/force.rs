@@ -381,9 +381,17 @@ fn fit_force_law_to(
     // n held and the surface free: with n free the surface and n trade off
     // (σ ≈ 0.2–0.7 px on the real preset), with n = 2 the trajectory pins
     // the surface to 0.01–0.05 px.
-    let free = levenberg_marquardt(&theta0, &[0, 1, 2, 3, 4], &resid, rel_tol)?;
-    let held = levenberg_marquardt(&theta0, &[0, 1, 2, 4], &resid, rel_tol)?;
-    let on_law_surface = levenberg_marquardt(&held.theta, &[0, 1, 2, 4, 5], &resid, rel_tol).ok();
+    use crate::timings::{time, Stage};
+    let free = time(Stage::ForceFree, || {
+        levenberg_marquardt(&theta0, &[0, 1, 2, 3, 4], &resid, rel_tol)
+    })?;
+    let held = time(Stage::ForceN2, || {
+        levenberg_marquardt(&theta0, &[0, 1, 2, 4], &resid, rel_tol)
+    })?;
+    let on_law_surface = time(Stage::ForceSurface, || {
+        levenberg_marquardt(&held.theta, &[0, 1, 2, 4, 5], &resid, rel_tol)
+    })
+    .ok();
     // The geometry's errors (see the module doc): ∂r_i/∂q = −(∂obs_i/∂q)/σ_i
     // with obs_i = δ_i·s, times σ_q. With the scale from the radius,
     // s = R_mm/R_px, so ∂obs/∂R = s·(1 − δ_px/R_px); a scale given

@@ -70,6 +70,7 @@ pub mod slurm;
 pub mod source;
 #[cfg(test)]
 mod test_support;
+pub mod timings;
 pub mod track;
 
 /// "1 drop", "3 drops": a count with its noun for messages.

@@ -155,6 +155,9 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         .map(|spec| dropscope::shard::Shard::parse(spec, &env))
         .transpose()?;
     let start = std::time::Instant::now();
+    if args.timings {
+        dropscope::timings::enable();
+    }
     let progress = dropscope::progress::JobProgress::new();
     let options = dropscope::batch::JobOptions {
         force: args.force,
@@ -168,6 +171,13 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     let job = dropscope::batch::run_job(&cfg, &name, &out, &options, &|e| progress.event(e));
     progress.finish();
     let job = job?;
+    let timings = args.timings.then(|| {
+        dropscope::timings::table(
+            job.records.len() - job.cached,
+            start.elapsed().as_secs_f64(),
+            job.threads,
+        )
+    });
     if let Some(shard) = job.shard {
         eprintln!(
             "shard {shard}: {}; committed to {}. Once every shard is done, `dropscope run` on \
@@ -175,6 +185,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
             job_counts(&job),
             out.display()
         );
+        timings.iter().for_each(|t| eprintln!("{t}"));
         // Failed runs are committed rows too: the shard did its work, and
         // the finishing run (started by Slurm only after every task
         // succeeded) reports them with exit status 1.
@@ -194,6 +205,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         start.elapsed().as_secs_f64(),
         out.display()
     );
+    timings.iter().for_each(|t| eprintln!("{t}"));
     Ok(if job.failed() > 0 {
         ExitCode::from(1)
     } else {
@@ -204,6 +216,10 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
 /// `dropscope process`: every run in parallel; exit 1 when some runs failed.
 fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Result<ExitCode> {
     use dropscope::dataset::DropStatus;
+    let start = std::time::Instant::now();
+    if args.timings {
+        dropscope::timings::enable();
+    }
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
     let runs = match &args.manifest {
@@ -249,6 +265,16 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
         speed(job.frames, job.process_s, job.threads),
         out.display()
     );
+    if args.timings {
+        eprintln!(
+            "{}",
+            dropscope::timings::table(
+                job.records.len() - job.cached,
+                start.elapsed().as_secs_f64(),
+                job.threads
+            )
+        );
+    }
     Ok(if failed > 0 {
         ExitCode::from(1)
     } else {

@@ -60,6 +60,7 @@ impl Pictures<'_> {
 
     /// The overlay of `ft` as PNG bytes.
     pub fn still(&mut self, ft: &FrameTrack) -> Option<Vec<u8>> {
+        let _timed = crate::timings::start(crate::timings::Stage::Overlays);
         crate::detect::overlay::encode_png(&self.draw(ft, None, STILL_ZOOM)?).ok()
     }
 
@@ -86,6 +87,8 @@ impl Pictures<'_> {
     /// [`MOVIE_ZOOM`], [`MOVIE_FRAME_MS`] per frame, looping. `None` with
     /// fewer than 2 frames drawn.
     pub fn impact(&mut self, t_contact_s: f64, t_rebound_s: Option<f64>) -> Option<Vec<u8>> {
+        use crate::timings::{start, Stage};
+        let _timed = start(Stage::Animation);
         let frames: Vec<FrameTrack> = self
             .impact_frames(t_contact_s, t_rebound_s)
             .into_iter()
@@ -156,6 +159,7 @@ impl Pictures<'_> {
                 .par_iter_mut()
                 .enumerate()
                 .map(|(g, src)| {
+                    let _timed = start(Stage::Animation);
                     frames[g * n / groups..(g + 1) * n / groups]
                         .iter()
                         .map(|f| on.draw(&mut **src, f, Some(view), MOVIE_ZOOM))
@@ -193,7 +197,10 @@ impl Drawn<'_> {
         zoom: u32,
     ) -> Option<RgbImage> {
         let mut frame = Frame::zeros((self.meta.height, self.meta.width));
-        source.read_into(ft.index, &mut frame).ok()?;
+        crate::timings::time(crate::timings::Stage::Read, || {
+            source.read_into(ft.index, &mut frame)
+        })
+        .ok()?;
 
         let pts = edge_points_in(&frame, self.track, ft, self.settings);
         let c = ft.held.or(ft.free)?.circle();

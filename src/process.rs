@@ -51,6 +51,12 @@ pub struct ProcessArgs {
     /// drop): the configuration's `output.animation = false`.
     #[arg(long)]
     pub no_animation: bool,
+    /// After the job, print on stderr where its time went: wall and CPU
+    /// seconds per stage (reading, tracking passes, force fits, pictures,
+    /// writes, …) summed over runs, each stage's share and its mean per
+    /// drop. Changes no output.
+    #[arg(long)]
+    pub timings: bool,
 }
 
 /// The outcome of one run.
@@ -170,8 +176,11 @@ pub fn process_setup(
         .zip(track_s)
         .map(|((run, t), track_s)| {
             let start = std::time::Instant::now();
-            let mut o = caught(run, || measure_run(t?, run, cfg, pooled, overlay_frames))
-                .unwrap_or_else(|reason| failed_outcome(run, cfg, reason));
+            let mut o = caught(run, || {
+                let _timed = crate::timings::start(crate::timings::Stage::Events);
+                measure_run(t?, run, cfg, pooled, overlay_frames)
+            })
+            .unwrap_or_else(|reason| failed_outcome(run, cfg, reason));
             o.seconds = track_s + start.elapsed().as_secs_f64();
             o
         })
@@ -266,14 +275,17 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         fps_fallback: run.fps.or(cfg.camera.fps),
         ..OpenOptions::default()
     };
-    let mut source = open(&run.path, &options).map_err(|e| e.to_string())?;
+    use crate::timings::{time, Stage};
+    let mut source = time(Stage::Open, || open(&run.path, &options)).map_err(|e| e.to_string())?;
     let meta = source.meta().clone();
     let settings = TrackSettings::from_config(&cfg.detect);
     let tr =
         track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
 
     let points = track_points(&tr, |_| (None, None));
-    let curvature = free_fall_curvature(&points, |x| tr.surface.row_at(x), tr.radius_px);
+    let curvature = time(Stage::Events, || {
+        free_fall_curvature(&points, |x| tr.surface.row_at(x), tr.radius_px)
+    });
     Ok(Tracked {
         source,
         meta,

@@ -11,6 +11,7 @@ use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::RunSpec;
 use crate::process::write_file;
+use crate::timings::{time, Stage};
 
 /// What a `process` job did.
 #[derive(Debug, Clone)]
@@ -65,10 +66,13 @@ pub fn run(
         .sum();
     let entries: Vec<_> = done.into_iter().map(|(e, _)| e).collect();
     let records: Vec<DropRecord> = entries.iter().map(|e| e.record.clone()).collect();
-    write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
-    replace_provenance(out, cfg, config_name, &entries, events)?;
-    let (_, warnings) =
-        crate::collapse::per_drop::write(out, &out.join("drops.csv"), &records, cfg)?;
+    time(Stage::Writes, || -> Result<(), BatchError> {
+        write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
+        replace_provenance(out, cfg, config_name, &entries, events)
+    })?;
+    let (_, warnings) = time(Stage::Figures, || {
+        crate::collapse::per_drop::write(out, &out.join("drops.csv"), &records, cfg)
+    })?;
     Ok(ProcessSummary {
         records,
         cached,

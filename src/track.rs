@@ -40,6 +40,7 @@ use crate::detect::{
     EdgePoint, EdgeScratch, FitOptions, SurfaceLine,
 };
 use crate::source::{Frame, FrameSource, SourceError};
+use crate::timings::{self, Stage};
 use ndarray::s;
 
 /// Systematic uncertainty of the calibrated R_px (see `track`).
@@ -180,25 +181,28 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         scratch: LookScratch::new(h, w, &ctx),
         measured_ahead: 0,
     };
-    let (head, memo) = rayon::join(
-        || -> Result<(), TrackError> {
-            for i in 0..bounds[1] {
-                walk.frame(source, &ctx, &meta, i, None)?;
-            }
-            Ok(())
-        },
-        || copies.map(|c| speculate(c, &bounds, &ctx)),
-    );
-    head?;
-    if let Some(memo) = memo {
-        for (k, ahead) in memo.into_iter().enumerate() {
-            let (first, last) = (bounds[k + 1], bounds[k + 2]);
-            let mut ahead = ahead.into_iter();
-            for i in first..last {
-                walk.frame(source, &ctx, &meta, i, ahead.next())?;
+    timings::time(Stage::Pass1, || -> Result<(), TrackError> {
+        let (head, memo) = rayon::join(
+            || -> Result<(), TrackError> {
+                for i in 0..bounds[1] {
+                    walk.frame(source, &ctx, &meta, i, None)?;
+                }
+                Ok(())
+            },
+            || copies.map(|c| speculate(c, &bounds, &ctx)),
+        );
+        head?;
+        if let Some(memo) = memo {
+            for (k, ahead) in memo.into_iter().enumerate() {
+                let (first, last) = (bounds[k + 1], bounds[k + 2]);
+                let mut ahead = ahead.into_iter();
+                for i in first..last {
+                    walk.frame(source, &ctx, &meta, i, ahead.next())?;
+                }
             }
         }
-    }
+        Ok(())
+    })?;
     let Walk {
         mut frames,
         kept_points,
@@ -214,13 +218,14 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
 
     // 3. Calibration.
     let free: Vec<CircleFit> = frames.iter().filter_map(|f| f.free).collect();
-    let cal = calibrate_radius(&free, w, h, Some(&surface), &st.edge, 3).ok_or_else(|| {
-        TrackError::NoCalibration {
-            found: free
-                .iter()
-                .filter(|f| full_circle(f, w, h, Some(&surface), &st.edge))
-                .count(),
-        }
+    let cal = timings::time(Stage::Pass1, || {
+        calibrate_radius(&free, w, h, Some(&surface), &st.edge, 3)
+    })
+    .ok_or_else(|| TrackError::NoCalibration {
+        found: free
+            .iter()
+            .filter(|f| full_circle(f, w, h, Some(&surface), &st.edge))
+            .count(),
     })?;
     // The statistical error of a median misses the method's systematic
     // error, measured on rendered drops at up to 0.0016 px (realistic
@@ -243,12 +248,15 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
             .map_init(
                 || (Vec::new(), FitScratch::default()),
                 |(points, fs), (ft, k)| {
-                    hold(ft, k.as_ref(), &kept_points, radius_px, st, points, fs)
+                    timings::time(Stage::Pass2, || {
+                        hold(ft, k.as_ref(), &kept_points, radius_px, st, points, fs)
+                    })
                 },
             )
             .collect()
     };
     let mut reread_frames = 0;
+    let _pass2 = timings::start(Stage::Pass2);
     for (ft, h) in frames.iter_mut().zip(held) {
         ft.held = match h {
             Held::NoFit => continue,
@@ -543,7 +551,7 @@ impl Pass1<'_> {
         let predicted = match look {
             Look::At(p) => Some(p),
             Look::Search => {
-                source.read_into(i, &mut sc.buf)?;
+                timings::time(Stage::Read, || source.read_into(i, &mut sc.buf))?;
                 let band = Band::frame(&sc.buf).map_err(|e| detect_err(number, e))?;
                 let gain = bg.gain(&band).map_err(|e| detect_err(number, e))?.gain;
                 if anything_dark(&sc.buf, bg, gain, surface) {
@@ -667,6 +675,7 @@ fn speculate(copies: Vec<Box<dyn FrameSource>>, bounds: &[usize], ctx: &Pass1) -
         .into_par_iter()
         .enumerate()
         .map(|(k, mut src)| {
+            let _pass1 = timings::start(Stage::Pass1);
             let meta = src.meta().clone();
             let mut sc = LookScratch::new(meta.height, meta.width, ctx);
             let mut state = Pass1State::default();
@@ -725,7 +734,7 @@ pub fn background_and_surface(
                     .iter()
                     .map(|&idx| {
                         let mut f = Frame::zeros((h, w));
-                        src.read_into(idx, &mut f)?;
+                        timings::time(Stage::Read, || src.read_into(idx, &mut f))?;
                         Ok(f)
                     })
                     .collect::<Result<Vec<Frame>, SourceError>>()
@@ -739,13 +748,16 @@ pub fn background_and_surface(
     let views: Vec<_> = samples.iter().map(|f| f.view()).collect();
     // With the sphere masked out of each sample; if no circle can be fitted
     // to any dark group (no sphere in these frames), the plain median.
-    let bg = Background::from_frames_with_sphere(&views, GainRegion::default(), &st.coarse, 6.0)
-        .or_else(|_| Background::from_frames(&views, GainRegion::default()))
-        .map_err(TrackError::Background)?;
+    let bg = timings::time(Stage::Background, || {
+        Background::from_frames_with_sphere(&views, GainRegion::default(), &st.coarse, 6.0)
+            .or_else(|_| Background::from_frames(&views, GainRegion::default()))
+    })
+    .map_err(TrackError::Background)?;
     Ok(match &st.surface_override {
         Some(s) => (bg, *s, true),
         None => {
-            let s = fit_surface(&bg, &st.surface).map_err(TrackError::Surface)?;
+            let s = timings::time(Stage::Surface, || fit_surface(&bg, &st.surface))
+                .map_err(TrackError::Surface)?;
             (bg, s, false)
         }
     })
@@ -830,7 +842,7 @@ fn measure_in_band(
         return Ok(None);
     }
     let mut view = buf.slice_mut(s![0..hi - lo, ..]);
-    source.read_rows_into(index, lo, &mut view)?;
+    timings::time(Stage::Read, || source.read_rows_into(index, lo, &mut view))?;
     let band = match Band::new(buf.slice(s![0..hi - lo, ..]), lo) {
         Ok(b) => b,
         Err(_) => return Ok(None),

@@ -45,7 +45,7 @@ pub(crate) fn write_config(dir: &Path, extra: &str) -> PathBuf {
 }
 
 /// The three fixture drops, by absolute path.
-fn fixture_manifest(dir: &Path) {
+pub(crate) fn fixture_manifest(dir: &Path) {
     let mut m = String::from("run,path,sphere_radius_mm\n");
     for (run, r) in [
         ("R3mm_H1.5cm_01", 3.0),

@@ -16,6 +16,7 @@ mod shards;
 mod slurm;
 mod source;
 mod source_tiff;
+mod timings;
 
 /// `../shared/data/phantom-samples/` beside the checkout, with `rel` joined:
 /// the real Phantom files some tests read. Without that folder, the test

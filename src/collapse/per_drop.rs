@@ -57,7 +57,14 @@ pub fn figures(
 ) -> Result<Vec<(PathBuf, Vec<u8>)>, CollapseError> {
     // Each drop's figures on their own (on every thread), in order.
     use rayon::prelude::*;
-    let drawn: Vec<_> = diags.par_iter().map(crate::plot::drop_figures).collect();
+    let drawn: Vec<_> = diags
+        .par_iter()
+        .map(|d| {
+            crate::timings::time(crate::timings::Stage::Figures, || {
+                crate::plot::drop_figures(d)
+            })
+        })
+        .collect();
     let mut out = Vec::new();
     for d in drawn {
         for (name, bytes) in d? {

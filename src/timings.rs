@@ -1,0 +1,303 @@
+//! `--timings` (issue 16): where a job's time goes, stage by stage. Each
+//! stage's work is wrapped in [`time`]; with timings on ([`enable`]), its
+//! wall time and its thread's CPU time are summed over every run and
+//! thread, and [`table`] prints them after the job. With timings off,
+//! [`time`] only calls its work. No output file depends on them.
+//!
+//! A stage's time is its own: a stage started inside another (a frame read
+//! in pass 1, a force fit in the events stage, another run's work a thread
+//! takes up while it waits in a stage) is taken out of the outer one, so
+//! the stages add up without counting anything twice. Work outside every
+//! stage (thread start-up, waiting for other threads outside a stage) is in
+//! no row: the table's sum is at most the job's wall time × its threads.
+
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
+
+/// A stage of a job, in the order the work meets them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// The input's fingerprint for the result cache, and the cache lookup.
+    Fingerprint,
+    /// Opening a run: its folder's listing and headers, or the `.cine` header.
+    Open,
+    /// Frames read and decoded (whole frames and bands of rows).
+    Read,
+    /// The background from frames spread over the movie.
+    Background,
+    /// The surface line fitted to the background.
+    Surface,
+    /// Tracking pass 1 (radius free) and the radius calibration.
+    Pass1,
+    /// Tracking pass 2 (radius held).
+    Pass2,
+    /// Events, kinematics, scale and the force table: the measurement but
+    /// for the force fits.
+    Events,
+    /// The force law's first fit: n free.
+    ForceFree,
+    /// The second: n held at 2.
+    ForceN2,
+    /// The third: n held, the surface free.
+    ForceSurface,
+    /// The overlay at the maximum penetration, and any asked for.
+    Overlays,
+    /// The animated impact (drawing and APNG encoding).
+    Animation,
+    /// Files written: tracks, overlays, animations, cache entries,
+    /// drops.csv, provenance.json.
+    Writes,
+    /// The per-drop figures (`plots/drops/`).
+    Figures,
+    /// The collapse (the main job).
+    Collapse,
+    /// report.html (the main job).
+    Report,
+}
+
+impl Stage {
+    /// Every stage, in the table's order.
+    pub const ALL: [Stage; 17] = [
+        Stage::Fingerprint,
+        Stage::Open,
+        Stage::Read,
+        Stage::Background,
+        Stage::Surface,
+        Stage::Pass1,
+        Stage::Pass2,
+        Stage::Events,
+        Stage::ForceFree,
+        Stage::ForceN2,
+        Stage::ForceSurface,
+        Stage::Overlays,
+        Stage::Animation,
+        Stage::Writes,
+        Stage::Figures,
+        Stage::Collapse,
+        Stage::Report,
+    ];
+
+    /// Its name in the table.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Fingerprint => "input fingerprint (cache)",
+            Stage::Open => "open (listing, headers)",
+            Stage::Read => "read frames (decode)",
+            Stage::Background => "background",
+            Stage::Surface => "surface line",
+            Stage::Pass1 => "tracking pass 1",
+            Stage::Pass2 => "tracking pass 2",
+            Stage::Events => "events, kinematics, scale",
+            Stage::ForceFree => "force fit 1 (n free)",
+            Stage::ForceN2 => "force fit 2 (n = 2)",
+            Stage::ForceSurface => "force fit 3 (surface free)",
+            Stage::Overlays => "overlay stills",
+            Stage::Animation => "animated impact (APNG)",
+            Stage::Writes => "file writes (tracks, images, cache)",
+            Stage::Figures => "per-drop figures",
+            Stage::Collapse => "collapse",
+            Stage::Report => "report.html",
+        }
+    }
+
+    fn index(self) -> usize {
+        self as usize
+    }
+}
+
+const N: usize = Stage::ALL.len();
+
+static ENABLED: AtomicBool = AtomicBool::new(false);
+static WALL_NS: [AtomicU64; N] = [const { AtomicU64::new(0) }; N];
+static CPU_NS: [AtomicU64; N] = [const { AtomicU64::new(0) }; N];
+
+/// Time the stages from now on (the sums so far are kept).
+pub fn enable() {
+    ENABLED.store(true, Ordering::Relaxed);
+}
+
+/// CPU time of the calling thread, seconds.
+pub fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: a valid, writable timespec.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+/// A stage open on this thread: when it started, and its inner stages' time.
+struct Open {
+    wall0: Instant,
+    cpu0: f64,
+    inner_wall_s: f64,
+    inner_cpu_s: f64,
+}
+
+thread_local! {
+    static OPEN: RefCell<Vec<Open>> = const { RefCell::new(Vec::new()) };
+}
+
+/// A stage open on this thread ([`start`]): closed when dropped, also
+/// when the work panics.
+pub struct Timed(Stage);
+
+impl Drop for Timed {
+    fn drop(&mut self) {
+        let (wall1, cpu1) = (Instant::now(), thread_cpu_s());
+        OPEN.with(|open| {
+            let mut open = open.borrow_mut();
+            let Some(o) = open.pop() else { return };
+            let wall = wall1.duration_since(o.wall0).as_secs_f64();
+            let cpu = (cpu1 - o.cpu0).max(0.0);
+            let ns = |s: f64| (s.max(0.0) * 1e9) as u64;
+            let i = self.0.index();
+            WALL_NS[i].fetch_add(ns(wall - o.inner_wall_s), Ordering::Relaxed);
+            CPU_NS[i].fetch_add(ns(cpu - o.inner_cpu_s), Ordering::Relaxed);
+            if let Some(outer) = open.last_mut() {
+                outer.inner_wall_s += wall;
+                outer.inner_cpu_s += cpu;
+            }
+        });
+    }
+}
+
+/// Open `stage` on this thread until the value returned is dropped (`None`
+/// with timings off).
+#[must_use = "the stage closes when this is dropped"]
+pub fn start(stage: Stage) -> Option<Timed> {
+    if !ENABLED.load(Ordering::Relaxed) {
+        return None;
+    }
+    OPEN.with(|open| {
+        open.borrow_mut().push(Open {
+            wall0: Instant::now(),
+            cpu0: thread_cpu_s(),
+            inner_wall_s: 0.0,
+            inner_cpu_s: 0.0,
+        })
+    });
+    Some(Timed(stage))
+}
+
+/// Run `work` as (part of) `stage`.
+pub fn time<T>(stage: Stage, work: impl FnOnce() -> T) -> T {
+    let _timed = start(stage);
+    work()
+}
+
+/// One stage's sums so far: (stage, wall s, CPU s).
+pub fn sums() -> Vec<(Stage, f64, f64)> {
+    Stage::ALL
+        .iter()
+        .map(|&s| {
+            let get = |a: &[AtomicU64; N]| a[s.index()].load(Ordering::Relaxed) as f64 * 1e-9;
+            (s, get(&WALL_NS), get(&CPU_NS))
+        })
+        .collect()
+}
+
+/// The table printed after a job: per stage its wall and CPU seconds summed
+/// over runs and threads, its share of the stages' sum, and its mean per
+/// drop over the `drops` this job measured (cached runs cost none of this);
+/// then the job's own wall time on its `threads`.
+pub fn table(drops: usize, job_wall_s: f64, threads: usize) -> String {
+    use std::fmt::Write;
+    let rows = sums();
+    let (wall_sum, cpu_sum) = rows.iter().fold((0.0, 0.0), |(w, c), r| (w + r.1, c + r.2));
+    let share = |v: f64, sum: f64| 100.0 * v / if sum > 0.0 { sum } else { 1.0 };
+    let per_drop = |v: f64| {
+        if drops == 0 {
+            "-".to_string()
+        } else {
+            format!("{:.2}", v / drops as f64 * 1e3)
+        }
+    };
+    let mut t = format!(
+        "timings, summed over runs and threads ({} measured):\n\
+         {:<36} {:>9} {:>7} {:>9} {:>7} {:>12} {:>11}\n",
+        crate::plural(drops, "drop"),
+        "stage",
+        "wall s",
+        "share",
+        "CPU s",
+        "share",
+        "wall ms/drop",
+        "CPU ms/drop"
+    );
+    let mut line = |name: &str, w: f64, c: f64| {
+        let _ = writeln!(
+            t,
+            "{name:<36} {w:>9.3} {:>6.1}% {c:>9.3} {:>6.1}% {:>12} {:>11}",
+            share(w, wall_sum),
+            share(c, cpu_sum),
+            per_drop(w),
+            per_drop(c)
+        );
+    };
+    for (s, w, c) in &rows {
+        line(s.name(), *w, *c);
+    }
+    line("sum of the stages", wall_sum, cpu_sum);
+    let _ = write!(
+        t,
+        "job: {job_wall_s:.3} s wall on {} ({:.3} thread-seconds)",
+        crate::plural(threads, "thread"),
+        job_wall_s * threads as f64
+    );
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An inner stage's time is taken out of the outer one's, a stage is
+    /// closed by a panic too, and the table names every stage.
+    #[test]
+    fn inner_stages_are_taken_out_of_outer_ones() {
+        enable();
+        let r = std::panic::catch_unwind(|| time(Stage::Report, || panic!("inside a stage")));
+        assert!(r.is_err());
+        OPEN.with(|o| assert!(o.borrow().is_empty(), "the panic left a stage open"));
+        let before = sums();
+        let spin = |s: f64| {
+            let t0 = Instant::now();
+            while t0.elapsed().as_secs_f64() < s {
+                std::hint::black_box(0);
+            }
+        };
+        let t0 = Instant::now();
+        time(Stage::Collapse, || {
+            spin(0.01);
+            time(Stage::Report, || spin(0.05));
+        });
+        let outside_s = t0.elapsed().as_secs_f64();
+        let after = sums();
+        let got = |s: Stage| {
+            let i = s.index();
+            (after[i].1 - before[i].1, after[i].2 - before[i].2)
+        };
+        let (collapse_wall, collapse_cpu) = got(Stage::Collapse);
+        let (report_wall, report_cpu) = got(Stage::Report);
+        // No other test of this binary times these two stages (the main
+        // job's), so: each has at least the time it spun, and the two add up
+        // to no more than the whole block took (counted twice, the inner
+        // 50 ms would be in both).
+        assert!(collapse_wall >= 0.01 && report_wall >= 0.05);
+        assert!(collapse_cpu >= 0.0 && report_cpu >= 0.0);
+        assert!(
+            collapse_wall + report_wall <= outside_s + 1e-6,
+            "collapse {collapse_wall} s + report {report_wall} s > {outside_s} s"
+        );
+        let t = table(3, 0.2, 2);
+        for s in Stage::ALL {
+            assert!(t.contains(s.name()), "{} missing:\n{t}", s.name());
+        }
+        assert!(
+            t.contains("3 drops measured") && t.ends_with("on 2 threads (0.400 thread-seconds)")
+        );
+    }
+}

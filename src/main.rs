@@ -331,8 +331,8 @@ fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> 
     }
     let frames = report.frames();
     eprintln!(
-        "rendered {} drops, {frames} frames into {} in {secs:.2} s ({:.0} frames/s){}",
-        report.drops.len(),
+        "rendered {}, {frames} frames into {} in {secs:.2} s ({:.0} frames/s){}",
+        dropscope::plural(report.drops.len(), "drop"),
         args.out.display(),
         frames as f64 / secs.max(1e-9),
         report

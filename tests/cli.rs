@@ -350,6 +350,48 @@ fn list_options_take_spaces_as_well_as_commas() {
     assert_eq!(manifest.lines().count(), 3, "{manifest}");
 }
 
+/// The grid's options without `--campaign`, or a single drop's beside
+/// `--drop`, were silently ignored (`render --radii-mm 3 5 7 --out D`
+/// rendered the one default 4.5 mm drop): now refused, naming the option.
+/// One drop is "1 drop", not "1 drops".
+#[test]
+fn render_refuses_options_it_would_ignore() {
+    let dir = tempfile::tempdir().unwrap();
+    for (args, named) in [
+        (&["--radii-mm", "3", "5"][..], "--campaign"),
+        (&["--heights-cm", "3"][..], "--campaign"),
+        (&["--repeats", "2"][..], "--campaign"),
+        (&["--drop", "3:1.5", "--radius-mm", "5"][..], "--radius-mm"),
+        (&["--campaign", "--height-cm", "5"][..], "--height-cm"),
+    ] {
+        let out = dropscope()
+            .arg("render")
+            .args(args)
+            .arg("--out")
+            .arg(dir.path().join("x"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(named), "{args:?}: {err}");
+        assert!(!dir.path().join("x").exists(), "{args:?} rendered");
+    }
+    let out = dropscope()
+        .args([
+            "render",
+            "--frames-before",
+            "2",
+            "--frames-after",
+            "2",
+            "--out",
+        ])
+        .arg(dir.path().join("one"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("rendered 1 drop, "), "{err}");
+}
+
 /// `process` on a folder of run folders finds the runs (issue 17 item 7:
 /// it said "no numbered frames"), and counts "with warnings" apart.
 #[test]

@@ -751,7 +751,7 @@ fn render_exit_codes_follow_the_spec() {
     assert_eq!(some_failed.status.code(), Some(1));
     let err = String::from_utf8_lossy(&some_failed.stderr);
     assert!(
-        err.contains("R3mm_H50cm_01") && err.contains("rendered 1 drops"),
+        err.contains("R3mm_H50cm_01") && err.contains("rendered 1 drop,"),
         "{err}"
     );
     assert_eq!(run(&["--drop", "3:1.5"]).status.code(), Some(0));

@@ -119,23 +119,23 @@ pub struct RenderArgs {
     /// Render the grid --radii-mm × --heights-cm (the paper's by default) and write runs.csv.
     #[arg(long)]
     pub campaign: bool,
-    /// Radii of the campaign grid, mm.
-    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_RADII_MM)]
+    /// Radii of the campaign grid, mm (with --campaign).
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_RADII_MM, requires = "campaign")]
     pub radii_mm: Vec<f64>,
-    /// Drop heights of the campaign grid, cm.
-    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_HEIGHTS_CM)]
+    /// Drop heights of the campaign grid, cm (with --campaign).
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_HEIGHTS_CM, requires = "campaign")]
     pub heights_cm: Vec<f64>,
-    /// Repeats of every grid point (each a new contact phase, column and noise).
-    #[arg(long, default_value_t = 1)]
+    /// Repeats of every grid point (each a new contact phase, column and noise; with --campaign).
+    #[arg(long, default_value_t = 1, requires = "campaign")]
     pub repeats: usize,
     /// Render exactly these drops, RADIUS_MM:HEIGHT_CM (repeatable or comma-separated), and write runs.csv.
     #[arg(long = "drop", value_delimiter = ',', conflicts_with = "campaign")]
     pub drops: Vec<String>,
     /// Sphere radius of a single drop, mm.
-    #[arg(long, default_value_t = 4.5)]
+    #[arg(long, default_value_t = 4.5, conflicts_with_all = ["campaign", "drops"])]
     pub radius_mm: f64,
     /// Drop height of a single drop (lowest point of the sphere to the surface), cm.
-    #[arg(long, default_value_t = 12.0)]
+    #[arg(long, default_value_t = 12.0, conflicts_with_all = ["campaign", "drops"])]
     pub height_cm: f64,
     /// Seed of every random choice; the same seed gives byte-identical files.
     #[arg(long, default_value_t = 1)]

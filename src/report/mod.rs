@@ -294,7 +294,8 @@ fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRe
          (πEφR/h) δ².</li>\
          <li><b>Collapse</b>: in Ψ(Ξ) and Ω(Ξ) every radius should fall on one curve. A red \
          warning on a plot means some drops use the geometric contact radius, for which the \
-         Ψ(Ξ) collapse holds by construction.</li>\
+         Ψ(Ξ) collapse holds by construction. The panel under each fit shows every point's \
+         residual from it with its error bar: a trend there is what the fit misses.</li>\
          <li><b>Fits</b>: value ± standard error (covariance scaled by the reduced χ²), then the \
          95 % bootstrap interval. Everything here is read from <code>fits.json</code> and \
          <code>collapse.csv</code>; the CSV and JSON files beside this page hold every digit.</li>\

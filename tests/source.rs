@@ -1122,6 +1122,15 @@ fn export_takes_camera_numbers_single_frames_and_scales_to_16_bits() {
     let (out, _, _) = export(&["--numbers", "99999:100000"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("camera numbers"));
+    // Camera numbers given to --frames: pointed to --numbers (clap said
+    // "unexpected argument '-1'", or "start "-100" is not an index").
+    for arg in [&["--frames", "-100:-90"][..], &["--frames=-100:-90"]] {
+        let (out, names, _) = export(arg);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains("go to --numbers"), "{err}");
+        assert!(names.is_empty());
+    }
 }
 
 #[test]

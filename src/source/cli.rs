@@ -112,7 +112,12 @@ pub struct ExportArgs {
     pub input: PathBuf,
     /// Frame indices A..B−1, counted from 0 (e.g. `0:10`; `A:` = to the
     /// end; `A` alone = that one frame).
-    #[arg(long, required_unless_present = "numbers", conflicts_with = "numbers")]
+    #[arg(
+        long,
+        required_unless_present = "numbers",
+        conflicts_with = "numbers",
+        allow_hyphen_values = true
+    )]
     pub frames: Option<String>,
     /// Camera image numbers A..B−1, as in the file names and `--overlay-frames`
     /// (e.g. `-100:-90`; `A` alone = that one frame).
@@ -301,6 +306,13 @@ fn number_range(text: &str, numbers: &[i64]) -> anyhow::Result<std::ops::Range<u
 }
 
 pub fn parse_frame_range(text: &str, count: usize) -> anyhow::Result<std::ops::Range<usize>> {
+    if text.trim_start().starts_with('-') {
+        bail!(
+            "--frames {text:?}: --frames counts the input's frames from 0 (0 to {}); \
+             camera image numbers such as {text} go to --numbers",
+            count.saturating_sub(1)
+        );
+    }
     let Some((a, b)) = text.split_once(':') else {
         let a: usize = text
             .trim()

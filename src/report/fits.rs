@@ -300,9 +300,9 @@ fn force_laws(out: &mut String, doc: &Value) {
     let _ = write!(
         out,
         "<details class=\"section\"{}><summary><h3>Contact law F = K δ<sup>n</sup> per drop \
-         ({} drops)</h3></summary>",
+         ({})</h3></summary>",
         if list.len() <= 10 { " open" } else { "" },
-        list.len()
+        crate::plural(list.len(), "drop")
     );
     out.push_str(
         "<table class=\"fits\"><thead><tr><th>run</th><th>points</th><th>n (model: 2)</th><th>K (N/mm<sup>n</sup>)</th>\
@@ -337,9 +337,11 @@ fn provenance(out: &mut String, doc: &Value) {
     }
     let _ = write!(
         out,
-        "<p>{} drops in the fits, {} skipped, {} with the geometric contact radius. \
+        "<p>{} in the fits, {} skipped, {} with the geometric contact radius. \
          Contact radius: {}; bootstrap: {} resamples, seed {}. Surfaces: {}.</p>",
-        count(doc, "n_used"),
+        doc.get("n_used")
+            .and_then(Value::as_u64)
+            .map_or(NONE.into(), |n| crate::plural(n as usize, "drop")),
         count(doc, "n_skipped"),
         count(doc, "n_geometric_contact_radius"),
         escape(s(p, "contact_radius")),
@@ -395,4 +397,24 @@ pub fn fits_section(doc: &Value) -> String {
     force_laws(&mut out, doc);
     notes(&mut out, doc);
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_drop_is_counted_in_the_singular() {
+        let one = serde_json::json!({
+            "n_used": 1, "n_skipped": 0, "n_geometric_contact_radius": 0,
+            "force_laws": [{"run": "R3mm_H6cm_01"}],
+        });
+        let html = fits_section(&one);
+        assert!(html.contains("<p>1 drop in the fits,"), "{html}");
+        assert!(html.contains("per drop (1 drop)</h3>"), "{html}");
+        assert!(!html.contains("1 drops"), "{html}");
+        let two = serde_json::json!({"n_used": 2, "force_laws": [{}, {}]});
+        let html = fits_section(&two);
+        assert!(html.contains("<p>2 drops in the fits,") && html.contains("(2 drops)</h3>"));
+    }
 }

@@ -7,7 +7,7 @@
 use image::RgbImage;
 
 use crate::dataset::TrackRow;
-use crate::detect::overlay::{overlay, OverlayView};
+use crate::detect::overlay::{encode_indexed_apng, overlay, to_indexed, IndexedFrame, OverlayView};
 use crate::detect::Band;
 use crate::plot::{with_caption, Caption};
 use crate::source::{Frame, FrameSource, SourceMeta};
@@ -42,8 +42,9 @@ impl Pictures<'_> {
     /// Frame `ft` drawn in `view` (default: a crop around its circle at
     /// `zoom`), with its caption; `None` when it cannot be read or has no fit.
     fn draw(&mut self, ft: &FrameTrack, view: Option<OverlayView>, zoom: u32) -> Option<RgbImage> {
+        let mut frame = Frame::zeros((self.meta.height, self.meta.width));
         let (source, on) = self.split();
-        on.draw(source, ft, view, zoom)
+        on.draw(source, &mut frame, ft, view, zoom)
     }
 
     /// The source, and the rest to draw from.
@@ -142,8 +143,10 @@ impl Pictures<'_> {
             height: z1 - z0,
             zoom: MOVIE_ZOOM,
         };
-        // The frames drawn on every thread, each with its own copy of the
-        // source and a run of consecutive frames, kept in order.
+        // The frames drawn and put in the palette on every thread, each
+        // with its own copy of the source, a frame buffer and a run of
+        // consecutive frames, kept in order.
+        let (height, width) = (self.meta.height, self.meta.width);
         let threads = rayon::current_num_threads().min(frames.len()).max(1);
         let mut copies: Vec<Box<dyn FrameSource>> = (1..threads)
             .map_while(|_| self.source.try_clone())
@@ -153,16 +156,20 @@ impl Pictures<'_> {
             .chain(copies.iter_mut().map(|c| c.as_mut()))
             .collect();
         let (n, groups) = (frames.len(), sources.len());
-        let images: Vec<RgbImage> = {
+        let images: Vec<IndexedFrame> = {
             use rayon::prelude::*;
             sources
                 .par_iter_mut()
                 .enumerate()
                 .map(|(g, src)| {
                     let _timed = start(Stage::Animation);
+                    let mut frame = Frame::zeros((height, width));
                     frames[g * n / groups..(g + 1) * n / groups]
                         .iter()
-                        .map(|f| on.draw(&mut **src, f, Some(view), MOVIE_ZOOM))
+                        .map(|f| {
+                            on.draw(&mut **src, &mut frame, f, Some(view), MOVIE_ZOOM)
+                                .map(|img| to_indexed(&img))
+                        })
                         .collect::<Vec<_>>()
                 })
                 .collect::<Vec<_>>()
@@ -172,7 +179,7 @@ impl Pictures<'_> {
                 .collect()
         };
         (images.len() >= 2)
-            .then(|| crate::detect::overlay::encode_apng(&images, MOVIE_FRAME_MS).ok())
+            .then(|| encode_indexed_apng(&images, MOVIE_FRAME_MS).ok())
             .flatten()
     }
 }
@@ -188,23 +195,23 @@ struct Drawn<'a> {
 }
 
 impl Drawn<'_> {
-    /// See [`Pictures::draw`].
+    /// See [`Pictures::draw`]; `frame` (the source's shape) is read into.
     fn draw(
         &self,
         source: &mut dyn FrameSource,
+        frame: &mut Frame,
         ft: &FrameTrack,
         view: Option<OverlayView>,
         zoom: u32,
     ) -> Option<RgbImage> {
-        let mut frame = Frame::zeros((self.meta.height, self.meta.width));
         crate::timings::time(crate::timings::Stage::Read, || {
-            source.read_into(ft.index, &mut frame)
+            source.read_into(ft.index, frame)
         })
         .ok()?;
 
-        let pts = edge_points_in(&frame, self.track, ft, self.settings);
+        let pts = edge_points_in(frame, self.track, ft, self.settings);
         let c = ft.held.or(ft.free)?.circle();
-        let band = Band::frame(&frame).ok()?;
+        let band = Band::frame(frame).ok()?;
         let view = view.unwrap_or_else(|| OverlayView::around(&band, &c, MARGIN_PX, zoom));
         let img = overlay(
             &band,

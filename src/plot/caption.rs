@@ -81,7 +81,10 @@ pub fn with_caption(img: &RgbImage, c: &Caption) -> Result<RgbImage, String> {
     let band = 6 + LINE_PX * (lines.len() as u32 + u32::from(bar.is_some())) + 4;
     let mut buf = Vec::with_capacity((w * (h + band) * 3) as usize);
     buf.extend_from_slice(img.as_raw());
-    buf.extend(BAND_RGB.iter().cycle().take((w * band * 3) as usize));
+    buf.resize(buf.len() + (w * band * 3) as usize, 0);
+    for px in buf[img.as_raw().len()..].chunks_exact_mut(3) {
+        px.copy_from_slice(&BAND_RGB);
+    }
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h + band)).into_drawing_area();
         let err = |e: DrawingAreaErrorKind<_>| e.to_string();

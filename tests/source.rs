@@ -1017,48 +1017,109 @@ fn inspect_json_has_the_contract_keys() {
     );
 }
 
-#[test]
-fn export_writes_stored_values_as_16_bit_png_named_by_frame_number() {
-    let dir = tempfile::tempdir().unwrap();
-    let input = sample("pims/cine_781.cine");
-    let out = dropscope()
-        .args(["export", "--frames", "2:4", "--out"])
-        .arg(dir.path())
-        .arg(&input)
+/// `dropscope export --frames FRAMES --out OUT INPUT`, which must succeed.
+fn export_frames(input: &Path, frames: &str, out: &Path) {
+    let o = dropscope()
+        .args(["export", "--frames", frames, "--out"])
+        .arg(out)
+        .arg(input)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// The side file `<name>_frames.csv` an export writes beside its PNGs.
+fn exported_frames(csv: &Path) -> Vec<dropscope::source::cli::ExportedFrame> {
+    csv::Reader::from_path(csv)
+        .unwrap()
+        .deserialize()
+        .map(Result::unwrap)
+        .collect()
+}
+
+#[test]
+fn export_writes_stored_values_as_16_bit_png_named_by_frame_index() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = sample("pims/cine_781.cine");
+    export_frames(&input, "2:4", dir.path());
     let mut src = open_default(&input).unwrap();
-    // Numbers padded to the movie's widest (issue 17 item 6).
-    let width = src
-        .meta()
-        .frame_numbers
-        .iter()
-        .map(|n| n.unsigned_abs().to_string().len())
-        .max()
-        .unwrap();
-    for (i, number) in [(2usize, -5415i64), (3, -5414)] {
-        let p = dir
-            .path()
-            .join(format!("cine_781_-{:0width$}.png", number.unsigned_abs()));
-        let img = image::open(&p).unwrap().into_luma16();
+    // 15 frames: indices padded to 2 digits; camera numbers in the side file.
+    assert_eq!(src.meta().frame_count, 15);
+    for (i, name) in [(2usize, "cine_781_02.png"), (3, "cine_781_03.png")] {
+        let img = image::open(dir.path().join(name)).unwrap().into_luma16();
         let f = read_all(src.as_mut(), i);
         for ((r, c), v) in f.indexed_iter() {
             assert_eq!(img.get_pixel(c as u32, r as u32).0[0], *v);
         }
     }
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
-    // The exported folder reads back as a sequence with the same numbers.
+    let rows = exported_frames(&dir.path().join("cine_781_frames.csv"));
+    let expect: Vec<(String, usize, i64, f64)> = [2usize, 3]
+        .iter()
+        .map(|&i| {
+            (
+                format!("cine_781_0{i}.png"),
+                i,
+                src.meta().frame_numbers[i],
+                src.meta().time_s(i),
+            )
+        })
+        .collect();
+    let got: Vec<_> = rows
+        .iter()
+        .map(|r| (r.file.clone(), r.index, r.camera_number, r.time_s))
+        .collect();
+    assert_eq!(got, expect);
+    assert_eq!(expect[0].2, -5415);
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 3);
+    // The exported folder reads back as a sequence numbered by index.
     let opts = OpenOptions {
         fps_fallback: Some(9000.0),
         ..OpenOptions::default()
     };
     let back = open(dir.path(), &opts).unwrap();
-    assert_eq!(back.meta().frame_numbers, vec![-5415, -5414]);
+    assert_eq!(back.meta().frame_numbers, vec![2, 3]);
+}
+
+/// Issue 17 item 1 (of what remained): names sort in frame order in a plain
+/// listing. 12bpp.cine's camera numbers run -100 … 101: named by them,
+/// `12bpp_-098.png` sorted before `12bpp_-100.png`. A second export into the
+/// folder adds its rows to the side file.
+#[test]
+fn exported_names_sort_in_frame_order_with_negative_camera_numbers() {
+    let input = sample("cinefiles-jl/12bpp.cine");
+    let meta = open_default(&input).unwrap().meta().clone();
+    assert_eq!((meta.frame_numbers[0], meta.frame_count), (-100, 202));
+    let dir = tempfile::tempdir().unwrap();
+    for frames in ["0:12", "195:"] {
+        export_frames(&input, frames, dir.path());
+    }
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.ends_with(".png"))
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 12 + 7);
+    assert_eq!(names[0], "12bpp_000.png");
+    assert_eq!(names[18], "12bpp_201.png");
+    let rows = exported_frames(&dir.path().join("12bpp_frames.csv"));
+    let listed: Vec<&str> = rows.iter().map(|r| r.file.as_str()).collect();
+    assert_eq!(
+        listed, names,
+        "the side file lists every file, in name order"
+    );
+    // Name order is frame order: camera numbers and times increase.
+    let indices: Vec<usize> = (0..12).chain(195..202).collect();
+    for (r, &i) in rows.iter().zip(&indices) {
+        assert_eq!(
+            (r.index, r.camera_number, r.time_s),
+            (i, meta.frame_numbers[i], meta.time_s(i))
+        );
+    }
+    assert!(rows
+        .windows(2)
+        .all(|w| w[0].camera_number < w[1].camera_number));
+    assert!(rows.windows(2).all(|w| w[0].time_s < w[1].time_s));
 }
 
 /// Issue 17 item 6: camera-number ranges as in the file names, a single
@@ -1083,6 +1144,7 @@ fn export_takes_camera_numbers_single_frames_and_scales_to_16_bits() {
             .map(|d| {
                 d.flatten()
                     .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.ends_with(".png"))
                     .collect()
             })
             .unwrap_or_default();

@@ -340,8 +340,13 @@ pub fn parse_frame_range(text: &str, count: usize) -> anyhow::Result<std::ops::R
     Ok(a..b)
 }
 
-/// Run `export`: frames A..B as 16-bit grey PNGs `<name>_<number>.png`,
-/// values as read (not rescaled), rows top-down. Returns the files written.
+/// Run `export`: frames A..B as 16-bit grey PNGs `<name>_<index>.png`, the
+/// 0-based index of the frame in the input zero-padded to one width (as
+/// PCC's image counter), so that a plain listing sorts in frame order
+/// (camera numbers do not: `-98` sorts before `-100`). Each file's camera
+/// number and time are in the side file `<name>_frames.csv`
+/// ([`ExportedFrame`]; rows of earlier exports into the folder kept).
+/// Values as read (not rescaled), rows top-down. Returns the files written.
 pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
     let (mut src, _) = args.source.open_source(&args.input)?;
     let meta = src.meta().clone();
@@ -350,14 +355,7 @@ pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
         (None, Some(n)) => number_range(n, &meta.frame_numbers)?,
         (None, None) => bail!("give --frames A:B (indices) or --numbers A:B (camera numbers)"),
     };
-    // Numbers padded to one width (sign apart) so that names sort by number
-    // among the non-negative ones: 12bpp_007.png, not 12bpp_7.png.
-    let width = meta
-        .frame_numbers
-        .iter()
-        .map(|n| n.unsigned_abs().to_string().len())
-        .max()
-        .unwrap_or(1);
+    let width = meta.frame_count.saturating_sub(1).to_string().len();
     let shift = if args.scale_to_16 {
         16u32.saturating_sub(u32::from(meta.bit_depth))
     } else {
@@ -368,23 +366,56 @@ pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
     let stem = super::input_name(&args.input);
     let mut frame = Frame::zeros((meta.height, meta.width));
     let mut written = Vec::new();
+    let mut rows = Vec::new();
     for i in range {
         src.read_into(i, &mut frame)?;
-        let number = meta.frame_numbers[i];
-        let sign = if number < 0 { "-" } else { "" };
-        let path = args.out.join(format!(
-            "{stem}_{sign}{:0width$}.png",
-            number.unsigned_abs()
-        ));
+        let name = format!("{stem}_{i:0width$}.png");
+        let path = args.out.join(&name);
         if shift > 0 {
             frame.mapv_inplace(|v| (u32::from(v) << shift).min(65535) as u16);
         }
         let bytes = png16(&frame).with_context(|| format!("encoding {}", path.display()))?;
         crate::io_util::write_atomic(&path, &bytes)
             .with_context(|| format!("writing {}", path.display()))?;
+        rows.push(ExportedFrame {
+            file: name,
+            index: i,
+            camera_number: meta.frame_numbers[i],
+            time_s: meta.time_s(i),
+        });
         written.push(path);
     }
+    let side = args.out.join(format!("{stem}_frames.csv"));
+    crate::io_util::write_atomic(&side, &frames_csv(&side, rows))
+        .with_context(|| format!("writing {}", side.display()))?;
     Ok(written)
+}
+
+/// A row of export's side file `<name>_frames.csv`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ExportedFrame {
+    /// The PNG's file name.
+    pub file: String,
+    /// The frame's 0-based index in the input (as in the name and `--frames`).
+    pub index: usize,
+    /// Its camera image number (as `--numbers` and PCC; negative before the trigger).
+    pub camera_number: i64,
+    /// Its time after the trigger, seconds.
+    pub time_s: f64,
+}
+
+/// The side file's bytes: `new` rows, with the rows of the file already at
+/// `path` for files not written again, sorted by file name.
+fn frames_csv(path: &Path, new: Vec<ExportedFrame>) -> Vec<u8> {
+    let old: Vec<ExportedFrame> = csv::Reader::from_path(path)
+        .map(|mut r| r.deserialize().flatten().collect())
+        .unwrap_or_default();
+    let rows: std::collections::BTreeMap<String, ExportedFrame> = old
+        .into_iter()
+        .chain(new)
+        .map(|r| (r.file.clone(), r))
+        .collect();
+    crate::dataset::csv_bytes(rows.values())
 }
 
 /// Encode a frame as a 16-bit grey PNG.

@@ -28,7 +28,7 @@ pub struct DropRecord {
     #[serde(default = "default_density")]
     pub sphere_density_kg_m3: f64,
     /// Key of the `[surface.<name>]` table of pipeline.toml holding the material.
-    #[serde(default)]
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub surface: String,
     /// The release height from the manifest (`drop_height_cm`), kept for
     /// the record; empty when the manifest has none.
@@ -36,7 +36,7 @@ pub struct DropRecord {
     pub drop_height_cm: Option<f64>,
     /// The run's input (a folder of frames or a `.cine`) as the manifest
     /// resolved it.
-    #[serde(default)]
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub path: String,
     pub v_impact_m_s: Option<f64>,
     #[serde(default)]
@@ -71,12 +71,12 @@ pub struct DropRecord {
     pub surface_row_px: Option<f64>,
     #[serde(default)]
     pub surface_row_px_err: Option<f64>,
-    /// Camera set-up (the manifest's `setup`; empty when none).
-    #[serde(default)]
+    /// Camera set-up (the manifest's `setup`; empty when none, written `-`).
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub setup: String,
     /// Where `mm_per_px` came from: `given`, `setup_free_fall`, `free_fall`
     /// or `radius` (see `scale.rs`).
-    #[serde(default)]
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub scale_source: String,
     /// The scale from free fall (the set-up's pooled, else the run's own),
     /// whether used or not: a check on a given scale.
@@ -99,7 +99,7 @@ pub struct DropRecord {
     /// `contact_law` (the trajectory fitted with F = K·δ² put it where the
     /// image line is inconsistent with it) or `image+contact_law` (the two
     /// agree and are averaged). See `measure::surface_from_law`.
-    #[serde(default)]
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub surface_source: String,
     /// Offset (px, positive down) of the surface the contact law finds from
     /// the image's line, whether used or not: a check on the image line.
@@ -141,12 +141,12 @@ pub struct DropRecord {
     pub damping_n_s_m_err: Option<f64>,
     pub status: DropStatus,
     /// Quality flags, space-separated words ([`crate::quality::FLAGS`]);
-    /// empty when nothing weakens the measurement. Any flag makes the
+    /// empty (written `-`) when nothing weakens the measurement. Any flag makes the
     /// status `warning`, with its sentence in `reason`.
-    #[serde(default)]
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub flags: String,
-    /// Why the run failed, or its warnings; empty when all is well.
-    #[serde(default)]
+    /// Why the run failed, or its warnings; empty (written `-`) when all is well.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub reason: String,
 }
 
@@ -246,24 +246,26 @@ pub struct TrackRow {
     #[serde(default)]
     pub force_n: Option<f64>,
     /// Space-separated flags (`missing`, `partial`, `recovered`, …); empty
-    /// when clean, written as [`NO_FLAG`].
-    #[serde(default, serialize_with = "flags_out", deserialize_with = "flags_in")]
+    /// when clean, written as [`NO_TEXT`].
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub flags: String,
 }
 
-/// What a track's `flags` column holds for a frame without flags: a word,
-/// never an empty field, so that a reader takes the column as text in every
-/// file (pandas read an all-empty column as float, issue 17 item 8).
-pub const NO_FLAG: &str = "-";
+/// What a text column holds for none: in a track's `flags` a frame without
+/// flags; in drops.csv's `surface`, `path`, `setup`, `scale_source`,
+/// `surface_source`, `flags` and `reason` a row without one. A word, never
+/// an empty field, so that a reader takes the column as text in every file
+/// (pandas read an all-empty column as float64, issue 17).
+pub const NO_TEXT: &str = "-";
 
-fn flags_out<S: serde::Serializer>(flags: &str, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_str(if flags.is_empty() { NO_FLAG } else { flags })
+fn dash_out<S: serde::Serializer>(text: &str, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(if text.is_empty() { NO_TEXT } else { text })
 }
 
-/// [`NO_FLAG`] (or an empty field, as written before) reads as no flag.
-fn flags_in<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
+/// [`NO_TEXT`] (or an empty field, as written before) reads as none.
+fn dash_in<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
     let text = String::deserialize(d)?;
-    Ok(if text.trim() == NO_FLAG {
+    Ok(if text.trim() == NO_TEXT {
         String::new()
     } else {
         text
@@ -365,8 +367,53 @@ mod tests {
         assert_eq!(back, vec![ok, bad]);
         let text = std::fs::read_to_string(&p).unwrap();
         assert!(text.starts_with("run,sphere_radius_mm,"));
-        assert!(text.contains(",ok,gap_at_peak saturated,\n"), "{text}");
-        assert!(text.contains(",failed,,no sphere found in 40 frames"));
+        assert!(text.contains(",ok,gap_at_peak saturated,-\n"), "{text}");
+        assert!(text.contains(",failed,-,no sphere found in 40 frames"));
+    }
+
+    /// drops.csv's text columns hold `-` for none, so that a reader takes
+    /// them as text even when every row has none (pandas read an all-empty
+    /// `flags`, `reason` or `setup` as float64); `-` and an empty field (as
+    /// written before) both read back as none.
+    #[test]
+    fn text_columns_are_never_empty_and_read_back_as_none() {
+        let mut ok = DropRecord::failed("r1", 4.5, "");
+        ok.status = DropStatus::Ok;
+        ok.v_impact_m_s = Some(1.5);
+        let rows = [ok, DropRecord::failed("r2", 3.0, "")];
+        let bytes = to_csv_bytes(&rows);
+        let mut r = csv::Reader::from_reader(bytes.as_slice());
+        let header = r.headers().unwrap().clone();
+        let text = [
+            "surface",
+            "path",
+            "setup",
+            "scale_source",
+            "surface_source",
+            "flags",
+            "reason",
+        ];
+        let cols: Vec<usize> = text
+            .iter()
+            .map(|c| header.iter().position(|h| h == *c).expect(c))
+            .collect();
+        for row in r.records() {
+            let row = row.unwrap();
+            for (&c, name) in cols.iter().zip(text) {
+                assert_eq!(&row[c], NO_TEXT, "{name}");
+            }
+        }
+        let back: Vec<DropRecord> = csv::Reader::from_reader(bytes.as_slice())
+            .deserialize()
+            .map(Result::unwrap)
+            .collect();
+        assert_eq!(back, rows);
+        let emptied = String::from_utf8(bytes).unwrap().replace(",-", ",");
+        let back: Vec<DropRecord> = csv::Reader::from_reader(emptied.as_bytes())
+            .deserialize()
+            .map(Result::unwrap)
+            .collect();
+        assert_eq!(back, rows);
     }
 
     #[test]

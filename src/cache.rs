@@ -422,25 +422,20 @@ mod tests {
 
     #[test]
     fn lookup_misses_on_other_key_missing_output_or_damage() {
-        let dir = tempfile::tempdir().unwrap();
-        let out = &dir.path().join("out");
-        std::fs::create_dir_all(out.join("tracks")).unwrap();
-        std::fs::write(out.join("tracks/a.csv"), b"frame\n1\n").unwrap();
-        let entry = Entry {
-            schema: CACHE_SCHEMA,
-            dropscope_version: env!("CARGO_PKG_VERSION").into(),
-            key: "k1".into(),
-            input: Fingerprint {
-                path: "x".into(),
-                kind: "cine".into(),
-                size_bytes: 1,
-                files: 1,
-                modified_ns: 2,
-                content_sha256: "00".into(),
-            },
-            outputs: vec![OutputFile::new("tracks/a.csv".into(), b"frame\n1\n")],
-            frames: 1,
-            record: DropRecord::failed("a", 4.5, "why"),
+        let (_dir, out) = crate::test_support::out_with_tracks(&[("a.csv", b"frame\n1\n")]);
+        let out = &out;
+        let mut entry = crate::test_support::cache_entry(
+            "a",
+            "k1",
+            vec![OutputFile::new("tracks/a.csv".into(), b"frame\n1\n")],
+        );
+        entry.input = Fingerprint {
+            path: "x".into(),
+            kind: "cine".into(),
+            size_bytes: 1,
+            files: 1,
+            modified_ns: 2,
+            content_sha256: "00".into(),
         };
         store(out, &entry).unwrap();
         assert_eq!(lookup(out, "a", "k1"), Some(entry.clone()));

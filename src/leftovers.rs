@@ -112,19 +112,10 @@ pub fn remove(out: &Path, current: &[Entry]) -> std::io::Result<Removed> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cache::{Fingerprint, CACHE_SCHEMA};
-    use crate::dataset::DropRecord;
+    use crate::test_support::{cache_entry, out_with_tracks};
 
     fn entry(run: &str, outputs: Vec<OutputFile>) -> Entry {
-        Entry {
-            schema: CACHE_SCHEMA,
-            dropscope_version: env!("CARGO_PKG_VERSION").into(),
-            key: "k".into(),
-            input: Fingerprint::unreadable(Path::new("x")),
-            outputs,
-            frames: 1,
-            record: DropRecord::failed(run, 4.5, "why"),
-        }
+        cache_entry(run, "k", outputs)
     }
 
     /// A provenance written before it listed files names its runs: the
@@ -133,11 +124,8 @@ mod tests {
     /// path outside the folder, or a file that changed, is left alone.
     #[test]
     fn old_provenance_falls_back_on_the_cache_entries() {
-        let dir = tempfile::tempdir().unwrap();
-        let out = &dir.path().join("out");
-        std::fs::create_dir_all(out.join("tracks")).unwrap();
-        std::fs::write(out.join("tracks/a.csv"), b"a").unwrap();
-        std::fs::write(out.join("tracks/b.csv"), b"b, edited").unwrap();
+        let (dir, out) = out_with_tracks(&[("a.csv", b"a"), ("b.csv", b"b, edited")]);
+        let out = &out;
         std::fs::write(dir.path().join("outside.csv"), b"o").unwrap();
         let a = entry(
             "a",

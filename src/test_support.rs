@@ -108,6 +108,36 @@ pub fn track_exposed(
         .collect()
 }
 
+/// A fresh output folder `out/` (in the returned temporary folder) holding
+/// `tracks/<name>` with `bytes` for each of `tracks`.
+pub fn out_with_tracks(tracks: &[(&str, &[u8])]) -> (tempfile::TempDir, std::path::PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir_all(out.join("tracks")).unwrap();
+    for (name, bytes) in tracks {
+        std::fs::write(out.join("tracks").join(name), bytes).unwrap();
+    }
+    (dir, out)
+}
+
+/// A cache entry of `run` under `key` that wrote `outputs` (its record a
+/// failed row, its input unreadable).
+pub fn cache_entry(
+    run: &str,
+    key: &str,
+    outputs: Vec<crate::cache::OutputFile>,
+) -> crate::cache::Entry {
+    crate::cache::Entry {
+        schema: crate::cache::CACHE_SCHEMA,
+        dropscope_version: env!("CARGO_PKG_VERSION").into(),
+        key: key.into(),
+        input: crate::cache::Fingerprint::unreadable(std::path::Path::new("x")),
+        outputs,
+        frames: 1,
+        record: crate::dataset::DropRecord::failed(run, 4.5, "why"),
+    }
+}
+
 pub fn sphere() -> SphereParams {
     SphereParams {
         radius_m: 4.5e-3,

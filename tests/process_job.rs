@@ -11,7 +11,7 @@ fn fixtures() -> PathBuf {
 }
 
 fn process(out: &Path, extra: &[&str]) -> (Output, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+    let o = dropscope()
         .arg("process")
         .arg("--manifest")
         .arg(fixtures().join("runs.csv"))
@@ -22,6 +22,22 @@ fn process(out: &Path, extra: &[&str]) -> (Output, String) {
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
     (o, err)
+}
+
+fn dropscope() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_dropscope"))
+}
+
+/// Run `cmd`, which must exit 0 (else fail with its stderr).
+fn succeeded(cmd: &mut Command) -> Output {
+    let o = cmd.output().unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
 }
 
 /// The last line's "N reused from the cache".
@@ -120,7 +136,7 @@ fn process_draws_the_per_drop_figures_without_a_collapse() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     // Every run as a 4.5 mm sphere: the 3 mm drop's free fall is then off.
-    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+    let o = dropscope()
         .arg("process")
         .arg(fixtures())
         .args(["--radius-mm", "4.5", "--out"])
@@ -151,17 +167,7 @@ fn process_draws_the_per_drop_figures_without_a_collapse() {
         assert_eq!(inked, 0, "{run}: {inked} dark pixels at the right edge");
     }
     assert!(!out.join("fits.json").exists(), "process ran a collapse");
-    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
-        .arg("report")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    succeeded(dropscope().arg("report").arg(&out));
     let page = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert_eq!(page.matches("class=\"diagram\"").count(), 3);
 }
@@ -173,18 +179,12 @@ fn process_draws_the_per_drop_figures_without_a_collapse() {
 fn overlays_have_a_scale_bar_and_the_impact_is_animated() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
-    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
-        .arg("process")
-        .arg(fixtures().join("R4.5mm_H12cm_01"))
-        .args(["--radius-mm", "4.5", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
+    succeeded(
+        dropscope()
+            .arg("process")
+            .arg(fixtures().join("R4.5mm_H12cm_01"))
+            .args(["--radius-mm", "4.5", "--out"])
+            .arg(&out),
     );
     let rec = &dropscope::dataset::read_csv(&out.join("drops.csv")).unwrap()[0];
     let img = image::open(out.join("plots/overlays/R4.5mm_H12cm_01.png"))
@@ -228,17 +228,11 @@ fn overlays_have_a_scale_bar_and_the_impact_is_animated() {
 #[test]
 fn one_rendered_drop_has_a_manifest_and_drops_csv_keeps_height_and_path() {
     let dir = tempfile::tempdir().unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
-        .args(["render", "--radius-mm", "4.5", "--height-cm", "12"])
-        .args(["--frames-before", "20", "--frames-after", "20", "--out"])
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
+    succeeded(
+        dropscope()
+            .args(["render", "--radius-mm", "4.5", "--height-cm", "12"])
+            .args(["--frames-before", "20", "--frames-after", "20", "--out"])
+            .arg(dir.path()),
     );
     let manifest = dir.path().join("runs.csv");
     let runs = dropscope::manifest::read_manifest(&manifest).expect("render wrote runs.csv");
@@ -246,18 +240,12 @@ fn one_rendered_drop_has_a_manifest_and_drops_csv_keeps_height_and_path() {
     assert_eq!(runs[0].drop_height_cm, Some(12.0));
     assert!(runs[0].path.is_dir(), "{}", runs[0].path.display());
     let out = dir.path().join("out");
-    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
-        .args(["process", "--manifest"])
-        .arg(&manifest)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
+    succeeded(
+        dropscope()
+            .args(["process", "--manifest"])
+            .arg(&manifest)
+            .arg("--out")
+            .arg(&out),
     );
     let rec = &dropscope::dataset::read_csv(&out.join("drops.csv")).unwrap()[0];
     assert_eq!(rec.drop_height_cm, Some(12.0));
@@ -299,7 +287,7 @@ fn a_rerun_with_fewer_runs_leaves_no_file_of_the_earlier_job() {
     manifest_of(&all, &runs);
     manifest_of(&one, &runs[..1]);
     let job = |manifest: &Path, extra: &[&str]| {
-        let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        let o = dropscope()
             .args(["process", "--manifest"])
             .arg(manifest)
             .arg("--out")
@@ -368,7 +356,7 @@ fn the_tracks_flags_column_is_text_in_every_file() {
     // R3's frames have no flag at all; R4.5's first ones are `partial`.
     let runs = ["R3mm_H1.5cm_01", "R4.5mm_H12cm_01"];
     manifest_of(&manifest, &runs);
-    let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+    let o = dropscope()
         .args(["process", "--manifest"])
         .arg(&manifest)
         .arg("--out")
@@ -415,10 +403,7 @@ fn the_animation_can_be_turned_off() {
     let impact = format!("plots/impacts/{run}.png");
     let overlay = format!("plots/overlays/{run}.png");
     let dropscope = |args: &[&str]| {
-        let o = Command::new(env!("CARGO_BIN_EXE_dropscope"))
-            .args(args)
-            .output()
-            .unwrap();
+        let o = dropscope().args(args).output().unwrap();
         let text = String::from_utf8_lossy(&o.stdout).into_owned();
         assert_eq!(
             o.status.code(),

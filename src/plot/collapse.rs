@@ -18,6 +18,7 @@ use super::marker::{radius_style, Marker, MarkerKind};
 use super::{
     axis_tick, hover, render, tick, DrawResult, DESC_FONT, LEGEND_FONT, LIGHT_LINES, TICK_FONT,
 };
+use super::{Backend, Plane};
 use crate::collapse::fit::{self, ExponentFit, Fits, SeriesFit};
 use crate::collapse::groups::{DropGroups, Quantity};
 use crate::collapse::CollapseError;
@@ -102,19 +103,14 @@ fn pt(x: &Quantity, y: &Quantity, xs: f64, ys: f64) -> Pt {
 /// Error bars (1σ, both directions) and markers of one radius.
 /// `points[i]` is the drop named `names[i]`; `axes` names x and y in its
 /// hover text.
-fn draw_points<'a, DB, CT>(
+fn draw_points<'a, DB: Backend + 'a, CT: Plane>(
     chart: &mut ChartContext<'a, DB, CT>,
     set: &RadiusSet,
     (points, names): (&[Pt], &[&str]),
     log: bool,
     label: String,
     axes: [&str; 2],
-) -> DrawResult
-where
-    DB: DrawingBackend + 'a,
-    DB::ErrorType: 'static,
-    CT: CoordTranslate<From = (f64, f64)>,
-{
+) -> DrawResult {
     let pm = |v: f64, e: Option<f64>| match e {
         Some(e) => format!("{} ± {}", sig4(v), sig4(e)),
         None => sig4(v),
@@ -149,17 +145,12 @@ where
 
 /// The one-sigma error bars of `points` in the colour of `set` (on a log
 /// axis the lower end stays positive).
-fn draw_bars<'a, DB, CT>(
+fn draw_bars<'a, DB: Backend + 'a, CT: Plane>(
     chart: &mut ChartContext<'a, DB, CT>,
     set: &RadiusSet,
     points: &[Pt],
     log: bool,
-) -> DrawResult
-where
-    DB: DrawingBackend + 'a,
-    DB::ErrorType: 'static,
-    CT: CoordTranslate<From = (f64, f64)>,
-{
+) -> DrawResult {
     let bar = set.color.stroke_width(1);
     let clamp = |v: f64, e: f64| if log { (v - e).max(v * 0.5) } else { v - e };
     let mut bars = Vec::new();
@@ -179,10 +170,7 @@ where
 /// under it.
 type Panels<DB> = (DrawingArea<DB, Shift>, Option<DrawingArea<DB, Shift>>);
 
-fn fit_and_residuals<DB: DrawingBackend>(
-    area: DrawingArea<DB, Shift>,
-    res: &[Vec<Pt>],
-) -> Panels<DB> {
+fn fit_and_residuals<DB: Backend>(area: DrawingArea<DB, Shift>, res: &[Vec<Pt>]) -> Panels<DB> {
     if res.iter().all(Vec::is_empty) {
         return (area, None);
     }
@@ -206,8 +194,7 @@ fn residual_panel<DB, X>(
     res: &[Vec<Pt>],
 ) -> DrawResult
 where
-    DB: DrawingBackend,
-    DB::ErrorType: 'static,
+    DB: Backend,
     X: AsRangedCoord<Value = f64>,
     X::CoordDescType: ValueFormatter<f64>,
 {
@@ -245,8 +232,7 @@ fn mesh<'a, DB, X, Y>(
     y_labels: usize,
 ) -> DrawResult
 where
-    DB: DrawingBackend + 'a,
-    DB::ErrorType: 'static,
+    DB: Backend + 'a,
     X: Ranged + ValueFormatter<<X as Ranged>::ValueType>,
     Y: Ranged + ValueFormatter<<Y as Ranged>::ValueType>,
 {
@@ -266,12 +252,10 @@ where
     Ok(())
 }
 
-fn legend<'a, DB, CT>(chart: &mut ChartContext<'a, DB, CT>, pos: SeriesLabelPosition) -> DrawResult
-where
-    DB: DrawingBackend + 'a,
-    DB::ErrorType: 'static,
-    CT: CoordTranslate,
-{
+fn legend<'a, DB: Backend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    pos: SeriesLabelPosition,
+) -> DrawResult {
     chart
         .configure_series_labels()
         .position(pos)
@@ -291,12 +275,10 @@ fn ci_text(v: Option<f64>, ci: Option<[f64; 2]>) -> String {
     }
 }
 
-fn draw_guides<'a, DB, CT>(chart: &mut ChartContext<'a, DB, CT>, guides: &[Guide]) -> DrawResult
-where
-    DB: DrawingBackend + 'a,
-    DB::ErrorType: 'static,
-    CT: CoordTranslate<From = (f64, f64)>,
-{
+fn draw_guides<'a, DB: Backend + 'a, CT: Plane>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    guides: &[Guide],
+) -> DrawResult {
     for (pts, label, at) in guides {
         chart.draw_series(DashedLineSeries::new(
             pts.iter().copied(),
@@ -314,10 +296,7 @@ where
 }
 
 /// An empty figure says why, instead of axes over nothing.
-fn no_data<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>) -> DrawResult
-where
-    DB::ErrorType: 'static,
-{
+fn no_data<DB: Backend>(area: &DrawingArea<DB, Shift>) -> DrawResult {
     let (w, h) = area.dim_in_pixel();
     area.draw(&Text::new(
         "No measured drop to show: see the drops table and the collapse's warnings",
@@ -333,28 +312,22 @@ where
     Ok(())
 }
 
-fn title<DB: DrawingBackend>(
+fn title<DB: Backend>(
     root: &DrawingArea<DB, Shift>,
     text: &str,
-) -> Result<DrawingArea<DB, Shift>, Box<dyn std::error::Error>>
-where
-    DB::ErrorType: 'static,
-{
+) -> Result<DrawingArea<DB, Shift>, Box<dyn std::error::Error>> {
     Ok(root.titled(text, ("sans-serif", 24))?)
 }
 
 type LogAxis = WithKeyPoints<LogCoord<f64>>;
 
 /// A log–log chart with ticks from [`log_ticks`].
-fn log_log_chart<'a, DB: DrawingBackend + 'a>(
+fn log_log_chart<'a, DB: Backend + 'a>(
     area: &DrawingArea<DB, Shift>,
     xr: [f64; 2],
     yr: [f64; 2],
     x_label_px: u32,
-) -> Result<ChartContext<'a, DB, Cartesian2d<LogAxis, LogAxis>>, Box<dyn std::error::Error>>
-where
-    DB::ErrorType: 'static,
-{
+) -> Result<ChartContext<'a, DB, Cartesian2d<LogAxis, LogAxis>>, Box<dyn std::error::Error>> {
     Ok(ChartBuilder::on(area)
         .margin(18)
         .x_label_area_size(x_label_px)
@@ -372,17 +345,12 @@ fn log_axis(r: [f64; 2]) -> LogAxis {
 }
 
 /// Fitted power law y = scale · exp(b) x^k over the x range of `p`.
-fn power_line<'a, DB, CT>(
+fn power_line<'a, DB: Backend + 'a, CT: Plane>(
     chart: &mut ChartContext<'a, DB, CT>,
     p: &[Pt],
     (k, b, scale): (f64, f64, f64),
     color: RGBColor,
-) -> DrawResult
-where
-    DB: DrawingBackend + 'a,
-    DB::ErrorType: 'static,
-    CT: CoordTranslate<From = (f64, f64)>,
-{
+) -> DrawResult {
     let lo = p.iter().map(|q| q.0).fold(f64::INFINITY, f64::min);
     let hi = p.iter().map(|q| q.0).fold(0.0, f64::max);
     if !(lo > 0.0 && hi > lo) {
@@ -422,14 +390,11 @@ struct LogLog<'s> {
     legend_corners: [SeriesLabelPosition; 3],
 }
 
-fn log_log<DB: DrawingBackend>(
+fn log_log<DB: Backend>(
     root: &DrawingArea<DB, Shift>,
     sets: &[RadiusSet],
     spec: &LogLog,
-) -> DrawResult
-where
-    DB::ErrorType: 'static,
-{
+) -> DrawResult {
     let area = title(root, spec.heading)?;
     let all = spec.pts.concat();
     if all.is_empty() {
@@ -516,10 +481,7 @@ where
     Ok(())
 }
 
-fn pi_vs_eta<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> DrawResult
-where
-    DB::ErrorType: 'static,
-{
+fn pi_vs_eta<DB: Backend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> DrawResult {
     use SeriesLabelPosition::*;
     let spec = LogLog {
         heading: "Penetration Π = δ/R vs Cauchy number η = ρv²/E (cf. Fig. 3a)",
@@ -567,10 +529,7 @@ where
     log_log(root, sets, &spec)
 }
 
-fn tau_vs_v<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> DrawResult
-where
-    DB::ErrorType: 'static,
-{
+fn tau_vs_v<DB: Backend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> DrawResult {
     use SeriesLabelPosition::*;
     let pts: Vec<Vec<Pt>> = sets
         .iter()
@@ -630,7 +589,7 @@ where
 
 /// Ψ vs Ξ or Ω vs Ξ with the series and the theory constant.
 #[allow(clippy::too_many_arguments)]
-fn series_plot<DB: DrawingBackend>(
+fn series_plot<DB: Backend>(
     root: &DrawingArea<DB, Shift>,
     sets: &[RadiusSet],
     heading: &str,
@@ -640,10 +599,7 @@ fn series_plot<DB: DrawingBackend>(
     names: [&str; 3],
     theory: (f64, &str),
     crossover: Option<f64>,
-) -> DrawResult
-where
-    DB::ErrorType: 'static,
-{
+) -> DrawResult {
     const THEORY: RGBColor = RGBColor(90, 90, 90);
     const CROSS: RGBColor = RGBColor(120, 60, 160);
     let area = title(root, heading)?;

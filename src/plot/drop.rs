@@ -5,7 +5,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{axis_tick, file_stem, render, tick, DrawResult, LIGHT_LINES};
+use super::{axis_tick, file_stem, render, tick, Backend, DrawResult, Plane, LIGHT_LINES};
 use crate::collapse::diagnostics::DropDiagnostics;
 use crate::collapse::CollapseError;
 
@@ -28,17 +28,12 @@ fn span(v: impl Iterator<Item = f64>) -> [f64; 2] {
 
 /// Dashed vertical lines at contact and rebound, labelled near the top
 /// (`at_top`) or the bottom of the panel.
-fn events<'a, DB, CT>(
+fn events<'a, DB: Backend + 'a, CT: Plane>(
     chart: &mut ChartContext<'a, DB, CT>,
     d: &DropDiagnostics,
     yr: [f64; 2],
     at_top: bool,
-) -> DrawResult
-where
-    DB: DrawingBackend + 'a,
-    DB::ErrorType: 'static,
-    CT: CoordTranslate<From = (f64, f64)>,
-{
+) -> DrawResult {
     use plotters::style::text_anchor::{HPos, Pos, VPos};
     // Each label sits outside the contact interval: "contact" left of its
     // line, "rebound" right of its line.
@@ -75,10 +70,7 @@ where
     Ok(())
 }
 
-fn panels<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> DrawResult
-where
-    DB::ErrorType: 'static,
-{
+fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> DrawResult {
     let root = root.titled(
         &format!("Drop {}: trajectory, penetration, force", d.run),
         ("sans-serif", 24),
@@ -285,14 +277,11 @@ where
 /// The legend font size, at most [`super::LEGEND_FONT`] (and at least 12),
 /// at which the longest of `labels`, with the legend's marker and margins,
 /// fits `width_px`.
-fn legend_font<DB: DrawingBackend>(
+fn legend_font<DB: Backend>(
     area: &DrawingArea<DB, Shift>,
     labels: &[String],
     width_px: f64,
-) -> Result<u32, Box<dyn std::error::Error>>
-where
-    DB::ErrorType: 'static,
-{
+) -> Result<u32, Box<dyn std::error::Error>> {
     // Marker, gaps and box margins around the text (plotters' series labels).
     const CHROME_PX: f64 = 60.0;
     let base = super::LEGEND_FONT;

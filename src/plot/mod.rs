@@ -34,6 +34,24 @@ use crate::collapse::CollapseError;
 /// The error type of the drawing functions (plotters' errors, boxed).
 pub(crate) type DrawResult = Result<(), Box<dyn std::error::Error>>;
 
+/// A plotters backend whose errors box into [`DrawResult`] (every backend
+/// dropscope draws on: SVG and bitmap).
+pub(crate) trait Backend: DrawingBackend<ErrorType = Self::Error> {
+    type Error: std::error::Error + Send + Sync + 'static;
+}
+
+impl<B: DrawingBackend> Backend for B
+where
+    B::ErrorType: 'static,
+{
+    type Error = B::ErrorType;
+}
+
+/// A chart's coordinates: data (x, y) in f64 to pixels.
+pub(crate) trait Plane: CoordTranslate<From = (f64, f64)> {}
+
+impl<C: CoordTranslate<From = (f64, f64)>> Plane for C {}
+
 /// Light grid lines between two labelled ones. Plotters draws up to 10,
 /// which on a linear axis is a graph-paper grey behind the points and a
 /// third of a figure's SVG bytes.

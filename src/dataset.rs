@@ -107,6 +107,20 @@ pub struct DropRecord {
     pub surface_law_offset_px: Option<f64>,
     #[serde(default)]
     pub surface_law_offset_px_err: Option<f64>,
+    /// The lens's radial distortion k1 (1/px²) undone on the track, when
+    /// the configuration gives one (`camera.distortion_k1_per_px2`).
+    #[serde(default)]
+    pub distortion_k1_per_px2: Option<f64>,
+    /// Without a calibrated k1: how far the distortion bound
+    /// (`camera.distortion_bound_px` at the image corner) moves v_impact,
+    /// δmax and τc; each enters its `_err` as a systematic term (÷√3, k1
+    /// anywhere between ± the bound). See `lens.rs`.
+    #[serde(default)]
+    pub distortion_v_impact_m_s: Option<f64>,
+    #[serde(default)]
+    pub distortion_delta_max_mm: Option<f64>,
+    #[serde(default)]
+    pub distortion_tau_c_ms: Option<f64>,
     /// Time of the maximum penetration.
     #[serde(default)]
     pub t_max_s: Option<f64>,
@@ -197,6 +211,10 @@ impl DropRecord {
             surface_source: String::new(),
             surface_law_offset_px: None,
             surface_law_offset_px_err: None,
+            distortion_k1_per_px2: None,
+            distortion_v_impact_m_s: None,
+            distortion_delta_max_mm: None,
+            distortion_tau_c_ms: None,
             t_max_s: None,
             second_contact_s: None,
             g_fit_m_s2: None,

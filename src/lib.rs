@@ -12,6 +12,7 @@
 //! | [`events`] | contact onset, peak and loss of contact from the track |
 //! | [`kinematics`] | v, δ, a, τc, e with jointly propagated errors |
 //! | [`scale`] | mm/px: given, from free fall (pooled per camera set-up), or from the radius |
+//! | [`lens`] | radial lens distortion: a known k1 undone on the track, or its bound as a systematic |
 //! | [`force`] | F(δ) table and the trajectory-fitted contact law |
 //! | [`measure`] | one drop from track to record |
 //! | [`quality`] | the quality flags of a measured drop (`flags` in drops.csv) |
@@ -51,6 +52,7 @@ pub mod force;
 pub mod io_util;
 pub mod kinematics;
 pub mod leftovers;
+pub mod lens;
 pub mod lock;
 pub mod lsq;
 pub mod manifest;

@@ -9,6 +9,7 @@ use crate::cache::OutputFile;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
 use crate::events::{EventConfig, Geometry, TrackPoint};
+use crate::lens::{undistort_track, Lens};
 use crate::manifest::RunSpec;
 use crate::measure::{annotate_track, measure_drop, measure_drop_with, surface_from_law, DropInfo};
 use crate::quality;
@@ -166,11 +167,18 @@ pub fn process_setup(
         .iter()
         .filter_map(|t| t.as_ref().ok()?.curvature)
         .collect();
-    let pooled = if curvatures.len() >= 2 {
-        crate::scale::pool(&curvatures)
-    } else {
-        None
+    let pool = |curvatures: Vec<Curvature>| {
+        (curvatures.len() >= 2)
+            .then(|| crate::scale::pool(&curvatures))
+            .flatten()
     };
+    let pooled_at_bound = pool(
+        tracked
+            .iter()
+            .filter_map(|t| t.as_ref().ok()?.bounded.as_ref()?.curvature)
+            .collect(),
+    );
+    let pooled = pool(curvatures);
     runs.par_iter()
         .zip(tracked)
         .zip(track_s)
@@ -178,7 +186,7 @@ pub fn process_setup(
             let start = std::time::Instant::now();
             let mut o = caught(run, || {
                 let _timed = crate::timings::start(crate::timings::Stage::Events);
-                measure_run(t?, run, cfg, pooled, overlay_frames)
+                measure_run(t?, run, cfg, [pooled, pooled_at_bound], overlay_frames)
             })
             .unwrap_or_else(|reason| failed_outcome(run, cfg, reason));
             o.seconds = track_s + start.elapsed().as_secs_f64();
@@ -243,6 +251,9 @@ struct Tracked {
     surface_name: String,
     /// The curvature of the run's own free flights.
     curvature: Option<Curvature>,
+    /// The track through a lens at `camera.distortion_bound_px`, when no
+    /// k1 is given and the bound is not 0.
+    bounded: Option<crate::lens::Bounded>,
 }
 
 /// The reason of a run that panicked: the panic's message, which names the
@@ -279,13 +290,31 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
     let mut source = time(Stage::Open, || open(&run.path, &options)).map_err(|e| e.to_string())?;
     let meta = source.meta().clone();
     let settings = TrackSettings::from_config(&cfg.detect);
-    let tr =
+    let mut tr =
         track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
-
-    let points = track_points(&tr, |_| (None, None));
-    let curvature = time(Stage::Events, || {
-        free_fall_curvature(&points, |x| tr.surface.row_at(x), tr.radius_px)
-    });
+    let camera = &cfg.camera;
+    if let Some(k1) = camera.distortion_k1_per_px2 {
+        tr = undistort_track(&tr, &Lens::new(k1, meta.width, meta.height));
+    }
+    let curvature_of = |tr: &Track| {
+        let points = track_points(tr, |_| (None, None));
+        let c = free_fall_curvature(&points, |x| tr.surface.row_at(x), tr.radius_px);
+        (points, c)
+    };
+    let curvature = time(Stage::Events, || curvature_of(&tr).1);
+    let bounded = (camera.distortion_k1_per_px2.is_none() && camera.distortion_bound_px > 0.0)
+        .then(|| {
+            let lens = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
+            let b = undistort_track(&tr, &lens);
+            let (points, curvature) = time(Stage::Events, || curvature_of(&b));
+            crate::lens::Bounded {
+                points,
+                surface_row0_px: b.surface.row0_px,
+                surface_slope: b.surface.slope,
+                radius_px: b.radius_px,
+                curvature,
+            }
+        });
     Ok(Tracked {
         source,
         meta,
@@ -293,6 +322,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         settings,
         surface_name,
         curvature,
+        bounded,
     })
 }
 
@@ -300,7 +330,7 @@ fn measure_run(
     t: Tracked,
     run: &RunSpec,
     cfg: &PipelineConfig,
-    setup: Option<Curvature>,
+    [setup, setup_at_bound]: [Option<Curvature>; 2],
     overlay_frames: &[i64],
 ) -> Result<RunOutcome, String> {
     let Tracked {
@@ -310,6 +340,7 @@ fn measure_run(
         settings,
         surface_name,
         curvature,
+        bounded,
     } = t;
     let event_cfg = EventConfig {
         exposure_s: meta.exposure_s.unwrap_or(0.0),
@@ -398,6 +429,27 @@ fn measure_run(
     record.surface_law_offset_px_err = law_offset.map(|d| d.err);
     widen_a_max_err(&mut record, &geom, edge_offset.map_or(0.0, |(_, e)| e));
     speeds_at_the_impact_scale(&mut record, &sc);
+    record.distortion_k1_per_px2 = cfg.camera.distortion_k1_per_px2;
+    if let Some(b) = &bounded {
+        let sphere = crate::kinematics::SphereParams {
+            radius_m: info.sphere_radius_mm * 1e-3,
+            density_kg_m3: info.sphere_density_kg_m3,
+        };
+        let shift = crate::lens::shift_at_bound(
+            &points,
+            &geom,
+            &inputs,
+            b,
+            setup_at_bound,
+            geom.surface_row_px - tr.surface.row0_px,
+            &sphere,
+            &event_cfg,
+            |sc| speed_factor(sc).0,
+        );
+        if let Some(shift) = shift {
+            distortion_systematic(&mut record, &shift);
+        }
+    }
     record.setup = run.setup.clone().unwrap_or_default();
     record.drop_height_cm = run.drop_height_cm;
     record.path = run.path.display().to_string();
@@ -552,18 +604,7 @@ fn track_points(
 /// the true scale given, v_impact was 0.03 % high (barrel distortion) with
 /// the given scale alone.
 fn speeds_at_the_impact_scale(record: &mut DropRecord, sc: &crate::scale::Scale) {
-    let (crate::scale::ScaleSource::Given, Some((ff, ff_err))) =
-        (sc.source, sc.free_fall_mm_per_px)
-    else {
-        return;
-    };
-    let (factor, rel) = match sc.for_speeds() {
-        Some((s, rel)) => (s / sc.mm_per_px, rel),
-        None => (
-            1.0,
-            ((ff / sc.mm_per_px - 1.0).abs() - ff_err / ff).max(0.0),
-        ),
-    };
+    let (factor, rel) = speed_factor(sc);
     for (v, err) in [
         (&mut record.v_impact_m_s, &mut record.v_impact_m_s_err),
         (&mut record.v_rebound_m_s, &mut record.v_rebound_m_s_err),
@@ -573,6 +614,41 @@ fn speeds_at_the_impact_scale(record: &mut DropRecord, sc: &crate::scale::Scale)
             *e = (*e * factor).hypot(v.abs() * rel);
         }
     }
+}
+
+/// The factor that takes speeds at `sc` to speeds at the impact's
+/// magnification, and the relative error that adds (see
+/// [`speeds_at_the_impact_scale`]); (1, 0) unless the scale is given and
+/// free fall measured one.
+fn speed_factor(sc: &crate::scale::Scale) -> (f64, f64) {
+    let (crate::scale::ScaleSource::Given, Some((ff, ff_err))) =
+        (sc.source, sc.free_fall_mm_per_px)
+    else {
+        return (1.0, 0.0);
+    };
+    match sc.for_speeds() {
+        Some((s, rel)) => (s / sc.mm_per_px, rel),
+        None => (
+            1.0,
+            ((ff / sc.mm_per_px - 1.0).abs() - ff_err / ff).max(0.0),
+        ),
+    }
+}
+
+/// Add the distortion bound's [`Shift`](crate::lens::Shift) to the errors
+/// as a systematic term: k1 anywhere between minus and plus the bound,
+/// uniformly, moves each number by up to the shift, a standard deviation
+/// of |shift| / √3. The shifts are written beside them.
+fn distortion_systematic(record: &mut DropRecord, shift: &crate::lens::Shift) {
+    let sd = |d: f64| d.abs() / 3f64.sqrt();
+    let widen = |err: &mut Option<f64>, d: f64| *err = err.map(|e| e.hypot(sd(d)));
+    widen(&mut record.v_impact_m_s_err, shift.v_impact_m_s);
+    widen(&mut record.v_rebound_m_s_err, shift.v_rebound_m_s);
+    widen(&mut record.delta_max_mm_err, shift.delta_max_mm);
+    widen(&mut record.tau_c_ms_err, shift.tau_c_ms);
+    record.distortion_v_impact_m_s = Some(shift.v_impact_m_s);
+    record.distortion_delta_max_mm = Some(shift.delta_max_mm);
+    record.distortion_tau_c_ms = Some(shift.tau_c_ms);
 }
 
 /// How far the silhouette's edge offset may differ between the flight,

@@ -370,14 +370,16 @@ pub(crate) fn provenance_json(
         dropscope_version: &'a str,
         dropscope_source_sha256: &'a str,
         configuration_file: &'a str,
-        configuration: &'a PipelineConfig,
+        /// With the keys of pipeline.toml (`radius_mm`, `[surface.<name>]`),
+        /// as check-config prints it.
+        configuration: toml::Value,
         runs: Vec<RunProvenance<'a>>,
     }
     let p = Provenance {
         dropscope_version: env!("CARGO_PKG_VERSION"),
         dropscope_source_sha256: cache::SOURCE_SHA256,
         configuration_file: config_name,
-        configuration: cfg,
+        configuration: cfg.to_file_value(),
         runs: entries
             .iter()
             .map(|e| RunProvenance {
@@ -586,6 +588,27 @@ pub fn run_job(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// provenance.json's configuration has pipeline.toml's keys
+    /// (`radius_mm`, `surface.<name>`; it had the SI names `radius_m`,
+    /// `surfaces`), and read back as TOML it is the same configuration.
+    #[test]
+    fn provenance_records_the_configuration_with_the_files_keys() {
+        let text = crate::config::EMBEDDED_DEFAULT.replace("# radius_mm = 4.5", "radius_mm = 4.5");
+        let cfg = PipelineConfig::from_toml_str(&text, Path::new("p.toml"), Path::new("")).unwrap();
+        let doc: serde_json::Value =
+            serde_json::from_slice(&provenance_json(&cfg, "p.toml", &[])).unwrap();
+        let c = &doc["configuration"];
+        assert_eq!(c["sphere"]["radius_mm"], serde_json::json!(4.5), "{c}");
+        assert_eq!(
+            c["surface"]["pdms"]["pillar_height_mm"],
+            serde_json::json!(3.5)
+        );
+        assert!(c.get("surfaces").is_none() && c["sphere"].get("radius_m").is_none());
+        let as_toml = toml::to_string(&c).unwrap();
+        let back = PipelineConfig::from_toml_str(&as_toml, Path::new("x"), Path::new("")).unwrap();
+        assert_eq!(back, cfg);
+    }
 
     #[test]
     fn runs_are_found_at_any_depth_in_name_order() {

@@ -31,15 +31,22 @@ fn to_file_units(v: Value) -> Value {
 }
 
 impl PipelineConfig {
-    /// The configuration as `pipeline.toml` text (paths as resolved).
-    pub fn to_toml(&self) -> String {
+    /// The configuration with the keys of `pipeline.toml` (paths as
+    /// resolved): what [`Self::to_toml`] prints and `provenance.json`
+    /// records.
+    pub fn to_file_value(&self) -> Value {
         let Ok(Value::Table(mut t)) = Value::try_from(self) else {
-            return String::new();
+            return Value::Table(Default::default());
         };
         if let Some(s) = t.remove("surfaces") {
             t.insert("surface".into(), s);
         }
-        toml::to_string(&to_file_units(Value::Table(t))).unwrap_or_default()
+        to_file_units(Value::Table(t))
+    }
+
+    /// The configuration as `pipeline.toml` text (paths as resolved).
+    pub fn to_toml(&self) -> String {
+        toml::to_string(&self.to_file_value()).unwrap_or_default()
     }
 }
 

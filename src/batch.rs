@@ -566,6 +566,7 @@ pub fn run_job(
         let s = crate::collapse::run(&args, cfg, config_name)?;
         (true, s.warnings)
     } else {
+        crate::collapse::per_drop::replace(out, Vec::new(), &mut Vec::new())?;
         (false, Vec::new())
     };
     drop(collapse);

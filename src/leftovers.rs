@@ -12,6 +12,11 @@
 //! with the cache entries (`runs/<run>.json`) of the runs no longer in the
 //! job. A provenance written before it listed files (or without one) names
 //! its runs only: their files are then those their cache entries list.
+//!
+//! A `process` job writes a new drops.csv but no collapse: the collapse
+//! files (and report) an earlier job left, computed from another drops.csv,
+//! are removed by [`remove_other_dataset`] — the files that carry another
+//! dataset id ([`crate::dataset_id`]), which only dropscope writes.
 
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -109,6 +114,57 @@ pub fn remove(out: &Path, current: &[Entry]) -> std::io::Result<Removed> {
     Ok(removed)
 }
 
+/// Remove the collapse files and report in `out` computed from another
+/// drops.csv than the dataset `id` ([`crate::dataset_id`]): `fits.json`,
+/// `collapse.csv`, the collapse figures' SVGs and `report.html` that carry
+/// another id, and the PNG twin of each figure removed (a PNG carries no
+/// id; one without its SVG goes when anything else went). A file that
+/// carries no id is not dropscope's and stays. Returns the paths removed,
+/// relative to `out`.
+pub fn remove_other_dataset(out: &Path, id: &str) -> std::io::Result<Vec<String>> {
+    let text = |rel: &str| String::from_utf8(std::fs::read(out.join(rel)).ok()?).ok();
+    let id_in = |rel: &str| -> Option<String> {
+        let t = text(rel)?;
+        if rel == "fits.json" {
+            let doc: serde_json::Value = serde_json::from_str(&t).ok()?;
+            return Some(doc["provenance"]["dataset_id"].as_str()?.to_string());
+        }
+        if rel == "collapse.csv" {
+            let mut r = csv::Reader::from_reader(t.as_bytes());
+            let col = r.headers().ok()?.iter().position(|c| c == "dataset_id")?;
+            return Some(r.records().next()?.ok()?.get(col)?.to_string());
+        }
+        if rel == "report.html" {
+            const MARK: &str = "title=\"SHA-256 of drops.csv\">";
+            let start = t.find(MARK)? + MARK.len();
+            return Some(t[start..].split('<').next()?.to_string());
+        }
+        crate::dataset_id::of_svg(&t).map(str::to_string)
+    };
+    let stems = crate::plot::FIGURE_STEMS;
+    let tagged = crate::collapse::TABLES
+        .iter()
+        .map(|s| s.to_string())
+        .chain(stems.iter().map(|s| format!("plots/{s}.svg")))
+        .chain(["report.html".to_string()]);
+    let mut removed = Vec::new();
+    for rel in tagged {
+        if id_in(&rel).is_some_and(|found| found != id) {
+            crate::io_util::remove_if_present(&out.join(&rel))?;
+            removed.push(rel);
+        }
+    }
+    for stem in stems {
+        let (svg, png) = (format!("plots/{stem}.svg"), format!("plots/{stem}.png"));
+        let orphan = !out.join(&svg).exists() && !removed.is_empty();
+        if (removed.contains(&svg) || orphan) && out.join(&png).is_file() {
+            crate::io_util::remove_if_present(&out.join(&png))?;
+            removed.push(png);
+        }
+    }
+    Ok(removed)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -155,5 +211,42 @@ mod tests {
         // No provenance, or a damaged one: nothing removed.
         std::fs::write(out.join("provenance.json"), b"{ damaged").unwrap();
         assert_eq!(remove(out, &[]).unwrap(), Removed::default());
+    }
+
+    /// The collapse files that carry another dataset id go, with their PNG
+    /// twins; a file carrying this id, or none (not dropscope's), stays.
+    #[test]
+    fn only_files_of_another_dataset_are_removed() {
+        let (_dir, out) = out_with_tracks(&[]);
+        let tag = |id: &str| crate::dataset_id::tag_svg(b"<svg><g/></svg>", id);
+        std::fs::create_dir_all(out.join("plots")).unwrap();
+        for (rel, bytes) in [
+            (
+                "fits.json",
+                br#"{"provenance": {"dataset_id": "old"}}"#.to_vec(),
+            ),
+            ("collapse.csv", b"run,dataset_id\na,old\n".to_vec()),
+            ("plots/tau_vs_v.svg", tag("old")),
+            ("plots/tau_vs_v.png", b"png".to_vec()),
+            ("plots/pi_vs_eta.svg", tag("new")),
+            ("plots/pi_vs_eta.png", b"png".to_vec()),
+            ("report.html", b"<p>my own page</p>".to_vec()),
+        ] {
+            std::fs::write(out.join(rel), bytes).unwrap();
+        }
+        let removed = remove_other_dataset(&out, "new").unwrap();
+        assert_eq!(
+            removed,
+            [
+                "collapse.csv",
+                "fits.json",
+                "plots/tau_vs_v.svg",
+                "plots/tau_vs_v.png"
+            ]
+        );
+        for kept in ["plots/pi_vs_eta.svg", "plots/pi_vs_eta.png", "report.html"] {
+            assert!(out.join(kept).is_file(), "{kept}");
+        }
+        assert!(remove_other_dataset(&out, "new").unwrap().is_empty());
     }
 }

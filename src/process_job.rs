@@ -37,6 +37,38 @@ impl ProcessSummary {
     }
 }
 
+/// Remove the collapse files and report an earlier job left in `out`,
+/// computed from another drops.csv than the one just written (dataset
+/// `id`), saying which ([`crate::leftovers::remove_other_dataset`]): a
+/// process job writes no collapse, and they would no longer match.
+fn remove_other_collapse(
+    out: &Path,
+    id: &str,
+    events: &(dyn Fn(RunEvent) + Sync),
+) -> Result<(), BatchError> {
+    let removed =
+        crate::leftovers::remove_other_dataset(out, id).map_err(|source| BatchError::Io {
+            path: out.to_path_buf(),
+            source,
+        })?;
+    if !removed.is_empty() {
+        let (figures, files): (Vec<&String>, Vec<&String>) =
+            removed.iter().partition(|f| f.starts_with("plots/"));
+        let mut named: Vec<String> = files.iter().map(|f| f.to_string()).collect();
+        if !figures.is_empty() {
+            named.push(crate::plural(figures.len(), "figure"));
+        }
+        events(RunEvent::Notice(&format!(
+            "removed {} ({}) that an earlier job computed from another drops.csv; `dropscope \
+             collapse {}` computes them for this one",
+            crate::plural(removed.len(), "file"),
+            named.join(", "),
+            out.join("drops.csv").display()
+        )));
+    }
+    Ok(())
+}
+
 /// Process `runs` into `out`, which the caller holds ([`crate::lock`]).
 pub fn run(
     runs: &[RunSpec],
@@ -67,7 +99,9 @@ pub fn run(
     let entries: Vec<_> = done.into_iter().map(|(e, _)| e).collect();
     let records: Vec<DropRecord> = entries.iter().map(|e| e.record.clone()).collect();
     time(Stage::Writes, || -> Result<(), BatchError> {
-        write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
+        let drops = crate::dataset::to_csv_bytes(&records);
+        write_file(out, "drops.csv", &drops)?;
+        remove_other_collapse(out, &crate::dataset_id::of_bytes(&drops), events)?;
         replace_provenance(out, cfg, config_name, &entries, events)
     })?;
     let (_, warnings) = time(Stage::Figures, || {

@@ -276,8 +276,11 @@ fn manifest_of(path: &Path, runs: &[&str]) {
 /// A second job into a folder with fewer runs (and no `--overlay-frames`)
 /// removes what the first wrote and it did not — the tracks, overlays,
 /// animations and cache entries of the runs it no longer has, the extra
-/// overlays of the one it kept — and nothing else: the user's own files,
-/// and a track the user edited, stay.
+/// overlays of the one it kept, their per-drop figures, and the collapse
+/// and report computed from the first job's drops.csv (the report refused
+/// the folder) — and nothing else: the user's own files, also in
+/// `plots/drops/` (the folder was removed whole), and a track the user
+/// edited, stay.
 #[test]
 fn a_rerun_with_fewer_runs_leaves_no_file_of_the_earlier_job() {
     let dir = tempfile::tempdir().unwrap();
@@ -314,7 +317,23 @@ fn a_rerun_with_fewer_runs_leaves_no_file_of_the_earlier_job() {
             assert!(out.join(&f).is_file(), "the first job wrote no {f}");
         }
     }
+    succeeded(dropscope().arg("collapse").arg(out.join("drops.csv")));
+    succeeded(dropscope().arg("report").arg(&out));
+    let collapse_files = [
+        "collapse.csv",
+        "fits.json",
+        "report.html",
+        "plots/tau_vs_v.svg",
+        "plots/tau_vs_v.png",
+        "plots/psi_vs_xi.svg",
+    ];
+    for f in collapse_files {
+        assert!(out.join(f).is_file(), "the collapse wrote no {f}");
+    }
+    let figures = |run: &str| [".svg", ".png"].map(|x| format!("plots/drops/{run}{x}"));
+    let kept_figure = std::fs::read(out.join(&figures(runs[0])[1])).unwrap();
     std::fs::write(out.join("plots/overlays/my_sketch.png"), b"mine").unwrap();
+    std::fs::write(out.join("plots/drops/my_notes.txt"), b"mine").unwrap();
     std::fs::write(out.join("notes.txt"), b"mine").unwrap();
     let edited = out.join(format!("tracks/{}.csv", runs[2]));
     let mut edited_bytes = std::fs::read(&edited).unwrap();
@@ -337,11 +356,31 @@ fn a_rerun_with_fewer_runs_leaves_no_file_of_the_earlier_job() {
         }
     }
     assert_eq!(std::fs::read(&edited).unwrap(), edited_bytes);
-    for f in ["plots/overlays/my_sketch.png", "notes.txt"] {
+    for f in [
+        "plots/overlays/my_sketch.png",
+        "plots/drops/my_notes.txt",
+        "notes.txt",
+    ] {
         assert_eq!(std::fs::read(out.join(f)).unwrap(), b"mine", "{f}");
     }
     let drops = dropscope::dataset::read_csv(&out.join("drops.csv")).unwrap();
     assert_eq!(drops.len(), 1);
+    // The per-drop figures: the kept run's (its PNG the same bytes, its
+    // SVG tagged with the new dataset); the others gone.
+    assert!(out.join(&figures(runs[0])[0]).is_file());
+    assert!(std::fs::read(out.join(&figures(runs[0])[1])).unwrap() == kept_figure);
+    for run in &runs[1..] {
+        for f in figures(run) {
+            assert!(!out.join(&f).exists(), "{f}");
+        }
+    }
+    // The first job's collapse and report are gone, said so, and the
+    // folder's report can be written again.
+    assert!(err.contains("computed from another drops.csv"), "{err}");
+    for f in collapse_files {
+        assert!(!out.join(f).exists(), "{f} of the earlier job remains");
+    }
+    succeeded(dropscope().arg("report").arg(&out));
 }
 
 /// Issue 17 item 8: a track whose frames have no flag wrote an empty

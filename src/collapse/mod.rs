@@ -163,10 +163,10 @@ pub fn compute_groups(
 /// The tables [`run`] writes into the output folder: `collapse.csv`, `fits.json`.
 pub const TABLES: [&str; 2] = ["collapse.csv", "fits.json"];
 
-/// Remove what [`run`] writes into `out_dir` (its tables, the figures in
-/// `plots/` and the per-drop figures in `plots/drops/`), so that a collapse
-/// redone, or not done, leaves nothing of an earlier one. Missing files are
-/// not an error.
+/// Remove what [`run`] writes into `out_dir` (its tables and the figures in
+/// `plots/`), so that a collapse redone, or not done, leaves nothing of an
+/// earlier one. Missing files are not an error. The per-drop figures in
+/// `plots/drops/` are replaced file by file ([`per_drop::replace`]).
 pub fn remove_outputs(out_dir: &Path) -> std::io::Result<()> {
     let figures = crate::plot::FIGURE_STEMS
         .iter()
@@ -174,7 +174,7 @@ pub fn remove_outputs(out_dir: &Path) -> std::io::Result<()> {
     for rel in TABLES.iter().map(|s| s.to_string()).chain(figures) {
         crate::io_util::remove_if_present(&out_dir.join(rel))?;
     }
-    crate::io_util::remove_dir_if_present(&out_dir.join("plots").join("drops"))
+    Ok(())
 }
 
 /// The folder holding `drops` (`.` for a bare file name).
@@ -314,9 +314,13 @@ pub fn run(
             };
             write(&out_dir, &rel, &bytes, &mut files)?;
         }
-        for (rel, bytes) in per_drop::figures(&diags, &dataset_id)? {
-            write(&out_dir, &rel, &bytes, &mut files)?;
-        }
+        per_drop::replace(
+            &out_dir,
+            per_drop::figures(&diags, &dataset_id)?,
+            &mut files,
+        )?;
+    } else {
+        per_drop::replace(&out_dir, Vec::new(), &mut files)?;
     }
     files.sort();
     Ok(CollapseSummary {

@@ -82,8 +82,8 @@ pub fn figures(
 
 /// Replace `out_dir/plots/drops/` by the figures of the drops in
 /// `drops_csv` (whose rows are `records`), each row's surface taken from
-/// `cfg` by name. Returns the files written (relative to `out_dir`) and the
-/// warnings about tracks that could not be used.
+/// `cfg` by name ([`replace`]). Returns the files written (relative to
+/// `out_dir`) and the warnings about tracks that could not be used.
 pub fn write(
     out_dir: &Path,
     drops_csv: &Path,
@@ -104,14 +104,42 @@ pub fn write(
         };
         cfg.surfaces.get(name)
     });
+    let mut files = Vec::new();
+    replace(out_dir, figures(&diags, &id)?, &mut files)?;
+    Ok((files, warnings))
+}
+
+/// Write `figures` (paths under `plots/drops/`), each atomically, adding
+/// them to `files`, then remove the other figures (`.svg`, `.png`) in
+/// `out_dir/plots/drops/`: those of drops no longer measured or no longer
+/// in the job. A reader sees the old figure or the new one, never none;
+/// any other file in the folder stays.
+pub fn replace(
+    out_dir: &Path,
+    figures: Vec<(PathBuf, Vec<u8>)>,
+    files: &mut Vec<PathBuf>,
+) -> Result<(), CollapseError> {
+    let mut kept = std::collections::BTreeSet::new();
+    for (rel, bytes) in figures {
+        super::write(out_dir, &rel, &bytes, files)?;
+        kept.insert(out_dir.join(rel));
+    }
     let dir = out_dir.join("plots").join("drops");
-    crate::io_util::remove_dir_if_present(&dir).map_err(|source| CollapseError::Write {
+    let gone = |source| CollapseError::Write {
         path: dir.clone(),
         source,
-    })?;
-    let mut files = Vec::new();
-    for (rel, bytes) in figures(&diags, &id)? {
-        super::write(out_dir, &rel, &bytes, &mut files)?;
+    };
+    let entries = match std::fs::read_dir(&dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(gone(e)),
+    };
+    for e in entries {
+        let path = e.map_err(gone)?.path();
+        let figure = path.extension().is_some_and(|x| x == "svg" || x == "png");
+        if figure && path.is_file() && !kept.contains(&path) {
+            crate::io_util::remove_if_present(&path).map_err(gone)?;
+        }
     }
-    Ok((files, warnings))
+    Ok(())
 }

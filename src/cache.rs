@@ -165,21 +165,29 @@ pub fn fingerprint(path: &Path) -> std::io::Result<Fingerprint> {
             content_sha256: hex(&h.finalize()),
         });
     }
-    let mut files: Vec<(String, std::fs::Metadata)> = Vec::new();
-    for e in std::fs::read_dir(path)? {
-        let e = e?;
-        let m = e.metadata()?;
+    // The status calls (one per file: thousands for a long movie) on every
+    // thread; the first error in the listing's order is the one returned.
+    let entries = std::fs::read_dir(path)?.collect::<std::io::Result<Vec<_>>>()?;
+    use rayon::prelude::*;
+    let stats: Vec<std::io::Result<std::fs::Metadata>> =
+        entries.par_iter().map(|e| e.metadata()).collect();
+    let mut files: Vec<(String, std::fs::Metadata)> = Vec::with_capacity(entries.len());
+    for (e, m) in entries.iter().zip(stats) {
+        let m = m?;
         if m.is_file() {
             files.push((e.file_name().to_string_lossy().into_owned(), m));
         }
     }
     files.sort_by(|a, b| a.0.cmp(&b.0));
     let (mut size, mut latest) = (0u64, 0u64);
+    let mut listing = String::new();
     for (name, m) in &files {
+        use std::fmt::Write;
         size += m.len();
         latest = latest.max(modified_ns(m));
-        h.update(format!("{name}\0{}\0{}\n", m.len(), modified_ns(m)).as_bytes());
+        let _ = writeln!(listing, "{name}\0{}\0{}", m.len(), modified_ns(m));
     }
+    h.update(listing.as_bytes());
     // The side files whole, and frames sampled evenly, first and last included.
     let is_side = |n: &str| n.to_ascii_lowercase().ends_with(".xml");
     let frames: Vec<&String> = files

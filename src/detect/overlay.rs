@@ -236,14 +236,18 @@ pub struct IndexedFrame {
 /// An overlay in the animation's palette: greys within 0.5 % of the
 /// frame's level, the drawing's colours exact.
 pub fn to_indexed(img: &RgbImage) -> IndexedFrame {
+    let mut data = vec![0u8; img.as_raw().len() / 3];
+    for (o, p) in data.iter_mut().zip(img.as_raw().chunks_exact(3)) {
+        *o = if p[0] == p[1] && p[1] == p[2] {
+            GREY_OF_SUM[3 * usize::from(p[0])]
+        } else {
+            palette_index([p[0], p[1], p[2]])
+        };
+    }
     IndexedFrame {
         width: img.width(),
         height: img.height(),
-        data: img
-            .as_raw()
-            .chunks_exact(3)
-            .map(|p| palette_index([p[0], p[1], p[2]]))
-            .collect(),
+        data,
     }
 }
 

@@ -112,9 +112,11 @@ pub struct DropRecord {
     #[serde(default)]
     pub distortion_k1_per_px2: Option<f64>,
     /// Without a calibrated k1: how far the distortion bound
-    /// (`camera.distortion_bound_px` at the image corner) moves v_impact,
-    /// δmax and τc; each enters its `_err` as a systematic term (÷√3, k1
-    /// anywhere between ± the bound). See `lens.rs`.
+    /// (`camera.distortion_bound_px` at the image corner) moves the scale,
+    /// v_impact, δmax and τc; each enters its `_err` as a systematic term
+    /// (÷√3, k1 anywhere between ± the bound). See `lens.rs`.
+    #[serde(default)]
+    pub distortion_mm_per_px: Option<f64>,
     #[serde(default)]
     pub distortion_v_impact_m_s: Option<f64>,
     #[serde(default)]
@@ -212,6 +214,7 @@ impl DropRecord {
             surface_law_offset_px: None,
             surface_law_offset_px_err: None,
             distortion_k1_per_px2: None,
+            distortion_mm_per_px: None,
             distortion_v_impact_m_s: None,
             distortion_delta_max_mm: None,
             distortion_tau_c_ms: None,

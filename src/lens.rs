@@ -139,13 +139,15 @@ pub struct Bounded {
 /// How far a lens at the bound moves a drop's numbers.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Shift {
+    /// The scale (0 when it is given).
+    pub mm_per_px: f64,
     pub v_impact_m_s: f64,
     pub v_rebound_m_s: f64,
     pub delta_max_mm: f64,
     pub tau_c_ms: f64,
 }
 
-/// What the drop's speeds (through `speed_factor`, the scale's
+/// What the drop's scale, speeds (through `speed_factor`, the scale's
 /// magnification at the impact), δmax and τc become when its track, its
 /// set-up's `pooled` curvature and its surface line are corrected for the
 /// lens at the bound, less what the same events and kinematics give
@@ -169,6 +171,7 @@ pub fn shift_at_bound(
         let kin = kinematics(points, &ev, geom, sphere, cfg.exposure_s).ok()?;
         let f = speed_factor(sc);
         Some(Shift {
+            mm_per_px: sc.mm_per_px,
             v_impact_m_s: kin.v_impact_m_s.value * f,
             v_rebound_m_s: kin.v_rebound_m_s.value * f,
             delta_max_mm: kin.delta_max_m.value * 1e3,
@@ -195,6 +198,7 @@ pub fn shift_at_bound(
     };
     let at = measure(&bounded.points, &geom_b, &sc)?;
     Some(Shift {
+        mm_per_px: at.mm_per_px - base.mm_per_px,
         v_impact_m_s: at.v_impact_m_s - base.v_impact_m_s,
         v_rebound_m_s: at.v_rebound_m_s - base.v_rebound_m_s,
         delta_max_mm: at.delta_max_mm - base.delta_max_mm,

@@ -642,10 +642,12 @@ fn speed_factor(sc: &crate::scale::Scale) -> (f64, f64) {
 fn distortion_systematic(record: &mut DropRecord, shift: &crate::lens::Shift) {
     let sd = |d: f64| d.abs() / 3f64.sqrt();
     let widen = |err: &mut Option<f64>, d: f64| *err = err.map(|e| e.hypot(sd(d)));
+    widen(&mut record.mm_per_px_err, shift.mm_per_px);
     widen(&mut record.v_impact_m_s_err, shift.v_impact_m_s);
     widen(&mut record.v_rebound_m_s_err, shift.v_rebound_m_s);
     widen(&mut record.delta_max_mm_err, shift.delta_max_mm);
     widen(&mut record.tau_c_ms_err, shift.tau_c_ms);
+    record.distortion_mm_per_px = Some(shift.mm_per_px);
     record.distortion_v_impact_m_s = Some(shift.v_impact_m_s);
     record.distortion_delta_max_mm = Some(shift.delta_max_mm);
     record.distortion_tau_c_ms = Some(shift.tau_c_ms);

@@ -11,8 +11,8 @@ use plotters::prelude::*;
 use std::collections::BTreeMap;
 
 use super::layout::{
-    free_corner, guide_lines, legend_box, log_ticks, normalised, range, residual_range, residuals,
-    with_band, Guide, Pt,
+    free_corner, guide_lines, label_corners, legend_box, log_ticks, normalised, range,
+    residual_range, residuals, with_band, Guide, Pt,
 };
 use super::marker::{radius_style, Marker, MarkerKind};
 use super::{
@@ -356,11 +356,10 @@ fn power_line<'a, DB: Backend + 'a, CT: Plane>(
     if !(lo > 0.0 && hi > lo) {
         return Ok(());
     }
+    // A straight line on log axes: its two ends (intermediate points,
+    // rounded to pixels, made it wobble).
     chart.draw_series(LineSeries::new(
-        (0..=20).map(|i| {
-            let x = lo * (hi / lo).powf(i as f64 / 20.0);
-            (x, scale * (b + k * x.ln()).exp())
-        }),
+        [lo, hi].map(|x| (x, scale * (b + k * x.ln()).exp())),
         light(color).stroke_width(2),
     ))?;
     Ok(())
@@ -413,19 +412,38 @@ fn log_log<DB: Backend>(
     let (xr, yr) = range(&all, true, &[]);
     let mut yr = [yr[0], yr[1] * (yr[1] / yr[0]).powf(spec.headroom)];
     let lbox = legend_box(&spec.labels);
+    let guides = |yr: [f64; 2], x_free: [f64; 2]| {
+        guide_lines(xr, yr, spec.guide_at, 0.3, x_free, &spec.guides)
+    };
+    // The points, and each guide along its length with its label.
     let occupied = |yr: [f64; 2]| {
         let mut o = normalised(&all, xr, yr, true);
-        for (g, _, _) in guide_lines(xr, yr, spec.guide_at, 0.3, &spec.guides) {
-            let gp: Vec<Pt> = g.iter().map(|&(x, y)| (x, y, None, None)).collect();
-            o.extend(normalised(&gp, xr, yr, true));
+        for (g, label, at) in guides(yr, [0.0, 1.0]) {
+            let ends: Vec<Pt> = g.iter().map(|&(x, y)| (x, y, None, None)).collect();
+            let ends = normalised(&ends, xr, yr, true);
+            let (a, b) = (ends[0], ends[ends.len() - 1]);
+            o.extend((0..=20).map(|i| {
+                let t = f64::from(i) / 20.0;
+                (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1))
+            }));
+            let at = normalised(&[(at.0, at.1, None, None)], xr, yr, true)[0];
+            o.extend(label_corners(at, &label));
         }
         o
     };
-    let corner = match free_corner(&occupied(yr), lbox, &spec.legend_corners) {
-        Some(c) => c,
+    // With no corner free, the legend goes into a band above the data, and
+    // the guides beside it.
+    let (corner, x_free) = match free_corner(&occupied(yr), lbox, &spec.legend_corners) {
+        Some(c) => (c, [0.0, 1.0]),
         None => {
             yr = with_band(yr, lbox.1, true);
-            spec.legend_corners[2].clone()
+            let c = spec.legend_corners[2].clone();
+            let x_free = match c {
+                SeriesLabelPosition::UpperLeft => [(lbox.0 + 0.03).min(0.7), 1.0],
+                SeriesLabelPosition::UpperRight => [0.0, (0.97 - lbox.0).max(0.3)],
+                _ => [0.0, 1.0],
+            };
+            (c, x_free)
         }
     };
     // With a residual panel, the x axis is named under it.
@@ -448,10 +466,7 @@ fn log_log<DB: Backend>(
             power_line(&mut chart, p, *l, set.color)?;
         }
     }
-    draw_guides(
-        &mut chart,
-        &guide_lines(xr, yr, spec.guide_at, 0.3, &spec.guides),
-    )?;
+    draw_guides(&mut chart, &guides(yr, x_free))?;
     for (((set, p), label), names) in sets
         .iter()
         .zip(&spec.pts)

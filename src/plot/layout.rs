@@ -98,21 +98,28 @@ pub(super) fn range(points: &[Pt], log: bool, extra: &[f64]) -> ([f64; 2], [f64;
     (pad(xr), pad(yr))
 }
 
-/// A guide line: its points (data coordinates), label and label position.
+/// A guide line: its two ends (data coordinates: a straight line on log
+/// axes), label and label position (the label's top-left corner).
 pub(super) type Guide = (Vec<(f64, f64)>, String, (f64, f64));
 
 /// Fan of guide lines with the given slopes in a log–log plot, starting at
-/// fraction (fx, fy) of the log ranges and running `len` of the x range; the
-/// start is lowered so that the steepest rising guide ends 5 % below the top.
+/// fraction (fx, fy) of the log ranges and running `len` of the x range,
+/// within the fraction `x_free` of the x range (the fan and its labels keep
+/// out of a legend in a band above the data); the start is lowered so that
+/// the steepest rising guide ends 5 % below the top. Each guide is its two
+/// ends: drawn through intermediate points rounded to pixels, a dashed
+/// guide looked bent.
 pub(super) fn guide_lines(
     xr: [f64; 2],
     yr: [f64; 2],
     (fx, fy): (f64, f64),
     len: f64,
+    x_free: [f64; 2],
     slopes: &[(f64, &str)],
 ) -> Vec<Guide> {
     let (lx0, lx1) = (xr[0].ln(), xr[1].ln());
     let (ly0, ly1) = (yr[0].ln(), yr[1].ln());
+    let span = lx1 - lx0;
     // Every guide stays inside the axes, 5 % from their edges: the fan is
     // shortened when it would be taller than the y range, and its start
     // moved so that neither the steepest rising nor the steepest falling
@@ -120,27 +127,39 @@ pub(super) fn guide_lines(
     let (top, bottom) = (ly1 - 0.05 * (ly1 - ly0), ly0 + 0.05 * (ly1 - ly0));
     let up = slopes.iter().map(|s| s.0).fold(0.0, f64::max);
     let down = slopes.iter().map(|s| s.0).fold(0.0, f64::min);
-    let mut dx = len * (lx1 - lx0);
+    // Room for the labels right of the fan.
+    let (left, right) = (
+        lx0 + x_free[0] * span,
+        lx0 + x_free[1] * span - GUIDE_LABEL_ROOM * span,
+    );
+    let mut dx = (len * span).min((right - left).max(0.05 * span));
     if (up - down) * dx > top - bottom {
         dx = (top - bottom) / (up - down);
     }
-    let x0 = (lx0 + fx * (lx1 - lx0)).min(lx1 - 0.12 * (lx1 - lx0) - dx);
+    let x0 = (lx0 + fx * span).min(right - dx).max(left);
     let x1 = x0 + dx;
     let (rise, fall) = (up * dx, down * dx);
     let y0 = (ly0 + fy * (ly1 - ly0)).min(top - rise).max(bottom - fall);
     slopes
         .iter()
         .map(|&(s, label)| {
-            let pts = (0..=20)
-                .map(|i| {
-                    let x = x0 + (x1 - x0) * i as f64 / 20.0;
-                    (x.exp(), (y0 + s * (x - x0)).exp())
-                })
-                .collect();
-            let at = ((x1 + 0.01 * (lx1 - lx0)).exp(), (y0 + s * (x1 - x0)).exp());
+            let pts = vec![(x0.exp(), y0.exp()), (x1.exp(), (y0 + s * dx).exp())];
+            let at = ((x1 + 0.01 * span).exp(), (y0 + s * dx).exp());
             (pts, label.to_string(), at)
         })
         .collect()
+}
+
+/// The fraction of the x range kept right of a guide fan for its labels.
+const GUIDE_LABEL_ROOM: f64 = 0.12;
+
+/// The corners of a guide's label (normalised coordinates, y up), from its
+/// position `at` (normalised: the text's top-left corner).
+pub(super) fn label_corners(at: (f64, f64), label: &str) -> [(f64, f64); 4] {
+    const FONT: f64 = super::LEGEND_FONT as f64;
+    let w = (label.chars().count() as f64 * 0.6 * FONT + 4.0) / PLOT_AREA_PX.0;
+    let h = 1.2 * FONT / PLOT_AREA_PX.1;
+    [at, (at.0 + w, at.1), (at.0, at.1 - h), (at.0 + w, at.1 - h)]
 }
 
 /// Approximate plotting-area size of a collapse figure, for legend layout.
@@ -303,10 +322,16 @@ mod tests {
             ),
         ] {
             for at in [(0.04, 0.95), (0.55, 0.95), (0.9, 0.05)] {
-                for (pts, _, _) in guide_lines(xr, yr, at, 0.3, &slopes) {
-                    for (x, y) in pts {
-                        assert!(x >= xr[0] && x <= xr[1], "x {x} outside {xr:?}");
-                        assert!(y >= yr[0] && y <= yr[1], "y {y} outside {yr:?}");
+                for x_free in [[0.0, 1.0], [0.62, 1.0], [0.0, 0.4]] {
+                    // Beside a legend, inside the free part of the x range.
+                    let lo = xr[0] * f64::powf(xr[1] / xr[0], x_free[0]);
+                    let hi = xr[0] * f64::powf(xr[1] / xr[0], x_free[1]);
+                    for (pts, _, at) in guide_lines(xr, yr, at, 0.3, x_free, &slopes) {
+                        assert!(at.0 < hi, "label at {} beyond {hi}", at.0);
+                        for (x, y) in pts {
+                            assert!(x >= lo * 0.999 && x <= hi, "x {x} outside {lo}..{hi}");
+                            assert!(y >= yr[0] && y <= yr[1], "y {y} outside {yr:?}");
+                        }
                     }
                 }
             }

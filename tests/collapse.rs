@@ -562,6 +562,62 @@ fn guide_slopes_are_straight_and_clear_of_the_legend() {
     }
 }
 
+/// The legend keeps clear of the error bars, not only of the markers: on
+/// the fixtures' three drops the Ω(Ξ) legend lay over the 3 mm drop's
+/// one-sigma bar (issue 17, the report's first screen).
+#[test]
+fn the_legend_keeps_clear_of_the_error_bars() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let o = dropscope()
+        .args(["process", "--no-animation", "--manifest"])
+        .arg(root.join("fixtures/runs.csv"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let drops = out.join("drops.csv");
+    collapse::run(&args(&drops, &out, true), &config(), "pipeline.toml").unwrap();
+    for name in ["psi_vs_xi", "omega_vs_xi", "pi_vs_eta", "tau_vs_v"] {
+        let svg = std::fs::read_to_string(out.join(format!("plots/{name}.svg"))).unwrap();
+        let doc = roxmltree::Document::parse(&svg).unwrap();
+        let num = |n: roxmltree::Node, a: &str| n.attribute(a).unwrap().parse::<f64>().unwrap();
+        let frame = doc
+            .descendants()
+            .find(|n| n.has_tag_name("rect") && n.attribute("stroke") == Some("#787878"))
+            .unwrap();
+        let (x0, y0) = (num(frame, "x"), num(frame, "y"));
+        let (x1, y1) = (x0 + num(frame, "width"), y0 + num(frame, "height"));
+        let mut bars = 0;
+        // The 3 mm (blue) and 7 mm (red) drops' bars: two-point lines.
+        for n in doc.descendants().filter(|n| {
+            n.has_tag_name("polyline")
+                && n.attribute("stroke-width") == Some("1")
+                && matches!(n.attribute("stroke"), Some("#0000E6" | "#DC0000"))
+        }) {
+            let p: Vec<(f64, f64)> = n
+                .attribute("points")
+                .unwrap()
+                .split_whitespace()
+                .map(|p| {
+                    let (x, y) = p.split_once(',').unwrap();
+                    (x.parse().unwrap(), y.parse().unwrap())
+                })
+                .collect();
+            let (lx, hx) = (p[0].0.min(p[1].0), p[0].0.max(p[1].0));
+            let (ly, hy) = (p[0].1.min(p[1].1), p[0].1.max(p[1].1));
+            assert!(
+                hx < x0 || lx > x1 || hy < y0 || ly > y1,
+                "{name}: the bar {p:?} runs under the legend ({x0}, {y0})-({x1}, {y1})"
+            );
+            bars += 1;
+        }
+        assert!(bars >= 4, "{name}: {bars} bars");
+    }
+}
+
 #[test]
 fn two_runs_write_identical_bytes() {
     let dir = tempfile::tempdir().unwrap();

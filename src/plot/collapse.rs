@@ -11,7 +11,7 @@ use plotters::prelude::*;
 use std::collections::BTreeMap;
 
 use super::layout::{
-    free_corner, guide_lines, label_corners, legend_box, log_ticks, normalised, range,
+    along_bars, free_corner, guide_lines, label_corners, legend_box, log_ticks, normalised, range,
     residual_range, residuals, with_band, Guide, Pt,
 };
 use super::marker::{radius_style, Marker, MarkerKind};
@@ -417,7 +417,11 @@ fn log_log<DB: Backend>(
     };
     // The points, and each guide along its length with its label.
     let occupied = |yr: [f64; 2]| {
-        let mut o = normalised(&all, xr, yr, true);
+        let bars: Vec<Pt> = along_bars(&all)
+            .into_iter()
+            .filter(|p| p.0 > 0.0 && p.1 > 0.0)
+            .collect();
+        let mut o = normalised(&bars, xr, yr, true);
         for (g, label, at) in guides(yr, [0.0, 1.0]) {
             let ends: Vec<Pt> = g.iter().map(|&(x, y)| (x, y, None, None)).collect();
             let ends = normalised(&ends, xr, yr, true);
@@ -705,7 +709,7 @@ fn series_plot<DB: Backend>(
     // Legend: a corner free of points and lines, else a band above them.
     use SeriesLabelPosition::*;
     let lbox = legend_box(&labels);
-    let mut occupied = normalised(&all, xr, yr, false);
+    let mut occupied = normalised(&along_bars(&all), xr, yr, false);
     let extra: Vec<Pt> = (0..=40)
         .map(|i| {
             (

@@ -62,6 +62,23 @@ pub(super) fn normalised(points: &[Pt], xr: [f64; 2], yr: [f64; 2], log: bool) -
     points.iter().map(|p| (f(p.0, xr), f(p.1, yr))).collect()
 }
 
+/// Points along each one-sigma error bar of `points` (5 on each), for the
+/// legend to keep clear of the bars as of the markers.
+pub(super) fn along_bars(points: &[Pt]) -> Vec<Pt> {
+    let mut out = Vec::new();
+    for &(x, y, ex, ey) in points {
+        for t in [-1.0, -0.5, 0.0, 0.5, 1.0] {
+            if let Some(e) = ey.filter(|e| e.is_finite()) {
+                out.push((x, y + t * e, None, None));
+            }
+            if let Some(e) = ex.filter(|e| e.is_finite()) {
+                out.push((x + t * e, y, None, None));
+            }
+        }
+    }
+    out
+}
+
 /// x, y, σx, σy of one point.
 pub(super) type Pt = (f64, f64, Option<f64>, Option<f64>);
 

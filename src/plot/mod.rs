@@ -162,13 +162,7 @@ where
         draw_png(&root).map_err(perr)?;
         root.present().map_err(|e| perr(e.into()))?;
     }
-    let mut png = Vec::new();
-    {
-        use image::ImageEncoder;
-        image::codecs::png::PngEncoder::new(&mut png)
-            .write_image(&rgb, size.0, size.1, image::ExtendedColorType::Rgb8)
-            .map_err(|e| perr(e.into()))?;
-    }
+    let png = crate::detect::overlay::rgb_png(&rgb, size.0, size.1).map_err(|e| perr(e.into()))?;
     Ok(vec![
         (format!("{stem}.svg"), svg.into_bytes()),
         (format!("{stem}.png"), png),

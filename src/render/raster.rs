@@ -717,6 +717,21 @@ pub(super) fn gaussian_kernel(sigma: f64) -> Vec<f32> {
     raw.iter().map(|v| (v / sum) as f32).collect()
 }
 
+/// The renderer's Gaussian blur (σ in px, kernel to 4σ, edge-clamped) of a
+/// whole frame, in place. Only for `examples/draw_blur_vs_imageproc.rs`,
+/// which measures it against `imageproc`.
+#[doc(hidden)]
+pub fn blur_frame(img: &mut Array2<f32>, sigma_px: f64) {
+    let (h, w) = img.dim();
+    let all = Region {
+        r0: 0,
+        r1: h,
+        c0: 0,
+        c1: w,
+    };
+    blur_region(img, &gaussian_kernel(sigma_px), all);
+}
+
 /// Separable Gaussian blur of `img`, which is zero outside `region`, with
 /// edge-clamped borders (the same rule for every layer, so blurring is
 /// linear across layers). Writes the result in place and returns the region

@@ -151,13 +151,15 @@ pub struct Shift {
 /// magnification at the impact), δmax and τc become when its track, its
 /// set-up's `pooled` curvature and its surface line are corrected for the
 /// lens at the bound, less what the same events and kinematics give
-/// without it. `surface_shift_px` is what the measurement moved the image's
+/// without it (on `points` and `geom` at the scale `sc` resolved from
+/// `inputs`). `surface_shift_px` is what the measurement moved the image's
 /// line by (the contact law), kept. `None` when either side cannot be
 /// measured.
 #[allow(clippy::too_many_arguments)]
 pub fn shift_at_bound(
     points: &[TrackPoint],
     geom: &Geometry,
+    sc: &Scale,
     inputs: &ScaleInputs,
     bounded: &Bounded,
     pooled: Option<Curvature>,
@@ -178,7 +180,7 @@ pub fn shift_at_bound(
             tau_c_ms: kin.tau_c_s.value * 1e3,
         })
     };
-    let base = measure(points, geom, &resolve(inputs))?;
+    let base = measure(points, geom, sc)?;
     let inputs_b = ScaleInputs {
         setup: pooled,
         own: bounded.curvature,

@@ -27,6 +27,16 @@ pub struct DropInfo {
     pub surface: String,
 }
 
+impl DropInfo {
+    /// The sphere's radius and density in SI.
+    pub fn sphere(&self) -> SphereParams {
+        SphereParams {
+            radius_m: self.sphere_radius_mm * 1e-3,
+            density_kg_m3: self.sphere_density_kg_m3,
+        }
+    }
+}
+
 /// Half-width (frames) of the local cubic giving z̈ in the force table.
 pub const FORCE_TABLE_HALF_WINDOW: usize = 2;
 
@@ -51,10 +61,7 @@ pub fn measure_drop_with(
     cfg: &EventConfig,
     law: Option<&Result<ForceLaw, ForceFitError>>,
 ) -> Result<DropMeasurement, EventError> {
-    let sphere = SphereParams {
-        radius_m: info.sphere_radius_mm * 1e-3,
-        density_kg_m3: info.sphere_density_kg_m3,
-    };
+    let sphere = info.sphere();
     let ev = find_events(track, geom, cfg)?;
     let kin = kinematics(track, &ev, geom, &sphere, cfg.exposure_s)?;
     // Physically impossible: the numbers are no measurement.

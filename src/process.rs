@@ -431,18 +431,15 @@ fn measure_run(
     speeds_at_the_impact_scale(&mut record, &sc);
     record.distortion_k1_per_px2 = cfg.camera.distortion_k1_per_px2;
     if let Some(b) = &bounded {
-        let sphere = crate::kinematics::SphereParams {
-            radius_m: info.sphere_radius_mm * 1e-3,
-            density_kg_m3: info.sphere_density_kg_m3,
-        };
         let shift = crate::lens::shift_at_bound(
             &points,
             &geom,
+            &sc,
             &inputs,
             b,
             setup_at_bound,
             geom.surface_row_px - tr.surface.row0_px,
-            &sphere,
+            &info.sphere(),
             &event_cfg,
             |sc| speed_factor(sc).0,
         );

@@ -326,10 +326,14 @@ fn run_setup(
             schema: cache::CACHE_SCHEMA,
             dropscope_version: env!("CARGO_PKG_VERSION").to_string(),
             key: key.clone().unwrap_or_default(),
-            input: fp.unwrap_or_else(|| cache::Fingerprint::unreadable(&r.path)),
+            input: fp
+                .clone()
+                .unwrap_or_else(|| cache::Fingerprint::unreadable(&r.path)),
             outputs,
             frames: o.track.len(),
             record: o.record,
+            scene: o.scene,
+            scene_key: fp.as_ref().map(|fp| cache::scene_key(cfg, r, fp)),
         };
         if key.is_some() && crate::run_name::check(&r.run).is_ok() {
             cache::store(out, &entry).map_err(|source| BatchError::Io {
@@ -446,6 +450,12 @@ pub fn process_runs(
 ) -> Result<Processed, BatchError> {
     let start = std::time::Instant::now();
     events(RunEvent::Planned { runs: runs.len() });
+    let scene_of = |r: &RunSpec| {
+        (!options.force)
+            .then(|| cache::cached_scene(out, cfg, r))
+            .flatten()
+    };
+    let runs = &crate::process::with_inferred_setups(runs, cfg, &scene_of);
     let groups = crate::process::setups(runs);
     let work = || {
         let threads = rayon::current_num_threads();
@@ -509,7 +519,7 @@ pub fn run_job(
     let _held = crate::lock::acquire(out, &me, options.wait, &|m| events(RunEvent::Notice(m)))?;
     crate::io_util::remove_stale_temporaries(out, &crate::lock::writer_is_gone).map_err(io(out))?;
     let runs = match options.shard {
-        Some(shard) => crate::shard::select(&runs, shard),
+        Some(shard) => crate::shard::select(&runs, shard, cfg.camera.infer_setups),
         None => runs,
     };
     let Processed {

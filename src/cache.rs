@@ -15,6 +15,7 @@
 use crate::config::PipelineConfig;
 use crate::dataset::DropRecord;
 use crate::manifest::RunSpec;
+use crate::setup_infer::SceneSignature;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::fs::File;
@@ -88,6 +89,12 @@ pub struct Entry {
     /// Frames the run held (rows of its track).
     pub frames: usize,
     pub record: DropRecord,
+    /// What the run's images say of its camera set-up, valid while the
+    /// run's own key without a set-up is `scene_key` (see [`cached_scene`]).
+    #[serde(default)]
+    pub scene: Option<SceneSignature>,
+    #[serde(default)]
+    pub scene_key: Option<String>,
 }
 
 /// One output file of a run and the SHA-256 (hex) of its bytes.
@@ -293,6 +300,26 @@ pub fn job_id(kind: &str, cfg: &PipelineConfig, runs: &[RunSpec]) -> String {
     // Serialising plain structs to JSON cannot fail.
     let json = serde_json::to_vec(&parts).unwrap_or_default();
     hex(&Sha256::digest(&json))
+}
+
+/// The key a run's scene signature is cached under: its own key as if the
+/// manifest named no set-up (a scene does not depend on it).
+pub fn scene_key(cfg: &PipelineConfig, run: &RunSpec, fp: &Fingerprint) -> String {
+    let mut alone = run.clone();
+    alone.setup = None;
+    key(cfg, &alone, fp)
+}
+
+/// The scene signature of `run` from its entry in `out`, if the entry was
+/// written from the same input under the same configuration (its outputs
+/// need not be intact: the signature is not one of them).
+pub fn cached_scene(out: &Path, cfg: &PipelineConfig, run: &RunSpec) -> Option<SceneSignature> {
+    let bytes = std::fs::read(entry_path(out, &run.run).ok()?).ok()?;
+    let e: Entry = serde_json::from_slice(&bytes).ok()?;
+    let wanted = scene_key(cfg, run, &fingerprint(&run.path).ok()?);
+    (e.schema == CACHE_SCHEMA && e.scene_key.as_deref() == Some(wanted.as_str()))
+        .then_some(e.scene)
+        .flatten()
 }
 
 /// Where the entry of run `run` lives (`runs/<run>.json`), checked to be

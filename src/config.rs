@@ -79,6 +79,8 @@ pub struct RawCamera {
     pub distortion_k1_per_px2: Option<f64>,
     /// Without k1: the largest corner displacement the lens may have (px).
     pub distortion_bound_px: Option<f64>,
+    /// Runs the manifest gives no `setup` are grouped by what their images show.
+    pub infer_setups: Option<bool>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -163,6 +165,9 @@ pub struct CameraConfig {
     /// Without a calibration: the distortion at the image corner (px) whose
     /// effect enters the errors as a systematic term; 0 leaves it out.
     pub distortion_bound_px: f64,
+    /// Runs without a manifest `setup` share one when their images say they
+    /// were filmed through one camera set-up ([`crate::setup_infer`]).
+    pub infer_setups: bool,
 }
 
 /// The default `camera.distortion_bound_px`: the barrel distortion of the
@@ -454,6 +459,7 @@ impl RawConfig {
                 mm_per_px,
                 distortion_k1_per_px2,
                 distortion_bound_px,
+                infer_setups: self.camera.infer_setups.unwrap_or(true),
             },
             sphere: SphereConfig {
                 density_kg_m3: density,

@@ -67,6 +67,7 @@ pub mod render;
 pub mod report;
 pub mod run_name;
 pub mod scale;
+pub mod setup_infer;
 pub mod shard;
 pub mod slurm;
 pub mod source;

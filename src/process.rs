@@ -14,6 +14,7 @@ use crate::manifest::RunSpec;
 use crate::measure::{annotate_track, measure_drop, measure_drop_with, surface_from_law, DropInfo};
 use crate::quality;
 use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
+use crate::setup_infer::SceneSignature;
 use crate::source::{open, OpenOptions};
 use crate::track::{track, Track, TrackSettings};
 use rayon::prelude::*;
@@ -71,6 +72,9 @@ pub struct RunOutcome {
     pub frame_overlays: Vec<(i64, Vec<u8>)>,
     /// The animated overlay of the impact (animated PNG bytes).
     pub impact: Option<Vec<u8>>,
+    /// What the run's images say of its camera set-up (kept in the cache
+    /// for [`with_inferred_setups`]).
+    pub scene: Option<SceneSignature>,
     /// Seconds spent on this run (tracking and measuring), for the speed
     /// shown to the user; no output depends on it.
     pub seconds: f64,
@@ -218,6 +222,7 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
         overlay: None,
         frame_overlays: Vec::new(),
         impact: None,
+        scene: None,
         seconds: 0.0,
     }
 }
@@ -242,6 +247,45 @@ pub fn setups(runs: &[RunSpec]) -> Vec<Vec<usize>> {
     groups
 }
 
+/// `runs` with the camera set-ups their images show filled in where the
+/// manifest names none ([`crate::setup_infer`], `camera.infer_setups`):
+/// each such run is tracked once more to read its scene (about a fifth of
+/// its processing). `scene_of` gives a run's signature when it is already
+/// known (a cache), else it is measured. A run that cannot be tracked stays
+/// without a set-up (its processing says why).
+pub fn with_inferred_setups(
+    runs: &[RunSpec],
+    cfg: &PipelineConfig,
+    scene_of: &(dyn Fn(&RunSpec) -> Option<SceneSignature> + Sync),
+) -> Vec<RunSpec> {
+    let mut out = runs.to_vec();
+    let open: Vec<usize> = (0..runs.len())
+        .filter(|&i| runs[i].setup.is_none())
+        .collect();
+    if !cfg.camera.infer_setups || open.len() < 2 {
+        return out;
+    }
+    let scenes: Vec<Option<SceneSignature>> = open
+        .par_iter()
+        .map(|&i| {
+            let run = &runs[i];
+            scene_of(run).or_else(|| {
+                caught(run, || track_run(run, cfg))
+                    .ok()
+                    .map(|t| t.scene(run.sphere_radius_mm))
+            })
+        })
+        .collect();
+    let taken: Vec<&str> = runs.iter().filter_map(|r| r.setup.as_deref()).collect();
+    for (k, group) in crate::setup_infer::infer_groups(&scenes).iter().enumerate() {
+        let name = crate::setup_infer::setup_name(k + 1, &taken);
+        for &j in group {
+            out[open[j]].setup = Some(name.clone());
+        }
+    }
+    out
+}
+
 /// A run tracked but not yet measured.
 struct Tracked {
     source: Box<dyn crate::source::FrameSource>,
@@ -254,6 +298,34 @@ struct Tracked {
     /// The track through a lens at `camera.distortion_bound_px`, when no
     /// k1 is given and the bound is not 0.
     bounded: Option<crate::lens::Bounded>,
+}
+
+impl Tracked {
+    /// What the run's images say of its camera set-up.
+    fn scene(&self, radius_mm: f64) -> SceneSignature {
+        let g_m_s2 = EventConfig::default().g_m_s2;
+        let scale = |c: &Curvature| c.mm_per_px(g_m_s2);
+        let free_fall_mm_per_px = self.curvature.as_ref().map(|c| {
+            let s = scale(c);
+            // The distortion bound's change of the scale, as in the errors.
+            let at_bound = self
+                .bounded
+                .as_ref()
+                .and_then(|b| b.curvature.as_ref())
+                .map_or(0.0, |b| (scale(b) - s).abs() / 3f64.sqrt());
+            (s, (s * c.rel_err()).hypot(at_bound))
+        });
+        SceneSignature {
+            width_px: self.meta.width,
+            height_px: self.meta.height,
+            surface_row_px: self.tr.surface.row_at(0.5 * self.meta.width as f64),
+            surface_slope: self.tr.surface.slope,
+            r_app_px: self.tr.radius_px,
+            r_app_err_px: self.tr.radius_err_px,
+            radius_mm,
+            free_fall_mm_per_px,
+        }
+    }
 }
 
 /// The reason of a run that panicked: the panic's message, which names the
@@ -333,6 +405,7 @@ fn measure_run(
     [setup, setup_at_bound]: [Option<Curvature>; 2],
     overlay_frames: &[i64],
 ) -> Result<RunOutcome, String> {
+    let scene = t.scene(run.sphere_radius_mm);
     let Tracked {
         mut source,
         meta,
@@ -525,6 +598,7 @@ fn measure_run(
         overlay,
         frame_overlays,
         impact,
+        scene: Some(scene),
         seconds: 0.0,
     })
 }
@@ -753,6 +827,7 @@ pub fn process_all_with_overlays(
     overlay_frames: &[i64],
     progress: &(dyn Fn(&DropRecord) + Sync),
 ) -> Result<Vec<DropRecord>, ProcessError> {
+    let runs = &with_inferred_setups(runs, cfg, &|_| None);
     let groups = setups(runs);
     let done = groups
         .par_iter()
@@ -864,6 +939,7 @@ mod tests {
                 overlay: None,
                 frame_overlays: Vec::new(),
                 impact: None,
+                scene: None,
                 seconds: 0.0,
             })
         })
@@ -880,17 +956,7 @@ mod tests {
 
     #[test]
     fn runs_of_one_setup_are_grouped_in_order_and_the_rest_stand_alone() {
-        let run = |name: &str, setup: Option<&str>| RunSpec {
-            run: name.into(),
-            path: PathBuf::from(name),
-            sphere_radius_mm: 3.0,
-            drop_height_cm: None,
-            fps: None,
-            mm_per_px: None,
-            surface: None,
-            sphere_density_kg_m3: None,
-            setup: setup.map(String::from),
-        };
+        let run = crate::test_support::run_spec;
         let runs = [
             run("a", Some("cam1")),
             run("b", None),

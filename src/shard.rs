@@ -132,9 +132,23 @@ pub fn assign(weights: &[u64], count: usize) -> Vec<usize> {
 /// The runs of `shard`, in their configured order.
 ///
 /// The runs of one camera set-up (the manifest's `setup` column) stay in one
-/// share: their scale is pooled from all of them.
-pub fn select(runs: &[RunSpec], shard: Shard) -> Vec<RunSpec> {
-    let groups = crate::process::setups(runs);
+/// share: their scale is pooled from all of them. With `infer_setups`, the
+/// runs without a `setup` are one share too: which of them share a set-up
+/// is found from all of their images (so every shard count gives the same
+/// numbers).
+pub fn select(runs: &[RunSpec], shard: Shard, infer_setups: bool) -> Vec<RunSpec> {
+    let mut groups = crate::process::setups(runs);
+    let open = |g: &Vec<usize>| runs[g[0]].setup.is_none();
+    if infer_setups && groups.iter().filter(|g| open(g)).count() >= 2 {
+        let joined: Vec<usize> = groups
+            .iter()
+            .filter(|g| open(g))
+            .flatten()
+            .copied()
+            .collect();
+        groups.retain(|g| !open(g));
+        groups.push(joined);
+    }
     let weights: Vec<u64> = groups
         .iter()
         .map(|g| {
@@ -232,6 +246,38 @@ mod tests {
                 assert!(hi - lo <= max, "{count} shards: {load:?}");
             }
         }
+    }
+
+    /// Runs without a `setup` stay in one share when set-ups are inferred
+    /// (which of them share one depends on all of them), and spread over
+    /// the shares when not; a named set-up stays whole either way.
+    #[test]
+    fn runs_without_a_setup_stay_together_when_setups_are_inferred() {
+        let run = crate::test_support::run_spec;
+        let runs = vec![
+            run("a", None),
+            run("b", Some("cam")),
+            run("c", None),
+            run("d", Some("cam")),
+            run("e", None),
+            run("f", None),
+        ];
+        let names = |k: usize, infer: bool| -> Vec<String> {
+            select(&runs, Shard { index: k, count: 2 }, infer)
+                .into_iter()
+                .map(|r| r.run)
+                .collect()
+        };
+        let (s0, s1) = (names(0, true), names(1, true));
+        let open = ["a", "c", "e", "f"].map(String::from).to_vec();
+        let named = ["b", "d"].map(String::from).to_vec();
+        assert!(
+            (s0 == open && s1 == named) || (s1 == open && s0 == named),
+            "{s0:?} {s1:?}"
+        );
+        let (s0, s1) = (names(0, false), names(1, false));
+        assert_eq!(s0.len() + s1.len(), 6);
+        assert!(s0.len() >= 2 && s1.len() >= 2, "{s0:?} {s1:?}");
     }
 
     #[test]

@@ -135,6 +135,8 @@ pub fn cache_entry(
         outputs,
         frames: 1,
         record: crate::dataset::DropRecord::failed(run, 4.5, "why"),
+        scene: None,
+        scene_key: None,
     }
 }
 
@@ -155,4 +157,19 @@ pub fn require_avx2(what: &str) {
     );
     #[cfg(not(target_arch = "x86_64"))]
     let _ = what;
+}
+
+/// A manifest row `name` (path `name`, R = 3 mm) of camera set-up `setup`.
+pub fn run_spec(name: &str, setup: Option<&str>) -> crate::manifest::RunSpec {
+    crate::manifest::RunSpec {
+        run: name.into(),
+        path: std::path::PathBuf::from(name),
+        sphere_radius_mm: 3.0,
+        drop_height_cm: None,
+        fps: None,
+        mm_per_px: None,
+        surface: None,
+        sphere_density_kg_m3: None,
+        setup: setup.map(String::from),
+    }
 }

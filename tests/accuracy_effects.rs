@@ -226,24 +226,7 @@ fn every_effect_together() {
 #[test]
 fn a_setups_free_fall_scale_carries_the_distortion_in_its_error() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("c");
-    let a = [
-        "--out",
-        out.to_str().unwrap(),
-        "--campaign",
-        "--preset",
-        "real",
-        "--radii-mm",
-        "4",
-        "--heights-cm",
-        "1.5,6,25",
-        "--repeats",
-        "1",
-        "--seed",
-        "7",
-    ];
-    render(&args(&a)).unwrap_or_else(|e| panic!("render {a:?}: {e}"));
-    let runs = read_manifest(&out.join("runs.csv")).unwrap();
+    let runs = crate::setup_infer::real_r4_campaign(&dir.path().join("c"), "1.5,6,25", "1");
     let cfg =
         PipelineConfig::from_toml_str(EMBEDDED_DEFAULT, Path::new("pipeline.toml"), dir.path())
             .unwrap();

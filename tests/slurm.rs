@@ -81,7 +81,12 @@ fn job_folder(d: &Path) -> (PathBuf, PathBuf) {
         m += &format!("{run},{},{rest}\n", campaign().join(path).display());
     }
     std::fs::write(d.join("runs.csv"), m).unwrap();
-    (write_config(d, ""), d.join("out"))
+    // The manifest names no set-ups: with `camera.infer_setups` all its
+    // runs would be one shard's; these tests need them spread.
+    (
+        write_config(d, "\n[camera]\ninfer_setups = false"),
+        d.join("out"),
+    )
 }
 
 /// `dropscope slurm --submit` from `d`: (array job id, finishing job id).

@@ -12,6 +12,7 @@ mod render;
 mod render_real;
 mod report;
 mod run;
+mod setup_infer;
 mod shards;
 mod slurm;
 mod source;

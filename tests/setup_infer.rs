@@ -1,0 +1,153 @@
+//! Camera set-ups found from the images (`camera.infer_setups`, issue 13):
+//! a manifest without a `setup` column, as independent footage comes, still
+//! gets each set-up's pooled free-fall scale.
+
+use dropscope::batch::{process_runs, JobOptions};
+use dropscope::cache::cached_scene;
+use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
+use dropscope::dataset::{DropRecord, DropStatus};
+use dropscope::manifest::{read_manifest, RunSpec};
+use dropscope::render::render;
+use std::path::Path;
+
+use crate::render::args;
+
+/// A `--preset real` campaign of a 4 mm sphere (seed 7) from
+/// `heights_cm`, `repeats` times (each repeat its own camera set-up:
+/// zoom, surface row and roll), rendered into `out`; its manifest's runs.
+pub(crate) fn real_r4_campaign(out: &Path, heights_cm: &str, repeats: &str) -> Vec<RunSpec> {
+    let a = [
+        "--out",
+        out.to_str().unwrap(),
+        "--campaign",
+        "--preset",
+        "real",
+        "--radii-mm",
+        "4",
+        "--heights-cm",
+        heights_cm,
+        "--repeats",
+        repeats,
+        "--seed",
+        "7",
+    ];
+    render(&args(&a)).unwrap_or_else(|e| panic!("render {a:?}: {e}"));
+    read_manifest(&out.join("runs.csv")).unwrap()
+}
+
+/// Two set-ups, three heights each, and the manifest written without its
+/// `setup` column. Returns the runs with their true set-ups and the
+/// manifest's path.
+fn two_setups(dir: &Path) -> (Vec<RunSpec>, std::path::PathBuf) {
+    let runs = real_r4_campaign(&dir.join("c"), "1.5,6,25", "2");
+    let mut csv = String::from("run,path,sphere_radius_mm,drop_height_cm\n");
+    for r in &runs {
+        csv += &format!(
+            "{},{},{},{}\n",
+            r.run,
+            r.path.display(),
+            r.sphere_radius_mm,
+            r.drop_height_cm.unwrap()
+        );
+    }
+    let manifest = dir.join("nosetup.csv");
+    std::fs::write(&manifest, csv).unwrap();
+    (runs, manifest)
+}
+
+fn truth(run: &RunSpec) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(run.path.join("truth.json")).unwrap()).unwrap()
+}
+
+/// Without a `setup` column the two set-ups are found from the images
+/// (every run of one and none of the other), each run takes its set-up's
+/// pooled free-fall scale, and v_impact meets the free-fall target
+/// (0.05 %) inside 3σ — where each run alone, with `infer_setups = false`,
+/// has the 25 cm drop's scale from its own 2 cm of flight or its
+/// silhouette, 10× less precise. The scenes are kept in the cache, and a
+/// second job reuses every run.
+#[test]
+fn setups_are_found_from_the_images_when_the_manifest_names_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let (runs, manifest) = two_setups(dir.path());
+    let read = read_manifest(&manifest).unwrap();
+    assert!(read.iter().all(|r| r.setup.is_none()));
+    let cfg =
+        PipelineConfig::from_toml_str(EMBEDDED_DEFAULT, Path::new("pipeline.toml"), dir.path())
+            .unwrap();
+    let out = dir.path().join("out");
+    let process = || {
+        let done = process_runs(&read, &cfg, &out, &JobOptions::default(), &[], &|_| {})
+            .unwrap()
+            .done;
+        let hits = done.iter().filter(|(_, hit)| *hit).count();
+        let records: Vec<DropRecord> = done.into_iter().map(|(e, _)| e.record).collect();
+        (records, hits)
+    };
+    let (records, hits) = process();
+    assert_eq!(hits, 0);
+    for ((r, run), alone) in records.iter().zip(&runs).zip(&read) {
+        assert_ne!(r.status, DropStatus::Failed, "{}: {}", run.run, r.reason);
+        let t = truth(run);
+        assert!(
+            r.setup.starts_with("auto"),
+            "{}: setup {:?}",
+            run.run,
+            r.setup
+        );
+        for (other, o) in records.iter().zip(&runs) {
+            // Together exactly when filmed together.
+            assert_eq!(
+                other.setup == r.setup,
+                o.setup == run.setup,
+                "{} and {}",
+                run.run,
+                o.run
+            );
+        }
+        assert_eq!(r.scale_source, "setup_free_fall", "{}", run.run);
+        let s_true = t["mm_per_px"].as_f64().unwrap();
+        let (s, s_err) = (r.mm_per_px.unwrap(), r.mm_per_px_err.unwrap());
+        assert!(
+            (s - s_true).abs() < 2.0 * s_err,
+            "{}: scale {s} ± {s_err} against {s_true}",
+            run.run
+        );
+        let v_true = t["v_impact_m_s"].as_f64().unwrap();
+        let (v, v_err) = (r.v_impact_m_s.unwrap(), r.v_impact_m_s_err.unwrap());
+        eprintln!(
+            "{} ({}): v {:+.1e} (σ {:.1e})",
+            run.run,
+            r.setup,
+            v / v_true - 1.0,
+            v_err / v_true
+        );
+        assert!(
+            (v / v_true - 1.0).abs() < 5e-4,
+            "{}: v {v} against {v_true}",
+            run.run
+        );
+        assert!(
+            (v - v_true).abs() < 3.0 * v_err,
+            "{}: v {v} ± {v_err} against {v_true}",
+            run.run
+        );
+        assert!(cached_scene(&out, &cfg, alone).is_some(), "{}", run.run);
+    }
+    let (again, hits) = process();
+    assert_eq!(hits, runs.len());
+    assert_eq!(again, records);
+
+    // Each run alone: the fastest drop's scale is its own 2 cm of flight or
+    // its silhouette.
+    let mut alone_cfg = cfg.clone();
+    alone_cfg.camera.infer_setups = false;
+    let fast = read.iter().position(|r| r.run.contains("H25cm")).unwrap();
+    let alone = dropscope::process::process_run(&read[fast], &alone_cfg, &[]).record;
+    let pooled_err = records[fast].v_impact_m_s_err.unwrap();
+    assert!(
+        alone.v_impact_m_s_err.unwrap() > 10.0 * pooled_err,
+        "alone {:?} against pooled {pooled_err}",
+        alone.v_impact_m_s_err
+    );
+}

@@ -455,7 +455,8 @@ pub fn process_runs(
             .then(|| cache::cached_scene(out, cfg, r))
             .flatten()
     };
-    let runs = &crate::process::with_inferred_setups(runs, cfg, &scene_of);
+    let crate::process::Prepared { runs, cfg } = crate::process::prepare(runs, cfg, &scene_of);
+    let (runs, cfg) = (&runs, &cfg);
     let groups = crate::process::setups(runs);
     let work = || {
         let threads = rayon::current_num_threads();

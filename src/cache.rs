@@ -307,7 +307,11 @@ pub fn job_id(kind: &str, cfg: &PipelineConfig, runs: &[RunSpec]) -> String {
 pub fn scene_key(cfg: &PipelineConfig, run: &RunSpec, fp: &Fingerprint) -> String {
     let mut alone = run.clone();
     alone.setup = None;
-    key(cfg, &alone, fp)
+    // Nor on the edge offset, which a job may measure from the scenes.
+    let mut cfg = cfg.clone();
+    cfg.camera.edge_offset_px = None;
+    cfg.camera.edge_offset_spread_px = None;
+    key(&cfg, &alone, fp)
 }
 
 /// The scene signature of `run` from its entry in `out`, if the entry was

@@ -81,6 +81,10 @@ pub struct RawCamera {
     pub distortion_bound_px: Option<f64>,
     /// Runs the manifest gives no `setup` are grouped by what their images show.
     pub infer_setups: Option<bool>,
+    /// The silhouette's apparent minus true radius (px) for runs scaled by it.
+    pub edge_offset_px: Option<f64>,
+    /// Its one-sigma spread from drop to drop (px).
+    pub edge_offset_spread_px: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -168,6 +172,26 @@ pub struct CameraConfig {
     /// Runs without a manifest `setup` share one when their images say they
     /// were filmed through one camera set-up ([`crate::setup_infer`]).
     pub infer_setups: bool,
+    /// The silhouette's edge offset (apparent minus true radius, px) and its
+    /// spread, for runs whose scale comes from their apparent radius: given,
+    /// or measured on the job's runs ([`crate::scale::EdgeOffset`]).
+    pub edge_offset_px: Option<f64>,
+    pub edge_offset_spread_px: Option<f64>,
+}
+
+/// `camera.edge_offset_spread_px` when only the offset is given (px).
+pub const DEFAULT_EDGE_OFFSET_SPREAD_PX: f64 = 0.1;
+
+impl CameraConfig {
+    /// The edge offset runs scaled by their apparent radius are corrected by.
+    pub fn edge_offset(&self) -> Option<crate::scale::EdgeOffset> {
+        self.edge_offset_px.map(|o| crate::scale::EdgeOffset {
+            offset_px: o,
+            spread_px: self
+                .edge_offset_spread_px
+                .unwrap_or(DEFAULT_EDGE_OFFSET_SPREAD_PX),
+        })
+    }
 }
 
 /// The default `camera.distortion_bound_px`: the barrel distortion of the
@@ -392,6 +416,35 @@ impl RawConfig {
                 "must be a number of pixels from 0 to 20",
             ));
         }
+        if let Some(o) = self.camera.edge_offset_px {
+            if !(o.is_finite() && o.abs() <= 5.0) {
+                return Err(c.invalid(
+                    "camera.edge_offset_px",
+                    o,
+                    "must be a number of pixels from -5 to 5",
+                ));
+            }
+        }
+        let edge_offset_spread_px = match (
+            self.camera.edge_offset_spread_px,
+            self.camera.edge_offset_px,
+        ) {
+            (Some(s), _) if !(s.is_finite() && s > 0.0 && s <= 5.0) => {
+                return Err(c.invalid(
+                    "camera.edge_offset_spread_px",
+                    s,
+                    "must be a number of pixels above 0 and at most 5",
+                ))
+            }
+            (Some(s), None) => {
+                return Err(c.invalid(
+                    "camera.edge_offset_spread_px",
+                    s,
+                    "is the spread of camera.edge_offset_px, which is not given",
+                ))
+            }
+            (s, _) => s,
+        };
 
         let defaults = DetectConfig::default();
         let background_frames = self
@@ -460,6 +513,8 @@ impl RawConfig {
                 distortion_k1_per_px2,
                 distortion_bound_px,
                 infer_setups: self.camera.infer_setups.unwrap_or(true),
+                edge_offset_px: self.camera.edge_offset_px,
+                edge_offset_spread_px,
             },
             sphere: SphereConfig {
                 density_kg_m3: density,
@@ -530,6 +585,21 @@ mod tests {
                 "[camera]\ndistortion_k1_per_px2 = 0.001\n",
                 "camera.distortion_k1_per_px2",
                 "0.001",
+            ),
+            (
+                "[camera]\nedge_offset_px = 30\n",
+                "camera.edge_offset_px",
+                "30",
+            ),
+            (
+                "[camera]\nedge_offset_px = -0.2\nedge_offset_spread_px = 0\n",
+                "camera.edge_offset_spread_px",
+                "0",
+            ),
+            (
+                "[camera]\nedge_offset_spread_px = 0.1\n",
+                "camera.edge_offset_spread_px",
+                "0.1",
             ),
             (
                 "[surface.p]\nmodulus_pa = 1e6\npillar_height_mm = 3\npillar_width_mm = 2\nchannel_width_mm = 1\nsolid_fraction = 1.5\n",

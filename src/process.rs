@@ -73,7 +73,7 @@ pub struct RunOutcome {
     /// The animated overlay of the impact (animated PNG bytes).
     pub impact: Option<Vec<u8>>,
     /// What the run's images say of its camera set-up (kept in the cache
-    /// for [`with_inferred_setups`]).
+    /// for [`prepare`]).
     pub scene: Option<SceneSignature>,
     /// Seconds spent on this run (tracking and measuring), for the speed
     /// shown to the user; no output depends on it.
@@ -247,18 +247,32 @@ pub fn setups(runs: &[RunSpec]) -> Vec<Vec<usize>> {
     groups
 }
 
-/// `runs` with the camera set-ups their images show filled in where the
-/// manifest names none ([`crate::setup_infer`], `camera.infer_setups`):
-/// each such run is tracked once more to read its scene (about a fifth of
-/// its processing). `scene_of` gives a run's signature when it is already
-/// known (a cache), else it is measured. A run that cannot be tracked stays
-/// without a set-up (its processing says why).
-pub fn with_inferred_setups(
+/// A job's runs and configuration as they are processed.
+pub struct Prepared {
+    /// The runs, with the camera set-ups their images show filled in where
+    /// the manifest names none ([`crate::setup_infer`], `camera.infer_setups`).
+    pub runs: Vec<RunSpec>,
+    /// The configuration, with the edge offset the runs measured
+    /// ([`crate::scale::EdgeOffset::measure`]) where it gives none.
+    pub cfg: PipelineConfig,
+}
+
+/// Prepare a job's runs (see [`Prepared`]). With `camera.infer_setups` and
+/// two runs or more without a `setup`, each of those is tracked once more
+/// to read its scene (about a fifth of its processing); `scene_of` gives a
+/// run's scene when it is already known (a cache). A run that cannot be
+/// tracked stays without a set-up (its processing says why). The edge
+/// offset is measured on those runs whose own free fall gives their scale
+/// within [`crate::scale::EDGE_OFFSET_FREE_FALL_REL_ERR`].
+pub fn prepare(
     runs: &[RunSpec],
     cfg: &PipelineConfig,
     scene_of: &(dyn Fn(&RunSpec) -> Option<SceneSignature> + Sync),
-) -> Vec<RunSpec> {
-    let mut out = runs.to_vec();
+) -> Prepared {
+    let mut out = Prepared {
+        runs: runs.to_vec(),
+        cfg: cfg.clone(),
+    };
     let open: Vec<usize> = (0..runs.len())
         .filter(|&i| runs[i].setup.is_none())
         .collect();
@@ -280,7 +294,22 @@ pub fn with_inferred_setups(
     for (k, group) in crate::setup_infer::infer_groups(&scenes).iter().enumerate() {
         let name = crate::setup_infer::setup_name(k + 1, &taken);
         for &j in group {
-            out[open[j]].setup = Some(name.clone());
+            out.runs[open[j]].setup = Some(name.clone());
+        }
+    }
+    if cfg.camera.edge_offset_px.is_none() {
+        let offsets: Vec<f64> = scenes
+            .iter()
+            .flatten()
+            .filter_map(|sc| {
+                let (s, err) = sc.free_fall_mm_per_px?;
+                (err < crate::scale::EDGE_OFFSET_FREE_FALL_REL_ERR * s)
+                    .then(|| sc.r_app_px - sc.radius_mm / s)
+            })
+            .collect();
+        if let Some(e) = crate::scale::EdgeOffset::measure(&offsets) {
+            out.cfg.camera.edge_offset_px = Some(e.offset_px);
+            out.cfg.camera.edge_offset_spread_px = Some(e.spread_px);
         }
     }
     out
@@ -429,6 +458,7 @@ fn measure_run(
         own: curvature,
         r_app_px: tr.radius_px,
         r_app_err_px: tr.radius_err_px,
+        edge_offset: cfg.camera.edge_offset(),
     };
     let sc = crate::scale::resolve(&inputs);
     let (radius_px, radius_err_px) = sc.radius_px(&inputs);
@@ -827,7 +857,8 @@ pub fn process_all_with_overlays(
     overlay_frames: &[i64],
     progress: &(dyn Fn(&DropRecord) + Sync),
 ) -> Result<Vec<DropRecord>, ProcessError> {
-    let runs = &with_inferred_setups(runs, cfg, &|_| None);
+    let Prepared { runs, cfg } = prepare(runs, cfg, &|_| None);
+    let (runs, cfg) = (&runs, &cfg);
     let groups = setups(runs);
     let done = groups
         .par_iter()

@@ -10,11 +10,16 @@
 //!    manifest's `setup` column puts on one camera set-up share one scale,
 //!    and their curvatures are pooled (weighted mean, error scaled by the
 //!    pool's √χ²_red when above 1);
-//! 3. **free fall** — the run's own flights, when that is more precise than 4;
+//! 3. **free fall** — the run's own flights; 2 and 3 only where more
+//!    precise than 4 (a set-up of fast drops only pools flights of a few
+//!    frames each, 1–5 %);
 //! 4. **radius** — R_mm / R_px, the last resort: a polished ball's
 //!    silhouette is not its outline (a light rim inside, a halo outside), so
-//!    the apparent radius is off by a fraction of a pixel; that offset,
-//!    [`EDGE_OFFSET_SYSTEMATIC_PX`], is carried as a systematic error.
+//!    the apparent radius is off by a fraction of a pixel. Where the job's
+//!    other runs measured that offset (their own precise free falls, see
+//!    [`EdgeOffset`]) the apparent radius is corrected by their mean and
+//!    carries their spread; else the offset, [`EDGE_OFFSET_SYSTEMATIC_PX`],
+//!    is carried as a systematic error.
 //!
 //! With 1–3 the sphere's true radius in pixels is R_mm / s, its bottom is
 //! z_c + R_mm / s, and `edge_offset_px` = R_px − R_mm / s is reported as a
@@ -28,6 +33,66 @@ use nalgebra::DMatrix;
 /// One-sigma systematic error of the apparent radius as the sphere's true
 /// radius (px): polished steel balls in backlight measure 0.1–0.5 px small.
 pub const EDGE_OFFSET_SYSTEMATIC_PX: f64 = 0.3;
+
+/// The silhouette's edge offset (apparent minus true radius, px) that runs
+/// scaled by their apparent radius are corrected by, and its one-sigma
+/// spread from drop to drop: given (`camera.edge_offset_px`) or measured
+/// on the job's runs whose own free fall is precise ([`EdgeOffset::measure`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct EdgeOffset {
+    pub offset_px: f64,
+    pub spread_px: f64,
+}
+
+/// A run's own free fall measures its edge offset when its scale is this
+/// precise (relative): 1e-3 of an 80 px radius is 0.08 px.
+pub const EDGE_OFFSET_FREE_FALL_REL_ERR: f64 = 1e-3;
+
+/// Fewest such runs to measure a job's edge offset from.
+pub const EDGE_OFFSET_MIN_RUNS: usize = 3;
+
+/// The least spread claimed for a measured edge offset (px): a few runs of
+/// one look can agree by chance more closely than the next drop will.
+pub const EDGE_OFFSET_MIN_SPREAD_PX: f64 = 0.05;
+
+/// Student's t at 97.5 % with `df` degrees of freedom (df ≥ 1), over the
+/// normal's 1.96: how much wider a 95 % interval from a sample standard
+/// deviation of df + 1 values is than one from a known σ.
+fn student_t_975_over_normal(df: usize) -> f64 {
+    const T975: [f64; 30] = [
+        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
+        2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
+        2.052, 2.048, 2.045, 2.042,
+    ];
+    let t = T975
+        .get(df.max(1) - 1)
+        .copied()
+        // Beyond 30: t ≈ z (1 + (z² + 1) / 4df).
+        .unwrap_or(1.96 * (1.0 + (1.96 * 1.96 + 1.0) / (4.0 * df as f64)));
+    t / 1.96
+}
+
+impl EdgeOffset {
+    /// From runs' offsets (apparent radius minus R_mm / free-fall scale):
+    /// their mean, and as spread the standard deviation of one more drop
+    /// about that mean (s·√(1 + 1/n)), widened so that its 2σ is a 95 %
+    /// prediction interval for so few runs (Student's t over 1.96), and at
+    /// least [`EDGE_OFFSET_MIN_SPREAD_PX`]. `None` below
+    /// [`EDGE_OFFSET_MIN_RUNS`].
+    pub fn measure(offsets_px: &[f64]) -> Option<EdgeOffset> {
+        let n = offsets_px.len();
+        if n < EDGE_OFFSET_MIN_RUNS {
+            return None;
+        }
+        let mean = offsets_px.iter().sum::<f64>() / n as f64;
+        let var = offsets_px.iter().map(|o| (o - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+        let spread = (var * (1.0 + 1.0 / n as f64)).sqrt() * student_t_975_over_normal(n - 1);
+        (mean.is_finite() && spread.is_finite()).then_some(EdgeOffset {
+            offset_px: mean,
+            spread_px: spread.max(EDGE_OFFSET_MIN_SPREAD_PX),
+        })
+    }
+}
 
 /// A flight frame has the sphere's apparent bottom at least this far above
 /// the surface line (px), clear of any contact.
@@ -195,6 +260,24 @@ pub struct ScaleInputs {
     /// The apparent radius and its statistical error.
     pub r_app_px: f64,
     pub r_app_err_px: f64,
+    /// The edge offset known from elsewhere, for the radius's scale.
+    pub edge_offset: Option<EdgeOffset>,
+}
+
+impl ScaleInputs {
+    /// The sphere's true radius from its apparent one (px) and the one-sigma
+    /// error: corrected by the known edge offset, else with
+    /// [`EDGE_OFFSET_SYSTEMATIC_PX`] as its error.
+    fn radius_from_silhouette_px(&self) -> (f64, f64) {
+        let e = self.edge_offset.unwrap_or(EdgeOffset {
+            offset_px: 0.0,
+            spread_px: EDGE_OFFSET_SYSTEMATIC_PX,
+        });
+        (
+            self.r_app_px - e.offset_px,
+            self.r_app_err_px.hypot(e.spread_px),
+        )
+    }
 }
 
 /// A run's scale.
@@ -216,10 +299,7 @@ impl Scale {
     /// when the scale comes from it) and its one-sigma error.
     pub fn radius_px(&self, inp: &ScaleInputs) -> (f64, f64) {
         match self.source {
-            ScaleSource::Radius => (
-                inp.r_app_px,
-                inp.r_app_err_px.hypot(EDGE_OFFSET_SYSTEMATIC_PX),
-            ),
+            ScaleSource::Radius => inp.radius_from_silhouette_px(),
             _ => {
                 let r = inp.radius_mm / self.mm_per_px;
                 (r, r * self.rel_err)
@@ -263,10 +343,13 @@ impl Scale {
         Some((s, (w_given + w_ff).sqrt().recip() / s))
     }
 
-    /// Apparent minus true radius (px) and its error; `None` when the
-    /// scale comes from the apparent radius.
+    /// Apparent minus true radius (px) and its error: the known edge offset
+    /// when the scale comes from the apparent radius (`None` without one).
     pub fn edge_offset_px(&self, inp: &ScaleInputs) -> Option<(f64, f64)> {
-        (self.source != ScaleSource::Radius).then(|| {
+        if self.source == ScaleSource::Radius {
+            return inp.edge_offset.map(|e| (e.offset_px, e.spread_px));
+        }
+        Some({
             let (r, e) = self.radius_px(inp);
             (inp.r_app_px - r, inp.r_app_err_px.hypot(e))
         })
@@ -275,8 +358,9 @@ impl Scale {
 
 /// Choose the scale (module doc) and check the sources against each other.
 pub fn resolve(inp: &ScaleInputs) -> Scale {
-    let by_radius = inp.radius_mm / inp.r_app_px;
-    let radius_rel = inp.r_app_err_px.hypot(EDGE_OFFSET_SYSTEMATIC_PX) / inp.r_app_px;
+    let (r_px, r_err_px) = inp.radius_from_silhouette_px();
+    let by_radius = inp.radius_mm / r_px;
+    let radius_rel = r_err_px / r_px;
     let ff = inp
         .setup
         .map(|c| (c, ScaleSource::SetupFreeFall))
@@ -287,7 +371,7 @@ pub fn resolve(inp: &ScaleInputs) -> Scale {
     });
     let (mm_per_px, rel_err, source) = match (inp.given_mm_per_px, ff) {
         (Some(s), _) => (s, 0.0, ScaleSource::Given),
-        (None, Some((c, src))) if src == ScaleSource::SetupFreeFall || c.rel_err() < radius_rel => {
+        (None, Some((c, src))) if c.rel_err() < radius_rel => {
             (c.mm_per_px(inp.g_m_s2), c.rel_err(), src)
         }
         _ => (by_radius, radius_rel, ScaleSource::Radius),
@@ -393,14 +477,10 @@ mod tests {
         assert!(pool(&[]).is_none());
     }
 
-    #[test]
-    fn the_source_follows_the_preference_and_disagreements_are_said() {
-        let good = Curvature {
-            g_px_s2: 9.81 / 0.06e-3,
-            err_px_s2: 9.81 / 0.06e-3 * 1e-4,
-            frames: 80,
-        };
-        let base = ScaleInputs {
+    /// A 4.8 mm sphere seen 79.7 px in radius (80 px at 0.06 mm/px), no
+    /// scale known.
+    fn sphere_of_4_8_mm() -> ScaleInputs {
+        ScaleInputs {
             radius_mm: 4.8,
             g_m_s2: 9.81,
             given_mm_per_px: None,
@@ -408,7 +488,18 @@ mod tests {
             own: None,
             r_app_px: 79.7,
             r_app_err_px: 0.002,
+            edge_offset: None,
+        }
+    }
+
+    #[test]
+    fn the_source_follows_the_preference_and_disagreements_are_said() {
+        let good = Curvature {
+            g_px_s2: 9.81 / 0.06e-3,
+            err_px_s2: 9.81 / 0.06e-3 * 1e-4,
+            frames: 80,
         };
+        let base = sphere_of_4_8_mm();
         let s = resolve(&base);
         assert_eq!(s.source, ScaleSource::Radius);
         assert!((s.rel_err - 0.3 / 79.7).abs() < 1e-6);
@@ -439,6 +530,41 @@ mod tests {
         });
         let w = s.warning.unwrap();
         assert!(w.contains("0.0603") && w.contains("free fall"), "{w}");
+    }
+
+    #[test]
+    fn an_edge_offset_measured_on_few_runs_claims_a_prediction_interval() {
+        assert_eq!(EdgeOffset::measure(&[-0.2, -0.3]), None);
+        // n = 3: mean −0.25, s = 0.05, s·√(4/3) = 0.0577, × 4.303 / 1.96.
+        let e = EdgeOffset::measure(&[-0.2, -0.3, -0.25]).unwrap();
+        assert!((e.offset_px + 0.25).abs() < 1e-12);
+        assert!((e.spread_px - 0.05 * (4.0f64 / 3.0).sqrt() * 4.303 / 1.96).abs() < 1e-9);
+        // Many runs: close to s·√(1 + 1/n); identical runs: the floor.
+        let many: Vec<f64> = (0..100)
+            .map(|i| if i % 2 == 0 { -0.1 } else { -0.3 })
+            .collect();
+        let e = EdgeOffset::measure(&many).unwrap();
+        assert!((e.spread_px / 0.1 - 1.0).abs() < 0.03, "{e:?}");
+        let e = EdgeOffset::measure(&[-0.2; 5]).unwrap();
+        assert_eq!(e.spread_px, EDGE_OFFSET_MIN_SPREAD_PX);
+    }
+
+    #[test]
+    fn a_known_edge_offset_corrects_the_radius_and_carries_its_spread() {
+        let inp = ScaleInputs {
+            edge_offset: Some(EdgeOffset {
+                offset_px: -0.3,
+                spread_px: 0.1,
+            }),
+            ..sphere_of_4_8_mm()
+        };
+        let s = resolve(&inp);
+        assert_eq!(s.source, ScaleSource::Radius);
+        assert!((s.mm_per_px - 0.06).abs() < 1e-12);
+        assert!((s.rel_err - 0.002f64.hypot(0.1) / 80.0).abs() < 1e-12);
+        let (r, e) = s.radius_px(&inp);
+        assert!((r - 80.0).abs() < 1e-12 && (e - 0.002f64.hypot(0.1)).abs() < 1e-12);
+        assert_eq!(s.edge_offset_px(&inp), Some((-0.3, 0.1)));
     }
 
     #[test]

@@ -151,3 +151,85 @@ fn setups_are_found_from_the_images_when_the_manifest_names_none() {
         alone.v_impact_m_s_err
     );
 }
+
+/// Four camera set-ups, one drop each (nothing to pool): three slow drops
+/// whose own free falls give their scales to 3e-4 measure the silhouette's
+/// edge offset (0.1–0.5 px small in `--preset real`), and the fast drop,
+/// scaled by its apparent radius, is corrected by their mean and carries
+/// their spread as a 95 % prediction interval. Without that (no
+/// inference, so no scenes) it carries the fixed 0.3 px instead.
+#[test]
+fn a_run_alone_is_scaled_by_its_silhouette_less_the_jobs_edge_offset() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("c");
+    let a = [
+        "--out",
+        out.to_str().unwrap(),
+        "--preset",
+        "real",
+        "--seed",
+        "7",
+        "--drop",
+        "4:1.5,4:1.5,4:1.5,4:25,4:25,4:25,4:25",
+    ];
+    render(&args(&a)).unwrap_or_else(|e| panic!("render {a:?}: {e}"));
+    let all = read_manifest(&out.join("runs.csv")).unwrap();
+    // The slow drops of set-ups 1–3 and the fast one of set-up 4.
+    let runs: Vec<RunSpec> = all
+        .into_iter()
+        .filter(|r| r.run.contains("H1.5cm") || r.run.ends_with("H25cm_04"))
+        .map(|mut r| {
+            r.setup = None;
+            r
+        })
+        .collect();
+    assert_eq!(runs.len(), 4);
+    let cfg =
+        PipelineConfig::from_toml_str(EMBEDDED_DEFAULT, Path::new("pipeline.toml"), dir.path())
+            .unwrap();
+    let records =
+        dropscope::process::process_all(&runs, &cfg, &dir.path().join("out"), &|_| {}).unwrap();
+    let slow: Vec<f64> = records[..3]
+        .iter()
+        .map(|r| {
+            assert_eq!(r.scale_source, "free_fall", "{}", r.run);
+            r.edge_offset_px.unwrap()
+        })
+        .collect();
+    let fast = &records[3];
+    assert_eq!(fast.setup, "", "no set-up to share");
+    assert_eq!(fast.scale_source, "radius");
+    let mean = slow.iter().sum::<f64>() / 3.0;
+    assert!(
+        (fast.edge_offset_px.unwrap() - mean).abs() < 1e-9,
+        "{fast:?}"
+    );
+    let t = truth(&runs[3]);
+    let s_true = t["mm_per_px"].as_f64().unwrap();
+    let (s, err) = (fast.mm_per_px.unwrap(), fast.mm_per_px_err.unwrap());
+    let r_px = 4.0 / s_true;
+    eprintln!(
+        "edge offset {:.3} ± {:.3} px from {slow:?}; fast drop's scale {:+.1e} (σ {:.1e})",
+        mean,
+        fast.edge_offset_px_err.unwrap(),
+        s / s_true - 1.0,
+        err / s
+    );
+    assert!(
+        (s - s_true).abs() < 2.0 * err,
+        "{s} ± {err} against {s_true}"
+    );
+    assert!(
+        err / s < 0.3 / r_px,
+        "no more precise than the fixed 0.3 px"
+    );
+    // Each run alone: the fixed 0.3 px, uncorrected.
+    let mut alone = cfg.clone();
+    alone.camera.infer_setups = false;
+    let r = dropscope::process::process_run(&runs[3], &alone, &[]).record;
+    assert_eq!(
+        (r.scale_source.as_str(), r.edge_offset_px),
+        ("radius", None)
+    );
+    assert!((r.mm_per_px_err.unwrap() / r.mm_per_px.unwrap() * r_px / 0.3 - 1.0).abs() < 0.01);
+}

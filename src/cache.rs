@@ -140,27 +140,48 @@ fn modified_ns(md: &std::fs::Metadata) -> u64 {
         .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
 }
 
-/// Feed `len` bytes of `file` from `offset` (fewer at the end of the file).
-fn hash_range(h: &mut Sha256, file: &mut File, offset: u64, len: u64) -> std::io::Result<()> {
+/// Feed `len` bytes of `file` from `offset` (fewer at the end of the file),
+/// through `buf`: a piece at a time, so that hashing a large frame file
+/// touches no new memory (the same bytes hashed as reading it whole).
+fn hash_range(
+    h: &mut Sha256,
+    file: &mut File,
+    offset: u64,
+    len: u64,
+    buf: &mut [u8],
+) -> std::io::Result<()> {
     file.seek(SeekFrom::Start(offset))?;
-    let mut buf = Vec::new();
-    file.take(len).read_to_end(&mut buf)?;
-    h.update(&buf);
+    let mut left = len;
+    while left > 0 {
+        let want = buf.len().min(usize::try_from(left).unwrap_or(usize::MAX));
+        let got = match file.read(&mut buf[..want]) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        h.update(&buf[..got]);
+        left -= got as u64;
+    }
     Ok(())
 }
+
+/// The piece [`hash_range`] reads at a time.
+const HASH_PIECE_BYTES: usize = 64 << 10;
 
 /// The fingerprint of a `.cine` file or a folder of frames.
 pub fn fingerprint(path: &Path) -> std::io::Result<Fingerprint> {
     let md = std::fs::metadata(path)?;
     let mut h = Sha256::new();
+    let mut buf = vec![0u8; HASH_PIECE_BYTES];
     if !md.is_dir() {
         let size = md.len();
         let mut f = crate::io_util::open_regular(path)?;
-        hash_range(&mut h, &mut f, 0, CINE_HEAD_BYTES)?;
+        hash_range(&mut h, &mut f, 0, CINE_HEAD_BYTES, &mut buf)?;
         if size > CINE_HEAD_BYTES {
             for k in 0..SAMPLES {
                 let offset = CINE_HEAD_BYTES + (size - CINE_HEAD_BYTES) * k / SAMPLES;
-                hash_range(&mut h, &mut f, offset, SAMPLE_BYTES)?;
+                hash_range(&mut h, &mut f, offset, SAMPLE_BYTES, &mut buf)?;
             }
         }
         return Ok(Fingerprint {
@@ -215,7 +236,7 @@ pub fn fingerprint(path: &Path) -> std::io::Result<Fingerprint> {
     }
     for name in picked {
         let mut f = crate::io_util::open_regular(&path.join(name))?;
-        hash_range(&mut h, &mut f, 0, FRAME_FILE_BYTES)?;
+        hash_range(&mut h, &mut f, 0, FRAME_FILE_BYTES, &mut buf)?;
     }
     Ok(Fingerprint {
         path: path.to_path_buf(),

@@ -8,8 +8,12 @@
 //!    the frame binned 2×2), then followed frame to frame. The next centre is predicted from the last
 //!    three fits (constant acceleration: ballistic in flight, the contact's
 //!    deceleration in contact), and only the band of rows around the
-//!    predicted circle is read through [`FrameSource::read_rows_into`], so
-//!    the cost per frame follows the perimeter, not the frame. A frame whose
+//!    predicted circle is read, through [`FrameSource::read_window_into`]:
+//!    of its rows only the columns within the same reach of the circle and
+//!    the flicker reference strips at the frame's edges are converted, so
+//!    the cost per frame follows the sphere, not the sensor (except the
+//!    copy of the band's whole rows out of the file, which are contiguous
+//!    there). A frame whose
 //!    fit fails is marked `missing` (never guessed); after two misses the
 //!    coarse detector searches the whole frame again (`recovered`).
 //! 3. Calibration ([`calibrate_radius`]): R_px is the median radius of the
@@ -743,7 +747,10 @@ pub fn background_and_surface(
             // The first error in the frames' order, as one thread meets it.
             .into_iter()
             .collect::<Result<Vec<_>, _>>()?
-            .concat()
+            // Moved, not cloned (`concat` would copy every frame).
+            .into_iter()
+            .flatten()
+            .collect()
     };
     let views: Vec<_> = samples.iter().map(|f| f.view()).collect();
     // With the sphere masked out of each sample; if no circle can be fitted
@@ -834,20 +841,49 @@ fn measure_in_band(
     st: &TrackSettings,
     es: &mut EdgeScratch,
 ) -> Result<Option<CircleFit>, TrackError> {
-    let h = buf.nrows();
+    let (h, w) = buf.dim();
     let reach = p.r_px + st.edge.half_window as f64 + st.band_margin_px;
-    let lo = (p.z_px - reach).floor().max(0.0) as usize;
-    let hi = ((p.z_px + reach).ceil().max(0.0) as usize + 1).min(h);
-    if lo >= hi {
+    let span = |c: f64, n: usize| {
+        let lo = (c - reach).floor().max(0.0) as usize;
+        (lo, ((c + reach).ceil().max(0.0) as usize + 1).min(n))
+    };
+    let (lo, hi) = span(p.z_px, h);
+    let (left, right) = span(p.x_px, w);
+    if lo >= hi || left >= right {
         return Ok(None);
     }
+    // The same reach in columns, and the flicker reference strips at the
+    // frame's edges: only these columns are converted.
+    let strip = bg.region.strip_px.min(w);
+    let cols = window_columns(left..right, strip, w);
     let mut view = buf.slice_mut(s![0..hi - lo, ..]);
-    timings::time(Stage::Read, || source.read_rows_into(index, lo, &mut view))?;
-    let band = match Band::new(buf.slice(s![0..hi - lo, ..]), lo) {
+    timings::time(Stage::Read, || {
+        source.read_window_into(index, lo, &cols, &mut view)
+    })?;
+    let band = match Band::window(buf.slice(s![0..hi - lo, ..]), lo, left..right) {
         Ok(b) => b,
         Err(_) => return Ok(None),
     };
     Ok(measure_circle(&band, bg, p, Some(surface), hold, &st.edge, es).ok())
+}
+
+/// The columns a band around the sphere needs: `window` and the strips of
+/// `strip` columns at each edge of a `width`-wide frame, in increasing
+/// order, overlapping ones merged.
+fn window_columns(
+    window: std::ops::Range<usize>,
+    strip: usize,
+    width: usize,
+) -> Vec<std::ops::Range<usize>> {
+    let mut cols: Vec<std::ops::Range<usize>> = Vec::with_capacity(3);
+    for c in [0..strip, window, width.saturating_sub(strip)..width] {
+        match cols.last_mut() {
+            Some(last) if c.start <= last.end => last.end = last.end.max(c.end),
+            _ if c.start < c.end => cols.push(c),
+            _ => {}
+        }
+    }
+    cols
 }
 
 /// The edge points of the held-radius fit of one frame (for overlays), from

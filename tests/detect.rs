@@ -781,3 +781,69 @@ fn detect_settings_come_from_pipeline_toml() {
     assert!(SurfaceLine::from_config(&none.detect).is_none());
     assert_eq!(EdgeParams::from_config(&none.detect), EdgeParams::default());
 }
+
+/// A band read as a column window (`Band::window`, as the tracker reads
+/// wide frames: the columns within the band's reach of the prediction and
+/// the flicker strips) measures the same bits as the same rows read whole,
+/// whatever its other columns hold; and when the fit moves far from the
+/// prediction (normals leave the window), still the same bits whatever they
+/// hold: nothing outside the window is read.
+#[test]
+fn a_column_window_measures_what_whole_rows_do() {
+    let (w, h) = (480, 200);
+    let look = REALISTIC;
+    let mut rng = ChaCha8Rng::seed_from_u64(77);
+    let truth = (231.37, 92.81, 40.0);
+    let s = scene(w, h, look, Some(truth), None);
+    let bg = background(&s, look, &mut rng);
+    let frame = shoot(&s, look, &mut rng);
+    let params = EdgeParams::default();
+    let strip = GainRegion::default().strip_px;
+    let measure = |band: &Band, p: &Circle| {
+        let mut es = EdgeScratch::default();
+        let fit = measure_circle(band, &bg, p, None, None, &params, &mut es).ok();
+        (fit, es.points)
+    };
+    for (dx, dz, far) in [(0.0, 0.0, false), (1.3, -0.8, false), (-9.0, 2.0, true)] {
+        let p = Circle {
+            x_px: truth.0 + dx,
+            z_px: truth.1 + dz,
+            r_px: truth.2 + 0.5,
+        };
+        let reach = p.r_px + params.half_window as f64 + 6.0;
+        let span = |c: f64| {
+            (
+                (c - reach).floor() as usize,
+                (c + reach).ceil() as usize + 1,
+            )
+        };
+        let ((lo, hi), (left, right)) = (span(p.z_px), span(p.x_px));
+        let rows = frame.slice(ndarray::s![lo..hi, ..]);
+        let whole = measure(&Band::new(rows, lo).unwrap(), &p);
+        assert!(whole.0.is_some(), "no fit at offset ({dx}, {dz})");
+        let read = |c: usize| c < strip || (left..right).contains(&c) || c >= w - strip;
+        let mut seen = Vec::new();
+        for fill in [0u16, 255, 9999] {
+            let mut band = rows.to_owned();
+            for ((_, c), v) in band.indexed_iter_mut() {
+                if !read(c) {
+                    *v = fill;
+                }
+            }
+            seen.push(measure(
+                &Band::window(band.view(), lo, left..right).unwrap(),
+                &p,
+            ));
+        }
+        assert!(
+            seen.iter().all(|m| *m == seen[0]),
+            "offset ({dx}, {dz}): depends on unread columns"
+        );
+        if far {
+            // Normals on the left side run out of the window: fewer points.
+            assert!(seen[0].1.len() < whole.1.len(), "offset ({dx}, {dz})");
+        } else {
+            assert_eq!(seen[0], whole, "offset ({dx}, {dz})");
+        }
+    }
+}

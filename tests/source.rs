@@ -441,10 +441,23 @@ fn row_bands_equal_the_same_rows_of_whole_frames() {
         let mut src = open(&sample(file), &opts).unwrap();
         let h = src.meta().height;
         let full = read_all(src.as_mut(), 1);
+        let w = src.meta().width;
         for (r0, n) in [(0, 1), (3, 5), (h / 2, h / 4), (h - 2, 2)] {
-            let mut band = Frame::zeros((n, src.meta().width));
+            let mut band = Frame::zeros((n, w));
             src.read_rows_into(1, r0, &mut band.view_mut()).unwrap();
             assert_eq!(band, full.slice(s![r0..r0 + n, ..]), "{file} rows {r0}+{n}");
+            // A window of columns: those columns are the frame's.
+            let cols = [0..3, w / 3..w / 2, w - 3..w];
+            let mut window = Frame::from_elem((n, w), 0xBEEF);
+            src.read_window_into(1, r0, &cols, &mut window.view_mut())
+                .unwrap();
+            for c in cols.iter().flat_map(|c| c.clone()) {
+                assert_eq!(
+                    window.column(c),
+                    full.slice(s![r0..r0 + n, c]),
+                    "{file} rows {r0}+{n} window column {c}"
+                );
+            }
         }
         // Out of range: an error, not a panic.
         let mut band = Frame::zeros((3, src.meta().width));
@@ -838,6 +851,21 @@ fn folders_of_every_format_read_back_their_values() {
             let mut band = Frame::zeros((4, w));
             src.read_rows_into(i, 3, &mut band.view_mut()).unwrap();
             assert_eq!(band, f.slice(s![3..7, ..]), "{ext} band");
+            // A window: its columns read; uncompressed TIFF and BMP rows
+            // leave the others as they were (not converted).
+            let cols = [0..2, 5..9, 12..14];
+            let mut window = Frame::from_elem((4, w), 0xBEEF);
+            src.read_window_into(i, 3, &cols, &mut window.view_mut())
+                .unwrap();
+            let raw = (*ext == "tif" && *max != 65535) || *ext == "bmp";
+            for c in 0..w {
+                let want = if cols.iter().any(|r| r.contains(&c)) || !raw {
+                    f.slice(s![3..7, c]).to_owned()
+                } else {
+                    ndarray::Array1::from_elem(4, 0xBEEF)
+                };
+                assert_eq!(window.column(c), want, "{ext} {max} window column {c}");
+            }
         }
         // The same bytes decoded from memory (the `folder_frame` fuzz
         // target's path) give the same header, frame and band; cut short,

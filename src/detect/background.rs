@@ -535,6 +535,7 @@ fn coarse_pass(
                 row0: 0,
                 nrows: h,
                 width: w,
+                cols: (0, w),
             };
             let c = coarse::detect_coarse(&band, &bg, g, surface.as_ref(), params, &mut scratch)?;
             Ok(c.map(|c| c.circle))

@@ -296,6 +296,7 @@ impl BinnedBackground {
             row0: 0,
             nrows: hb,
             width: wb,
+            cols: (0, wb),
         };
         let line = surface.map(to_binned_line);
         let found = detect_coarse(

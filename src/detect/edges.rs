@@ -42,7 +42,9 @@
 //! # What is used
 //!
 //! A normal is used only when its whole window lies inside the band of rows
-//! (and one pixel from the frame's border, for the interpolation), above the
+//! and its read columns ([`Band::cols`]: all of them, unless the band was
+//! read as a window around the prediction), one pixel from the frame's
+//! border (for the interpolation), above the
 //! surface line minus `surface_margin_px` (the part below is hidden by
 //! pillars and, near contact, may dip or mirror the sphere), when the
 //! sphere's contrast `1 − τ` is at least `min_contrast`, and when the window
@@ -246,9 +248,12 @@ pub fn edge_points<'s>(
     // Valid rows for interpolation: the band, one pixel in from the frame's edges.
     let z_lo = (band.row0 as f64).max(1.0);
     let z_hi = ((band.row0 + band.nrows) as f64 - 1.0).min(bg.height as f64 - 2.0);
-    let x_hi = band.width as f64 - 2.0;
+    // Columns likewise: the band's read columns, one pixel in from the
+    // frame's edges.
+    let x_lo = (band.cols.0 as f64).max(1.0);
+    let x_hi = band.cols.1.min(band.width) as f64 - 2.0;
     let visible = |x: f64, z: f64| -> bool {
-        let inside = x >= 1.0 && x <= x_hi && z >= z_lo && z < z_hi;
+        let inside = x >= x_lo && x <= x_hi && z >= z_lo && z < z_hi;
         let above = match surface {
             Some(s) => z < s.row_at(x) - params.surface_margin_px,
             None => true,
@@ -405,7 +410,7 @@ fn transmission(
                 continue;
             }
             let xr = x + 0.5;
-            if xr < 0.0 || xr >= band.width as f64 {
+            if xr < band.cols.0 as f64 || xr >= band.cols.1.min(band.width) as f64 {
                 continue;
             }
             let j = xr as usize;
@@ -453,9 +458,10 @@ fn window_inside(w: &Window, m: usize, band: &Band) -> bool {
     let (jmin, jmax) = (x0.min(x1) >> 16, x0.max(x1) >> 16);
     let (imin, imax) = (z0.min(z1) >> 16, z0.max(z1) >> 16);
     let width = band.width as i64;
-    jmin >= 0
+    jmin >= band.cols.0 as i64
         && imin >= 0
         && jmax + 1 < width
+        && jmax + 1 < band.cols.1 as i64
         && (imax + 1) * width + jmax + 1 < band.data.len() as i64
         && band.data.len() < (1 << 30)
         && band.width < (1 << 15)
@@ -662,6 +668,7 @@ mod tests {
             row0: 100,
             nrows,
             width,
+            cols: (0, width),
         };
         let m = 13;
         for count in 1..=40 {
@@ -699,6 +706,7 @@ mod tests {
             row0: 0,
             nrows: 10,
             width: 20,
+            cols: (0, 20),
         };
         let at = |x: f64, z: f64, c: f64, s: f64| Window::new(x, z, c, s, 1.0, 0.0);
         // 13 samples from column 2 to the right end at 14, row 4: inside.

@@ -91,11 +91,29 @@ pub struct Band<'a> {
     pub row0: usize,
     pub nrows: usize,
     pub width: usize,
+    /// Columns `cols.0..cols.1` hold the frame's pixels (`0..width` for
+    /// whole rows). A band read as a window ([`Band::window`]) holds
+    /// arbitrary values elsewhere, which the edge points never sample.
+    pub cols: (usize, usize),
 }
 
 impl<'a> Band<'a> {
     /// A band from a view of rows `row0..` of a frame (whole rows, row-major).
     pub fn new(view: ndarray::ArrayView2<'a, u16>, row0: usize) -> Result<Self, DetectError> {
+        let width = view.ncols();
+        Self::window(view, row0, 0..width)
+    }
+
+    /// A band of which only columns `cols` were read (see
+    /// [`crate::source::FrameSource::read_window_into`]): edge points are
+    /// measured only along normals whose windows lie inside them. The
+    /// flicker reference strips ([`background::GainRegion`]) must
+    /// be read too.
+    pub fn window(
+        view: ndarray::ArrayView2<'a, u16>,
+        row0: usize,
+        cols: std::ops::Range<usize>,
+    ) -> Result<Self, DetectError> {
         let (nrows, width) = view.dim();
         let data = view.to_slice().ok_or(DetectError::NotContiguous)?;
         Ok(Band {
@@ -103,6 +121,7 @@ impl<'a> Band<'a> {
             row0,
             nrows,
             width,
+            cols: (cols.start.min(width), cols.end.min(width)),
         })
     }
 

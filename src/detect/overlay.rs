@@ -399,6 +399,7 @@ mod tests {
             row0: 5,
             nrows: 10,
             width: 12,
+            cols: (0, 12),
         };
         let view = OverlayView {
             x0: 9,

@@ -26,7 +26,7 @@ use ndarray::ArrayViewMut2;
 use super::p10_lut::P10_TO_LINEAR12;
 use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
 use super::{
-    check_band, fill_rows, FrameSource, OpenOptions, P10Mode, SourceDetails, SourceError,
+    check_band, fill_rows, for_cols, FrameSource, OpenOptions, P10Mode, SourceDetails, SourceError,
     SourceMeta,
 };
 
@@ -754,6 +754,29 @@ impl FrameSource for CineSource {
         row0: usize,
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), SourceError> {
+        self.read_cols(index, row0, None, out)
+    }
+
+    fn read_window_into(
+        &mut self,
+        index: usize,
+        row0: usize,
+        cols: &[std::ops::Range<usize>],
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
+        self.read_cols(index, row0, Some(cols), out)
+    }
+}
+
+impl CineSource {
+    /// Rows of a frame, all columns or (8-bit, not mirrored) those of `cols`.
+    fn read_cols(
+        &mut self,
+        index: usize,
+        row0: usize,
+        cols: Option<&[std::ops::Range<usize>]>,
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
         check_band(&self.meta, index, row0, out)?;
         let n = out.nrows();
         if n == 0 {
@@ -810,6 +833,9 @@ impl FrameSource for CineSource {
             let k = if descending { n - 1 - j } else { j };
             {
                 match storage {
+                    CineStorage::Gray8 if !flip_h => for_cols(dst, cols, |c, dst| {
+                        unpack_u8(&bytes[k * stride + c.start..], dst)
+                    }),
                     CineStorage::Gray8 => unpack_u8(&bytes[k * stride..], dst),
                     CineStorage::Gray16 => unpack_u16le(&bytes[k * stride..], dst),
                     CineStorage::P10 | CineStorage::P12L => {

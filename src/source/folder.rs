@@ -558,12 +558,35 @@ impl FrameSource for FolderSource {
         row0: usize,
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), SourceError> {
+        self.read_cols(index, row0, None, out)
+    }
+
+    fn read_window_into(
+        &mut self,
+        index: usize,
+        row0: usize,
+        cols: &[std::ops::Range<usize>],
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
+        self.read_cols(index, row0, Some(cols), out)
+    }
+}
+
+impl FolderSource {
+    fn read_cols(
+        &mut self,
+        index: usize,
+        row0: usize,
+        cols: Option<&[std::ops::Range<usize>]>,
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
         check_band(&self.meta, index, row0, out)?;
         let path = &self.files[index];
         let (mut file, len) = crate::io_util::open_regular_len(path).map_err(io_err(path))?;
         let size = (self.meta.width, self.meta.height);
-        self.decoder
-            .read_rows(path, index, &mut file, len, self.kind, size, row0, out)
+        self.decoder.read_rows(
+            path, index, &mut file, len, self.kind, size, row0, cols, out,
+        )
     }
 }
 

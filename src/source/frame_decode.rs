@@ -20,7 +20,7 @@ use ndarray::{s, ArrayViewMut2};
 
 use super::folder::ImageKind;
 use super::widen::widen_u8;
-use super::{fill_row, fill_rows, SourceError};
+use super::{fill_row, fill_rows, for_cols, SourceError};
 
 /// How one file's pixels are laid out, found by reading its header only.
 #[derive(Debug, Clone, PartialEq)]
@@ -194,11 +194,23 @@ impl FrameDecoder {
         }
         let len = bytes.len() as u64;
         let mut file = Cursor::new(bytes);
-        self.read_rows(name, 0, &mut file, len, kind, (width, height), row0, out)
+        self.read_rows(
+            name,
+            0,
+            &mut file,
+            len,
+            kind,
+            (width, height),
+            row0,
+            None,
+            out,
+        )
     }
 
     /// Rows `row0..row0 + out.nrows()` of frame `index` (for messages) from
-    /// `file` of `len` bytes, whose header must still say `(width, height)`.
+    /// `file` of `len` bytes, whose header must still say `(width, height)`;
+    /// with `cols`, only those columns of raw TIFF and BMP rows are
+    /// converted (see [`super::FrameSource::read_window_into`]).
     /// The caller has checked the band against that size.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn read_rows<F: FrameBytes>(
@@ -210,6 +222,7 @@ impl FrameDecoder {
         kind: ImageKind,
         (width, height): (usize, usize),
         row0: usize,
+        cols: Option<&[std::ops::Range<usize>]>,
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), SourceError> {
         let frame_err = |reason: String| SourceError::Frame {
@@ -265,17 +278,20 @@ impl FrameDecoder {
                     } else {
                         &bytes[j * row_bytes..(j + 1) * row_bytes]
                     };
-                    if bpp == 1 {
-                        widen_u8(src, dst);
-                    } else if big_endian {
-                        for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
-                            *d = u16::from_be_bytes([s[0], s[1]]);
+                    for_cols(dst, cols, |c, dst| {
+                        let src = &src[c.start * bpp..c.end * bpp];
+                        if bpp == 1 {
+                            widen_u8(src, dst);
+                        } else if big_endian {
+                            for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                                *d = u16::from_be_bytes([s[0], s[1]]);
+                            }
+                        } else {
+                            for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                                *d = u16::from_le_bytes([s[0], s[1]]);
+                            }
                         }
-                    } else {
-                        for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
-                            *d = u16::from_le_bytes([s[0], s[1]]);
-                        }
-                    }
+                    });
                 });
             }
             Layout::Bmp8 {
@@ -296,9 +312,11 @@ impl FrameDecoder {
                     let k = if *top_down { j } else { n - 1 - j };
                     let src = &bytes[k * stride..k * stride + w];
                     fill_row(out.slice_mut(s![j, ..]), &mut self.row_scratch, |dst| {
-                        for (d, s) in dst.iter_mut().zip(src) {
-                            *d = u16::from(palette[usize::from(*s)]);
-                        }
+                        for_cols(dst, cols, |c, dst| {
+                            for (d, s) in dst.iter_mut().zip(&src[c]) {
+                                *d = u16::from(palette[usize::from(*s)]);
+                            }
+                        });
                     });
                 }
             }

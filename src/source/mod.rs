@@ -217,6 +217,28 @@ pub(crate) fn fill_rows(
 
 /// Run `fill` on row `row` of `out` as a plain slice; when the view's row is
 /// not contiguous, fill `scratch` and copy it over.
+/// `conv(range, dst)` for each column range of `cols` (all of the row
+/// without), `dst` that range of `row`: the conversion of only the
+/// columns [`FrameSource::read_window_into`] asks for.
+pub(crate) fn for_cols(
+    row: &mut [u16],
+    cols: Option<&[std::ops::Range<usize>]>,
+    mut conv: impl FnMut(std::ops::Range<usize>, &mut [u16]),
+) {
+    let w = row.len();
+    match cols {
+        None => conv(0..w, row),
+        Some(cols) => {
+            for c in cols {
+                let c = c.start.min(w)..c.end.min(w);
+                if c.start < c.end {
+                    conv(c.clone(), &mut row[c]);
+                }
+            }
+        }
+    }
+}
+
 pub(crate) fn fill_row(
     mut row: ArrayViewMut1<u16>,
     scratch: &mut Vec<u16>,
@@ -285,6 +307,27 @@ pub trait FrameSource: Send {
     /// A second handle on the same frames, for another thread to read
     /// (tracking measures chunks of one movie on several threads); `None`
     /// when the source cannot give one (the work then stays on one thread).
+    /// Rows `row0..row0 + n` of frame `index` as [`read_rows_into`]
+    /// reads them, except that only the columns in `cols` (ranges in
+    /// increasing order, not overlapping) need be filled: `out`'s other
+    /// columns may keep what they held. Sources that can leave the other
+    /// columns unconverted do (8- and 16-bit raw TIFF and BMP folders,
+    /// 8-bit `.cine`), so that a sphere in a wide frame costs its own
+    /// columns, not the sensor's (the bytes of whole rows are still read:
+    /// they are contiguous in the file); the others read whole rows.
+    ///
+    /// [`read_rows_into`]: FrameSource::read_rows_into
+    fn read_window_into(
+        &mut self,
+        index: usize,
+        row0: usize,
+        cols: &[std::ops::Range<usize>],
+        out: &mut ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
+        let _ = cols;
+        self.read_rows_into(index, row0, out)
+    }
+
     fn try_clone(&self) -> Option<Box<dyn FrameSource>> {
         None
     }

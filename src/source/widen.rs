@@ -11,7 +11,14 @@
 //! 2.0–3.4 µs with AVX2.
 
 /// `dst[i] = src[i]` for `i < min(len)`.
+#[inline]
 pub(crate) fn widen_u8(src: &[u8], dst: &mut [u16]) {
+    // Short runs (the flicker strips of a window read) inline, without the
+    // dispatch and the prefetch set-up.
+    if dst.len() <= SHORT {
+        widen_u8_portable(src, dst);
+        return;
+    }
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2, checked just above.
@@ -46,6 +53,9 @@ unsafe fn widen_u8_avx2(src: &[u8], dst: &mut [u16]) {
     }
 }
 
+/// Runs up to this many pixels are widened inline by the portable loop.
+const SHORT: usize = 64;
+
 #[inline(always)]
 fn widen_u8_portable(src: &[u8], dst: &mut [u16]) {
     for (d, s) in dst.iter_mut().zip(src) {
@@ -60,7 +70,7 @@ mod tests {
     #[test]
     fn every_byte_value_widens_to_itself_at_any_length() {
         // Lengths around the vector widths (16, 32) and their tails.
-        for n in [0usize, 1, 15, 16, 17, 31, 32, 33, 512, 1000] {
+        for n in [0usize, 1, 15, 16, 17, 31, 32, 33, 63, 64, 65, 512, 1000] {
             let src: Vec<u8> = (0..n).map(|i| (i * 37 % 256) as u8).collect();
             let mut dst = vec![0xFFFFu16; n + 1];
             widen_u8(&src, &mut dst);

@@ -23,8 +23,11 @@
 //!    only), on the edge points pass 1 sampled: pass 1 keeps them (offsets
 //!    from the centre of their normals, two `f32` each: 8 bytes a point, at
 //!    most `8 × edge.max_normals` = 1.5 kB a frame, ~1.3 kB for R = 80 px,
-//!    for the frames with a fit only), so each frame is read and sampled
-//!    once. The edge estimator does not depend on where along the normal
+//!    for the frames with a fit only, up to `kept_points_max` points: 16 MB
+//!    by default, ~14 000 frames of R = 75 px; the frames past it keep only
+//!    how pass 1 looked at them and are measured again that way in pass 2,
+//!    to the same points, so memory stops growing with the movie there),
+//!    so each frame is read and sampled once. The edge estimator does not depend on where along the normal
 //!    the window sits, and a centre off by `e` moves the points by
 //!    `O(e σ²/R²)` only (see [`crate::detect::edges`]), so the points of
 //!    normals centred on the free circle serve the held fit as well as new
@@ -70,7 +73,24 @@ pub struct TrackSettings {
     /// Rows read beyond the predicted circle on each side, besides the
     /// window of the edge normals.
     pub band_margin_px: f64,
+    /// Most edge points pass 1 keeps for pass 2 (8 bytes each). Past it, a
+    /// frame keeps only how pass 1 looked at it, and pass 2 measures it
+    /// again that way: the same points, bit for bit (see [`Track`]'s
+    /// `remeasured_frames`), so that the memory does not grow with the
+    /// movie's length beyond this.
+    pub kept_points_max: usize,
+    /// Most frames in one chunk of pass 1 measured ahead by another thread
+    /// (see [`speculate`]): what is measured ahead and not yet taken is at
+    /// most `2 × threads − 1` such chunks, whatever the movie's length.
+    pub chunk_frames_max: usize,
 }
+
+/// [`TrackSettings::kept_points_max`] by default: 16 MB of points, about
+/// 14 000 frames of a sphere of R = 75 px (150 points a frame).
+pub const KEPT_POINTS_MAX: usize = 2 << 20;
+
+/// [`TrackSettings::chunk_frames_max`] by default.
+pub const CHUNK_FRAMES_MAX: usize = 2048;
 
 impl TrackSettings {
     pub fn from_config(cfg: &crate::config::DetectConfig) -> Self {
@@ -81,6 +101,8 @@ impl TrackSettings {
             surface: SurfaceParams::default(),
             surface_override: SurfaceLine::from_config(cfg),
             band_margin_px: 6.0,
+            kept_points_max: KEPT_POINTS_MAX,
+            chunk_frames_max: CHUNK_FRAMES_MAX,
         }
     }
 }
@@ -118,6 +140,15 @@ pub struct Track {
     /// Frames of pass 1 measured ahead by other threads and taken as they
     /// were (see [`speculate`]); 0 on one thread.
     pub measured_ahead: usize,
+    /// Edge points pass 1 kept for pass 2 (at most
+    /// [`TrackSettings::kept_points_max`]).
+    pub kept_points: usize,
+    /// Frames with a fit whose points were past that budget: pass 2
+    /// measured them again as pass 1 did (the same points).
+    pub remeasured_frames: usize,
+    /// Most frames measured ahead and not yet taken at any one time (0 on
+    /// one thread).
+    pub ahead_frames_max: usize,
 }
 
 /// Why a run could not be tracked.
@@ -165,43 +196,65 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         binned: (w >= 128 && h >= 128).then(|| BinnedBackground::new(&bg)),
     };
     // Chunks of the movie measured ahead by other threads, while this one
-    // walks the first (see `speculate`).
+    // walks the first of each round of `per_round` chunks (see
+    // `speculate`); chunks of at most `chunk_frames_max` frames.
     let threads = rayon::current_num_threads();
-    let chunks = (threads * 2).min(n / MIN_CHUNK_FRAMES);
-    let copies: Option<Vec<Box<dyn FrameSource>>> = if threads >= 2 && chunks >= 2 {
-        (1..chunks).map(|_| source.try_clone()).collect()
-    } else {
-        None
+    let per_round = (threads * 2).min(n / MIN_CHUNK_FRAMES);
+    let mut copies: Option<Vec<(Box<dyn FrameSource>, LookScratch)>> =
+        if threads >= 2 && per_round >= 2 {
+            (1..per_round)
+                .map(|_| Some((source.try_clone()?, LookScratch::new(h, w, &ctx))))
+                .collect()
+        } else {
+            None
+        };
+    // Whole rounds, so that every round has work for every thread.
+    let (per_round, chunks) = match &copies {
+        Some(_) => (
+            per_round,
+            per_round * n.div_ceil(per_round * st.chunk_frames_max.max(1)),
+        ),
+        None => (1, 1),
     };
-    let bounds: Vec<usize> = match &copies {
-        Some(_) => (0..=chunks).map(|k| k * n / chunks).collect(),
-        None => vec![0, n],
-    };
+    let bounds: Vec<usize> = (0..=chunks).map(|k| k * n / chunks).collect();
     let mut walk = Walk {
         frames: Vec::with_capacity(n),
         kept_points: Vec::new(),
+        kept_points_max: st.kept_points_max,
         kept: Vec::with_capacity(n),
         state: Pass1State::default(),
         scratch: LookScratch::new(h, w, &ctx),
         measured_ahead: 0,
     };
+    let mut ahead_frames_max = 0;
     timings::time(Stage::Pass1, || -> Result<(), TrackError> {
-        let (head, memo) = rayon::join(
-            || -> Result<(), TrackError> {
-                for i in 0..bounds[1] {
-                    walk.frame(source, &ctx, &meta, i, None)?;
-                }
-                Ok(())
-            },
-            || copies.map(|c| speculate(c, &bounds, &ctx)),
-        );
-        head?;
-        if let Some(memo) = memo {
-            for (k, ahead) in memo.into_iter().enumerate() {
-                let (first, last) = (bounds[k + 1], bounds[k + 2]);
-                let mut ahead = ahead.into_iter();
-                for i in first..last {
-                    walk.frame(source, &ctx, &meta, i, ahead.next())?;
+        for first in (0..chunks).step_by(per_round) {
+            // This round: chunk `first` walked here, the next `ahead`
+            // measured ahead meanwhile, then taken.
+            let ahead = per_round.min(chunks - first) - 1;
+            let (head, memo) = rayon::join(
+                || -> Result<(), TrackError> {
+                    for i in bounds[first]..bounds[first + 1] {
+                        walk.frame(source, &ctx, &meta, i, None)?;
+                    }
+                    Ok(())
+                },
+                || {
+                    copies.as_mut().map(|c| {
+                        let b = &bounds[first..=first + 1 + ahead];
+                        speculate(&mut c[..ahead], b, &ctx, &meta)
+                    })
+                },
+            );
+            head?;
+            if let Some(memo) = memo {
+                ahead_frames_max = ahead_frames_max.max(memo.iter().map(Vec::len).sum());
+                for (k, ahead) in memo.into_iter().enumerate() {
+                    let (lo, hi) = (bounds[first + k + 1], bounds[first + k + 2]);
+                    let mut ahead = ahead.into_iter();
+                    for i in lo..hi {
+                        walk.frame(source, &ctx, &meta, i, ahead.next())?;
+                    }
                 }
             }
         }
@@ -214,6 +267,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         state,
         scratch,
         measured_ahead,
+        ..
     } = walk;
     let history = state.fits;
     if history == 0 {
@@ -243,7 +297,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     let LookScratch {
         mut buf, mut es, ..
     } = scratch;
-    let held: Vec<Held> = {
+    let mut held: Vec<Held> = {
         use rayon::prelude::*;
         frames
             .par_iter()
@@ -252,13 +306,49 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
             .map_init(
                 || (Vec::new(), FitScratch::default()),
                 |(points, fs), (ft, k)| {
-                    timings::time(Stage::Pass2, || {
-                        hold(ft, k.as_ref(), &kept_points, radius_px, st, points, fs)
+                    timings::time(Stage::Pass2, || match k {
+                        Some(Kept::Points {
+                            start,
+                            len,
+                            centre,
+                            radial_sigma_px,
+                        }) => {
+                            let k = KeptRef {
+                                points: &kept_points[*start..start + len],
+                                centre: *centre,
+                                radial_sigma_px: *radial_sigma_px,
+                            };
+                            hold(ft, Some(k), radius_px, st, points, fs)
+                        }
+                        // Below, with a source.
+                        Some(Kept::Again(_)) => Held::NoFit,
+                        None => hold(ft, None, radius_px, st, points, fs),
                     })
                 },
             )
             .collect()
     };
+    // The frames past the points' budget: measured again as pass 1 did,
+    // then held like the others.
+    let again: Vec<(usize, Look)> = kept
+        .iter()
+        .enumerate()
+        .filter_map(|(i, k)| match k {
+            Some(Kept::Again(look)) => Some((i, *look)),
+            _ => None,
+        })
+        .collect();
+    let kept_points = kept_points.len();
+    drop(kept);
+    let remeasured_frames = again.len();
+    if !again.is_empty() {
+        let redone = timings::time(Stage::Pass2, || {
+            remeasure(source, &ctx, &frames, &again, radius_px, st)
+        })?;
+        for ((i, _), h) in again.iter().zip(redone) {
+            held[*i] = h;
+        }
+    }
     let mut reread_frames = 0;
     let _pass2 = timings::start(Stage::Pass2);
     for (ft, h) in frames.iter_mut().zip(held) {
@@ -294,7 +384,61 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         background: bg,
         reread_frames,
         measured_ahead,
+        kept_points,
+        remeasured_frames,
+        ahead_frames_max,
     })
+}
+
+/// Pass 2 of the frames `again` (indices into `frames`, with pass 1's look
+/// at each) on every thread, each with its own copy of the source: each
+/// frame measured again as pass 1 looked at it — the same edge points, a
+/// measurement being a pure function of the frame and the look — and held
+/// on them. In `again`'s order; the first error in that order.
+fn remeasure(
+    source: &mut dyn FrameSource,
+    ctx: &Pass1,
+    frames: &[FrameTrack],
+    again: &[(usize, Look)],
+    radius_px: f64,
+    st: &TrackSettings,
+) -> Result<Vec<Held>, TrackError> {
+    use rayon::prelude::*;
+    let (h, w) = (source.meta().height, source.meta().width);
+    let threads = rayon::current_num_threads().min(again.len()).max(1);
+    let mut copies: Vec<Box<dyn FrameSource>> =
+        (1..threads).map_while(|_| source.try_clone()).collect();
+    let mut sources: Vec<&mut dyn FrameSource> = std::iter::once(source)
+        .chain(copies.iter_mut().map(|c| c.as_mut()))
+        .collect();
+    let (n, groups) = (again.len(), sources.len());
+    let done: Vec<Result<Vec<Held>, TrackError>> = sources
+        .par_iter_mut()
+        .enumerate()
+        .map(|(g, src)| {
+            let _pass2 = timings::start(Stage::Pass2);
+            let mut sc = LookScratch::new(h, w, ctx);
+            let (mut points, mut fs) = (Vec::new(), FitScratch::default());
+            again[g * n / groups..(g + 1) * n / groups]
+                .iter()
+                .map(|&(i, look)| {
+                    let ft = &frames[i];
+                    let seen = ctx.look_at(&mut **src, ft.index, look, &mut sc)?;
+                    let k = seen.points.as_ref().map(|(c, sigma, pts)| KeptRef {
+                        points: pts,
+                        centre: *c,
+                        radial_sigma_px: *sigma,
+                    });
+                    Ok(hold(ft, k, radius_px, st, &mut points, &mut fs))
+                })
+                .collect()
+        })
+        .collect();
+    let mut out = Vec::with_capacity(n);
+    for d in done {
+        out.extend(d?);
+    }
+    Ok(out)
 }
 
 impl Track {
@@ -326,8 +470,7 @@ enum Held {
 /// Pass 2 of one frame on the points pass 1 kept (see [`track`], step 4).
 fn hold(
     ft: &FrameTrack,
-    k: Option<&Kept>,
-    kept_points: &[[f32; 2]],
+    k: Option<KeptRef>,
     radius_px: f64,
     st: &TrackSettings,
     points: &mut Vec<EdgePoint>,
@@ -342,15 +485,11 @@ fn hold(
     };
     let c = k.centre;
     points.clear();
-    points.extend(
-        kept_points[k.start..k.start + k.len]
-            .iter()
-            .map(|q| EdgePoint {
-                x_px: c.x_px + q[0] as f64,
-                z_px: c.z_px + q[1] as f64,
-                weight: 1.0,
-            }),
-    );
+    points.extend(k.points.iter().map(|q| EdgePoint {
+        x_px: c.x_px + q[0] as f64,
+        z_px: c.z_px + q[1] as f64,
+        weight: 1.0,
+    }));
     // Tukey's weights from the first iteration, at the free fit's
     // residual scale: the start is the free fit on the same points,
     // whose Huber iterations already brought it from the prediction,
@@ -377,12 +516,27 @@ fn hold(
     }
 }
 
-/// Where pass 1's edge points of one frame sit in the kept buffer, and the
-/// circle their normals were centred on (the origin of their offsets).
+/// What pass 1 keeps of a frame with a fit for pass 2.
 #[derive(Debug, Clone, Copy)]
-struct Kept {
-    start: usize,
-    len: usize,
+enum Kept {
+    /// Where its edge points sit in the kept buffer, and the circle their
+    /// normals were centred on (the origin of their offsets).
+    Points {
+        start: usize,
+        len: usize,
+        centre: Circle,
+        radial_sigma_px: f64,
+    },
+    /// Past [`TrackSettings::kept_points_max`]: how pass 1 looked at it,
+    /// to measure it again in pass 2.
+    Again(Look),
+}
+
+/// One frame's kept points as [`hold`] takes them.
+#[derive(Debug, Clone, Copy)]
+struct KeptRef<'a> {
+    /// Offsets from `centre`.
+    points: &'a [[f32; 2]],
     centre: Circle,
     radial_sigma_px: f64,
 }
@@ -617,8 +771,10 @@ fn source_number(source: &dyn FrameSource, i: usize) -> i64 {
 /// Pass 1 in order, frame by frame.
 struct Walk {
     frames: Vec<FrameTrack>,
-    /// Pass 1's edge points, kept for pass 2 (one flat buffer).
+    /// Pass 1's edge points, kept for pass 2 (one flat buffer), at most
+    /// `kept_points_max`.
     kept_points: Vec<[f32; 2]>,
+    kept_points_max: usize,
     kept: Vec<Option<Kept>>,
     state: Pass1State,
     scratch: LookScratch,
@@ -645,11 +801,14 @@ impl Walk {
             }
             None => ctx.look_at(source, i, look, &mut self.scratch)?,
         };
-        let kept_points = &mut self.kept_points;
+        let (kept_points, max) = (&mut self.kept_points, self.kept_points_max);
         self.kept.push(seen.points.as_ref().map(|(c, sigma, pts)| {
             let start = kept_points.len();
+            if start + pts.len() > max {
+                return Kept::Again(seen.look);
+            }
             kept_points.extend_from_slice(pts);
-            Kept {
+            Kept::Points {
                 start,
                 len: pts.len(),
                 centre: *c,
@@ -673,24 +832,27 @@ impl Walk {
 /// [`PREDICTION_GRID_PX`] grid). So the track is the same bits for any
 /// number of threads, and the work ahead is lost only where the two
 /// disagree.
-fn speculate(copies: Vec<Box<dyn FrameSource>>, bounds: &[usize], ctx: &Pass1) -> Vec<Vec<Seen>> {
+fn speculate(
+    copies: &mut [(Box<dyn FrameSource>, LookScratch)],
+    bounds: &[usize],
+    ctx: &Pass1,
+    meta: &crate::source::SourceMeta,
+) -> Vec<Vec<Seen>> {
     use rayon::prelude::*;
     copies
-        .into_par_iter()
+        .par_iter_mut()
         .enumerate()
-        .map(|(k, mut src)| {
+        .map(|(k, (src, sc))| {
             let _pass1 = timings::start(Stage::Pass1);
-            let meta = src.meta().clone();
-            let mut sc = LookScratch::new(meta.height, meta.width, ctx);
             let mut state = Pass1State::default();
             let (first, last) = (bounds[k + 1], bounds[k + 2]);
             let mut seen = Vec::with_capacity(last - first);
             for i in first..last {
                 let look = state.look(meta.time_s(i));
-                let Ok(s) = ctx.look_at(src.as_mut(), i, look, &mut sc) else {
+                let Ok(s) = ctx.look_at(src.as_mut(), i, look, sc) else {
                     break;
                 };
-                state.step(&meta, i, &s, meta.width);
+                state.step(meta, i, &s, meta.width);
                 seen.push(s);
             }
             seen

@@ -12,12 +12,10 @@ use dropscope::source::{open, OpenOptions};
 use dropscope::track::{track, TrackSettings};
 use std::path::Path;
 
-#[test]
-fn a_long_movie_gives_the_same_bytes_on_one_thread_and_two() {
-    // A 3 mm sphere from 1.5 cm at 60 000 frames/s: ~860 frames, the
-    // sphere in every one, three chunks of pass 1 on two threads.
-    let data = tempfile::tempdir().unwrap();
-    let dir = data.path().to_str().unwrap();
+/// A 3 mm sphere from 1.5 cm at 60 000 frames/s, 256 × 192: ~860 frames,
+/// the sphere in every one; its manifest's runs.
+fn long_movie(data: &Path) -> Vec<dropscope::manifest::RunSpec> {
+    let dir = data.to_str().unwrap();
     pool(2)
         .install(|| {
             dropscope::render::render(&args(&[
@@ -42,7 +40,14 @@ fn a_long_movie_gives_the_same_bytes_on_one_thread_and_two() {
             ]))
         })
         .unwrap();
-    let runs = read_manifest(&data.path().join("runs.csv")).unwrap();
+    read_manifest(&data.join("runs.csv")).unwrap()
+}
+
+#[test]
+fn a_long_movie_gives_the_same_bytes_on_one_thread_and_two() {
+    // Three chunks of pass 1 on two threads.
+    let data = tempfile::tempdir().unwrap();
+    let runs = long_movie(data.path());
     let st = TrackSettings::from_config(&DetectConfig::default());
     let tracked = |threads: usize| {
         pool(threads).install(|| {
@@ -97,5 +102,68 @@ fn a_long_movie_gives_the_same_bytes_on_one_thread_and_two() {
             "{} differs between 1 and 2 threads",
             p.display()
         );
+    }
+}
+
+/// What the tracker holds does not grow with the movie's length: pass 1
+/// keeps at most `kept_points_max` edge points for pass 2 (the frames past
+/// it are measured again in pass 2, to the same points), and what other
+/// threads measure ahead is at most `2 × threads − 1` chunks of at most
+/// `chunk_frames_max` frames. With both set far below this movie's needs,
+/// the track is the same bits as with the defaults, on one thread and two.
+#[test]
+fn the_points_kept_and_the_frames_measured_ahead_are_bounded() {
+    let data = tempfile::tempdir().unwrap();
+    let runs = long_movie(data.path());
+    let default = TrackSettings::from_config(&DetectConfig::default());
+    let bounded = TrackSettings {
+        kept_points_max: 10_000,
+        chunk_frames_max: 100,
+        ..default.clone()
+    };
+    let tracked = |threads: usize, st: &TrackSettings| {
+        pool(threads).install(|| {
+            let mut src = open(&runs[0].path, &OpenOptions::default()).unwrap();
+            track(src.as_mut(), st).unwrap()
+        })
+    };
+    let full = tracked(2, &default);
+    let n = full.frames.len();
+    let fitted = full.frames.iter().filter(|f| f.free.is_some()).count();
+    println!(
+        "{n} frames, {fitted} fitted, {} points kept, {} ahead at most",
+        full.kept_points, full.ahead_frames_max
+    );
+    assert!(n > 800 && fitted > 800, "{fitted} of {n} frames fitted");
+    // With the defaults every fitted frame keeps its points (74 a frame
+    // for R = 37.5 px): the points grow with the movie, ...
+    assert_eq!(full.remeasured_frames, 0);
+    assert!(
+        full.kept_points > 50 * fitted,
+        "{} points",
+        full.kept_points
+    );
+    // ... and of three chunks of ~290 frames, two are measured ahead at
+    // once.
+    assert!(full.ahead_frames_max > 400, "{}", full.ahead_frames_max);
+    for threads in [1, 2] {
+        let b = tracked(threads, &bounded);
+        assert!(b.kept_points <= 10_000, "{} points kept", b.kept_points);
+        assert!(
+            b.remeasured_frames > fitted / 2,
+            "{} of {fitted} frames measured again",
+            b.remeasured_frames
+        );
+        assert!(
+            b.ahead_frames_max <= (2 * threads - 1) * 100,
+            "{threads} threads: {} frames ahead",
+            b.ahead_frames_max
+        );
+        if threads == 2 {
+            assert!(b.measured_ahead > n / 3, "{} ahead", b.measured_ahead);
+        }
+        // The same track, bit for bit.
+        assert_eq!(format!("{:?}", b.frames), format!("{:?}", full.frames));
+        assert_eq!(b.radius_px.to_bits(), full.radius_px.to_bits());
     }
 }

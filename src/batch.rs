@@ -455,7 +455,9 @@ pub fn process_runs(
             .then(|| cache::cached_scene(out, cfg, r))
             .flatten()
     };
-    let crate::process::Prepared { runs, cfg } = crate::process::prepare(runs, cfg, &scene_of);
+    let notice = |m: &str| events(RunEvent::Notice(m));
+    let crate::process::Prepared { runs, cfg } =
+        crate::process::prepare(runs, cfg, &scene_of, &notice);
     let (runs, cfg) = (&runs, &cfg);
     let groups = crate::process::setups(runs);
     let work = || {

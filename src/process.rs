@@ -268,6 +268,7 @@ pub fn prepare(
     runs: &[RunSpec],
     cfg: &PipelineConfig,
     scene_of: &(dyn Fn(&RunSpec) -> Option<SceneSignature> + Sync),
+    notice: &dyn Fn(&str),
 ) -> Prepared {
     let mut out = Prepared {
         runs: runs.to_vec(),
@@ -279,11 +280,19 @@ pub fn prepare(
     if !cfg.camera.infer_setups || open.len() < 2 {
         return out;
     }
+    let known: Vec<Option<SceneSignature>> = open.par_iter().map(|&i| scene_of(&runs[i])).collect();
+    let unknown = known.iter().filter(|s| s.is_none()).count();
+    if unknown > 0 {
+        notice(&format!(
+            "camera set-ups: reading the scenes of {unknown} run(s) without a `setup` (camera.infer_setups)"
+        ));
+    }
     let scenes: Vec<Option<SceneSignature>> = open
         .par_iter()
-        .map(|&i| {
+        .zip(known)
+        .map(|(&i, known)| {
             let run = &runs[i];
-            scene_of(run).or_else(|| {
+            known.or_else(|| {
                 caught(run, || track_run(run, cfg))
                     .ok()
                     .map(|t| t.scene(run.sphere_radius_mm))
@@ -291,11 +300,21 @@ pub fn prepare(
         })
         .collect();
     let taken: Vec<&str> = runs.iter().filter_map(|r| r.setup.as_deref()).collect();
-    for (k, group) in crate::setup_infer::infer_groups(&scenes).iter().enumerate() {
+    let groups = crate::setup_infer::infer_groups(&scenes);
+    for (k, group) in groups.iter().enumerate() {
         let name = crate::setup_infer::setup_name(k + 1, &taken);
         for &j in group {
             out.runs[open[j]].setup = Some(name.clone());
         }
+    }
+    let grouped: usize = groups.iter().map(Vec::len).sum();
+    if grouped > 0 {
+        notice(&format!(
+            "camera set-ups from the images: {} run(s) in {} set-up(s) (auto1 …), {} alone",
+            grouped,
+            groups.len(),
+            open.len() - grouped
+        ));
     }
     if cfg.camera.edge_offset_px.is_none() {
         let offsets: Vec<f64> = scenes
@@ -310,6 +329,12 @@ pub fn prepare(
         if let Some(e) = crate::scale::EdgeOffset::measure(&offsets) {
             out.cfg.camera.edge_offset_px = Some(e.offset_px);
             out.cfg.camera.edge_offset_spread_px = Some(e.spread_px);
+            notice(&format!(
+                "edge offset from {} runs' own free falls: {:+.3} ± {:.3} px",
+                offsets.len(),
+                e.offset_px,
+                e.spread_px
+            ));
         }
     }
     out
@@ -857,7 +882,7 @@ pub fn process_all_with_overlays(
     overlay_frames: &[i64],
     progress: &(dyn Fn(&DropRecord) + Sync),
 ) -> Result<Vec<DropRecord>, ProcessError> {
-    let Prepared { runs, cfg } = prepare(runs, cfg, &|_| None);
+    let Prepared { runs, cfg } = prepare(runs, cfg, &|_| None, &|_| {});
     let (runs, cfg) = (&runs, &cfg);
     let groups = setups(runs);
     let done = groups

@@ -181,10 +181,13 @@ pub fn shift_at_bound(
         })
     };
     let base = measure(points, geom, sc)?;
+    // Seen from the bound, the lens's change of the scale is the same.
     let inputs_b = ScaleInputs {
         setup: pooled,
         own: bounded.curvature,
         r_app_px: bounded.radius_px,
+        setup_at_bound: inputs.setup,
+        own_at_bound: inputs.own,
         ..inputs.clone()
     };
     let sc = resolve(&inputs_b);

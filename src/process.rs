@@ -484,6 +484,8 @@ fn measure_run(
         r_app_px: tr.radius_px,
         r_app_err_px: tr.radius_err_px,
         edge_offset: cfg.camera.edge_offset(),
+        setup_at_bound,
+        own_at_bound: bounded.as_ref().and_then(|b| b.curvature),
     };
     let sc = crate::scale::resolve(&inputs);
     let (radius_px, radius_err_px) = sc.radius_px(&inputs);

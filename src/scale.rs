@@ -262,6 +262,11 @@ pub struct ScaleInputs {
     pub r_app_err_px: f64,
     /// The edge offset known from elsewhere, for the radius's scale.
     pub edge_offset: Option<EdgeOffset>,
+    /// The set-up's and the run's own curvature through a lens at the
+    /// distortion bound (see [`crate::lens`]): how much free fall's scale
+    /// may be off by the lens, when comparing it with the sphere's.
+    pub setup_at_bound: Option<Curvature>,
+    pub own_at_bound: Option<Curvature>,
 }
 
 impl ScaleInputs {
@@ -369,13 +374,42 @@ pub fn resolve(inp: &ScaleInputs) -> Scale {
         let s = c.mm_per_px(inp.g_m_s2);
         (s, s * c.rel_err())
     });
-    let (mm_per_px, rel_err, source) = match (inp.given_mm_per_px, ff) {
+    let (mut mm_per_px, mut rel_err, source) = match (inp.given_mm_per_px, ff) {
         (Some(s), _) => (s, 0.0, ScaleSource::Given),
         (None, Some((c, src))) if c.rel_err() < radius_rel => {
             (c.mm_per_px(inp.g_m_s2), c.rel_err(), src)
         }
         _ => (by_radius, radius_rel, ScaleSource::Radius),
     };
+    // Free fall against the sphere, beyond three of their combined sigma
+    // (free fall's with what the distortion bound does to it, ÷ √3 as in
+    // the errors; the radius's with its edge offset's): one of them is wrong
+    // (a short flight's curvature, an odd silhouette, a wrong radius or
+    // frame rate, another set-up), and which is not known. A run's own free
+    // fall is then averaged with the sphere's scale, each error widened by
+    // the same systematic σ_x, σ_x² = (d² − σ₁² − σ₂²) / 2, that makes them
+    // agree (χ² = 1): the mean lies between them and its error reaches both;
+    // a set-up's, which other runs share, is kept. Either way the run says so.
+    let at_bound = match source {
+        ScaleSource::SetupFreeFall => inp.setup_at_bound,
+        _ => inp.own_at_bound,
+    };
+    let disagreement = (inp.given_mm_per_px.is_none() && source != ScaleSource::Radius)
+        .then(|| {
+            let lens = at_bound.map_or(0.0, |b| {
+                (b.mm_per_px(inp.g_m_s2) - mm_per_px).abs() / 3f64.sqrt()
+            });
+            let e = (mm_per_px * rel_err).hypot(lens);
+            let e_r = by_radius * radius_rel;
+            ((by_radius - mm_per_px).abs() > 3.0 * e.hypot(e_r)).then_some((mm_per_px, e, e_r))
+        })
+        .flatten();
+    if let (Some((s, e, e_r)), ScaleSource::FreeFall) = (disagreement, source) {
+        let x2 = 0.5 * ((by_radius - s).powi(2) - e * e - e_r * e_r);
+        let (w, w_r) = (1.0 / (e * e + x2), 1.0 / (e_r * e_r + x2));
+        mm_per_px = (w * s + w_r * by_radius) / (w + w_r);
+        rel_err = (w + w_r).sqrt().recip() / mm_per_px;
+    }
     // A given scale is checked against free fall (beyond three of its
     // sigma and 0.02 %) and against the sphere (beyond 1 %: the edge offset
     // alone moves R_mm / R_px by up to about 0.6 %).
@@ -399,6 +433,22 @@ pub fn resolve(inp: &ScaleInputs) -> Scale {
                 100.0 * (by_radius / given - 1.0)
             ));
         }
+    }
+    if let Some((s, e, e_r)) = disagreement {
+        let used = match source {
+            ScaleSource::FreeFall => {
+                format!("{mm_per_px:.6} between them is used, its error reaching both")
+            }
+            _ => "the set-up's is used".to_string(),
+        };
+        said.push(format!(
+            "scale disagreement: {s:.6} ± {e:.6} mm/px from free fall, {by_radius:.6} ± {e_r:.6} \
+             from the sphere (R {} mm = {:.3} px less its edge offset) ({:+.2} %): {used}; \
+             check the radius, the frame rate or the set-up",
+            inp.radius_mm,
+            inp.r_app_px,
+            100.0 * (by_radius / s - 1.0),
+        ));
     }
     let warning = (!said.is_empty()).then(|| said.join("; "));
     Scale {
@@ -489,6 +539,8 @@ mod tests {
             r_app_px: 79.7,
             r_app_err_px: 0.002,
             edge_offset: None,
+            setup_at_bound: None,
+            own_at_bound: None,
         }
     }
 
@@ -565,6 +617,62 @@ mod tests {
         let (r, e) = s.radius_px(&inp);
         assert!((r - 80.0).abs() < 1e-12 && (e - 0.002f64.hypot(0.1)).abs() < 1e-12);
         assert_eq!(s.edge_offset_px(&inp), Some((-0.3, 0.1)));
+    }
+
+    /// The curvature that gives scale `s_mm` (g = 9.81) to `rel`.
+    fn curvature_for(s_mm: f64, rel: f64) -> Curvature {
+        Curvature {
+            g_px_s2: 9.81 / (s_mm * 1e-3),
+            err_px_s2: 9.81 / (s_mm * 1e-3) * rel,
+            frames: 80,
+        }
+    }
+
+    #[test]
+    fn free_fall_and_the_sphere_disagreeing_is_said_and_an_own_free_fall_is_averaged() {
+        // The sphere says 0.06 ± 7.5e-5 (0.1 px of 80); free fall 0.5 % less
+        // to 1e-4: four sigma apart.
+        let inp = ScaleInputs {
+            own: Some(curvature_for(0.06 / 1.005, 1e-4)),
+            edge_offset: Some(EdgeOffset {
+                offset_px: -0.3,
+                spread_px: 0.1,
+            }),
+            ..sphere_of_4_8_mm()
+        };
+        let s = resolve(&inp);
+        assert_eq!(s.source, ScaleSource::FreeFall);
+        let w = s.warning.clone().unwrap();
+        assert!(
+            w.contains("scale disagreement") && w.contains("between them"),
+            "{w}"
+        );
+        // Near half-way (nearer the one whose own error is smaller), its
+        // error about half the distance: both within about 1σ.
+        let ff = 0.06 / 1.005;
+        let e = s.mm_per_px * s.rel_err;
+        assert!(
+            (s.mm_per_px - 0.5 * (ff + 0.06)).abs() < 0.1 * (0.06 - ff),
+            "{}",
+            s.mm_per_px
+        );
+        assert!((0.06 - s.mm_per_px).max(s.mm_per_px - ff) < 1.1 * e, "{e}");
+        // The same through a lens whose bound moves free fall's scale by
+        // 1 %: no longer a disagreement, and free fall is kept.
+        let s = resolve(&ScaleInputs {
+            own_at_bound: Some(curvature_for(ff * 1.01, 1e-4)),
+            ..inp.clone()
+        });
+        assert!(s.warning.is_none() && (s.mm_per_px / ff - 1.0).abs() < 1e-12);
+        // A set-up's free fall is kept, and the run says so.
+        let s = resolve(&ScaleInputs {
+            own: None,
+            setup: Some(curvature_for(ff, 1e-4)),
+            ..inp
+        });
+        assert_eq!(s.source, ScaleSource::SetupFreeFall);
+        assert!((s.mm_per_px / ff - 1.0).abs() < 1e-12);
+        assert!(s.warning.unwrap().contains("the set-up's is used"));
     }
 
     #[test]

@@ -100,6 +100,25 @@ impl SceneSignature {
         }
     }
 
+    /// Every number finite (a scene that is not is never grouped: NaN would
+    /// pass every "beyond tolerance" test).
+    fn is_finite(&self) -> bool {
+        [
+            self.surface_row_px,
+            self.surface_slope,
+            self.r_app_px,
+            self.r_app_err_px,
+            self.radius_mm,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+            && self.r_app_px > 0.0
+            && self.radius_mm > 0.0
+            && self
+                .free_fall_mm_per_px
+                .is_none_or(|(s, e)| s.is_finite() && e.is_finite() && s > 0.0)
+    }
+
     /// Relative error of the free-fall scale (infinite without one).
     fn free_fall_rel_err(&self) -> f64 {
         self.free_fall_mm_per_px
@@ -113,7 +132,7 @@ impl SceneSignature {
 /// of their first run.
 pub fn infer_groups(signatures: &[Option<SceneSignature>]) -> Vec<Vec<usize>> {
     let mut order: Vec<usize> = (0..signatures.len())
-        .filter(|&i| signatures[i].is_some())
+        .filter(|&i| signatures[i].is_some_and(|s| s.is_finite()))
         .collect();
     let sig = |i: usize| signatures[i].as_ref().expect("filtered to Some");
     order.sort_by(|&i, &j| {
@@ -213,7 +232,9 @@ mod tests {
     fn unreadable_runs_and_other_frame_sizes_stay_alone() {
         let mut wide = run(280.0, 20.0, Some(1e-4)).unwrap();
         wide.width_px = 1280;
-        let sigs = vec![run(280.0, 20.0, Some(1e-4)), None, Some(wide)];
+        let mut nan = run(280.0, 20.0, Some(1e-4)).unwrap();
+        nan.surface_row_px = f64::NAN;
+        let sigs = vec![run(280.0, 20.0, Some(1e-4)), None, Some(wide), Some(nan)];
         assert!(infer_groups(&sigs).is_empty());
     }
 

@@ -1,13 +1,14 @@
 //! End to end (issue 16): frames/s of `dropscope process` — every output
 //! written: `drops.csv`, `tracks/`, the overlays — beside the plain decode
 //! rate of the same frames in the same run, for one long 8-bit TIFF movie,
-//! a campaign of short drops, a 10 000-frame `.cine`, and the same drop at
-//! 512 × 384 and at 1280 × 800.
+//! a campaign of short drops, a 10 000-frame `.cine`, a 31 000-frame
+//! `.cine` of small frames (for the peak memory of a long movie), and the
+//! same drop at 512 × 384 and at 1280 × 800.
 //!
 //!     cargo bench --bench e2e                 (DROPSCOPE_E2E_DATA=DIR, REPEATS=N)
 //!
 //! The data are rendered once into `DROPSCOPE_E2E_DATA` (default
-//! `target/e2e-data`, ≈ 6 GB) by the `render` commands printed (and listed
+//! `target/e2e-data`, ≈ 7.5 GB) by the `render` commands printed (and listed
 //! in docs/performance.md); a later run reuses them. Each figure is from
 //! the page cache (every file is read once before timing).
 //!
@@ -77,6 +78,26 @@ const CINE: &[&str] = &[
     "--format",
     "cine",
 ];
+const LONG_CINE: &[&str] = &[
+    "--drop",
+    "3:1.5",
+    "--fps",
+    "60000",
+    "--exposure-us",
+    "10",
+    "--frames-before",
+    "1000",
+    "--frames-after",
+    "30000",
+    "--width-px",
+    "256",
+    "--height-px",
+    "192",
+    "--mm-per-px",
+    "0.08",
+    "--format",
+    "cine",
+];
 const SMALL: &[&str] = &[
     "--drop",
     "3:1.5",
@@ -129,6 +150,11 @@ const SETS: &[DataSet] = &[
         name: "cine",
         what: "one 10 000-frame 8-bit .cine, 512×384",
         render: CINE,
+    },
+    DataSet {
+        name: "longcine",
+        what: "one 31 166-frame 8-bit .cine, 256×192, the sphere in 15 091 frames (peak memory)",
+        render: LONG_CINE,
     },
     DataSet {
         name: "small",

@@ -11,7 +11,7 @@ use crate::detect::overlay::{encode_indexed_apng, overlay, to_indexed, IndexedFr
 use crate::detect::Band;
 use crate::plot::{with_caption, Caption};
 use crate::source::{Frame, FrameSource, SourceMeta};
-use crate::track::{edge_points_in, FrameTrack, Track, TrackSettings};
+use crate::track::{edge_points_in, window_columns, FrameTrack, Track, TrackSettings};
 
 /// Enlargement of the still overlays.
 pub const STILL_ZOOM: u32 = 3;
@@ -204,15 +204,24 @@ impl Drawn<'_> {
         view: Option<OverlayView>,
         zoom: u32,
     ) -> Option<RgbImage> {
+        let c = ft.held.or(ft.free)?.circle();
+        let view = match view {
+            Some(v) => v,
+            None => OverlayView::around(&Band::frame(frame).ok()?, &c, MARGIN_PX, zoom),
+        };
+        // Whole rows (the flicker gain is the whole frame's), but only the
+        // crop's columns, which hold the circle and MARGIN_PX around it
+        // (more than the edge normals reach), and the flicker strips.
+        let width = frame.ncols();
+        let crop = view.x0..view.x0 + view.width;
+        let strip = self.track.background.region.strip_px.min(width);
+        let cols = window_columns(crop.clone(), strip, width);
         crate::timings::time(crate::timings::Stage::Read, || {
-            source.read_into(ft.index, frame)
+            source.read_window_into(ft.index, 0, &cols, &mut frame.view_mut())
         })
         .ok()?;
-
-        let pts = edge_points_in(frame, self.track, ft, self.settings);
-        let c = ft.held.or(ft.free)?.circle();
-        let band = Band::frame(frame).ok()?;
-        let view = view.unwrap_or_else(|| OverlayView::around(&band, &c, MARGIN_PX, zoom));
+        let band = Band::window(frame.view(), 0, crop).ok()?;
+        let pts = edge_points_in(&band, self.track, ft, self.settings);
         let img = overlay(
             &band,
             self.meta.bit_depth,

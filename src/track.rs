@@ -1032,7 +1032,7 @@ fn measure_in_band(
 /// The columns a band around the sphere needs: `window` and the strips of
 /// `strip` columns at each edge of a `width`-wide frame, in increasing
 /// order, overlapping ones merged.
-fn window_columns(
+pub(crate) fn window_columns(
     window: std::ops::Range<usize>,
     strip: usize,
     width: usize,
@@ -1049,19 +1049,20 @@ fn window_columns(
 }
 
 /// The edge points of the held-radius fit of one frame (for overlays), from
-/// that whole frame already read by the caller.
+/// `band`: that frame's rows, already read by the caller (whole, or the
+/// columns around the circle and the flicker strips: see [`Band::window`]).
 pub fn edge_points_in(
-    frame: &Frame,
+    band: &Band,
     track: &Track,
     ft: &FrameTrack,
     st: &TrackSettings,
 ) -> Vec<EdgePoint> {
-    let (Some(f), Ok(band)) = (ft.held.or(ft.free), Band::frame(frame)) else {
+    let Some(f) = ft.held.or(ft.free) else {
         return Vec::new();
     };
     let mut es = EdgeScratch::default();
     let fit = measure_circle(
-        &band,
+        band,
         &track.background,
         &f.circle(),
         Some(&track.surface),

@@ -456,12 +456,13 @@ pub fn process_runs(
             .flatten()
     };
     let notice = |m: &str| events(RunEvent::Notice(m));
-    let crate::process::Prepared { runs, cfg } =
-        crate::process::prepare(runs, cfg, &scene_of, &notice);
-    let (runs, cfg) = (&runs, &cfg);
-    let groups = crate::process::setups(runs);
+    // On the job's threads, finding the set-ups too.
     let work = || {
         let threads = rayon::current_num_threads();
+        let crate::process::Prepared { runs, cfg } =
+            crate::process::prepare(runs, cfg, &scene_of, &notice);
+        let (runs, cfg) = (&runs, &cfg);
+        let groups = crate::process::setups(runs);
         groups
             .par_iter()
             .map(|g| {

@@ -257,62 +257,59 @@ fn run_setup(
     overlay_frames: &[i64],
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<Vec<(Entry, bool)>, BatchError> {
-    let fingerprint = timings::start(Stage::Fingerprint);
-    // An input that cannot be fingerprinted (missing, unreadable) is
-    // processed each time; processing then says what is wrong with it.
-    let fps: Vec<Option<cache::Fingerprint>> = members
-        .iter()
-        .map(|r| cache::fingerprint(&r.path).ok())
-        .collect();
-    // Extra overlays asked for are outputs of the run: another list, another key.
-    let extra = format!("overlay_frames {overlay_frames:?}");
-    let own: Vec<Option<String>> = members
-        .iter()
-        .zip(&fps)
-        .map(|(r, fp)| {
-            let k = cache::key(cfg, r, fp.as_ref()?);
-            Some(if overlay_frames.is_empty() {
-                k
-            } else {
-                cache::combine_keys(&k, &[&extra])
-            })
-        })
-        .collect();
-    let keys: Vec<Option<String>> = if members.len() > 1 && own.iter().all(Option::is_some) {
-        let all: Vec<&str> = own.iter().flatten().map(String::as_str).collect();
-        own.iter()
-            .flatten()
-            .map(|k| Some(cache::combine_keys(k, &all)))
-            .collect()
-    } else if members.len() > 1 {
-        vec![None; members.len()]
-    } else {
-        own
-    };
-    if !force && keys.iter().all(Option::is_some) {
-        let hits: Vec<Entry> = members
+    // The inputs' fingerprints and the runs' keys. An input that cannot be
+    // fingerprinted (missing, unreadable) is processed each time;
+    // processing then says what is wrong with it.
+    let keyed = || {
+        let _fingerprint = timings::start(Stage::Fingerprint);
+        let fps: Vec<Option<cache::Fingerprint>> = members
             .iter()
-            .zip(&keys)
-            .filter_map(|(r, k)| cache::lookup(out, &r.run, k.as_ref()?))
+            .map(|r| cache::fingerprint(&r.path).ok())
             .collect();
-        if hits.len() == members.len() {
-            drop(fingerprint);
-            for e in &hits {
-                events(RunEvent::Finished {
-                    record: &e.record,
-                    cached: true,
-                    frames: e.frames,
-                    seconds: None,
-                });
-            }
-            return Ok(hits.into_iter().map(|e| (e, true)).collect());
+        let keys = keys_of(members, &fps, cfg, overlay_frames);
+        (fps, keys)
+    };
+    // With a cache entry for every run, the keys decide whether anything is
+    // processed. Without (a first job, or --force), processing does not
+    // wait for them: they are needed only for the entries written after,
+    // and are computed beside it.
+    let could_hit = !force
+        && members
+            .iter()
+            .all(|r| cache::entry_path(out, &r.run).is_ok_and(|p| p.is_file()));
+    let started = || {
+        for r in members {
+            events(RunEvent::Started { run: &r.run });
         }
-    }
-    drop(fingerprint);
-    for r in members {
-        events(RunEvent::Started { run: &r.run });
-    }
-    let outcomes = process_setup(members, cfg, overlay_frames);
+    };
+    let (fps, keys, outcomes) = if could_hit {
+        let (fps, keys) = keyed();
+        if keys.iter().all(Option::is_some) {
+            let hits: Vec<Entry> = members
+                .iter()
+                .zip(&keys)
+                .filter_map(|(r, k)| cache::lookup(out, &r.run, k.as_ref()?))
+                .collect();
+            if hits.len() == members.len() {
+                for e in &hits {
+                    events(RunEvent::Finished {
+                        record: &e.record,
+                        cached: true,
+                        frames: e.frames,
+                        seconds: None,
+                    });
+                }
+                return Ok(hits.into_iter().map(|e| (e, true)).collect());
+            }
+        }
+        started();
+        (fps, keys, process_setup(members, cfg, overlay_frames))
+    } else {
+        started();
+        let ((fps, keys), outcomes) =
+            rayon::join(keyed, || process_setup(members, cfg, overlay_frames));
+        (fps, keys, outcomes)
+    };
     let mut done = Vec::with_capacity(members.len());
     for ((o, fp), (key, r)) in outcomes
         .into_iter()
@@ -351,6 +348,42 @@ fn run_setup(
         done.push((entry, false));
     }
     Ok(done)
+}
+
+/// The runs' cache keys from their inputs' fingerprints (`None` where an
+/// input has none): each run's own, and in a set-up of several, each
+/// covering the others' too.
+fn keys_of(
+    members: &[&RunSpec],
+    fps: &[Option<cache::Fingerprint>],
+    cfg: &PipelineConfig,
+    overlay_frames: &[i64],
+) -> Vec<Option<String>> {
+    // Extra overlays asked for are outputs of the run: another list, another key.
+    let extra = format!("overlay_frames {overlay_frames:?}");
+    let own: Vec<Option<String>> = members
+        .iter()
+        .zip(fps)
+        .map(|(r, fp)| {
+            let k = cache::key(cfg, r, fp.as_ref()?);
+            Some(if overlay_frames.is_empty() {
+                k
+            } else {
+                cache::combine_keys(&k, &[&extra])
+            })
+        })
+        .collect();
+    if members.len() > 1 && own.iter().all(Option::is_some) {
+        let all: Vec<&str> = own.iter().flatten().map(String::as_str).collect();
+        own.iter()
+            .flatten()
+            .map(|k| Some(cache::combine_keys(k, &all)))
+            .collect()
+    } else if members.len() > 1 {
+        vec![None; members.len()]
+    } else {
+        own
+    }
 }
 
 /// `provenance.json`: what produced the outputs, without timestamps, so the

@@ -304,9 +304,6 @@ pub trait FrameSource: Send {
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), SourceError>;
 
-    /// A second handle on the same frames, for another thread to read
-    /// (tracking measures chunks of one movie on several threads); `None`
-    /// when the source cannot give one (the work then stays on one thread).
     /// Rows `row0..row0 + n` of frame `index` as [`read_rows_into`]
     /// reads them, except that only the columns in `cols` (ranges in
     /// increasing order, not overlapping) need be filled: `out`'s other
@@ -328,6 +325,9 @@ pub trait FrameSource: Send {
         self.read_rows_into(index, row0, out)
     }
 
+    /// A second handle on the same frames, for another thread to read
+    /// (tracking measures chunks of one movie on several threads); `None`
+    /// when the source cannot give one (the work then stays on one thread).
     fn try_clone(&self) -> Option<Box<dyn FrameSource>> {
         None
     }

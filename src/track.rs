@@ -38,6 +38,7 @@
 //!    again and measured around the held circle ([`Track::reread_frames`]).
 
 use crate::detect::background::GainRegion;
+use crate::detect::background_rows::{from_sample_rows, SampleRows};
 use crate::detect::calibrate::{calibrate_radius, full_circle};
 use crate::detect::circle::FitScratch;
 use crate::detect::coarse::{detect_coarse, BinnedBackground, CoarseParams, CoarseScratch};
@@ -866,7 +867,8 @@ fn speculate(
 
 /// Stage 1 of [`track`]: the background from `st.background_frames` whole
 /// frames spread evenly over the movie, with the sphere masked out of each
-/// (the plain median when no sphere is found in them), and the surface line
+/// (the plain median when no sphere is found in them), read a band of rows
+/// at a time on every thread ([`from_sample_rows`]), and the surface line
 /// fitted to it, or the configuration's: `(background, line, from_config)`.
 /// Its cost does not depend on the movie's length.
 pub fn background_and_surface(
@@ -890,41 +892,25 @@ pub fn background_and_surface(
     } else {
         Vec::new()
     };
-    let mut sources: Vec<&mut dyn FrameSource> = std::iter::once(source)
+    let mut readers: Vec<SampleReader> = std::iter::once(source)
         .chain(copies.iter_mut().map(|c| c.as_mut()))
+        .map(|source| SampleReader {
+            source,
+            indices: &indices,
+        })
         .collect();
-    let groups = sources.len();
-    let samples: Vec<Frame> = {
-        use rayon::prelude::*;
-        sources
-            .par_iter_mut()
-            .enumerate()
-            .map(|(g, src)| {
-                indices[g * k / groups..(g + 1) * k / groups]
-                    .iter()
-                    .map(|&idx| {
-                        let mut f = Frame::zeros((h, w));
-                        timings::time(Stage::Read, || src.read_into(idx, &mut f))?;
-                        Ok(f)
-                    })
-                    .collect::<Result<Vec<Frame>, SourceError>>()
-            })
-            .collect::<Vec<_>>()
-            // The first error in the frames' order, as one thread meets it.
-            .into_iter()
-            .collect::<Result<Vec<_>, _>>()?
-            // Moved, not cloned (`concat` would copy every frame).
-            .into_iter()
-            .flatten()
-            .collect()
-    };
-    let views: Vec<_> = samples.iter().map(|f| f.view()).collect();
     // With the sphere masked out of each sample; if no circle can be fitted
     // to any dark group (no sphere in these frames), the plain median.
     let bg = timings::time(Stage::Background, || {
-        Background::from_frames_with_sphere(&views, GainRegion::default(), &st.coarse, 6.0)
-            .or_else(|_| Background::from_frames(&views, GainRegion::default()))
-    })
+        from_sample_rows(
+            &mut readers,
+            k,
+            (h, w),
+            GainRegion::default(),
+            &st.coarse,
+            6.0,
+        )
+    })?
     .map_err(TrackError::Background)?;
     Ok(match &st.surface_override {
         Some(s) => (bg, *s, true),
@@ -934,6 +920,27 @@ pub fn background_and_surface(
             (bg, s, false)
         }
     })
+}
+
+/// The background's sample frames, frame `k` being `indices[k]` of `source`.
+struct SampleReader<'a> {
+    source: &'a mut dyn FrameSource,
+    indices: &'a [usize],
+}
+
+impl SampleRows for SampleReader<'_> {
+    type Error = SourceError;
+
+    fn read_rows(
+        &mut self,
+        k: usize,
+        row0: usize,
+        out: &mut ndarray::ArrayViewMut2<u16>,
+    ) -> Result<(), SourceError> {
+        timings::time(Stage::Read, || {
+            self.source.read_rows_into(self.indices[k], row0, out)
+        })
+    }
 }
 
 /// Grid step (px) of the quick look for a dark object before the coarse search.

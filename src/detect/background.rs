@@ -85,13 +85,8 @@ impl Background {
         let gains = reference_gains(frames, width, height, region)?;
         let mut levels = vec![0f32; width * height];
         let mut column = vec![0f64; frames.len()];
-        for i in 0..height {
-            for j in 0..width {
-                for (k, f) in frames.iter().enumerate() {
-                    column[k] = f[[i, j]] as f64 / gains[k];
-                }
-                levels[i * width + j] = median_of(&mut column) as f32;
-            }
+        for (i, out) in levels.chunks_exact_mut(width).enumerate() {
+            plain_median_row(|k, j| frames[k][[i, j]], &gains, &mut column, out);
         }
         Ok(Background {
             width,
@@ -147,100 +142,32 @@ impl Background {
             .iter()
             .map(|f| f.as_slice().ok_or(DetectError::NotContiguous))
             .collect::<Result<_, _>>()?;
-        let inv: Vec<f32> = gains.iter().map(|g| (1.0 / g) as f32).collect();
-        // Passes 1 and 2 on the frames binned 2×2 when they are large
-        // enough (a quarter of the pixels; the circles come back to within
-        // a pixel, well inside the pad).
-        let (circles, surface) = if w >= 128 && h >= 128 {
-            let (wb, hb) = (w / 2, h / 2);
-            let binned: Vec<Vec<u16>> = data
-                .iter()
-                .map(|d| {
-                    let mut out = Vec::with_capacity(wb * hb);
-                    coarse::bin_frame(d, w, wb, hb, &mut out);
-                    out
-                })
-                .collect();
-            let views: Vec<&[u16]> = binned.iter().map(|b| b.as_slice()).collect();
-            let params = coarse::binned_params(coarse);
-            let (circles, line) = coarse_pass(&views, wb, hb, &gains, region, &params)?;
-            (
-                circles
-                    .iter()
-                    .map(|c| c.as_ref().map(coarse::from_binned_circle))
-                    .collect(),
-                line.as_ref().map(coarse::from_binned_line),
-            )
+        let seen: Vec<Vec<u16>> = if binned_pass(w, h) {
+            data.iter().map(|d| coarse_view(d, w, h)).collect()
         } else {
-            coarse_pass(&data, w, h, &gains, region, coarse)?
+            Vec::new()
         };
-        let mut bg = Background {
-            width: w,
-            height: h,
-            levels: Vec::new(),
-            region,
-            gains,
+        let seen: Vec<&[u16]> = if binned_pass(w, h) {
+            seen.iter().map(|b| b.as_slice()).collect()
+        } else {
+            data.clone()
         };
+        let (circles, surface) = circles_and_line(&seen, w, h, &gains, region, coarse)?;
         // Pass 3: per-pixel median over uncovered frames; pixels never
         // uncovered get a smooth model of the light (below).
         let mut levels = vec![f32::NAN; w * h];
-        let n = frames.len();
-        let mut rows = vec![0f32; n * w];
-        let mut count = vec![0usize; w];
-        let mut values = Vec::with_capacity(n);
-        let pairs = batcher_pairs(n);
-        for r in 0..h {
-            count.fill(n);
-            for (k, (d, &ig)) in data.iter().zip(&inv).enumerate() {
-                let row = &mut rows[k * w..(k + 1) * w];
-                for (o, &v) in row.iter_mut().zip(&d[r * w..(r + 1) * w]) {
-                    *o = v as f32 * ig;
-                }
-                if let Some(c) = circles[k] {
-                    // Covered: (j − x)² + (r − z)² < (R + pad)².
-                    let (reach, dz) = (c.r_px + pad_px, r as f64 - c.z_px);
-                    let s2 = reach * reach - dz * dz;
-                    if s2 > 0.0 {
-                        let s = s2.sqrt();
-                        let lo = ((c.x_px - s).floor() + 1.0).max(0.0);
-                        let hi = ((c.x_px + s).ceil() - 1.0).min(w as f64 - 1.0);
-                        if lo <= hi {
-                            let span = lo as usize..=hi as usize;
-                            row[span.clone()].fill(f32::INFINITY);
-                            count[span].iter_mut().for_each(|c| *c -= 1);
-                        }
-                    }
-                }
-            }
-            let out = &mut levels[r * w..(r + 1) * w];
-            if n <= MAX_NETWORK_FRAMES {
-                sort_rows(&mut rows, w, &pairs);
-                for (j, (o, &m)) in out.iter_mut().zip(&count).enumerate() {
-                    if m > 0 {
-                        let (a, b) = (rows[((m - 1) / 2) * w + j], rows[(m / 2) * w + j]);
-                        *o = 0.5 * (a + b);
-                    }
-                }
-            } else {
-                for (j, o) in out.iter_mut().enumerate() {
-                    values.clear();
-                    values.extend(
-                        (0..n)
-                            .map(|k| rows[k * w + j] as f64)
-                            .filter(|v| v.is_finite()),
-                    );
-                    if !values.is_empty() {
-                        *o = median_of(&mut values) as f32;
-                    }
-                }
-            }
+        let mut median = SphereMedian::new(&gains, &circles, pad_px, w);
+        for (r, out) in levels.chunks_exact_mut(w).enumerate() {
+            median.row(r, |k| &data[k][r * w..(r + 1) * w], out);
         }
-        fill_smooth(&mut levels, w, h, surface.as_ref());
-        for row in levels.chunks_exact_mut(w) {
-            fill_row(row);
-        }
-        bg.levels = levels;
-        Ok(bg)
+        fill_covered(&mut levels, w, h, surface.as_ref());
+        Ok(Background {
+            width: w,
+            height: h,
+            levels,
+            region,
+            gains,
+        })
     }
 
     /// The background level at a pixel.
@@ -326,6 +253,16 @@ impl Background {
 pub struct FrameGain {
     pub gain: f64,
     pub sigma: f64,
+}
+
+/// The pixels pass 3 of [`Background::from_frames_with_sphere`] left NaN
+/// (covered in every frame): above the surface line by [`fill_smooth`],
+/// the rest along their rows.
+pub(super) fn fill_covered(levels: &mut [f32], w: usize, h: usize, surface: Option<&SurfaceLine>) {
+    fill_smooth(levels, w, h, surface);
+    for row in levels.chunks_exact_mut(w) {
+        fill_row(row);
+    }
 }
 
 /// Fill the NaN pixels above the surface line (all of them without one)
@@ -607,11 +544,16 @@ fn check_frames(
             });
         }
     }
-    let region = GainRegion {
+    Ok((height, width, clamp_region(width, region)))
+}
+
+/// `region` made usable on frames `width` px wide: strips of 1 to half the
+/// width, a step of at least 1.
+pub(super) fn clamp_region(width: usize, region: GainRegion) -> GainRegion {
+    GainRegion {
         strip_px: region.strip_px.clamp(1, (width / 2).max(1)),
         step: region.step.max(1),
-    };
-    Ok((height, width, region))
+    }
 }
 
 /// Gains of the frames relative to the first, from the raw sums over the
@@ -631,13 +573,20 @@ fn reference_gains(
         }
         s
     };
-    let s0 = frames.first().map(ref_sum).unwrap_or(0.0);
+    let sums: Vec<f64> = frames.iter().map(ref_sum).collect();
+    gains_from_sums(&sums, region)
+}
+
+/// Gains relative to the first frame from each frame's sum over the
+/// reference strips ([`reference_gains`], [`add_reference`]).
+pub(super) fn gains_from_sums(sums: &[f64], region: GainRegion) -> Result<Vec<f64>, DetectError> {
+    let s0 = sums.first().copied().unwrap_or(0.0);
     if !(s0 > 0.0) {
         return Err(DetectError::DarkReference {
             what: format!("{}-px strips at the left and right edges", region.strip_px),
         });
     }
-    Ok(frames.iter().map(|f| ref_sum(f) / s0).collect())
+    Ok(sums.iter().map(|s| s / s0).collect())
 }
 
 /// The reference columns: `0..strip` and `width − strip..width`, every `step`-th.
@@ -646,6 +595,164 @@ fn strip_columns(width: usize, region: GainRegion) -> impl Iterator<Item = usize
     (0..s)
         .step_by(region.step)
         .chain((width - s..width).step_by(region.step))
+}
+
+/// Whether passes 1 and 2 of [`Background::from_frames_with_sphere`] run on
+/// the frames binned 2×2: when they are large enough (a quarter of the
+/// pixels; the circles come back to within a pixel, well inside the pad).
+pub(super) fn binned_pass(w: usize, h: usize) -> bool {
+    w >= 128 && h >= 128
+}
+
+/// A `w × h` frame as passes 1 and 2 see it when [`binned_pass`]: binned
+/// 2×2 ([`coarse::bin_frame`]).
+pub(super) fn coarse_view(frame: &[u16], w: usize, h: usize) -> Vec<u16> {
+    let (wb, hb) = (w / 2, h / 2);
+    let mut out = Vec::with_capacity(wb * hb);
+    coarse::bin_frame(frame, w, wb, hb, &mut out);
+    out
+}
+
+/// Passes 1 and 2 of [`Background::from_frames_with_sphere`]: each sample
+/// frame's coarse circle and the preliminary surface line, in full-frame
+/// pixels, from the frames as passes 1 and 2 see them (`seen`: binned
+/// 2×2 by [`coarse_view`] when [`binned_pass`], else whole).
+#[allow(clippy::type_complexity)]
+pub(super) fn circles_and_line(
+    seen: &[&[u16]],
+    w: usize,
+    h: usize,
+    gains: &[f64],
+    region: GainRegion,
+    coarse: &coarse::CoarseParams,
+) -> Result<(Vec<Option<Circle>>, Option<SurfaceLine>), DetectError> {
+    if !binned_pass(w, h) {
+        return coarse_pass(seen, w, h, gains, region, coarse);
+    }
+    let params = coarse::binned_params(coarse);
+    let (circles, line) = coarse_pass(seen, w / 2, h / 2, gains, region, &params)?;
+    Ok((
+        circles
+            .iter()
+            .map(|c| c.as_ref().map(coarse::from_binned_circle))
+            .collect(),
+        line.as_ref().map(coarse::from_binned_line),
+    ))
+}
+
+/// Pass 3 of [`Background::from_frames_with_sphere`], row by row: the
+/// per-pixel median of `I_f / g_f` over the frames whose circle (plus the
+/// pad) does not cover the pixel; NaN where every frame covers it.
+pub(super) struct SphereMedian<'a> {
+    inv: Vec<f32>,
+    circles: &'a [Option<Circle>],
+    pad_px: f64,
+    w: usize,
+    rows: Vec<f32>,
+    count: Vec<usize>,
+    values: Vec<f64>,
+    pairs: Vec<(usize, usize)>,
+}
+
+impl<'a> SphereMedian<'a> {
+    pub(super) fn new(gains: &[f64], circles: &'a [Option<Circle>], pad_px: f64, w: usize) -> Self {
+        let n = gains.len();
+        SphereMedian {
+            inv: gains.iter().map(|g| (1.0 / g) as f32).collect(),
+            circles,
+            pad_px,
+            w,
+            rows: vec![0f32; n * w],
+            count: vec![0usize; w],
+            values: Vec::with_capacity(n),
+            pairs: batcher_pairs(n),
+        }
+    }
+
+    /// Row `r` of the levels into `out` (NaN left where no frame is
+    /// uncovered), from `frame_row(k)`, row `r` of sample frame `k`.
+    pub(super) fn row<'r>(
+        &mut self,
+        r: usize,
+        frame_row: impl Fn(usize) -> &'r [u16],
+        out: &mut [f32],
+    ) {
+        let (n, w) = (self.inv.len(), self.w);
+        let (rows, count) = (&mut self.rows, &mut self.count);
+        count.fill(n);
+        for (k, &ig) in self.inv.iter().enumerate() {
+            let row = &mut rows[k * w..(k + 1) * w];
+            for (o, &v) in row.iter_mut().zip(frame_row(k)) {
+                *o = v as f32 * ig;
+            }
+            if let Some(c) = self.circles[k] {
+                // Covered: (j − x)² + (r − z)² < (R + pad)².
+                let (reach, dz) = (c.r_px + self.pad_px, r as f64 - c.z_px);
+                let s2 = reach * reach - dz * dz;
+                if s2 > 0.0 {
+                    let s = s2.sqrt();
+                    let lo = ((c.x_px - s).floor() + 1.0).max(0.0);
+                    let hi = ((c.x_px + s).ceil() - 1.0).min(w as f64 - 1.0);
+                    if lo <= hi {
+                        let span = lo as usize..=hi as usize;
+                        row[span.clone()].fill(f32::INFINITY);
+                        count[span].iter_mut().for_each(|c| *c -= 1);
+                    }
+                }
+            }
+        }
+        if n <= MAX_NETWORK_FRAMES {
+            sort_rows(rows, w, &self.pairs);
+            for (j, (o, &m)) in out.iter_mut().zip(count.iter()).enumerate() {
+                if m > 0 {
+                    let (a, b) = (rows[((m - 1) / 2) * w + j], rows[(m / 2) * w + j]);
+                    *o = 0.5 * (a + b);
+                }
+            }
+        } else {
+            for (j, o) in out.iter_mut().enumerate() {
+                self.values.clear();
+                self.values.extend(
+                    (0..n)
+                        .map(|k| rows[k * w + j] as f64)
+                        .filter(|v| v.is_finite()),
+                );
+                if !self.values.is_empty() {
+                    *o = median_of(&mut self.values) as f32;
+                }
+            }
+        }
+    }
+}
+
+/// A row of [`Background::from_frames`]: at each column `j` of `out`, the
+/// median of `value(k, j) / gains[k]` over the frames `k` (`column` is
+/// scratch of one value per frame).
+pub(super) fn plain_median_row(
+    value: impl Fn(usize, usize) -> u16,
+    gains: &[f64],
+    column: &mut [f64],
+    out: &mut [f32],
+) {
+    for (j, o) in out.iter_mut().enumerate() {
+        for (k, c) in column.iter_mut().enumerate() {
+            *c = value(k, j) as f64 / gains[k];
+        }
+        *o = median_of(column) as f32;
+    }
+}
+
+/// Sum of a whole row-major frame's reference strips (every
+/// `region.step`-th row and column), added in the order
+/// [`reference_gains`] adds them.
+pub(super) fn reference_sum(frame: &[u16], width: usize, region: GainRegion) -> f64 {
+    let mut sum = 0.0;
+    for row in frame.chunks_exact(width).step_by(region.step) {
+        for j in strip_columns(width, region) {
+            sum += row[j] as f64;
+        }
+    }
+    sum
 }
 
 #[cfg(test)]

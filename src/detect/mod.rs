@@ -7,6 +7,7 @@
 //! | module | does |
 //! | --- | --- |
 //! | [`background`] | per-pixel background from the frames before the sphere, and a per-frame flicker gain |
+//! | [`background_rows`] | the same from sample frames read a band of rows at a time (never all held whole) |
 //! | [`surface`] | the top of the pillar band as a sub-pixel line `row = row0 + slope · column` |
 //! | [`coarse`] | the sphere's first appearance and a coarse circle (also when it enters through the top) |
 //! | [`edges`] | sub-pixel edge points along normals to a predicted circle |
@@ -29,6 +30,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod background;
+pub mod background_rows;
 pub mod calibrate;
 pub mod circle;
 pub mod coarse;

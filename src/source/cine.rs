@@ -26,8 +26,8 @@ use ndarray::ArrayViewMut2;
 use super::p10_lut::P10_TO_LINEAR12;
 use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
 use super::{
-    check_band, fill_rows, for_cols, FrameSource, OpenOptions, P10Mode, SourceDetails, SourceError,
-    SourceMeta,
+    check_band, fill_rows, for_cols, grown, FrameSource, OpenOptions, P10Mode, SourceDetails,
+    SourceError, SourceMeta,
 };
 
 /// Largest accepted frame (pixels); 16 k × 16 k is far beyond any Phantom.
@@ -821,14 +821,13 @@ impl CineSource {
                 });
             }
         }
-        self.bytes.clear();
-        self.bytes.resize(span as usize, 0);
-        if let Err(e) = read_exact_at(&mut self.file, byte0, &mut self.bytes) {
+        if let Err(e) = read_exact_at(&mut self.file, byte0, grown(&mut self.bytes, span as usize))
+        {
             return Err(self.frame_err(index, format!("reading pixels: {e}")));
         }
         let linear = storage == CineStorage::P10 && self.options.p10 == P10Mode::Linear;
         let row_bits = w as u64 * bits;
-        let bytes = &self.bytes;
+        let bytes = &self.bytes[..span as usize];
         fill_rows(out, &mut self.row_scratch, |j, dst| {
             let k = if descending { n - 1 - j } else { j };
             {

@@ -20,7 +20,7 @@ use ndarray::{s, ArrayViewMut2};
 
 use super::folder::ImageKind;
 use super::widen::widen_u8;
-use super::{fill_row, fill_rows, for_cols, SourceError};
+use super::{fill_row, fill_rows, for_cols, grown, SourceError};
 
 /// How one file's pixels are laid out, found by reading its header only.
 #[derive(Debug, Clone, PartialEq)]
@@ -257,8 +257,7 @@ impl FrameDecoder {
                 if !sc.whole {
                     // A small band or a large file: read only the band's
                     // rows, one read per strip they lie in.
-                    sc.bytes.clear();
-                    sc.bytes.resize(n * row_bytes, 0);
+                    grown(&mut sc.bytes, n * row_bytes);
                     let mut r = row0;
                     while r < row0 + n {
                         let take = (rps - r % rps).min(row0 + n - r);
@@ -303,11 +302,10 @@ impl FrameDecoder {
                 let h = p.height;
                 // Stored rows for the band are contiguous; bottom-up reverses them.
                 let first_stored = if *top_down { row0 } else { h - row0 - n };
-                let bytes = &mut self.scratch.bytes;
-                bytes.clear();
-                bytes.resize(n * stride, 0);
+                let bytes = grown(&mut self.scratch.bytes, n * stride);
                 file.read_at(data_offset + (first_stored * stride) as u64, bytes)
                     .map_err(|e| frame_err(format!("reading rows: {e}")))?;
+                let bytes = &*bytes;
                 for j in 0..n {
                     let k = if *top_down { j } else { n - 1 - j };
                     let src = &bytes[k * stride..k * stride + w];
@@ -513,10 +511,7 @@ fn probe_tiff<F: FrameBytes>(
     // Grow the reused buffer only when needed and never shrink it (no
     // zeroing frame after frame): the file's bytes are `head[..head_len]`.
     let head_usize = head_len as usize;
-    if sc.head.len() < head_usize {
-        sc.head.resize(head_usize, 0);
-    }
-    file.read_exact(&mut sc.head[..head_usize])
+    file.read_exact(grown(&mut sc.head, head_usize))
         .map_err(|e| format!("not a TIFF (reading {head_len} bytes: {e})"))?;
     sc.whole = head_len == len;
     if head_len < 8 {

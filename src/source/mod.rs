@@ -193,6 +193,16 @@ pub(crate) fn check_band(
     Ok(())
 }
 
+/// The first `n` bytes of `v`, grown (zero-filled) only when shorter: a
+/// buffer a read is about to fill is not cleared frame after frame (a
+/// 1280-px band's 224 kB memset cost about as much as converting its window).
+pub(crate) fn grown(v: &mut Vec<u8>, n: usize) -> &mut [u8] {
+    if v.len() < n {
+        v.resize(n, 0);
+    }
+    &mut v[..n]
+}
+
 /// Run `fill(j, row)` on every row `j` of `out` as a plain slice: straight
 /// on the caller's memory when `out` is contiguous, else through `scratch`.
 pub(crate) fn fill_rows(

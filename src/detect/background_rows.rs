@@ -14,7 +14,7 @@
 
 use super::background::{
     binned_pass, circles_and_line, clamp_region, coarse_view, fill_covered, gains_from_sums,
-    plain_median_row, reference_sum, Background, GainRegion, SphereMedian,
+    plain_median_row, reference_sum, Background, GainRegion, ReferenceGains, SphereMedian,
 };
 use super::coarse::CoarseParams;
 use super::DetectError;
@@ -65,7 +65,7 @@ pub fn from_sample_rows<R: SampleRows>(
         .map(|_| Array2::zeros((h.max(n * band), w)))
         .collect();
     // Passes 1 and 2's view of each frame and its strip sum.
-    let seen: Vec<(Vec<u16>, f64)> = readers[..groups]
+    let seen: Vec<(Vec<u16>, [f64; 2])> = readers[..groups]
         .par_iter_mut()
         .zip(buffers.par_iter_mut())
         .enumerate()
@@ -95,8 +95,11 @@ pub fn from_sample_rows<R: SampleRows>(
             all.extend(part);
             err.map_or(Ok(all), Err)
         })?;
-    let sums: Vec<f64> = seen.iter().map(|s| s.1).collect();
-    let gains = match gains_from_sums(&sums, region) {
+    let sums: Vec<[f64; 2]> = seen.iter().map(|s| s.1).collect();
+    let ReferenceGains {
+        pooled: gains,
+        inverse_by_column: inv,
+    } = match gains_from_sums(&sums, w, region) {
         Ok(g) => g,
         Err(e) => return Ok(Err(e)),
     };
@@ -123,7 +126,7 @@ pub fn from_sample_rows<R: SampleRows>(
         .zip(buffers.par_iter_mut())
         .zip(parts)
         .map(|((reader, buf), (row0, part))| {
-            let mut sphere = circles.map(|c| SphereMedian::new(&gains, c, pad_px, w));
+            let mut sphere = circles.map(|c| SphereMedian::new(&inv, c, pad_px, w));
             let mut column = vec![0f64; n];
             for (b, out) in part.chunks_mut(band * w).enumerate() {
                 let r0 = row0 + b * band;
@@ -137,7 +140,7 @@ pub fn from_sample_rows<R: SampleRows>(
                 for (i, out) in out.chunks_exact_mut(w).enumerate() {
                     match sphere.as_mut() {
                         Some(m) => m.row(r0 + i, |k| at(k, i), out),
-                        None => plain_median_row(|k, j| at(k, i)[j], &gains, &mut column, out),
+                        None => plain_median_row(|k, j| at(k, i)[j], &inv, &mut column, out),
                     }
                 }
             }

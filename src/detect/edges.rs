@@ -207,8 +207,9 @@ pub struct EdgeScratch {
 }
 
 /// Sub-pixel edge points around `predicted` in `band` (see the module doc).
-/// `gain` is the frame's flicker gain ([`Background::gain`]); `surface`, when
-/// given, hides everything below its line minus the margin. The points are
+/// `frame_gain` is the frame's flicker gain ([`Background::gain`], taken at each
+/// window's ends); `surface`, when given, hides everything below its line minus
+/// the margin. The points are
 /// left in `scratch.points` and returned.
 pub fn edge_points<'s>(
     band: &Band,
@@ -219,7 +220,9 @@ pub fn edge_points<'s>(
     params: &EdgeParams,
     scratch: &'s mut EdgeScratch,
 ) -> Result<&'s [EdgePoint], DetectError> {
-    let gain = frame_gain.gain;
+    // The gain at the sphere (the light may drift differently across the
+    // frame: [`FrameGain::at`]); each window's ends take their own.
+    let (gain, sigma_gain) = frame_gain.at(predicted.x_px);
     if band.width != bg.width || band.row0 + band.nrows > bg.height {
         return Err(DetectError::ShapeMismatch {
             width: band.width,
@@ -283,7 +286,10 @@ pub fn edge_points<'s>(
         if !(ba > 0.0 && bb > 0.0) {
             continue;
         }
-        let (ia, ib) = (1.0 / (gain * ba), 1.0 / (gain * bb));
+        let (ia, ib) = (
+            1.0 / (frame_gain.at(xa).0 * ba),
+            1.0 / (frame_gain.at(xb).0 * bb),
+        );
         let w = Window::new(xa, za - row0, c, s, ia, (ib - ia) / last_j);
         // The window is a segment inside the (convex) visible region, so
         // every sample's four neighbours are inside the band; checked
@@ -338,7 +344,7 @@ pub fn edge_points<'s>(
     }
     // Errors shared by every point: τ and the gain move all edges along
     // their radii by (w + ½)/(1 − τ) times their relative error.
-    let rel_gain = frame_gain.sigma / gain;
+    let rel_gain = sigma_gain / gain;
     scratch.radial_sigma_px =
         (w as f64 + 0.5) / contrast * (sigma_tau * sigma_tau + rel_gain * rel_gain).sqrt();
     let ta = t0 - 0.5;

@@ -219,13 +219,14 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         None => (1, 1),
     };
     let bounds: Vec<usize> = (0..=chunks).map(|k| k * n / chunks).collect();
+    let pool = ScratchPool::default();
     let mut walk = Walk {
         frames: Vec::with_capacity(n),
         kept_points: Vec::new(),
         kept_points_max: st.kept_points_max,
         kept: Vec::with_capacity(n),
         state: Pass1State::default(),
-        scratch: LookScratch::new(h, w, &ctx),
+        scratch: LookScratch::new(h, w),
         measured_ahead: 0,
     };
     let mut ahead_frames_max = 0;
@@ -244,7 +245,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
                 || {
                     copies.as_mut().map(|c| {
                         let b = &bounds[first..=first + 1 + ahead];
-                        speculate(&mut c[..ahead], b, &ctx, &meta)
+                        speculate(&mut c[..ahead], b, &ctx, &meta, &pool)
                     })
                 },
             );
@@ -299,16 +300,20 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     let LookScratch {
         mut buf, mut es, ..
     } = scratch;
-    let mut held: Vec<Held> = {
+    // Each frame's held fit goes straight into its record (a `Held` a frame
+    // held until all were done was 144 bytes a frame at the tracker's
+    // peak); only the frames to read again are listed.
+    let mut reread: Vec<(usize, Circle)> = {
         use rayon::prelude::*;
         frames
-            .par_iter()
+            .par_iter_mut()
             .zip(&kept)
+            .enumerate()
             .with_min_len(64)
             .map_init(
                 || (Vec::new(), FitScratch::default()),
-                |(points, fs), (ft, k)| {
-                    timings::time(Stage::Pass2, || match k {
+                |(points, fs), (i, (ft, k))| {
+                    let h = timings::time(Stage::Pass2, || match k {
                         Some(Kept::Points {
                             start,
                             len,
@@ -325,9 +330,11 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
                         // Below, with a source.
                         Some(Kept::Again(_)) => Held::NoFit,
                         None => hold(ft, None, radius_px, st, points, fs),
-                    })
+                    });
+                    settle(ft, h).map(|p| (i, p))
                 },
             )
+            .flatten()
             .collect()
     };
     // The frames past the points' budget: measured again as pass 1 did,
@@ -345,33 +352,30 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     let remeasured_frames = again.len();
     if !again.is_empty() {
         let redone = timings::time(Stage::Pass2, || {
-            remeasure(source, &ctx, &frames, &again, radius_px, st)
+            remeasure(source, &ctx, &frames, &again, radius_px, st, &pool)
         })?;
         for ((i, _), h) in again.iter().zip(redone) {
-            held[*i] = h;
+            reread.extend(settle(&mut frames[*i], h).map(|p| (*i, p)));
         }
+        reread.sort_by_key(|r| r.0);
     }
-    let mut reread_frames = 0;
+    drop(pool);
+    // In the frames' order: the first that cannot be read is the error.
+    let reread_frames = reread.len();
     let _pass2 = timings::start(Stage::Pass2);
-    for (ft, h) in frames.iter_mut().zip(held) {
-        ft.held = match h {
-            Held::NoFit => continue,
-            Held::Fit(f) => f,
-            Held::Reread(p) => {
-                reread_frames += 1;
-                measure_in_band(
-                    source,
-                    ft.index,
-                    &mut buf,
-                    &bg,
-                    &p,
-                    &surface,
-                    Some(radius_px),
-                    st,
-                    &mut es,
-                )?
-            }
-        };
+    for (i, p) in reread {
+        let ft = &mut frames[i];
+        ft.held = measure_in_band(
+            source,
+            ft.index,
+            &mut buf,
+            &bg,
+            &p,
+            &surface,
+            Some(radius_px),
+            st,
+            &mut es,
+        )?;
         if ft.held.is_none() {
             ft.flags.push("missing");
         }
@@ -392,6 +396,20 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     })
 }
 
+/// Pass 2's result `h` put into the frame's record (a fit that failed flags
+/// it `missing`), or the circle to read the frame again around.
+fn settle(ft: &mut FrameTrack, h: Held) -> Option<Circle> {
+    ft.held = match h {
+        Held::NoFit => return None,
+        Held::Fit(f) => f,
+        Held::Reread(p) => return Some(p),
+    };
+    if ft.held.is_none() {
+        ft.flags.push("missing");
+    }
+    None
+}
+
 /// Pass 2 of the frames `again` (indices into `frames`, with pass 1's look
 /// at each) on every thread, each with its own copy of the source: each
 /// frame measured again as pass 1 looked at it — the same edge points, a
@@ -404,6 +422,7 @@ fn remeasure(
     again: &[(usize, Look)],
     radius_px: f64,
     st: &TrackSettings,
+    pool: &ScratchPool,
 ) -> Result<Vec<Held>, TrackError> {
     use rayon::prelude::*;
     let (h, w) = (source.meta().height, source.meta().width);
@@ -419,9 +438,9 @@ fn remeasure(
         .enumerate()
         .map(|(g, src)| {
             let _pass2 = timings::start(Stage::Pass2);
-            let mut sc = LookScratch::new(h, w, ctx);
+            let mut sc = pool.take(h, w);
             let (mut points, mut fs) = (Vec::new(), FitScratch::default());
-            again[g * n / groups..(g + 1) * n / groups]
+            let held = again[g * n / groups..(g + 1) * n / groups]
                 .iter()
                 .map(|&(i, look)| {
                     let ft = &frames[i];
@@ -433,7 +452,9 @@ fn remeasure(
                     });
                     Ok(hold(ft, k, radius_px, st, &mut points, &mut fs))
                 })
-                .collect()
+                .collect();
+            pool.give(sc);
+            held
         })
         .collect();
     let mut out = Vec::with_capacity(n);
@@ -683,17 +704,33 @@ struct LookScratch {
     buf: Frame,
     es: EdgeScratch,
     cs: CoarseScratch,
-    binned: Option<BinnedBackground>,
 }
 
 impl LookScratch {
-    fn new(h: usize, w: usize, ctx: &Pass1) -> Self {
+    fn new(h: usize, w: usize) -> Self {
         LookScratch {
             buf: Frame::zeros((h, w)),
             es: EdgeScratch::default(),
             cs: CoarseScratch::default(),
-            binned: ctx.binned.clone(),
         }
+    }
+}
+
+/// Buffers for [`Pass1::look_at`] handed from chunk to chunk: a chunk takes
+/// one (or makes one) and gives it back, so that a thread first-touches a
+/// whole frame and the search's buffers once, not once a chunk (at
+/// 1280 × 800 about 4 MB each time).
+#[derive(Default)]
+struct ScratchPool(std::sync::Mutex<Vec<LookScratch>>);
+
+impl ScratchPool {
+    fn take(&self, h: usize, w: usize) -> LookScratch {
+        let mut pool = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        pool.pop().unwrap_or_else(|| LookScratch::new(h, w))
+    }
+
+    fn give(&self, sc: LookScratch) {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).push(sc);
     }
 }
 
@@ -715,7 +752,7 @@ impl Pass1<'_> {
                 let band = Band::frame(&sc.buf).map_err(|e| detect_err(number, e))?;
                 let gain = bg.gain(&band).map_err(|e| detect_err(number, e))?.gain;
                 if anything_dark(&sc.buf, bg, gain, surface) {
-                    match sc.binned.as_mut() {
+                    match self.binned.as_ref() {
                         Some(b) => b.detect(&band, gain, Some(surface), &st.coarse, &mut sc.cs),
                         None => {
                             detect_coarse(&band, bg, gain, Some(surface), &st.coarse, &mut sc.cs)
@@ -839,6 +876,7 @@ fn speculate(
     bounds: &[usize],
     ctx: &Pass1,
     meta: &crate::source::SourceMeta,
+    pool: &ScratchPool,
 ) -> Vec<Vec<Seen>> {
     use rayon::prelude::*;
     copies
@@ -846,9 +884,9 @@ fn speculate(
         .enumerate()
         .map(|(k, src)| {
             let _pass1 = timings::start(Stage::Pass1);
-            // Buffers made here, not kept from round to round: only the
-            // chunks being measured hold them.
-            let mut sc = LookScratch::new(meta.height, meta.width, ctx);
+            // At most one buffer set per thread measuring ahead, kept
+            // from chunk to chunk and round to round.
+            let mut sc = pool.take(meta.height, meta.width);
             let mut state = Pass1State::default();
             let (first, last) = (bounds[k + 1], bounds[k + 2]);
             let mut seen = Vec::with_capacity(last - first);
@@ -860,6 +898,7 @@ fn speculate(
                 state.step(meta, i, &s, meta.width);
                 seen.push(s);
             }
+            pool.give(sc);
             seen
         })
         .collect()

@@ -67,6 +67,8 @@ pub struct CoarseScratch {
     limits: Vec<f32>,
     points: Vec<EdgePoint>,
     fit: FitScratch,
+    /// The frame [`BinnedBackground::detect`] bins.
+    binned_frame: Vec<u16>,
 }
 
 /// Find the sphere in `band` (see the module doc); `Ok(None)` when there is
@@ -240,8 +242,6 @@ pub fn detect_coarse(
 #[derive(Debug, Clone)]
 pub struct BinnedBackground {
     binned: Background,
-    /// The binned frame of the last call.
-    frame: Vec<u16>,
 }
 
 impl BinnedBackground {
@@ -266,7 +266,6 @@ impl BinnedBackground {
                 region: bg.region,
                 gains: Vec::new(),
             },
-            frame: Vec::with_capacity(wb * hb),
         }
     }
 
@@ -274,7 +273,7 @@ impl BinnedBackground {
     /// background's full size) binned 2×2, with the parameters of
     /// [`binned_params`]; the circle in full frame pixels.
     pub fn detect(
-        &mut self,
+        &self,
         frame: &Band,
         gain: f64,
         surface: Option<&SurfaceLine>,
@@ -290,9 +289,26 @@ impl BinnedBackground {
                 bg_height: 2 * hb,
             });
         }
-        bin_frame(frame.data, frame.width, wb, hb, &mut self.frame);
+        // The binned frame lives in the scratch, which the search needs
+        // whole: take it out for the call.
+        let mut binned = std::mem::take(&mut scratch.binned_frame);
+        bin_frame(frame.data, frame.width, wb, hb, &mut binned);
+        let found = self.detect_binned(&binned, gain, surface, params, scratch);
+        scratch.binned_frame = binned;
+        found
+    }
+
+    fn detect_binned(
+        &self,
+        binned: &[u16],
+        gain: f64,
+        surface: Option<&SurfaceLine>,
+        params: &CoarseParams,
+        scratch: &mut CoarseScratch,
+    ) -> Result<Option<Coarse>, DetectError> {
+        let (wb, hb) = (self.binned.width, self.binned.height);
         let band = Band {
-            data: &self.frame,
+            data: binned,
             row0: 0,
             nrows: hb,
             width: wb,
@@ -413,7 +429,7 @@ mod tests {
         .mapv(|v| v.round() as u16);
         let views = [empty.view()];
         let bg = Background::from_frames(&views, Default::default()).unwrap();
-        let mut binned = BinnedBackground::new(&bg);
+        let binned = BinnedBackground::new(&bg);
         let mut scratch = CoarseScratch::default();
         // Whole, and entering through the top (centre above the frame).
         for disk in [(101.37, 80.62, 40.0), (140.8, -15.3, 45.0)] {

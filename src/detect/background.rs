@@ -229,7 +229,7 @@ impl Background {
             let row = &band.data[(i - band.row0) * band.width..][..band.width];
             let bg_row = &self.levels[i * self.width..][..self.width];
             for j in strip_columns(self.width, self.region) {
-                sides[strip_side(j, self.width)].add(j, row[j] as f64, bg_row[j] as f64);
+                sides[strip_side(j, self.width)].add(row[j] as f64, bg_row[j] as f64);
             }
         }
         let all = sides[0].merged(&sides[1]);
@@ -241,9 +241,9 @@ impl Background {
                 band.row0 + band.nrows
             ),
         })?;
-        let side = |s: &StripSums| {
-            s.gain().map(|(gain, sigma)| StripGain {
-                column_px: s.mean_column(),
+        let side = |k: usize| {
+            sides[k].gain().map(|(gain, sigma)| StripGain {
+                column_px: strip_mean_column(self.width, self.region, k),
                 gain,
                 sigma,
             })
@@ -251,7 +251,7 @@ impl Background {
         Ok(FrameGain {
             gain: whole.0,
             sigma: whole.1,
-            sides: side(&sides[0]).zip(side(&sides[1])).map(|(l, r)| [l, r]),
+            sides: side(0).zip(side(1)).map(|(l, r)| [l, r]),
         })
     }
 }
@@ -264,18 +264,16 @@ struct StripSums {
     sii: f64,
     sib: f64,
     sbb: f64,
-    sj: f64,
     n: usize,
 }
 
 impl StripSums {
-    fn add(&mut self, column: usize, v: f64, b: f64) {
+    fn add(&mut self, v: f64, b: f64) {
         self.si += v;
         self.sb += b;
         self.sii += v * v;
         self.sib += v * b;
         self.sbb += b * b;
-        self.sj += column as f64;
         self.n += 1;
     }
 
@@ -286,13 +284,8 @@ impl StripSums {
             sii: self.sii + o.sii,
             sib: self.sib + o.sib,
             sbb: self.sbb + o.sbb,
-            sj: self.sj + o.sj,
             n: self.n + o.n,
         }
-    }
-
-    fn mean_column(&self) -> f64 {
-        self.sj / self.n.max(1) as f64
     }
 
     /// `(g, σ_g)`, `None` without light.
@@ -682,6 +675,15 @@ fn strip_side(column: usize, width: usize) -> usize {
     usize::from(column >= width / 2)
 }
 
+/// The mean column of the left (`side` 0) or the right (1) strip's
+/// reference pixels.
+fn strip_mean_column(width: usize, region: GainRegion, side: usize) -> f64 {
+    let (sum, n) = strip_columns(width, region)
+        .filter(|&j| strip_side(j, width) == side)
+        .fold((0, 0), |(sum, n), j| (sum + j, n + 1));
+    sum as f64 / n.max(1) as f64
+}
+
 /// [`ReferenceGains`] from each frame's sums over its left and right
 /// reference strips ([`reference_gains`], [`reference_sum`]), relative to
 /// the first frame.
@@ -700,26 +702,23 @@ pub(super) fn gains_from_sums(
         .iter()
         .map(|s| (s[0] + s[1]) / (s0[0] + s0[1]))
         .collect();
-    let mean_column = |side: usize| {
-        let cols: Vec<usize> = strip_columns(width, region)
-            .filter(|&j| strip_side(j, width) == side)
-            .collect();
-        cols.iter().sum::<usize>() as f64 / cols.len().max(1) as f64
-    };
-    let (xl, xr) = (mean_column(0), mean_column(1));
+    let both_lit = s0[0] > 0.0 && s0[1] > 0.0;
     let inverse_by_column = sums
         .iter()
         .zip(&pooled)
-        .map(|(s, &g)| {
-            if !(s0[0] > 0.0 && s0[1] > 0.0 && xr > xl) {
-                return vec![(1.0 / g) as f32; width];
-            }
-            let (gl, gr) = (s[0] / s0[0], s[1] / s0[1]);
+        .map(|(s, &gain)| {
+            let side = |k: usize| StripGain {
+                column_px: strip_mean_column(width, region, k),
+                gain: s[k] / s0[k],
+                sigma: 0.0,
+            };
+            let light = FrameGain {
+                gain,
+                sigma: 0.0,
+                sides: both_lit.then(|| [side(0), side(1)]),
+            };
             (0..width)
-                .map(|j| {
-                    let u = ((j as f64 - xl) / (xr - xl)).clamp(0.0, 1.0);
-                    (1.0 / (gl + u * (gr - gl))) as f32
-                })
+                .map(|j| (1.0 / light.at(j as f64).0) as f32)
                 .collect()
         })
         .collect();

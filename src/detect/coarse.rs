@@ -293,22 +293,8 @@ impl BinnedBackground {
         // whole: take it out for the call.
         let mut binned = std::mem::take(&mut scratch.binned_frame);
         bin_frame(frame.data, frame.width, wb, hb, &mut binned);
-        let found = self.detect_binned(&binned, gain, surface, params, scratch);
-        scratch.binned_frame = binned;
-        found
-    }
-
-    fn detect_binned(
-        &self,
-        binned: &[u16],
-        gain: f64,
-        surface: Option<&SurfaceLine>,
-        params: &CoarseParams,
-        scratch: &mut CoarseScratch,
-    ) -> Result<Option<Coarse>, DetectError> {
-        let (wb, hb) = (self.binned.width, self.binned.height);
         let band = Band {
-            data: binned,
+            data: &binned,
             row0: 0,
             nrows: hb,
             width: wb,
@@ -322,8 +308,9 @@ impl BinnedBackground {
             line.as_ref(),
             &binned_params(params),
             scratch,
-        )?;
-        Ok(found.map(|c| Coarse {
+        );
+        scratch.binned_frame = binned;
+        Ok(found?.map(|c| Coarse {
             circle: from_binned_circle(&c.circle),
             area_px: 4 * c.area_px,
             ..c

@@ -233,19 +233,20 @@ pub fn step_edge_row(v: &[f64], first_row: f64, e0: f64) -> Option<f64> {
             out.push((hi - (hi - lo) * a, grad));
         }
     };
-    let mut evals = Vec::with_capacity(n);
-    let mut cost = |p: &[f64; 4]| -> f64 {
-        model(p, &mut evals);
-        evals.iter().zip(v).map(|(m, vk)| (m.0 - vk).powi(2)).sum()
+    // The model at `p` into `at`, and its cost.
+    let cost = |p: &[f64; 4], at: &mut Vec<(f64, [f64; 4])>| -> f64 {
+        model(p, at);
+        at.iter().zip(v).map(|(m, vk)| (m.0 - vk).powi(2)).sum()
     };
+    // The model at the current point (an accepted trial's evaluation is
+    // the next step's: the same bits as evaluating it again) and at a trial.
+    let (mut at_p, mut at_q) = (Vec::with_capacity(n), Vec::with_capacity(n));
     let mut p = [e0, 1.0, v[0].max(v[1]), v[n - 1]];
-    let mut c = cost(&p);
+    let mut c = cost(&p, &mut at_p);
     let mut lambda = 1e-3;
     for _ in 0..60 {
         let mut jtj = [[0.0; 4]; 4];
         let mut jtr = [0.0; 4];
-        let mut at_p = Vec::with_capacity(n);
-        model(&p, &mut at_p);
         for (&(m, g), &vk) in at_p.iter().zip(v) {
             let r = m - vk;
             for a in 0..4 {
@@ -270,11 +271,12 @@ pub fn step_edge_row(v: &[f64], first_row: f64, e0: f64) -> Option<f64> {
                 q[a] -= step[a];
             }
             q[1] = q[1].clamp(0.2, 6.0);
-            let cq = cost(&q);
+            let cq = cost(&q, &mut at_q);
             if cq.is_finite() && cq <= c {
                 improved = c - cq > 1e-14 * (1.0 + c);
                 p = q;
                 c = cq;
+                std::mem::swap(&mut at_p, &mut at_q);
                 lambda = (lambda * 0.3).max(1e-9);
                 break;
             }

@@ -87,9 +87,10 @@ impl Lens {
 /// undistorted coordinates: each circle by [`Lens::disc`], the calibrated
 /// radius at the circle nearest the surface (where δ and a are measured),
 /// and the surface line through the scene positions of its points at the
-/// sphere's columns ±R_px.
-pub fn undistort_track(tr: &Track, lens: &Lens) -> Track {
-    let mut out = tr.clone();
+/// sphere's columns ±R_px. Takes the track (a long movie's is tens of
+/// megabytes): pass [`Track::held_only`] for a copy to measure again.
+pub fn undistort_track(tr: Track, lens: &Lens) -> Track {
+    let mut out = tr;
     let mut lowest: Option<(f64, f64)> = None;
     for f in &mut out.frames {
         if let Some(fit) = f.free.as_mut() {
@@ -106,17 +107,18 @@ pub fn undistort_track(tr: &Track, lens: &Lens) -> Track {
     let (x_c, z_c) = lowest.unwrap_or(lens.centre_px);
     // The held radius is one number for the whole track: corrected where
     // the measurement uses it, at the deepest frame.
-    let r = lens.disc(x_c, z_c, tr.radius_px).2;
+    let (radius_px, surface) = (out.radius_px, out.surface);
+    let r = lens.disc(x_c, z_c, radius_px).2;
     for f in &mut out.frames {
         if let Some(h) = f.held.as_mut() {
             h.r_px = r;
         }
     }
     out.radius_px = r;
-    let half = tr.radius_px.max(1.0);
+    let half = radius_px.max(1.0);
     let (xa, xb) = (x_c - half, x_c + half);
-    let (ua, ra) = lens.point(xa, tr.surface.row_at(xa));
-    let (ub, rb) = lens.point(xb, tr.surface.row_at(xb));
+    let (ua, ra) = lens.point(xa, surface.row_at(xa));
+    let (ub, rb) = lens.point(xb, surface.row_at(xb));
     let slope = (rb - ra) / (ub - ua);
     out.surface.slope = slope;
     out.surface.row0_px = ra - slope * ua;

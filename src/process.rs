@@ -420,7 +420,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
     let camera = &cfg.camera;
     if let Some(k1) = camera.distortion_k1_per_px2 {
-        tr = undistort_track(&tr, &Lens::new(k1, meta.width, meta.height));
+        tr = undistort_track(tr, &Lens::new(k1, meta.width, meta.height));
     }
     let curvature_of = |tr: &Track| {
         let points = track_points(tr, |_| (None, None));
@@ -431,7 +431,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
     let bounded = (camera.distortion_k1_per_px2.is_none() && camera.distortion_bound_px > 0.0)
         .then(|| {
             let lens = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
-            let b = undistort_track(&tr, &lens);
+            let b = undistort_track(tr.held_only(), &lens);
             let (points, curvature) = time(Stage::Events, || curvature_of(&b));
             crate::lens::Bounded {
                 points,

@@ -263,6 +263,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         }
         Ok(())
     })?;
+    drop(copies);
     let Walk {
         mut frames,
         kept_points,
@@ -277,17 +278,20 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         return Err(TrackError::NoSphere { frames: n });
     }
 
-    // 3. Calibration.
-    let free: Vec<CircleFit> = frames.iter().filter_map(|f| f.free).collect();
-    let cal = timings::time(Stage::Pass1, || {
-        calibrate_radius(&free, w, h, Some(&surface), &st.edge, 3)
-    })
-    .ok_or_else(|| TrackError::NoCalibration {
-        found: free
+    // 3. Calibration (its list of the free fits gone before pass 2, the
+    // tracker's peak of memory).
+    // Only the whole circles: the only fits the calibration takes.
+    let cal = {
+        let whole: Vec<CircleFit> = frames
             .iter()
+            .filter_map(|f| f.free)
             .filter(|f| full_circle(f, w, h, Some(&surface), &st.edge))
-            .count(),
-    })?;
+            .collect();
+        timings::time(Stage::Pass1, || {
+            calibrate_radius(&whole, w, h, Some(&surface), &st.edge, 3)
+        })
+        .ok_or(TrackError::NoCalibration { found: whole.len() })?
+    };
     // The statistical error of a median misses the method's systematic
     // error, measured on rendered drops at up to 0.0016 px (realistic
     // preset) and 0.0037 px (harsh): a floor of 0.002 px is added in quadrature.
@@ -465,6 +469,22 @@ fn remeasure(
 }
 
 impl Track {
+    /// A copy with only the frames that have a held fit, the frames the
+    /// events measure from ([`undistort_track`](crate::lens::undistort_track)
+    /// moves the held circles as in the whole track).
+    pub fn held_only(&self) -> Track {
+        Track {
+            frames: self
+                .frames
+                .iter()
+                .filter(|f| f.held.is_some())
+                .cloned()
+                .collect(),
+            background: self.background.clone(),
+            ..*self
+        }
+    }
+
     /// One-sigma uncertainty of the surface row at column `x_px`: the line
     /// fit's, plus [`SURFACE_SYSTEMATIC_PX`] and the edge model's error
     /// ([`SurfaceLine::model_err_px`]) in quadrature for a detected line (a line from the configuration is taken as given).
@@ -843,9 +863,11 @@ impl Walk {
         let (kept_points, max) = (&mut self.kept_points, self.kept_points_max);
         self.kept.push(seen.points.as_ref().map(|(c, sigma, pts)| {
             let start = kept_points.len();
-            if start + pts.len() > max {
+            let end = start + pts.len();
+            if end > max {
                 return Kept::Again(seen.look);
             }
+            reserve_within(kept_points, end, max);
             kept_points.extend_from_slice(pts);
             Kept::Points {
                 start,
@@ -857,6 +879,16 @@ impl Walk {
         let w = meta.width;
         self.frames.push(self.state.step(meta, i, &seen, w));
         Ok(())
+    }
+}
+
+/// Room in `buf` for `end` items (`end` ≤ `max`): grown by doubling as
+/// `extend` would, but never past `max` (doubling took a long movie's kept
+/// points to 22 MB for a 16 MB budget).
+fn reserve_within<T>(buf: &mut Vec<T>, end: usize, max: usize) {
+    if end > buf.capacity() {
+        let cap = (2 * buf.capacity()).max(end).min(max);
+        buf.reserve_exact(cap - buf.len());
     }
 }
 
@@ -1240,5 +1272,28 @@ mod tests {
         // (σ_z ≈ 0.004 px here; measured max |Δz| 0.0018 px).
         assert!(worst.0 < 0.03 && worst.1 < 0.03, "{worst:?}");
         assert!(worst.2 < 0.005, "{worst:?}");
+    }
+
+    #[test]
+    fn the_kept_points_never_hold_more_room_than_their_budget() {
+        // Frames of 37 to 59 points into a budget that is no power of two:
+        // plain doubling would end at 2 048 or 4 096 points.
+        let max = 3_000;
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let (mut buf, mut grown) = (Vec::<[f32; 2]>::new(), 0);
+        loop {
+            let end = buf.len() + rng.gen_range(37..60);
+            if end > max {
+                break;
+            }
+            let cap = buf.capacity();
+            reserve_within(&mut buf, end, max);
+            grown += usize::from(buf.capacity() != cap);
+            buf.resize(end, [0.0; 2]);
+            assert!(buf.capacity() <= max, "{} > {max}", buf.capacity());
+        }
+        assert!(buf.len() > max - 60);
+        // Still grown by doubling: a handful of reallocations, not one a frame.
+        assert!(grown <= 10, "{grown} reallocations");
     }
 }

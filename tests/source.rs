@@ -223,7 +223,7 @@ fn time_stamps_are_monotonic_and_spaced_by_the_saved_frame_rate() {
         // (seen: cam_1 63.853 µs vs ShutterNs 65 000, cine_781 9.696 µs vs 10 µs).
         let e = m.details.exposures_s.as_ref().expect("tag 1003");
         let setup = m.exposure_s.unwrap();
-        for x in e {
+        for x in e.iter() {
             assert!((x / setup - 1.0).abs() < 0.05, "{}: {x} vs {setup}", k.file);
         }
     }
@@ -238,6 +238,45 @@ fn time_stamps_are_monotonic_and_spaced_by_the_saved_frame_rate() {
     };
     assert!((t("pims/cine_legacy.cine") + 0.22005).abs() < 1e-5);
     assert!((t("pims/cine_781.cine") + 0.60167).abs() < 1e-5);
+}
+
+#[test]
+fn clones_of_a_cine_share_its_per_frame_tables_and_read_the_same_frames() {
+    // A long movie's per-frame tables (image numbers, times, exposures) are
+    // megabytes, and a run reads it through several clones at once: they
+    // are shared, not copied, by clones of the source and of its metadata.
+    let path = sample("pims/cine_legacy.cine");
+    let mut src = open_default(&path).unwrap();
+    let mut a = src.try_clone().expect("a clone");
+    let mut b = a.try_clone().expect("a clone of the clone");
+    let copy = src.meta().clone();
+    let n = src.meta().frame_count;
+    assert!(n >= 2, "{n} frames");
+    for m in [a.meta(), b.meta(), &copy] {
+        let m0 = src.meta();
+        assert!(std::ptr::eq(
+            m0.frame_numbers.as_ptr(),
+            m.frame_numbers.as_ptr()
+        ));
+        let t = |m: &dropscope::source::SourceMeta| m.timestamps_s.as_deref().unwrap().as_ptr();
+        assert!(std::ptr::eq(t(m0), t(m)), "tag 1002 times copied");
+        let e =
+            |m: &dropscope::source::SourceMeta| m.details.exposures_s.as_deref().unwrap().as_ptr();
+        assert!(std::ptr::eq(e(m0), e(m)), "tag 1003 exposures copied");
+    }
+    // The image records' checked annotation sizes are shared too: frames
+    // read first by one clone read the same through the others.
+    let (h, w) = (src.meta().height, src.meta().width);
+    let mut fresh = open_default(&path).unwrap();
+    for i in [n - 1, 0, n / 2] {
+        let mut want = Frame::zeros((h, w));
+        fresh.read_into(i, &mut want).unwrap();
+        for s in [&mut b, &mut a, &mut src] {
+            let mut got = Frame::zeros((h, w));
+            s.read_into(i, &mut got).unwrap();
+            assert_eq!(got, want, "frame {i}");
+        }
+    }
 }
 
 #[test]
@@ -935,7 +974,7 @@ fn a_folder_with_negative_numbers_a_gap_a_stray_file_and_an_xml() {
     write_pcc_xml(&dir.path().join("drop.xml"), &numbers, 8000.0, 12);
     let mut src = open_default(dir.path()).unwrap();
     let m = src.meta().clone();
-    assert_eq!(m.frame_numbers, numbers);
+    assert_eq!(*m.frame_numbers, numbers);
     assert_eq!(m.first_frame, -3);
     assert_eq!(m.gaps, vec![(2, 2), (4, 9)]);
     assert_eq!((m.fps, m.bit_depth), (8000.0, 12));
@@ -1105,7 +1144,7 @@ fn export_writes_stored_values_as_16_bit_png_named_by_frame_index() {
         ..OpenOptions::default()
     };
     let back = open(dir.path(), &opts).unwrap();
-    assert_eq!(back.meta().frame_numbers, vec![2, 3]);
+    assert_eq!(*back.meta().frame_numbers, [2, 3]);
 }
 
 /// Issue 17 item 1 (of what remained): names sort in frame order in a plain

@@ -20,6 +20,8 @@
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Arc;
 
 use ndarray::ArrayViewMut2;
 
@@ -216,9 +218,9 @@ impl CineHeader {
 pub struct CineLayout {
     pub header: CineHeader,
     /// Tag 1002 time of each image relative to TriggerTime, seconds.
-    pub timestamps_s: Option<Vec<f64>>,
+    pub timestamps_s: Option<Arc<[f64]>>,
     /// Tag 1003 exposure of each image, seconds.
-    pub exposures_s: Option<Vec<f64>>,
+    pub exposures_s: Option<Arc<[f64]>>,
     /// Absolute file offset of each image record.
     pub image_offsets: Vec<u64>,
     /// Tagged block types in file order.
@@ -524,12 +526,16 @@ pub fn parse_layout(data: &[u8], file_len: u64) -> Result<CineLayout, String> {
 #[derive(Debug)]
 pub struct CineSource {
     meta: SourceMeta,
-    layout: CineLayout,
+    /// Shared with the source's clones, as are the annotation sizes: a long
+    /// movie's per-image tables are megabytes, and a run reads it through
+    /// several clones at once.
+    layout: Arc<CineLayout>,
     file: File,
     file_len: u64,
     options: OpenOptions,
-    /// Annotation size of each image once read (0 = not yet read).
-    annotation: Vec<u32>,
+    /// Annotation size of each image once read and checked (0 = not yet):
+    /// the same for every clone, whichever read it first.
+    annotation: Arc<[AtomicU32]>,
     bytes: Vec<u8>,
     row_scratch: Vec<u16>,
 }
@@ -570,10 +576,12 @@ impl CineSource {
         let layout = parse_layout(&data, file_len).map_err(fmt)?;
         let mut meta = build_meta(path, &layout, options);
         super::validate::check_meta(&mut meta)?;
-        let annotation = vec![0; layout.image_offsets.len()];
+        let annotation = (0..layout.image_offsets.len())
+            .map(|_| AtomicU32::new(0))
+            .collect();
         let mut src = CineSource {
             meta,
-            layout,
+            layout: Arc::new(layout),
             file,
             file_len,
             options: options.clone(),
@@ -636,34 +644,36 @@ impl CineSource {
             path: self.meta.path.clone(),
             source,
         };
-        if self.annotation[index] == 0 {
-            let mut head = [0u8; 4];
-            // Positioned: copies of the source share the file's offset.
-            read_exact_at(&mut self.file, start, &mut head).map_err(io)?;
-            let annot = u32::from_le_bytes(head);
-            let expect = self.layout.header.image_bytes();
-            // The image must fit before the end of the file and before the
-            // next image when that follows this one.
-            let limit = match self.layout.image_offsets.get(index + 1) {
-                Some(&next) if next > start => next.min(self.file_len),
-                _ => self.file_len,
-            };
-            if !(8..=MAX_ANNOTATION).contains(&annot) || start + u64::from(annot) + expect > limit {
-                return Err(self.frame_err(
-                    index,
-                    format!(
-                        "annotation size {annot} at byte {start} leaves no room for the \
-                         {expect}-byte image before byte {limit}: truncated or corrupt"
-                    ),
-                ));
-            }
-            // ImageSize (last 4 annotation bytes) is informative only: the
-            // pixel size follows from width, height and packing. A mismatch
-            // (packed_10.cine stores 0xE4005000 for 0x5000) is tolerated as
-            // long as the computed image fits, which was just checked.
-            self.annotation[index] = annot;
+        let known = self.annotation[index].load(Ordering::Relaxed);
+        if known != 0 {
+            return Ok(start + u64::from(known));
         }
-        Ok(start + u64::from(self.annotation[index]))
+        let mut head = [0u8; 4];
+        // Positioned: copies of the source share the file's offset.
+        read_exact_at(&mut self.file, start, &mut head).map_err(io)?;
+        let annot = u32::from_le_bytes(head);
+        let expect = self.layout.header.image_bytes();
+        // The image must fit before the end of the file and before the
+        // next image when that follows this one.
+        let limit = match self.layout.image_offsets.get(index + 1) {
+            Some(&next) if next > start => next.min(self.file_len),
+            _ => self.file_len,
+        };
+        if !(8..=MAX_ANNOTATION).contains(&annot) || start + u64::from(annot) + expect > limit {
+            return Err(self.frame_err(
+                index,
+                format!(
+                    "annotation size {annot} at byte {start} leaves no room for the \
+                     {expect}-byte image before byte {limit}: truncated or corrupt"
+                ),
+            ));
+        }
+        // ImageSize (last 4 annotation bytes) is informative only: the
+        // pixel size follows from width, height and packing. A mismatch
+        // (packed_10.cine stores 0xE4005000 for 0x5000) is tolerated as
+        // long as the computed image fits, which was just checked.
+        self.annotation[index].store(annot, Ordering::Relaxed);
+        Ok(start + u64::from(annot))
     }
 }
 

@@ -9,6 +9,7 @@
 
 use ndarray::{Array2, ArrayViewMut1, ArrayViewMut2};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 pub mod cine;
 pub mod cine_write;
@@ -58,12 +59,14 @@ pub struct SourceMeta {
     /// Camera image number of frame index 0 (negative = before the trigger).
     pub first_frame: i64,
     /// The camera image number of every readable frame, ascending.
-    /// Consecutive unless the sequence has gaps.
-    pub frame_numbers: Vec<i64>,
+    /// Consecutive unless the sequence has gaps. The per-frame tables are
+    /// shared, not copied, by the clones of a source and of its metadata (a
+    /// long movie's tables are megabytes).
+    pub frame_numbers: Arc<[i64]>,
     /// Missing image numbers as inclusive ranges `(first, last)`.
     pub gaps: Vec<(i64, i64)>,
     /// Per-frame time in seconds relative to the trigger, where the file has it.
-    pub timestamps_s: Option<Vec<f64>>,
+    pub timestamps_s: Option<Arc<[f64]>>,
     /// Everything else the headers say (levels, flips, per-frame exposures, camera).
     pub details: SourceDetails,
 }
@@ -86,7 +89,7 @@ pub struct SourceDetails {
     /// ([`OpenOptions::apply_flips`]); false means storage order.
     pub flips_applied: bool,
     /// Per-frame exposure in seconds (cine tag 1003, PCC XML EXPOSUREBLOCK).
-    pub exposures_s: Option<Vec<f64>>,
+    pub exposures_s: Option<Arc<[f64]>>,
     /// Acquisition frame rate before save decimation (cine), frames per second.
     pub acquisition_fps: Option<f64>,
     /// Save decimation (cine SETUP.fDecimation); 1 when absent.

@@ -222,7 +222,7 @@ mod tests {
             exposure_s,
             frame_numbers: (0..n as i64).collect(),
             frame_count: n,
-            timestamps_s: ts,
+            timestamps_s: ts.map(Into::into),
             details: SourceDetails {
                 decimation: 1.0,
                 ..SourceDetails::default()

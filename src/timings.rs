@@ -130,6 +130,7 @@ pub fn thread_cpu_s() -> f64 {
 
 /// A stage open on this thread: when it started, and its inner stages' time.
 struct Open {
+    stage: Stage,
     wall0: Instant,
     cpu0: f64,
     inner_wall_s: f64,
@@ -173,6 +174,7 @@ pub fn start(stage: Stage) -> Option<Timed> {
     }
     OPEN.with(|open| {
         open.borrow_mut().push(Open {
+            stage,
             wall0: Instant::now(),
             cpu0: thread_cpu_s(),
             inner_wall_s: 0.0,
@@ -180,6 +182,13 @@ pub fn start(stage: Stage) -> Option<Timed> {
         })
     });
     Some(Timed(stage))
+}
+
+/// The innermost stage open on this thread (`None` with timings off): for
+/// work this stage hands to another thread ([`rayon::join`]), which is
+/// timed as the same stage with [`start`] there.
+pub fn current() -> Option<Stage> {
+    OPEN.with(|open| open.borrow().last().map(|o| o.stage))
 }
 
 /// Run `work` as (part of) `stage`.
@@ -292,6 +301,25 @@ mod tests {
             collapse_wall + report_wall <= outside_s + 1e-6,
             "collapse {collapse_wall} s + report {report_wall} s > {outside_s} s"
         );
+        // Work this stage hands to another thread, timed there as the stage
+        // `current` names, is counted in it: 20 ms of the other thread's CPU.
+        let before = sums();
+        time(Stage::Collapse, || {
+            let stage = current();
+            assert_eq!(stage, Some(Stage::Collapse));
+            std::thread::scope(|s| {
+                s.spawn(|| {
+                    assert_eq!(current(), None, "a new thread has no stage open");
+                    let _timed = stage.and_then(start);
+                    let c0 = thread_cpu_s();
+                    while thread_cpu_s() - c0 < 0.02 {
+                        std::hint::black_box(0);
+                    }
+                });
+            });
+        });
+        let handed_cpu = sums()[Stage::Collapse.index()].2 - before[Stage::Collapse.index()].2;
+        assert!(handed_cpu >= 0.02, "{handed_cpu} s");
         let t = table(3, 0.2, 2);
         for s in Stage::ALL {
             assert!(t.contains(s.name()), "{} missing:\n{t}", s.name());

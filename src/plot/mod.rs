@@ -133,16 +133,19 @@ pub(crate) fn render_both<F1, F2>(
     draw_png: F2,
 ) -> Result<Vec<(String, Vec<u8>)>, CollapseError>
 where
-    F1: FnOnce(&DrawingArea<SVGBackend, Shift>) -> DrawResult,
-    F2: FnOnce(&DrawingArea<BitMapBackend, Shift>) -> DrawResult,
+    F1: FnOnce(&DrawingArea<SVGBackend, Shift>) -> DrawResult + Send,
+    F2: FnOnce(&DrawingArea<BitMapBackend, Shift>) -> DrawResult + Send,
 {
     register_fonts();
     let perr = |e: Box<dyn std::error::Error>| CollapseError::Plot {
         name: stem.to_string(),
         message: e.to_string(),
     };
-    let mut svg = String::new();
-    {
+    // The two formats at once (a single drop's figures are the end of its
+    // `process`, one core otherwise idle). The SVG is drawn on this thread,
+    // whose hover list it fills and empties; the PNG draws no hover target.
+    let svg = || -> Result<String, CollapseError> {
+        let mut svg = String::new();
         HOVER.with(|h| *h.borrow_mut() = Some(Vec::new()));
         let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
         let drawn = root
@@ -153,19 +156,24 @@ where
         let targets = HOVER.with(|h| h.borrow_mut().take()).unwrap_or_default();
         drawn?;
         drop(root);
-        svg = with_hover(svg, &targets);
-    }
-    let mut rgb = vec![255u8; size.0 as usize * size.1 as usize * 3];
-    {
-        let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| perr(e.into()))?;
-        draw_png(&root).map_err(perr)?;
-        root.present().map_err(|e| perr(e.into()))?;
-    }
-    let png = crate::detect::overlay::rgb_png(&rgb, size.0, size.1).map_err(|e| perr(e.into()))?;
+        Ok(with_hover(svg, &targets))
+    };
+    let stage = crate::timings::current();
+    let png = || -> Result<Vec<u8>, CollapseError> {
+        let _timed = stage.and_then(crate::timings::start);
+        let mut rgb = vec![255u8; size.0 as usize * size.1 as usize * 3];
+        {
+            let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
+            root.fill(&WHITE).map_err(|e| perr(e.into()))?;
+            draw_png(&root).map_err(perr)?;
+            root.present().map_err(|e| perr(e.into()))?;
+        }
+        crate::detect::overlay::rgb_png(&rgb, size.0, size.1).map_err(|e| perr(e.into()))
+    };
+    let (svg, png) = rayon::join(svg, png);
     Ok(vec![
-        (format!("{stem}.svg"), svg.into_bytes()),
-        (format!("{stem}.png"), png),
+        (format!("{stem}.svg"), svg?.into_bytes()),
+        (format!("{stem}.png"), png?),
     ])
 }
 

@@ -33,7 +33,7 @@ use common::thread_cpu_s;
 use dropscope::config::DetectConfig;
 use dropscope::source::memory::MemorySource;
 use dropscope::source::{open, FrameSource, OpenOptions};
-use dropscope::track::{background_and_surface, track, TrackSettings};
+use dropscope::track::{background_and_surface, track, Flag, TrackSettings};
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -164,8 +164,8 @@ fn main() {
             mean_iter(&|f| f.held.map(|c| c.iterations)),
         );
         let pts = mean_iter(&|f| f.held.map(|c| c.n_used));
-        let flagged = |name: &str| t.frames.iter().filter(|f| f.flags.contains(&name)).count();
-        let (partial, missing) = (flagged("partial"), flagged("missing"));
+        let flagged = |f: Flag| t.frames.iter().filter(|x| x.flags.contains(f)).count();
+        let (partial, missing) = (flagged(Flag::Partial), flagged(Flag::Missing));
         let run = || {
             std::hint::black_box(track(&mut &m, &st).expect("track"));
         };

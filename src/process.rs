@@ -706,7 +706,7 @@ fn track_points(
 ) -> Vec<TrackPoint> {
     tr.frames
         .iter()
-        .filter(|f| !f.flags.contains(&"partial"))
+        .filter(|f| !f.flags.contains(crate::track::Flag::Partial))
         .filter_map(|f| {
             let h = f.held?;
             let (hw, hw_err) = f.free.as_ref().map_or((None, None), &half_width);
@@ -821,9 +821,9 @@ fn half_width(
     }
     let a = (r * r - d * d).sqrt();
     let err = match f.cov {
-        crate::detect::Covariance::Full(c) => {
+        crate::detect::Covariance::Full([_, _, _, zz, zr, rr]) => {
             let (gr, gz) = (r / a, d / a);
-            (gr * gr * c[2][2] + gz * gz * c[1][1] + 2.0 * gr * gz * c[1][2])
+            (gr * gr * rr + gz * gz * zz + 2.0 * gr * gz * zr)
                 .max(0.0)
                 .sqrt()
         }
@@ -851,7 +851,7 @@ fn track_rows(tr: &Track) -> Vec<TrackRow> {
                 delta_mm: None,
                 sigma_z_px: fit.map(|c| c.cov.sigma_z_px()),
                 force_n: None,
-                flags: f.flags.join(" "),
+                flags: f.flags.text(),
             }
         })
         .collect()

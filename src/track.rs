@@ -124,8 +124,58 @@ pub struct FrameTrack {
     pub free: Option<CircleFit>,
     /// Pass 2: radius held at the calibrated R_px.
     pub held: Option<CircleFit>,
-    /// `missing`, `recovered`, `partial` (the circle leaves the frame).
-    pub flags: Vec<&'static str>,
+    /// `recovered`, `partial` (the circle leaves the frame), `missing`.
+    pub flags: FrameFlags,
+}
+
+/// One of a frame's [`FrameFlags`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Flag {
+    /// Found again by a search after frames without a fit.
+    Recovered,
+    /// The circle leaves the frame.
+    Partial,
+    /// Looked for and not found (or its held fit failed).
+    Missing,
+}
+
+impl Flag {
+    const ALL: [Flag; 3] = [Flag::Recovered, Flag::Partial, Flag::Missing];
+
+    /// The flag's word in the track CSV.
+    pub fn name(self) -> &'static str {
+        match self {
+            Flag::Recovered => "recovered",
+            Flag::Partial => "partial",
+            Flag::Missing => "missing",
+        }
+    }
+}
+
+/// A frame's flags: one byte a frame, not a list (a long movie's track
+/// holds a record a frame).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FrameFlags(u8);
+
+impl FrameFlags {
+    pub fn insert(&mut self, f: Flag) {
+        self.0 |= 1 << f as u8;
+    }
+
+    pub fn contains(self, f: Flag) -> bool {
+        self.0 & (1 << f as u8) != 0
+    }
+
+    /// The flags' words, space-separated, in [`Flag`]'s order (the order
+    /// the tracker sets them in); empty without flags.
+    pub fn text(self) -> String {
+        let words: Vec<&str> = Flag::ALL
+            .into_iter()
+            .filter(|&f| self.contains(f))
+            .map(Flag::name)
+            .collect();
+        words.join(" ")
+    }
 }
 
 /// A tracked run.
@@ -381,7 +431,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
             &mut es,
         )?;
         if ft.held.is_none() {
-            ft.flags.push("missing");
+            ft.flags.insert(Flag::Missing);
         }
     }
     Ok(Track {
@@ -409,7 +459,7 @@ fn settle(ft: &mut FrameTrack, h: Held) -> Option<Circle> {
         Held::Reread(p) => return Some(p),
     };
     if ft.held.is_none() {
-        ft.flags.push("missing");
+        ft.flags.insert(Flag::Missing);
     }
     None
 }
@@ -667,11 +717,11 @@ impl Pass1State {
     ) -> FrameTrack {
         let t = meta.time_s(i);
         let number = meta.frame_numbers.get(i).copied().unwrap_or(i as i64);
-        let mut flags = Vec::new();
+        let mut flags = FrameFlags::default();
         let looked = match seen.look {
             Look::Search => {
                 if seen.found && self.fits > 0 {
-                    flags.push("recovered");
+                    flags.insert(Flag::Recovered);
                 }
                 seen.found
             }
@@ -687,12 +737,12 @@ impl Pass1State {
                 }
                 self.history.push((t, f.circle()));
                 if f.z_px - f.r_px < 0.0 || f.x_px - f.r_px < 0.0 || f.x_px + f.r_px > w as f64 {
-                    flags.push("partial");
+                    flags.insert(Flag::Partial);
                 }
             }
             None => {
                 if looked {
-                    flags.push("missing");
+                    flags.insert(Flag::Missing);
                 }
                 self.misses += 1;
                 if self.misses >= 2 {
@@ -1295,5 +1345,19 @@ mod tests {
         assert!(buf.len() > max - 60);
         // Still grown by doubling: a handful of reallocations, not one a frame.
         assert!(grown <= 10, "{grown} reallocations");
+    }
+
+    #[test]
+    fn a_frames_flags_are_written_in_one_order_whatever_the_order_set() {
+        let mut f = FrameFlags::default();
+        assert_eq!(f.text(), "");
+        f.insert(Flag::Missing);
+        f.insert(Flag::Recovered);
+        assert!(f.contains(Flag::Missing) && !f.contains(Flag::Partial));
+        assert_eq!(f.text(), "recovered missing");
+        f.insert(Flag::Partial);
+        f.insert(Flag::Missing);
+        assert_eq!(f.text(), "recovered partial missing");
+        assert_eq!(std::mem::size_of::<FrameFlags>(), 1);
     }
 }

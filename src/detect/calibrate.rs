@@ -136,7 +136,7 @@ mod tests {
             x_px: x,
             z_px: z,
             r_px: r,
-            cov: Covariance::Full([[0.0; 3]; 3]),
+            cov: Covariance::Full([0.0; 6]),
             residual_px: 0.0,
             n_used: 100,
             inliers: 100,

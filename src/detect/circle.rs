@@ -46,34 +46,44 @@ pub struct Circle {
     pub r_px: f64,
 }
 
-/// The covariance of a fit's parameters, in px².
+/// The covariance of a fit's parameters, in px²: the upper triangle of the
+/// symmetric matrix, row by row (a track holds two fits a frame: 24 bytes
+/// less each than the whole matrix).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Covariance {
-    /// `(x, z, r)` fitted: 3×3 in that order.
-    Full([[f64; 3]; 3]),
-    /// Radius held: `(x, z)` only.
-    CentreOnly([[f64; 2]; 2]),
+    /// `(x, z, r)` fitted: `[xx, xz, xr, zz, zr, rr]`.
+    Full([f64; 6]),
+    /// Radius held: `(x, z)` only, `[xx, xz, zz]`.
+    CentreOnly([f64; 3]),
 }
 
 impl Covariance {
+    /// `(x, z, r)` from the whole matrix (its upper triangle).
+    pub fn full(c: &[[f64; 3]; 3]) -> Self {
+        Covariance::Full([c[0][0], c[0][1], c[0][2], c[1][1], c[1][2], c[2][2]])
+    }
+    /// `(x, z)` from the whole matrix (its upper triangle).
+    pub fn centre_only(c: &[[f64; 2]; 2]) -> Self {
+        Covariance::CentreOnly([c[0][0], c[0][1], c[1][1]])
+    }
     /// Standard deviation of the centre column.
     pub fn sigma_x_px(&self) -> f64 {
         match self {
-            Covariance::Full(c) => c[0][0].sqrt(),
-            Covariance::CentreOnly(c) => c[0][0].sqrt(),
+            Covariance::Full(c) => c[0].sqrt(),
+            Covariance::CentreOnly(c) => c[0].sqrt(),
         }
     }
     /// Standard deviation of the centre row.
     pub fn sigma_z_px(&self) -> f64 {
         match self {
-            Covariance::Full(c) => c[1][1].sqrt(),
-            Covariance::CentreOnly(c) => c[1][1].sqrt(),
+            Covariance::Full(c) => c[3].sqrt(),
+            Covariance::CentreOnly(c) => c[2].sqrt(),
         }
     }
     /// Standard deviation of the radius; `None` when it was held.
     pub fn sigma_r_px(&self) -> Option<f64> {
         match self {
-            Covariance::Full(c) => Some(c[2][2].sqrt()),
+            Covariance::Full(c) => Some(c[5].sqrt()),
             Covariance::CentreOnly(_) => None,
         }
     }
@@ -562,13 +572,13 @@ fn fit_circle_lanes<V: Lanes>(
                 cov[a][b] += sb2 * v[a] * v[b];
             }
         }
-        Covariance::CentreOnly(cov)
+        Covariance::centre_only(&cov)
     } else {
         let inv = inverse_spd(&jtj).ok_or_else(degenerate)?;
         let mut cov = sandwich(&inv, &meat, last.n_in, 3);
         // A free radius absorbs a uniform shift: it adds σ_b² to var(r) only.
         cov[2][2] += sb2;
-        Covariance::Full(cov)
+        Covariance::full(&cov)
     };
     Ok(CircleFit {
         x_px: c.x_px,

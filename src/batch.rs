@@ -327,7 +327,7 @@ fn run_setup(
                 .clone()
                 .unwrap_or_else(|| cache::Fingerprint::unreadable(&r.path)),
             outputs,
-            frames: o.track.len(),
+            frames: o.track_rows,
             record: o.record,
             scene: o.scene,
             scene_key: fp.as_ref().map(|fp| cache::scene_key(cfg, r, fp)),

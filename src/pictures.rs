@@ -6,7 +6,6 @@
 
 use image::RgbImage;
 
-use crate::dataset::TrackRow;
 use crate::detect::overlay::{encode_indexed_apng, overlay, to_indexed, IndexedFrame, OverlayView};
 use crate::detect::Band;
 use crate::plot::{with_caption, Caption};
@@ -33,8 +32,8 @@ pub struct Pictures<'a> {
     pub meta: &'a SourceMeta,
     pub track: &'a Track,
     pub settings: &'a TrackSettings,
-    /// The track's rows with δ filled in (same order as `track.frames`).
-    pub rows: &'a [TrackRow],
+    /// A frame's δ as its row of the track CSV gives it.
+    pub delta_mm: &'a (dyn Fn(&FrameTrack) -> Option<f64> + Sync),
     pub mm_per_px: f64,
 }
 
@@ -53,7 +52,7 @@ impl Pictures<'_> {
             meta: self.meta,
             track: self.track,
             settings: self.settings,
-            rows: self.rows,
+            delta_mm: self.delta_mm,
             mm_per_px: self.mm_per_px,
         };
         (&mut *self.source, on)
@@ -190,7 +189,7 @@ struct Drawn<'a> {
     meta: &'a SourceMeta,
     track: &'a Track,
     settings: &'a TrackSettings,
-    rows: &'a [TrackRow],
+    delta_mm: &'a (dyn Fn(&FrameTrack) -> Option<f64> + Sync),
     mm_per_px: f64,
 }
 
@@ -230,11 +229,7 @@ impl Drawn<'_> {
             Some(&c),
             Some(&self.track.surface),
         );
-        let delta_mm = self
-            .rows
-            .iter()
-            .find(|r| r.frame == ft.frame)
-            .and_then(|r| r.delta_mm);
+        let delta_mm = (self.delta_mm)(ft);
         let caption = Caption {
             frame: ft.frame,
             t_s: ft.t_s,

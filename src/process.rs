@@ -16,7 +16,7 @@ use crate::quality;
 use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
 use crate::setup_infer::SceneSignature;
 use crate::source::{open, OpenOptions};
-use crate::track::{track, Track, TrackSettings};
+use crate::track::{track, FrameTrack, Track, TrackSettings};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -65,7 +65,10 @@ pub struct ProcessArgs {
 #[derive(Debug, Clone)]
 pub struct RunOutcome {
     pub record: DropRecord,
-    pub track: Vec<TrackRow>,
+    /// The track CSV's bytes (empty for a run that failed).
+    pub track_csv: Vec<u8>,
+    /// Its rows (one a frame of the movie).
+    pub track_rows: usize,
     /// PNG bytes of the overlay at maximum penetration.
     pub overlay: Option<Vec<u8>>,
     /// Overlays of the frames asked for: (image number, PNG bytes).
@@ -218,7 +221,8 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
     record.path = run.path.display().to_string();
     RunOutcome {
         record,
-        track: Vec::new(),
+        track_csv: Vec::new(),
+        track_rows: 0,
         overlay: None,
         frame_overlays: Vec::new(),
         impact: None,
@@ -518,7 +522,6 @@ fn measure_run(
         sphere_density_kg_m3: run.sphere_density_kg_m3.unwrap_or(cfg.sphere.density_kg_m3),
         surface: surface_name,
     };
-    let mut rows = track_rows(&tr);
     let failed = |e: crate::events::EventError| format!("{}: {e}", run.path.display());
     let mut m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
     // The surface: the image's line, checked against (and moved to) where
@@ -537,9 +540,16 @@ fn measure_run(
         let points = track_points(&tr, |f| half_width(f, offset_px_edge, &geom));
         m = measure_drop_with(&info, &points, &geom, &event_cfg, Some(&m.law)).map_err(failed)?;
     }
-    annotate_track(&mut rows, &m, &geom);
+    // A frame's row of the track CSV, with contact, δ and force: made
+    // when written, one at a time (a long movie's rows, 168 bytes a frame,
+    // were held beside its track).
+    let row_of = |f: &FrameTrack| {
+        let mut row = track_row(f);
+        annotate_track(std::slice::from_mut(&mut row), &m, &geom);
+        row
+    };
     let law_offset = m.law.as_ref().ok().and_then(|l| l.surface_offset_px);
-    let mut record = m.record;
+    let mut record = m.record.clone();
     if let (Ok(law), Some(off), true) = (&m.law, law_offset, surface_source != "image") {
         // n and K (n free) were fitted on the image's line: the two
         // surfaces' disagreement is an uncertainty of that line they carry.
@@ -627,7 +637,7 @@ fn measure_run(
         meta: &meta,
         track: &tr,
         settings: &settings,
-        rows: &rows,
+        delta_mm: &|f| row_of(f).delta_mm,
         mm_per_px: sc.mm_per_px,
     };
     let overlay = record.t_max_s.and_then(|t_max| {
@@ -651,7 +661,8 @@ fn measure_run(
         .and_then(|t| pictures.impact(t, record.t_rebound_s));
     Ok(RunOutcome {
         record,
-        track: rows,
+        track_csv: crate::dataset::csv_bytes(tr.frames.iter().map(row_of)),
+        track_rows: tr.frames.len(),
         overlay,
         frame_overlays,
         impact,
@@ -832,34 +843,26 @@ fn half_width(
     (Some(a), Some(err.max(1e-4)))
 }
 
-fn track_rows(tr: &Track) -> Vec<TrackRow> {
-    tr.frames
-        .iter()
-        .map(|f| {
-            let fit = f.held.or(f.free);
-            TrackRow {
-                frame: f.frame,
-                // To the nanosecond: a time computed as frame / fps carries
-                // float noise (-0.0030000000000001137) no clock has.
-                t_s: (f.t_s * 1e9).round() / 1e9,
-                x_px: fit.map(|c| c.x_px),
-                z_px: fit.map(|c| c.z_px),
-                r_px: fit.map(|c| c.r_px),
-                residual_px: fit.map(|c| c.residual_px),
-                edge_points: fit.map(|c| c.inliers).unwrap_or(0),
-                in_contact: false,
-                delta_mm: None,
-                sigma_z_px: fit.map(|c| c.cov.sigma_z_px()),
-                force_n: None,
-                flags: f.flags.text(),
-            }
-        })
-        .collect()
-}
-
-/// Track rows as CSV bytes.
-pub fn track_csv(rows: &[TrackRow]) -> Vec<u8> {
-    crate::dataset::csv_bytes(rows)
+/// A frame's row of the track CSV, without the measurement's columns
+/// (contact, δ, force: [`annotate_track`]).
+fn track_row(f: &FrameTrack) -> TrackRow {
+    let fit = f.held.or(f.free);
+    TrackRow {
+        frame: f.frame,
+        // To the nanosecond: a time computed as frame / fps carries
+        // float noise (-0.0030000000000001137) no clock has.
+        t_s: (f.t_s * 1e9).round() / 1e9,
+        x_px: fit.map(|c| c.x_px),
+        z_px: fit.map(|c| c.z_px),
+        r_px: fit.map(|c| c.r_px),
+        residual_px: fit.map(|c| c.residual_px),
+        edge_points: fit.map(|c| c.inliers).unwrap_or(0),
+        in_contact: false,
+        delta_mm: None,
+        sigma_z_px: fit.map(|c| c.cov.sigma_z_px()),
+        force_n: None,
+        flags: f.flags.text(),
+    }
 }
 
 /// Process `runs` in parallel and write `drops.csv`, `tracks/` and
@@ -943,10 +946,10 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, 
         written.push(OutputFile::new(rel, bytes));
         Ok(())
     };
-    if o.track.is_empty() {
+    if o.track_csv.is_empty() {
         remove_if_present(out, &track)?;
     } else {
-        write(track, &track_csv(&o.track))?;
+        write(track, &o.track_csv)?;
     }
     match &o.overlay {
         Some(png) => write(main_overlay, png)?,
@@ -993,7 +996,8 @@ mod tests {
             let lo = 2.0_f64;
             Ok(RunOutcome {
                 record: DropRecord::failed("never", 1.0, format!("{}", 1.0_f64.clamp(lo, 1.0))),
-                track: Vec::new(),
+                track_csv: Vec::new(),
+                track_rows: 0,
                 overlay: None,
                 frame_overlays: Vec::new(),
                 impact: None,

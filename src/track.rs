@@ -1360,4 +1360,17 @@ mod tests {
         assert_eq!(f.text(), "recovered partial missing");
         assert_eq!(std::mem::size_of::<FrameFlags>(), 1);
     }
+
+    #[test]
+    fn a_frames_record_stays_within_its_bytes() {
+        // A long movie's track holds one record a frame, pass 1 one `Kept`:
+        // most of what its memory grows by (docs/performance.md, session
+        // 11: 272 + 56 bytes a frame; 336 + 56 before).
+        let (record, kept) = (
+            std::mem::size_of::<FrameTrack>(),
+            std::mem::size_of::<Option<Kept>>(),
+        );
+        assert!(record <= 272, "FrameTrack is {record} bytes");
+        assert!(kept <= 56, "Option<Kept> is {kept} bytes");
+    }
 }

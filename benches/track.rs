@@ -155,9 +155,9 @@ fn main() {
         // Warm up, and check what is timed.
         let t = track(&mut &m, &st).expect("track");
         let held = t.frames.iter().filter(|f| f.held.is_some()).count();
-        let mean_iter = |g: &dyn Fn(&dropscope::track::FrameTrack) -> Option<usize>| {
-            let v: Vec<usize> = t.frames.iter().filter_map(g).collect();
-            v.iter().sum::<usize>() as f64 / v.len().max(1) as f64
+        let mean_iter = |g: &dyn Fn(&dropscope::track::FrameTrack) -> Option<u32>| {
+            let v: Vec<u32> = t.frames.iter().filter_map(g).collect();
+            v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len().max(1) as f64
         };
         let (it_free, it_held) = (
             mean_iter(&|f| f.free.map(|c| c.iterations)),

@@ -856,7 +856,7 @@ fn track_row(f: &FrameTrack) -> TrackRow {
         z_px: fit.map(|c| c.z_px),
         r_px: fit.map(|c| c.r_px),
         residual_px: fit.map(|c| c.residual_px),
-        edge_points: fit.map(|c| c.inliers).unwrap_or(0),
+        edge_points: fit.map_or(0, |c| c.inliers as usize),
         in_contact: false,
         delta_mm: None,
         sigma_z_px: fit.map(|c| c.cov.sigma_z_px()),

@@ -102,12 +102,13 @@ pub struct CircleFit {
     pub cov: Covariance,
     /// RMS orthogonal residual of the inliers (px).
     pub residual_px: f64,
-    /// Points given to the fit.
-    pub n_used: usize,
+    /// Points given to the fit (the counts are 32-bit: a long movie's
+    /// track holds two fits a frame).
+    pub n_used: u32,
     /// Points with non-zero final weight.
-    pub inliers: usize,
+    pub inliers: u32,
     /// IRLS iterations taken.
-    pub iterations: usize,
+    pub iterations: u32,
     /// The residual scale of the last iteration (px): 1.4826·MAD, floored
     /// at `min_scale_px`, or the one given in [`FitOptions::scale_px`].
     pub scale_px: f64,
@@ -586,11 +587,16 @@ fn fit_circle_lanes<V: Lanes>(
         r_px: c.r_px,
         cov,
         residual_px,
-        n_used: n,
-        inliers,
-        iterations,
+        n_used: count(n),
+        inliers: count(inliers),
+        iterations: count(iterations),
         scale_px: scale.unwrap_or(opts.min_scale_px),
     })
+}
+
+/// A count as [`CircleFit`] keeps it.
+fn count(n: usize) -> u32 {
+    u32::try_from(n).unwrap_or(u32::MAX)
 }
 
 /// Points per step of the passes over the points. Every quantity of a step

@@ -2,14 +2,21 @@
 //! `row = row0_px + slope · column` (the camera may be tilted).
 //!
 //! Method, on the background image (many frames averaged, so little noise):
-//! 1. per column, the strongest bright-to-dark step going down (the largest
-//!    `B(z) − B(z+1)`) within the search rows;
+//! 1. per column, the first bright-to-dark step going down (`B(z) − B(z+1)`
+//!    a local maximum) of at least a fifth of the column's largest within
+//!    the search rows: the band's top, even where a glossy strip's lower
+//!    edge below it is the larger step;
 //! 2. a sub-pixel row by fitting a blurred step to the step's flank: rows
 //!    `z_s − w ..= z_s + 2` (the flat background above, the step, one row
 //!    into the band) against `hi − (hi − lo)·A(z)`, with `A` the Gaussian-
 //!    blurred unit step averaged over the pixel,
 //!    `A(z) = σ·[IΦ((z + ½ − e)/σ) − IΦ((z − ½ − e)/σ)]`, `IΦ(u) = uΦ(u) + φ(u)`
-//!    (Levenberg–Marquardt on `e, σ, hi, lo`). It is exact for a blurred,
+//!    (Levenberg–Marquardt on `e, σ, hi, lo`). Where a strip's lower edge
+//!    is resolved within 6 rows below the top (a rise, or a further drop of
+//!    its own, of at least 4 % of the largest step: a pillar-top row
+//!    darker than the band, a glossy strip brighter than it), the
+//!    window reaches 3 rows past it and the model is two blurred steps with
+//!    one σ ([`two_step_edge_row`]), the top one's row kept. It is exact for a blurred,
 //!    area-sampled straight edge at any tilt (no pixel locking), and it looks
 //!    only at the flank, so what lies inside the band — a darker or brighter
 //!    top row of pillar tops seen edge-on, a glossy strip reflecting the
@@ -149,10 +156,10 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
     // Each column on its own (on every thread), in order.
     use rayon::prelude::*;
     let edge = |flank: &mut Vec<f64>, j: usize| -> Option<ColumnEdge> {
-        let zs = best_row[j];
         if best_step[j] <= 0.0 {
             return None;
         }
+        let zs = top_step_row(bg, j, r_lo + w, best_row[j], best_step[j]);
         // Window rows zs − w ..= zs + 1 + w.
         let top = zs - w;
         let bot = zs + 1 + w;
@@ -166,8 +173,20 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
             .sum();
         let row_area_px = top as f64 - 0.5 + sum;
         flank.clear();
-        flank.extend((top..=zs + 2).map(|i| bg.at(i, j) as f64));
-        let row_px = step_edge_row(flank, top as f64, zs as f64 + 0.5)?;
+        let strip = strip_edge_row(bg, j, zs, best_step[j]).filter(|&z| z + 3 < r_hi);
+        let two = strip.and_then(|z2| {
+            // A strip below the top (a glossy or pillar-top row): both edges.
+            flank.extend((top..=z2 + 3).map(|i| bg.at(i, j) as f64));
+            two_step_edge_row(flank, top as f64, [zs as f64 + 0.5, z2 as f64 + 0.5])
+        });
+        let row_px = match two {
+            Some(row) => row,
+            None => {
+                flank.clear();
+                flank.extend((top..=zs + 2).map(|i| bg.at(i, j) as f64));
+                step_edge_row(flank, top as f64, zs as f64 + 0.5)?
+            }
+        };
         Some(ColumnEdge {
             x_px: j as f64,
             row_px,
@@ -181,6 +200,88 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
         .collect();
     out.extend(edges.into_iter().flatten());
     out
+}
+
+/// A step down of at least this fraction of a column's largest counts as the
+/// band's top when it comes first (module doc, step 1). On 8-bit footage a
+/// fifth of the band's contrast is still ≥ 10 DN, far above the noise of a
+/// background made of tens of frames; a dust speck that passes it moves a
+/// few columns, which the line's robust fit rejects.
+pub const TOP_STEP_FRACTION: f64 = 0.2;
+
+/// The band's top in column `j`: the first row, going down from `first`, of a
+/// step down `B(z) − B(z + 1)` that is a local maximum and at least
+/// [`TOP_STEP_FRACTION`] of the column's largest (`largest` at row
+/// `largest_row`). The top edge is where the backlight ends: a glossy strip
+/// just below it, reflecting the backlight, can make the strip's own lower
+/// edge the larger step, and taking the largest would put the line at the
+/// strip's bottom, its depth (1–4 px) too low.
+fn top_step_row(
+    bg: &Background,
+    j: usize,
+    first: usize,
+    largest_row: usize,
+    largest: f64,
+) -> usize {
+    let step = |i: usize| bg.at(i, j) as f64 - bg.at(i + 1, j) as f64;
+    let threshold = TOP_STEP_FRACTION * largest;
+    (first.max(1)..largest_row)
+        .find(|&i| {
+            let s = step(i);
+            s >= threshold
+                && s >= step(i - 1)
+                && s >= step(i + 1)
+                && separated(s, (i + 1..largest_row).map(step), largest)
+        })
+        .unwrap_or(largest_row)
+}
+
+/// Whether a peak `peak` of the steps is its own, not a ripple on another's
+/// flank: the steps between it and the other (`between`) fall below it by
+/// at least [`PEAK_PROMINENCE`] of the column's `largest` step. (Under a
+/// wide blur the band's one step spreads over many rows, and the
+/// background's noise ripples its flank.)
+fn separated(peak: f64, between: impl Iterator<Item = f64>, largest: f64) -> bool {
+    between.fold(f64::INFINITY, f64::min) <= peak - PEAK_PROMINENCE * largest
+}
+
+/// See [`separated`]: ≥ 2 DN on 8-bit footage, many times a background's
+/// noise; a glossy strip 3 px deep under σ = 0.8 px gives 0.08.
+const PEAK_PROMINENCE: f64 = 0.04;
+
+/// A strip's lower edge counts when its step, up or down, is at least this
+/// fraction of the column's largest. A pillar-top row 25 % darker than the
+/// band over 1.4 px gives 0.09 of it under a blur of σ = 0.65 px; 0.04 is
+/// still ≥ 2 DN on 8-bit footage, above a background's noise. A step that
+/// is noise leaves the two-step fit's second step without weight: its row
+/// wanders off and the one-step fit is used.
+pub const STRIP_STEP_FRACTION: f64 = 0.04;
+
+/// Deepest strip below the band's top that is told from its blur (px).
+const STRIP_MAX_PX: usize = 6;
+
+/// The lower edge of a strip just below the band's top at row `top` in
+/// column `j`, within [`STRIP_MAX_PX`] rows: the first row where the step
+/// `B(z) − B(z + 1)` is, at least [`STRIP_STEP_FRACTION`] of the column's
+/// `largest`, either a rise (a strip darker than the band below it: a
+/// pillar-top row) at its most negative, or a further drop at a local
+/// maximum of its own, separate from the top's (a glossy strip brighter
+/// than the band). `None`: no strip is resolved (it may still be there,
+/// narrower than the blur).
+fn strip_edge_row(bg: &Background, j: usize, top: usize, largest: f64) -> Option<usize> {
+    let step = |i: usize| bg.at(i, j) as f64 - bg.at(i + 1, j) as f64;
+    let least = STRIP_STEP_FRACTION * largest;
+    let last = (top + STRIP_MAX_PX).min(bg.height.saturating_sub(2));
+    (top + 1..=last).find(|&i| {
+        let (before, s, after) = (step(i - 1), step(i), step(i + 1));
+        let rise = s <= -least && s <= before && s <= after;
+        let drop = i >= top + 2
+            && s >= least
+            && s >= before
+            && s >= after
+            && separated(s, (top + 1..i).map(step), largest);
+        rise || drop
+    })
 }
 
 /// The standard normal density.
@@ -288,6 +389,92 @@ pub fn step_edge_row(v: &[f64], first_row: f64, e0: f64) -> Option<f64> {
     }
     let inside = p[0] > first_row && p[0] < first_row + n as f64 - 1.0;
     (p[0].is_finite() && p[2] > p[3] && inside).then_some(p[0])
+}
+
+/// Row of the upper of two bright-to-dark steps blurred alike, from the
+/// samples `v[k]` of rows `first_row + k`: a strip of its own level between
+/// the band's top and a larger step below it (module doc, step 2). The model
+/// is `c₀ + c₁·A(z; e₁, σ) + c₂·A(z; e₂, σ)`; the levels `c` are solved
+/// linearly for each `(e₁, e₂, σ)` (variable projection), which a small
+/// Levenberg–Marquardt fits from `e0`. `None` when the fit does not end on
+/// two ordered steps inside the samples.
+pub fn two_step_edge_row(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<f64> {
+    use nalgebra::{Matrix3, Vector3};
+    let n = v.len();
+    if n < 8 {
+        return None;
+    }
+    let unit_step = |z: f64, e: f64, s: f64| {
+        let (up, um) = ((z + 0.5 - e) / s, (z - 0.5 - e) / s);
+        s * ((up * cdf(up) + phi(up)) - (um * cdf(um) + phi(um)))
+    };
+    // Residuals at θ = (e₁, e₂, σ), the levels projected out.
+    let resid = |th: &Vector3<f64>| -> Option<Vec<f64>> {
+        let design = nalgebra::DMatrix::from_fn(n, 3, |k, c| {
+            let z = first_row + k as f64;
+            match c {
+                0 => 1.0,
+                1 => unit_step(z, th[0], th[2]),
+                _ => unit_step(z, th[1], th[2]),
+            }
+        });
+        let y = nalgebra::DVector::from_column_slice(v);
+        let levels = design.clone().svd(true, true).solve(&y, 1e-12).ok()?;
+        Some((design * levels - y).iter().copied().collect())
+    };
+    let cost = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>();
+    let mut th = Vector3::new(e0[0], e0[1], 1.0);
+    let mut r = resid(&th)?;
+    let mut c = cost(&r);
+    let mut lambda = 1e-3;
+    for _ in 0..60 {
+        // Forward-difference Jacobian (3 parameters, a dozen samples).
+        let mut jac = vec![[0.0; 3]; n];
+        for a in 0..3 {
+            let h = 1e-6 * (1.0 + th[a].abs());
+            let mut t = th;
+            t[a] += h;
+            let rt = resid(&t)?;
+            for k in 0..n {
+                jac[k][a] = (rt[k] - r[k]) / h;
+            }
+        }
+        let (mut jtj, mut jtr) = (Matrix3::zeros(), Vector3::zeros());
+        for (g, rk) in jac.iter().zip(&r) {
+            let g = Vector3::from(*g);
+            jtj += g * g.transpose();
+            jtr += g * *rk;
+        }
+        let mut improved = false;
+        for _ in 0..12 {
+            let mut m = jtj;
+            for a in 0..3 {
+                m[(a, a)] += lambda * jtj[(a, a)].max(1e-12);
+            }
+            let Some(step) = m.lu().solve(&jtr) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut q = th - step;
+            q[2] = q[2].clamp(0.2, 6.0);
+            match resid(&q) {
+                Some(rq) if cost(&rq) <= c => {
+                    let cq = cost(&rq);
+                    improved = c - cq > 1e-14 * (1.0 + c);
+                    (th, r, c) = (q, rq, cq);
+                    lambda = (lambda * 0.3).max(1e-9);
+                    break;
+                }
+                _ => lambda *= 10.0,
+            }
+        }
+        if !improved {
+            break;
+        }
+    }
+    let inside = |e: f64| e > first_row && e < first_row + n as f64 - 1.0;
+    (th.iter().all(|x| x.is_finite()) && th[0] < th[1] && inside(th[0]) && inside(th[1]))
+        .then_some(th[0])
 }
 
 /// Solve the 4×4 system `m·x = b` (LU with partial pivoting).
@@ -488,6 +675,56 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A background whose every column is `profile` (rows grow down).
+    fn background_of(profile: &[f64], width: usize) -> Background {
+        let levels = profile
+            .iter()
+            .flat_map(|&v| std::iter::repeat_n(v as f32, width))
+            .collect();
+        Background {
+            width,
+            height: profile.len(),
+            levels,
+            region: Default::default(),
+            gains: vec![1.0],
+        }
+    }
+
+    #[test]
+    fn a_strip_below_the_band_top_brighter_or_darker_is_fitted_not_followed() {
+        // Backlight 200 DN over a band at 0.7 of it, a glossy strip adding
+        // 0.22 of the backlight over the band's top 3 px (σ = 0.8 px): the
+        // step into the strip (16 DN) is a third of the strip's lower edge
+        // (44 DN). The line is the band's top: the largest step would put it
+        // at the strip's bottom, 3 px too low. Two blurred steps are this
+        // profile's exact model: only f32 rounding remains.
+        let e = 30.3;
+        let v: Vec<f64> = blurred(&[-1e3, e, e + 3.0, 1e3], &[200.0, 184.0, 140.0], 0.8, 64)
+            .into_iter()
+            .collect();
+        let line = fit_surface(&background_of(&v, 40), &SurfaceParams::default()).unwrap();
+        assert!((line.row0_px - e).abs() < 0.001, "{}", line.row0_px);
+        assert!(line.slope.abs() < 1e-9);
+        // A strip darker than the backlight by more than the band below:
+        // the top step is the largest, and the strip's edge is fitted too
+        // (a single step's flank, which reaches 2 rows into the strip, was
+        // 0.053 px off here).
+        let v = blurred(&[-1e3, e, e + 3.0, 1e3], &[200.0, 160.0, 140.0], 0.8, 64);
+        let line = fit_surface(&background_of(&v, 40), &SurfaceParams::default()).unwrap();
+        assert!((line.row0_px - e).abs() < 0.001, "{}", line.row0_px);
+        // A pillar-top row 25 % darker than the band over 1.4 px, σ = 0.65:
+        // the step up out of it is found and fitted too (the flank fit of
+        // the top step alone was 0.0xx px high here).
+        let v = blurred(
+            &[-1e3, e, e + 1.4, 1e3],
+            &[200.0, 0.75 * 90.0, 90.0],
+            0.65,
+            64,
+        );
+        let line = fit_surface(&background_of(&v, 40), &SurfaceParams::default()).unwrap();
+        assert!((line.row0_px - e).abs() < 0.001, "{}", line.row0_px);
     }
 
     #[test]

@@ -94,6 +94,13 @@ pub struct ForceLaw {
     pub surface_offset_px: Option<Measured>,
     /// K at n = 2 fitted on the surface of `surface_offset_px` (its fit).
     pub k_at_n2_on_law_surface: Option<Measured>,
+    /// K and n fitted with the surface free too: no line and no n assumed,
+    /// what the law is where the image's line is rejected (n and the
+    /// surface trade off, so n's error is several times that on a good
+    /// line). Fitted only there
+    /// ([`law_rejects_line`](crate::measure::law_rejects_line)); `None`
+    /// elsewhere or when the fit fails.
+    pub with_surface_free: Option<(Measured, Measured)>,
     /// How n and K (n free) move per px that the surface moves down: to
     /// widen their errors by an uncertainty of the surface found later.
     pub n_per_surface_px: f64,
@@ -392,6 +399,22 @@ fn fit_force_law_to(
         levenberg_marquardt(&held.theta, &[0, 1, 2, 4, 5], &resid, rel_tol)
     })
     .ok();
+    // Only where the law rejects the image's line are K and n taken from
+    // the fit with the surface free too (see [`ForceLaw::with_surface_free`]):
+    // it costs more than the three others together.
+    let rejects = |f: &&LmFit| {
+        let offset = Measured {
+            value: f.theta[5] / s_m,
+            err: f.sd_with(5, &[]) / s_m,
+        };
+        crate::measure::law_rejects_line(offset, geom.surface_row_err_px)
+    };
+    let both_free = on_law_surface.as_ref().filter(rejects).and_then(|f| {
+        time(Stage::ForceBoth, || {
+            levenberg_marquardt(&f.theta, &[0, 1, 2, 3, 4, 5], &resid, rel_tol)
+        })
+        .ok()
+    });
     // The geometry's errors (see the module doc): ∂r_i/∂q = −(∂obs_i/∂q)/σ_i
     // with obs_i = δ_i·s, times σ_q. With the scale from the radius,
     // s = R_mm/R_px, so ∂obs/∂R = s·(1 − δ_px/R_px); a scale given
@@ -441,6 +464,18 @@ fn fit_force_law_to(
                 value: km * mass,
                 err: km * mass * f.sd_with(2, &[]),
             }
+        }),
+        with_surface_free: both_free.as_ref().map(|f| {
+            let km = f.theta[2].exp();
+            let k = Measured {
+                value: km * mass,
+                err: km * mass * f.sd_with(2, &[]),
+            };
+            let n = Measured {
+                value: f.theta[3],
+                err: f.sd_with(3, &[]),
+            };
+            (k, n)
         }),
         n_per_surface_px: free.response_to(3, &per_surface_px),
         k_per_surface_px: free.theta[2].exp() * mass * free.response_to(2, &per_surface_px),
@@ -658,6 +693,60 @@ mod tests {
                 miss.abs() < 0.01 && miss.abs() < 3.0 * d.err,
                 "line off by {line_error_px} px: law offset {d:?}"
             );
+        }
+    }
+
+    #[test]
+    fn with_the_surface_free_too_n_is_found_without_assuming_it() {
+        // A contact law F = K·δ^1.7 (not the model's 2), frames from the
+        // integrator itself, measured against a line put 0.8 px too high.
+        // On that line n (free) is pulled off (1.82 ± 0.003 here); with n
+        // and the surface both free the fit must find 1.7 — within 0.002
+        // without noise, within 3σ with σ = 0.005 px per frame (seen 1.665
+        // ± 0.018) — and stay well away from the n = 2 it starts from.
+        let truth = geometry();
+        let s_m = truth.mm_per_px * 1e-3;
+        let n_true = 1.7;
+        // K/m for δmax ≈ 1 mm at 1.2 m/s: ½v² = (K/m)·δ^(n+1)/(n+1).
+        let km = (n_true + 1.0) * 0.5 * 1.2f64.powi(2) / 1e-3f64.powf(n_true + 1.0);
+        let ts: Vec<f64> = (-35..70).map(|k| k as f64 * 1e-4).collect();
+        let d0 = -1.2 * 35e-4 - 0.5 * 9.81 * 35e-4f64.powi(2);
+        let v0 = 1.2 - 9.81 * 35e-4;
+        let theta = [d0, v0, km.ln(), n_true, 0.0, 0.0];
+        let delta = integrate(&ts, &theta, 9.81, 1e-6);
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        for (sigma_px, tol) in [(1e-9, 0.002), (0.005, f64::INFINITY)] {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+            let noise = Normal::new(0.0, sigma_px).unwrap();
+            let tr: Vec<TrackPoint> = ts
+                .iter()
+                .zip(&delta)
+                .enumerate()
+                .map(|(k, (&t, &d))| TrackPoint {
+                    frame: k as i64 - 35,
+                    t_s: t,
+                    x_px: 256.0,
+                    z_px: truth.surface_row_px - truth.radius_px + d / s_m + noise.sample(&mut rng),
+                    sigma_z_px: sigma_px.max(1e-4),
+                    half_width_px: None,
+                    sigma_half_width_px: None,
+                })
+                .collect();
+            let geom = Geometry {
+                surface_row_px: truth.surface_row_px - 0.8,
+                ..truth
+            };
+            let ev = find_events(&tr, &geom, &EventConfig::default()).unwrap();
+            let f = fit(&tr, &ev, &geom, 0.0).unwrap();
+            let (_, both) = f.with_surface_free.expect("the fit converges");
+            let miss = (both.value - n_true).abs();
+            assert!(
+                miss < tol && miss < 3.0 * both.err.max(1e-4) && (2.0 - both.value) > 0.2,
+                "σ {sigma_px}: n with the surface free {both:?}, on the line {:?}",
+                f.n
+            );
+            assert!((f.n.value - n_true).abs() > 0.05, "on the line {:?}", f.n);
         }
     }
 

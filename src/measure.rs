@@ -149,15 +149,6 @@ pub fn measure_drop_with(
             "a second bounce follows; only the first contact is measured".into(),
         ));
     }
-    if kin.restitution.value > 1.0 + 3.0 * kin.restitution.err {
-        warnings.push((
-            quality::RESTITUTION_ABOVE_ONE,
-            format!(
-                "restitution {:.4} ± {:.4} is above 1: the sphere cannot gain energy",
-                kin.restitution.value, kin.restitution.err
-            ),
-        ));
-    }
     warnings.extend(law_warnings(&law));
     let fitted_law = law.clone();
     let law = law.ok();
@@ -259,7 +250,7 @@ pub fn surface_from_law(law: &ForceLaw, image_err_px: f64) -> Option<(f64, f64, 
     }
     let law_err = d.err.hypot(LAW_SURFACE_SYSTEMATIC_PX);
     let image_err = image_err_px.max(1e-6);
-    if d.value.abs() > 3.0 * law_err.hypot(image_err) {
+    if law_rejects_line(d, image_err_px) {
         return Some((d.value, law_err, "contact_law"));
     }
     // The mean's error grows by √χ² when the two scatter more than their
@@ -271,6 +262,31 @@ pub fn surface_from_law(law: &ForceLaw, image_err_px: f64) -> Option<(f64, f64, 
         (wi + wl).powf(-0.5) * chi2.sqrt().max(1.0),
         "image+contact_law",
     ))
+}
+
+/// Flag a restitution above 1 by more than 3σ: the sphere cannot gain
+/// energy. Called once the restitution's error holds every term (the
+/// distortion's is added after the measurement).
+pub fn flag_restitution_above_one(record: &mut DropRecord) {
+    let (Some(e), Some(err)) = (record.restitution, record.restitution_err) else {
+        return;
+    };
+    if e > 1.0 + 3.0 * err {
+        quality::flag(
+            record,
+            quality::RESTITUTION_ABOVE_ONE,
+            format!("restitution {e:.4} ± {err:.4} is above 1: the sphere cannot gain energy"),
+        );
+    }
+}
+
+/// Whether the contact law's surface, `offset` (px) from the image's line
+/// whose error is `image_err_px`, rejects that line: they disagree beyond
+/// 3σ of their combined error, the law's widened by
+/// [`LAW_SURFACE_SYSTEMATIC_PX`] ([`surface_from_law`]).
+pub fn law_rejects_line(offset: Measured, image_err_px: f64) -> bool {
+    let law_err = offset.err.hypot(LAW_SURFACE_SYSTEMATIC_PX);
+    offset.value.abs() > 3.0 * law_err.hypot(image_err_px.max(1e-6))
 }
 
 /// The flags of a contact law fit: none fitted, or a fit no physics allows
@@ -353,6 +369,7 @@ mod tests {
                 err: 1e6,
             },
             surface_offset_px: offset.map(|(value, err)| Measured { value, err }),
+            with_surface_free: None,
             k_at_n2_on_law_surface: None,
             n_per_surface_px: 0.0,
             k_per_surface_px: 0.0,
@@ -398,6 +415,7 @@ mod tests {
             damping_n_s_m: m(c, 0.01),
             k_at_n2: m(8e8, 1e6),
             surface_offset_px: None,
+            with_surface_free: None,
             k_at_n2_on_law_surface: None,
             n_per_surface_px: 0.0,
             k_per_surface_px: 0.0,

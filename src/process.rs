@@ -558,6 +558,15 @@ fn measure_run(
             *err = err.map(|e| e.hypot(per_px * off.value));
         };
         widen(&mut record.force_exponent_err, law.n_per_surface_px);
+        // Where the law rejected the image's line, K and n on that line are
+        // not measurements: they come from the fit with the surface free
+        // too (n not assumed, so the law's own n = 2 is not fed back).
+        if let (Some((k, n)), "contact_law") = (law.with_surface_free, surface_source) {
+            record.force_k_si = Some(k.value);
+            record.force_k_si_err = Some(k.err);
+            record.force_exponent = Some(n.value);
+            record.force_exponent_err = Some(n.err);
+        }
         widen(&mut record.force_k_si_err, law.k_per_surface_px);
         if let Some(k2) = law.k_at_n2_on_law_surface {
             record.force_k2_n_m2 = Some(k2.value);
@@ -587,6 +596,7 @@ fn measure_run(
             distortion_systematic(&mut record, &shift);
         }
     }
+    crate::measure::flag_restitution_above_one(&mut record);
     record.setup = run.setup.clone().unwrap_or_default();
     record.drop_height_cm = run.drop_height_cm;
     record.path = run.path.display().to_string();
@@ -784,6 +794,16 @@ fn distortion_systematic(record: &mut DropRecord, shift: &crate::lens::Shift) {
     widen(&mut record.mm_per_px_err, shift.mm_per_px);
     widen(&mut record.v_impact_m_s_err, shift.v_impact_m_s);
     widen(&mut record.v_rebound_m_s_err, shift.v_rebound_m_s);
+    // The restitution v_out / v_in moves with both speeds' shifts at once
+    // (the same k1): by e·(Δv_out/v_out − Δv_in/v_in).
+    if let (Some(e), Some(vi), Some(vo)) = (
+        record.restitution,
+        record.v_impact_m_s,
+        record.v_rebound_m_s,
+    ) {
+        let de = e * (shift.v_rebound_m_s / vo - shift.v_impact_m_s / vi);
+        widen(&mut record.restitution_err, de);
+    }
     widen(&mut record.delta_max_mm_err, shift.delta_max_mm);
     widen(&mut record.tau_c_ms_err, shift.tau_c_ms);
     record.distortion_mm_per_px = Some(shift.mm_per_px);

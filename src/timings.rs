@@ -41,6 +41,8 @@ pub enum Stage {
     ForceN2,
     /// The third: n held, the surface free.
     ForceSurface,
+    /// The fourth: n and the surface free.
+    ForceBoth,
     /// The overlay at the maximum penetration, and any asked for.
     Overlays,
     /// The animated impact (drawing and APNG encoding).
@@ -58,7 +60,7 @@ pub enum Stage {
 
 impl Stage {
     /// Every stage, in the table's order.
-    pub const ALL: [Stage; 17] = [
+    pub const ALL: [Stage; 18] = [
         Stage::Fingerprint,
         Stage::Open,
         Stage::Read,
@@ -70,6 +72,7 @@ impl Stage {
         Stage::ForceFree,
         Stage::ForceN2,
         Stage::ForceSurface,
+        Stage::ForceBoth,
         Stage::Overlays,
         Stage::Animation,
         Stage::Writes,
@@ -92,6 +95,7 @@ impl Stage {
             Stage::ForceFree => "force fit 1 (n free)",
             Stage::ForceN2 => "force fit 2 (n = 2)",
             Stage::ForceSurface => "force fit 3 (surface free)",
+            Stage::ForceBoth => "force fit 4 (n and surface free)",
             Stage::Overlays => "overlay stills",
             Stage::Animation => "animated impact (APNG)",
             Stage::Writes => "file writes (tracks, images, cache)",

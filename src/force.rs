@@ -402,14 +402,13 @@ fn fit_force_law_to(
     // Only where the law rejects the image's line are K and n taken from
     // the fit with the surface free too (see [`ForceLaw::with_surface_free`]):
     // it costs more than the three others together.
-    let rejects = |f: &&LmFit| {
-        let offset = Measured {
-            value: f.theta[5] / s_m,
-            err: f.sd_with(5, &[]) / s_m,
-        };
-        crate::measure::law_rejects_line(offset, geom.surface_row_err_px)
-    };
-    let both_free = on_law_surface.as_ref().filter(rejects).and_then(|f| {
+    let surface_offset_px = on_law_surface.as_ref().map(|f| Measured {
+        value: f.theta[5] / s_m,
+        err: f.sd_with(5, &[]) / s_m,
+    });
+    let rejects = surface_offset_px
+        .is_some_and(|d| crate::measure::law_rejects_line(d, geom.surface_row_err_px));
+    let both_free = on_law_surface.as_ref().filter(|_| rejects).and_then(|f| {
         time(Stage::ForceBoth, || {
             levenberg_marquardt(&f.theta, &[0, 1, 2, 3, 4, 5], &resid, rel_tol)
         })
@@ -454,10 +453,7 @@ fn fit_force_law_to(
             err: mass * sd(&free, 4),
         },
         k_at_n2: k_of(&held),
-        surface_offset_px: on_law_surface.as_ref().map(|f| Measured {
-            value: f.theta[5] / s_m,
-            err: f.sd_with(5, &[]) / s_m,
-        }),
+        surface_offset_px,
         k_at_n2_on_law_surface: on_law_surface.as_ref().map(|f| {
             let km = f.theta[2].exp();
             Measured {

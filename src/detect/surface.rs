@@ -294,8 +294,8 @@ fn cdf(u: f64) -> f64 {
     0.5 * libm::erfc(-u * std::f64::consts::FRAC_1_SQRT_2)
 }
 
-/// `IΦ(u) = uΦ(u) + φ(u)`, the integral of Φ (inlined in [`step_edge_row`]).
-#[cfg(test)]
+/// `IΦ(u) = uΦ(u) + φ(u)`, the integral of Φ (inlined in [`step_edge_row`],
+/// which shares each pixel boundary's value between two samples).
 fn int_cdf(u: f64) -> f64 {
     u * cdf(u) + phi(u)
 }
@@ -404,10 +404,9 @@ pub fn two_step_edge_row(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<f64>
     if n < 8 {
         return None;
     }
-    let unit_step = |z: f64, e: f64, s: f64| {
-        let (up, um) = ((z + 0.5 - e) / s, (z - 0.5 - e) / s);
-        s * ((up * cdf(up) + phi(up)) - (um * cdf(um) + phi(um)))
-    };
+    // The pixel-averaged blurred unit step A(z; e, σ) (module doc, step 2).
+    let unit_step =
+        |z: f64, e: f64, s: f64| s * (int_cdf((z + 0.5 - e) / s) - int_cdf((z - 0.5 - e) / s));
     // Residuals at θ = (e₁, e₂, σ), the levels projected out.
     let resid = |th: &Vector3<f64>| -> Option<Vec<f64>> {
         let design = nalgebra::DMatrix::from_fn(n, 3, |k, c| {

@@ -456,9 +456,8 @@ pub fn two_step_edge_row(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<f64>
             };
             let mut q = th - step;
             q[2] = q[2].clamp(0.2, 6.0);
-            match resid(&q) {
-                Some(rq) if cost(&rq) <= c => {
-                    let cq = cost(&rq);
+            match resid(&q).map(|rq| (cost(&rq), rq)) {
+                Some((cq, rq)) if cq <= c => {
                     improved = c - cq > 1e-14 * (1.0 + c);
                     (th, r, c) = (q, rq, cq);
                     lambda = (lambda * 0.3).max(1e-9);

@@ -21,10 +21,11 @@
 //! the per-drop free-fall scale differs from the magnification at the
 //! impact by 1–4e-4, more than the speeds' statistical errors.
 
+use crate::detect::{CircleFit, SurfaceLine};
 use crate::events::{find_events, EventConfig, Geometry, TrackPoint};
 use crate::kinematics::{kinematics, SphereParams};
 use crate::scale::{resolve, Curvature, Scale, ScaleInputs};
-use crate::track::Track;
+use crate::track::{FrameTrack, Track};
 
 /// A radial distortion about the image centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -88,7 +89,7 @@ impl Lens {
 /// radius at the circle nearest the surface (where δ and a are measured),
 /// and the surface line through the scene positions of its points at the
 /// sphere's columns ±R_px. Takes the track (a long movie's is tens of
-/// megabytes): pass [`Track::held_only`] for a copy to measure again.
+/// megabytes): [`undistort_held`] moves the held circles without a copy.
 pub fn undistort_track(tr: Track, lens: &Lens) -> Track {
     let mut out = tr;
     let mut lowest: Option<(f64, f64)> = None;
@@ -99,30 +100,90 @@ pub fn undistort_track(tr: Track, lens: &Lens) -> Track {
         if let Some(fit) = f.held.as_mut() {
             let (x, z, _) = lens.disc(fit.x_px, fit.z_px, fit.r_px);
             (fit.x_px, fit.z_px) = (x, z);
-            if lowest.is_none_or(|(_, zl)| z > zl) {
-                lowest = Some((x, z));
-            }
+            lowest = lower(lowest, (x, z));
         }
     }
-    let (x_c, z_c) = lowest.unwrap_or(lens.centre_px);
-    // The held radius is one number for the whole track: corrected where
-    // the measurement uses it, at the deepest frame.
-    let (radius_px, surface) = (out.radius_px, out.surface);
-    let r = lens.disc(x_c, z_c, radius_px).2;
+    let (r, surface) = radius_and_line(lens, lowest, out.radius_px, out.surface);
     for f in &mut out.frames {
         if let Some(h) = f.held.as_mut() {
             h.r_px = r;
         }
     }
     out.radius_px = r;
+    out.surface = surface;
+    out
+}
+
+/// What [`undistort_track`] makes of `tr`'s held circles, without a copy
+/// of the track: each frame with a held fit and that fit moved (made as
+/// the iterator is walked, in the track's order), the surface line and the
+/// calibrated radius.
+pub fn undistort_held<'a>(
+    tr: &'a Track,
+    lens: &'a Lens,
+) -> (
+    impl Iterator<Item = (&'a FrameTrack, CircleFit)> + 'a,
+    SurfaceLine,
+    f64,
+) {
+    let moved = move |f: &'a FrameTrack| {
+        let h = f.held?;
+        let (x, z, _) = lens.disc(h.x_px, h.z_px, h.r_px);
+        Some((f, x, z, h))
+    };
+    let lowest = tr
+        .frames
+        .iter()
+        .filter_map(moved)
+        .fold(None, |lowest, (_, x, z, _)| lower(lowest, (x, z)));
+    let (r, surface) = radius_and_line(lens, lowest, tr.radius_px, tr.surface);
+    let held = tr.frames.iter().filter_map(moved).map(move |(f, x, z, h)| {
+        let fit = CircleFit {
+            x_px: x,
+            z_px: z,
+            r_px: r,
+            ..h
+        };
+        (f, fit)
+    });
+    (held, surface, r)
+}
+
+/// The lower (larger row) of the centre so far and `(x, z)`; the first
+/// of equals.
+fn lower(lowest: Option<(f64, f64)>, (x, z): (f64, f64)) -> Option<(f64, f64)> {
+    if lowest.is_none_or(|(_, zl)| z > zl) {
+        Some((x, z))
+    } else {
+        lowest
+    }
+}
+
+/// The calibrated radius and the surface line in the scene: the radius
+/// corrected at the lowest held centre (where δ and a are measured; the
+/// image centre without one), the line through the scene positions of its
+/// points at that centre's columns ±R_px.
+fn radius_and_line(
+    lens: &Lens,
+    lowest: Option<(f64, f64)>,
+    radius_px: f64,
+    surface: SurfaceLine,
+) -> (f64, SurfaceLine) {
+    let (x_c, z_c) = lowest.unwrap_or(lens.centre_px);
+    // The held radius is one number for the whole track: corrected where
+    // the measurement uses it, at the deepest frame.
+    let r = lens.disc(x_c, z_c, radius_px).2;
     let half = radius_px.max(1.0);
     let (xa, xb) = (x_c - half, x_c + half);
     let (ua, ra) = lens.point(xa, surface.row_at(xa));
     let (ub, rb) = lens.point(xb, surface.row_at(xb));
     let slope = (rb - ra) / (ub - ua);
-    out.surface.slope = slope;
-    out.surface.row0_px = ra - slope * ua;
-    out
+    let line = SurfaceLine {
+        slope,
+        row0_px: ra - slope * ua,
+        ..surface
+    };
+    (r, line)
 }
 
 /// A run's track seen through the lens at the distortion bound: what

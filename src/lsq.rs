@@ -46,34 +46,59 @@ impl LinearFit {
 /// `design` has one row per point. Returns `None` when there are fewer points
 /// than parameters, a σ is not positive and finite, or A is rank-deficient.
 pub fn weighted_lsq(design: &DMatrix<f64>, y: &[f64], sigma: &[f64]) -> Option<LinearFit> {
-    let (n, p) = design.shape();
-    if n < p || y.len() != n || sigma.len() != n || p == 0 {
+    weighted_lsq_built(|| design.clone(), y, sigma)
+}
+
+/// [`weighted_lsq`] on the design that `build` makes, called twice (for the
+/// decomposition, then for the residuals) so that no copy of the design is
+/// held beside the decomposition: at most two n × p matrices at once (five
+/// with a design held by the caller and copied). The same numbers, bit for
+/// bit: the same operations on the same values. A run's free-fall fit has a
+/// row per frame in flight and two columns per flight
+/// ([`crate::scale::free_fall_curvature`]): 7.5 MB a copy for a
+/// 124 166-frame movie.
+pub fn weighted_lsq_built(
+    build: impl Fn() -> DMatrix<f64>,
+    y: &[f64],
+    sigma: &[f64],
+) -> Option<LinearFit> {
+    let n = y.len();
+    if sigma.len() != n || sigma.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         return None;
     }
-    if sigma.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-        return None;
-    }
-    let mut aw = design.clone();
-    let mut yw = DVector::zeros(n);
-    for i in 0..n {
-        let w = 1.0 / sigma[i];
-        for j in 0..p {
-            aw[(i, j)] *= w;
+    // The design divided row by row by σ.
+    let whitened = || {
+        let mut aw = build();
+        let p = aw.ncols();
+        if aw.nrows() != n || n < p || p == 0 {
+            return None;
         }
-        yw[i] = y[i] * w;
-    }
-    let qr = aw.clone().qr();
+        for i in 0..n {
+            let w = 1.0 / sigma[i];
+            for j in 0..p {
+                aw[(i, j)] *= w;
+            }
+        }
+        Some(aw)
+    };
+    let qr = whitened()?.qr();
     let r = qr.r();
+    let p = r.ncols();
+    let yw = DVector::from_iterator(n, y.iter().zip(sigma).map(|(y, s)| y * (1.0 / s)));
     // Rank check on the diagonal of R relative to its largest entry.
     let rmax = (0..p).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
     if rmax.is_nan() || rmax <= 0.0 || (0..p).any(|i| r[(i, i)].abs() <= rmax * 1e-13) {
         return None;
     }
-    let qty = qr.q().transpose() * &yw;
+    let q = qr.q();
+    drop(qr);
+    let q_t = q.transpose();
+    drop(q);
+    let qty = q_t * &yw;
     let coef = r.solve_upper_triangular(&qty)?;
     let r_inv = r.solve_upper_triangular(&DMatrix::identity(p, p))?;
     let cov = &r_inv * r_inv.transpose();
-    let resid = &aw * &coef - &yw;
+    let resid = &whitened()? * &coef - &yw;
     Some(LinearFit {
         coef: coef.iter().copied().collect(),
         cov,

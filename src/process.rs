@@ -426,22 +426,24 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
     if let Some(k1) = camera.distortion_k1_per_px2 {
         tr = undistort_track(tr, &Lens::new(k1, meta.width, meta.height));
     }
-    let curvature_of = |tr: &Track| {
-        let points = track_points(tr, |_| (None, None));
-        let c = free_fall_curvature(&points, |x| tr.surface.row_at(x), tr.radius_px);
-        (points, c)
-    };
-    let curvature = time(Stage::Events, || curvature_of(&tr).1);
+    let curvature = time(Stage::Events, || {
+        let points = track_points(&tr, |_| (None, None));
+        free_fall_curvature(&points, |x| tr.surface.row_at(x), tr.radius_px)
+    });
     let bounded = (camera.distortion_k1_per_px2.is_none() && camera.distortion_bound_px > 0.0)
         .then(|| {
             let lens = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
-            let b = undistort_track(tr.held_only(), &lens);
-            let (points, curvature) = time(Stage::Events, || curvature_of(&b));
+            let (points, surface, radius_px, curvature) = time(Stage::Events, || {
+                let (held, surface, radius_px) = crate::lens::undistort_held(&tr, &lens);
+                let points = points_of(held, |_| (None, None));
+                let c = free_fall_curvature(&points, |x| surface.row_at(x), radius_px);
+                (points, surface, radius_px, c)
+            });
             crate::lens::Bounded {
                 points,
-                surface_row0_px: b.surface.row0_px,
-                surface_slope: b.surface.slope,
-                radius_px: b.radius_px,
+                surface_row0_px: surface.row0_px,
+                surface_slope: surface.slope,
+                radius_px,
                 curvature,
             }
         });
@@ -725,13 +727,23 @@ fn track_points(
     tr: &Track,
     half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
 ) -> Vec<TrackPoint> {
-    tr.frames
-        .iter()
-        .filter(|f| !f.flags.contains(crate::track::Flag::Partial))
-        .filter_map(|f| {
-            let h = f.held?;
+    points_of(
+        tr.frames.iter().filter_map(|f| Some((f, f.held?))),
+        half_width,
+    )
+}
+
+/// [`track_points`] of frames given with their held fits (the track's, or
+/// moved by a lens: [`crate::lens::undistort_held`]); a circle leaving the
+/// frame is no point.
+fn points_of<'a>(
+    held: impl Iterator<Item = (&'a FrameTrack, crate::detect::CircleFit)>,
+    half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
+) -> Vec<TrackPoint> {
+    held.filter(|(f, _)| !f.flags.contains(crate::track::Flag::Partial))
+        .map(|(f, h)| {
             let (hw, hw_err) = f.free.as_ref().map_or((None, None), &half_width);
-            Some(TrackPoint {
+            TrackPoint {
                 frame: f.frame,
                 t_s: f.t_s,
                 x_px: h.x_px,
@@ -739,7 +751,7 @@ fn track_points(
                 sigma_z_px: h.cov.sigma_z_px().max(1e-4),
                 half_width_px: hw,
                 sigma_half_width_px: hw_err,
-            })
+            }
         })
         .collect()
 }

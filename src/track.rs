@@ -519,22 +519,6 @@ fn remeasure(
 }
 
 impl Track {
-    /// A copy with only the frames that have a held fit, the frames the
-    /// events measure from ([`undistort_track`](crate::lens::undistort_track)
-    /// moves the held circles as in the whole track).
-    pub fn held_only(&self) -> Track {
-        Track {
-            frames: self
-                .frames
-                .iter()
-                .filter(|f| f.held.is_some())
-                .cloned()
-                .collect(),
-            background: self.background.clone(),
-            ..*self
-        }
-    }
-
     /// One-sigma uncertainty of the surface row at column `x_px`: the line
     /// fit's, plus [`SURFACE_SYSTEMATIC_PX`] and the edge model's error
     /// ([`SurfaceLine::model_err_px`]) in quadrature for a detected line (a line from the configuration is taken as given).

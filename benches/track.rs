@@ -156,7 +156,7 @@ fn main() {
         let t = track(&mut &m, &st).expect("track");
         let held = t.frames.iter().filter(|f| f.held.is_some()).count();
         let mean_iter = |g: &dyn Fn(&dropscope::track::FrameTrack) -> Option<u32>| {
-            let v: Vec<u32> = t.frames.iter().filter_map(g).collect();
+            let v: Vec<u32> = t.frames.iter().filter_map(|f| g(&f)).collect();
             v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len().max(1) as f64
         };
         let (it_free, it_held) = (

@@ -90,28 +90,32 @@ impl Lens {
 /// and the surface line through the scene positions of its points at the
 /// sphere's columns ±R_px. Takes the track (a long movie's is tens of
 /// megabytes): [`undistort_held`] moves the held circles without a copy.
-pub fn undistort_track(tr: Track, lens: &Lens) -> Track {
+pub fn undistort_track(tr: Track, lens: &Lens) -> std::io::Result<Track> {
     let mut out = tr;
     let mut lowest: Option<(f64, f64)> = None;
-    for f in &mut out.frames {
-        if let Some(fit) = f.free.as_mut() {
-            (fit.x_px, fit.z_px, fit.r_px) = lens.disc(fit.x_px, fit.z_px, fit.r_px);
+    out.frames.update(|_, block| -> std::io::Result<()> {
+        for f in block {
+            if let Some(fit) = f.free.as_mut() {
+                (fit.x_px, fit.z_px, fit.r_px) = lens.disc(fit.x_px, fit.z_px, fit.r_px);
+            }
+            if let Some(fit) = f.held.as_mut() {
+                let (x, z, _) = lens.disc(fit.x_px, fit.z_px, fit.r_px);
+                (fit.x_px, fit.z_px) = (x, z);
+                lowest = lower(lowest, (x, z));
+            }
         }
-        if let Some(fit) = f.held.as_mut() {
-            let (x, z, _) = lens.disc(fit.x_px, fit.z_px, fit.r_px);
-            (fit.x_px, fit.z_px) = (x, z);
-            lowest = lower(lowest, (x, z));
-        }
-    }
+        Ok(())
+    })?;
     let (r, surface) = radius_and_line(lens, lowest, out.radius_px, out.surface);
-    for f in &mut out.frames {
-        if let Some(h) = f.held.as_mut() {
+    out.frames.update(|_, block| -> std::io::Result<()> {
+        for h in block.iter_mut().filter_map(|f| f.held.as_mut()) {
             h.r_px = r;
         }
-    }
+        Ok(())
+    })?;
     out.radius_px = r;
     out.surface = surface;
-    out
+    Ok(out)
 }
 
 /// What [`undistort_track`] makes of `tr`'s held circles, without a copy
@@ -122,11 +126,11 @@ pub fn undistort_held<'a>(
     tr: &'a Track,
     lens: &'a Lens,
 ) -> (
-    impl Iterator<Item = (&'a FrameTrack, CircleFit)> + 'a,
+    impl Iterator<Item = (FrameTrack, CircleFit)> + 'a,
     SurfaceLine,
     f64,
 ) {
-    let moved = move |f: &'a FrameTrack| {
+    let moved = move |f: FrameTrack| {
         let h = f.held?;
         let (x, z, _) = lens.disc(h.x_px, h.z_px, h.r_px);
         Some((f, x, z, h))

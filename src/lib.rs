@@ -9,6 +9,7 @@
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
 //! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
+//! | [`records`] | a run's per-frame records, in a temporary file past a budget |
 //! | [`events`] | contact onset, peak and loss of contact from the track |
 //! | [`kinematics`] | v, δ, a, τc, e with jointly propagated errors |
 //! | [`scale`] | mm/px: given, from free fall (pooled per camera set-up), or from the radius |
@@ -63,6 +64,7 @@ pub mod process;
 pub mod process_job;
 pub mod progress;
 pub mod quality;
+pub mod records;
 pub mod render;
 pub mod report;
 pub mod run_name;

@@ -67,12 +67,12 @@ impl Pictures<'_> {
     /// The frames of the impact: fitted frames from `t_contact_s` less a
     /// margin to `t_rebound_s` (else the last frame) plus the margin, at
     /// most [`MAX_MOVIE_FRAMES`], evenly sampled.
-    pub fn impact_frames(&self, t_contact_s: f64, t_rebound_s: Option<f64>) -> Vec<&FrameTrack> {
+    pub fn impact_frames(&self, t_contact_s: f64, t_rebound_s: Option<f64>) -> Vec<FrameTrack> {
         let dt = 1.0 / self.meta.fps;
         let end = t_rebound_s.unwrap_or(f64::INFINITY);
         let margin = (MOVIE_MARGIN_SHARE * (end - t_contact_s)).clamp(3.0 * dt, 50.0 * dt);
         let margin = if margin.is_finite() { margin } else { 3.0 * dt };
-        let chosen: Vec<&FrameTrack> = self
+        let chosen: Vec<FrameTrack> = self
             .track
             .frames
             .iter()
@@ -89,11 +89,7 @@ impl Pictures<'_> {
     pub fn impact(&mut self, t_contact_s: f64, t_rebound_s: Option<f64>) -> Option<Vec<u8>> {
         use crate::timings::{start, Stage};
         let _timed = start(Stage::Animation);
-        let frames: Vec<FrameTrack> = self
-            .impact_frames(t_contact_s, t_rebound_s)
-            .into_iter()
-            .cloned()
-            .collect();
+        let frames = self.impact_frames(t_contact_s, t_rebound_s);
         let circles: Vec<_> = frames
             .iter()
             .filter_map(|f| f.held.map(|c| c.circle()))

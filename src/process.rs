@@ -424,7 +424,8 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
     let camera = &cfg.camera;
     if let Some(k1) = camera.distortion_k1_per_px2 {
-        tr = undistort_track(tr, &Lens::new(k1, meta.width, meta.height));
+        tr = undistort_track(tr, &Lens::new(k1, meta.width, meta.height))
+            .map_err(|e| format!("{}: {e}", run.path.display()))?;
     }
     let curvature = time(Stage::Events, || {
         let points = track_points(&tr, |_| (None, None));
@@ -447,6 +448,9 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
                 curvature,
             }
         });
+    tr.frames
+        .check()
+        .map_err(|e| format!("{}: {e}", run.path.display()))?;
     Ok(Tracked {
         source,
         meta,
@@ -658,22 +662,27 @@ fn measure_run(
             .iter()
             .filter(|f| f.held.is_some())
             .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
-        pictures.still(ft)
+        pictures.still(&ft)
     });
     let frame_overlays = overlay_frames
         .iter()
         .filter_map(|&n| {
             let ft = tr.frames.iter().find(|f| f.frame == n)?;
-            pictures.still(ft).map(|png| (n, png))
+            pictures.still(&ft).map(|png| (n, png))
         })
         .collect();
     let impact = record
         .t_contact_s
         .filter(|_| cfg.output.animation)
         .and_then(|t| pictures.impact(t, record.t_rebound_s));
+    let track_csv = crate::dataset::csv_bytes(tr.frames.iter().map(|f| row_of(&f)));
+    // Everything above walked the track's records: none failed to be read.
+    tr.frames
+        .check()
+        .map_err(|e| format!("{}: {e}", run.path.display()))?;
     Ok(RunOutcome {
         record,
-        track_csv: crate::dataset::csv_bytes(tr.frames.iter().map(row_of)),
+        track_csv,
         track_rows: tr.frames.len(),
         overlay,
         frame_overlays,
@@ -728,7 +737,7 @@ fn track_points(
     half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
 ) -> Vec<TrackPoint> {
     points_of(
-        tr.frames.iter().filter_map(|f| Some((f, f.held?))),
+        tr.frames.iter().filter_map(|f| f.held.map(|h| (f, h))),
         half_width,
     )
 }
@@ -736,8 +745,8 @@ fn track_points(
 /// [`track_points`] of frames given with their held fits (the track's, or
 /// moved by a lens: [`crate::lens::undistort_held`]); a circle leaving the
 /// frame is no point.
-fn points_of<'a>(
-    held: impl Iterator<Item = (&'a FrameTrack, crate::detect::CircleFit)>,
+fn points_of(
+    held: impl Iterator<Item = (FrameTrack, crate::detect::CircleFit)>,
     half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
 ) -> Vec<TrackPoint> {
     held.filter(|(f, _)| !f.flags.contains(crate::track::Flag::Partial))

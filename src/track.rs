@@ -47,6 +47,7 @@ use crate::detect::{
     fit_circle, measure_circle, Background, Band, Circle, CircleFit, DetectError, EdgeParams,
     EdgePoint, EdgeScratch, FitOptions, SurfaceLine,
 };
+use crate::records::{Put, Record, Records, Take};
 use crate::source::{Frame, FrameSource, SourceError};
 use crate::timings::{self, Stage};
 use ndarray::s;
@@ -84,6 +85,11 @@ pub struct TrackSettings {
     /// (see [`speculate`]): what is measured ahead and not yet taken is at
     /// most `2 × threads − 1` such chunks, whatever the movie's length.
     pub chunk_frames_max: usize,
+    /// Most frames whose records (the track's, and what pass 1 keeps of
+    /// each for pass 2) are held in memory; past it, all of them go to a
+    /// temporary file ([`crate::records`]) and are read back a block at a
+    /// time, so that they do not grow the memory with the movie's length.
+    pub frames_in_memory_max: usize,
 }
 
 /// [`TrackSettings::kept_points_max`] by default: 16 MB of points, about
@@ -97,6 +103,10 @@ pub const KEPT_POINTS_MAX: usize = 2 << 20;
 /// movie 13 % slower on 2 threads, in four rounds instead of one).
 pub const CHUNK_FRAMES_MAX: usize = 8192;
 
+/// [`TrackSettings::frames_in_memory_max`] by default: 8 MB of the track's
+/// records (256 bytes a frame) and 1.8 MB of pass 1's (56).
+pub const FRAMES_IN_MEMORY_MAX: usize = 32_768;
+
 impl TrackSettings {
     pub fn from_config(cfg: &crate::config::DetectConfig) -> Self {
         TrackSettings {
@@ -108,6 +118,7 @@ impl TrackSettings {
             band_margin_px: 6.0,
             kept_points_max: KEPT_POINTS_MAX,
             chunk_frames_max: CHUNK_FRAMES_MAX,
+            frames_in_memory_max: FRAMES_IN_MEMORY_MAX,
         }
     }
 }
@@ -166,6 +177,15 @@ impl FrameFlags {
         self.0 & (1 << f as u8) != 0
     }
 
+    /// The flags as one byte (a bit per [`Flag`]), as stored in a file.
+    pub fn bits(self) -> u8 {
+        self.0
+    }
+
+    pub fn from_bits(bits: u8) -> Self {
+        FrameFlags(bits)
+    }
+
     /// The flags' words, space-separated, in [`Flag`]'s order (the order
     /// the tracker sets them in); empty without flags.
     pub fn text(self) -> String {
@@ -179,7 +199,7 @@ impl FrameFlags {
 }
 
 /// A tracked run.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Track {
     pub surface: SurfaceLine,
     /// True when the surface line came from the configuration.
@@ -188,7 +208,11 @@ pub struct Track {
     pub radius_err_px: f64,
     /// Frames whose full circle gave the radius.
     pub radius_frames: usize,
-    pub frames: Vec<FrameTrack>,
+    /// A record a frame, in memory or in a temporary file past
+    /// [`TrackSettings::frames_in_memory_max`]: walk them with
+    /// [`Records::iter`], then [`Records::check`] that none failed to be
+    /// read back.
+    pub frames: Records<FrameTrack>,
     pub background: Background,
     /// Frames that pass 2 had to read again (see the module doc, step 4).
     pub reread_frames: usize,
@@ -227,6 +251,8 @@ pub enum TrackError {
     NoCalibration { found: usize },
     #[error("only {0} frames: too short a movie to find a drop in")]
     TooShort(usize),
+    #[error("a temporary file for the track's per-frame records (set TMPDIR to a folder with room): {0}")]
+    Records(#[from] std::io::Error),
 }
 
 /// Track the sphere through `source` (see the module doc).
@@ -270,11 +296,12 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     };
     let bounds: Vec<usize> = (0..=chunks).map(|k| k * n / chunks).collect();
     let pool = ScratchPool::default();
+    let in_memory = st.frames_in_memory_max;
     let mut walk = Walk {
-        frames: Vec::with_capacity(n),
+        frames: Records::with_capacity(n, in_memory),
         kept_points: Vec::new(),
         kept_points_max: st.kept_points_max,
-        kept: Vec::with_capacity(n),
+        kept: Records::with_capacity(n, in_memory),
         state: Pass1State::default(),
         scratch: LookScratch::new(h, w),
         measured_ahead: 0,
@@ -317,12 +344,14 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     let Walk {
         mut frames,
         kept_points,
-        kept,
+        mut kept,
         state,
         scratch,
         measured_ahead,
         ..
     } = walk;
+    frames.flush()?;
+    kept.flush()?;
     let history = state.fits;
     if history == 0 {
         return Err(TrackError::NoSphere { frames: n });
@@ -337,6 +366,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
             .filter_map(|f| f.free)
             .filter(|f| full_circle(f, w, h, Some(&surface), &st.edge))
             .collect();
+        frames.check()?;
         timings::time(Stage::Pass1, || {
             calibrate_radius(&whole, w, h, Some(&surface), &st.edge, 3)
         })
@@ -356,69 +386,75 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     } = scratch;
     // Each frame's held fit goes straight into its record (a `Held` a frame
     // held until all were done was 144 bytes a frame at the tracker's
-    // peak); only the frames to read again are listed.
-    let mut reread: Vec<(usize, Circle)> = {
+    // peak); only the frames to read again are listed. A block of records
+    // at a time (all of them when in memory): each frame on its own, then
+    // the block's frames past the points' budget measured again as pass 1
+    // did and held like the others.
+    let mut reread: Vec<(usize, Circle)> = Vec::new();
+    let mut remeasured_frames = 0;
+    frames.update(|lo, block| -> Result<(), TrackError> {
         use rayon::prelude::*;
-        frames
-            .par_iter_mut()
-            .zip(&kept)
+        let kept = kept.block(lo, lo + block.len())?;
+        reread.par_extend(
+            block
+                .par_iter_mut()
+                .zip(&kept)
+                .enumerate()
+                .with_min_len(64)
+                .map_init(
+                    || (Vec::new(), FitScratch::default()),
+                    |(points, fs), (i, (ft, k))| {
+                        let h = timings::time(Stage::Pass2, || match k {
+                            Some(Kept::Points {
+                                start,
+                                len,
+                                centre,
+                                radial_sigma_px,
+                            }) => {
+                                let k = KeptRef {
+                                    points: &kept_points[*start..start + len],
+                                    centre: *centre,
+                                    radial_sigma_px: *radial_sigma_px,
+                                };
+                                hold(ft, Some(k), radius_px, st, points, fs)
+                            }
+                            // Below, with a source.
+                            Some(Kept::Again(_)) => Held::NoFit,
+                            None => hold(ft, None, radius_px, st, points, fs),
+                        });
+                        settle(ft, h).map(|p| (lo + i, p))
+                    },
+                )
+                .flatten(),
+        );
+        let again: Vec<(usize, Look)> = kept
+            .iter()
             .enumerate()
-            .with_min_len(64)
-            .map_init(
-                || (Vec::new(), FitScratch::default()),
-                |(points, fs), (i, (ft, k))| {
-                    let h = timings::time(Stage::Pass2, || match k {
-                        Some(Kept::Points {
-                            start,
-                            len,
-                            centre,
-                            radial_sigma_px,
-                        }) => {
-                            let k = KeptRef {
-                                points: &kept_points[*start..start + len],
-                                centre: *centre,
-                                radial_sigma_px: *radial_sigma_px,
-                            };
-                            hold(ft, Some(k), radius_px, st, points, fs)
-                        }
-                        // Below, with a source.
-                        Some(Kept::Again(_)) => Held::NoFit,
-                        None => hold(ft, None, radius_px, st, points, fs),
-                    });
-                    settle(ft, h).map(|p| (i, p))
-                },
-            )
-            .flatten()
-            .collect()
-    };
-    // The frames past the points' budget: measured again as pass 1 did,
-    // then held like the others.
-    let again: Vec<(usize, Look)> = kept
-        .iter()
-        .enumerate()
-        .filter_map(|(i, k)| match k {
-            Some(Kept::Again(look)) => Some((i, *look)),
-            _ => None,
-        })
-        .collect();
+            .filter_map(|(i, k)| match k {
+                Some(Kept::Again(look)) => Some((i, *look)),
+                _ => None,
+            })
+            .collect();
+        remeasured_frames += again.len();
+        if !again.is_empty() {
+            let redone = timings::time(Stage::Pass2, || {
+                remeasure(source, &ctx, block, &again, radius_px, st, &pool)
+            })?;
+            for ((i, _), h) in again.iter().zip(redone) {
+                reread.extend(settle(&mut block[*i], h).map(|p| (lo + *i, p)));
+            }
+        }
+        Ok(())
+    })?;
+    reread.sort_by_key(|r| r.0);
     let kept_points = kept_points.len();
     drop(kept);
-    let remeasured_frames = again.len();
-    if !again.is_empty() {
-        let redone = timings::time(Stage::Pass2, || {
-            remeasure(source, &ctx, &frames, &again, radius_px, st, &pool)
-        })?;
-        for ((i, _), h) in again.iter().zip(redone) {
-            reread.extend(settle(&mut frames[*i], h).map(|p| (*i, p)));
-        }
-        reread.sort_by_key(|r| r.0);
-    }
     drop(pool);
     // In the frames' order: the first that cannot be read is the error.
     let reread_frames = reread.len();
     let _pass2 = timings::start(Stage::Pass2);
     for (i, p) in reread {
-        let ft = &mut frames[i];
+        let mut ft = frames.get(i)?;
         ft.held = measure_in_band(
             source,
             ft.index,
@@ -433,6 +469,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         if ft.held.is_none() {
             ft.flags.insert(Flag::Missing);
         }
+        frames.set(i, ft)?;
     }
     Ok(Track {
         surface,
@@ -607,6 +644,60 @@ enum Kept {
     /// Past [`TrackSettings::kept_points_max`]: how pass 1 looked at it,
     /// to measure it again in pass 2.
     Again(Look),
+}
+
+/// A tag (0 nothing kept, 1 points, 2 and 3 a look to measure again: a
+/// search, a circle), the points' place, a circle and the radial σ.
+impl Record for Option<Kept> {
+    const BYTES: usize = 1 + 8 * 2 + 8 * 4;
+
+    fn put(&self, out: &mut Vec<u8>) {
+        let none = Circle {
+            x_px: 0.0,
+            z_px: 0.0,
+            r_px: 0.0,
+        };
+        let (tag, start, len, c, sigma) = match *self {
+            None => (0, 0, 0, none, 0.0),
+            Some(Kept::Points {
+                start,
+                len,
+                centre,
+                radial_sigma_px,
+            }) => (1, start, len, centre, radial_sigma_px),
+            Some(Kept::Again(Look::Search)) => (2, 0, 0, none, 0.0),
+            Some(Kept::Again(Look::At(c))) => (3, 0, 0, c, 0.0),
+        };
+        let mut p = Put(out);
+        p.u8(tag);
+        p.u64(start as u64);
+        p.u64(len as u64);
+        for v in [c.x_px, c.z_px, c.r_px, sigma] {
+            p.f64(v);
+        }
+    }
+
+    fn get(b: &[u8]) -> Self {
+        let mut t = Take(b);
+        let (tag, start, len) = (t.u8(), t.u64() as usize, t.u64() as usize);
+        let c = Circle {
+            x_px: t.f64(),
+            z_px: t.f64(),
+            r_px: t.f64(),
+        };
+        let radial_sigma_px = t.f64();
+        match tag {
+            0 => None,
+            1 => Some(Kept::Points {
+                start,
+                len,
+                centre: c,
+                radial_sigma_px,
+            }),
+            2 => Some(Kept::Again(Look::Search)),
+            _ => Some(Kept::Again(Look::At(c))),
+        }
+    }
 }
 
 /// One frame's kept points as [`hold`] takes them.
@@ -863,12 +954,12 @@ fn source_number(source: &dyn FrameSource, i: usize) -> i64 {
 
 /// Pass 1 in order, frame by frame.
 struct Walk {
-    frames: Vec<FrameTrack>,
+    frames: Records<FrameTrack>,
     /// Pass 1's edge points, kept for pass 2 (one flat buffer), at most
     /// `kept_points_max`.
     kept_points: Vec<[f32; 2]>,
     kept_points_max: usize,
-    kept: Vec<Option<Kept>>,
+    kept: Records<Option<Kept>>,
     state: Pass1State,
     scratch: LookScratch,
     measured_ahead: usize,
@@ -909,9 +1000,9 @@ impl Walk {
                 centre: *c,
                 radial_sigma_px: *sigma,
             }
-        }));
+        }))?;
         let w = meta.width;
-        self.frames.push(self.state.step(meta, i, &seen, w));
+        self.frames.push(self.state.step(meta, i, &seen, w))?;
         Ok(())
     }
 }
@@ -1343,6 +1434,33 @@ mod tests {
         f.insert(Flag::Missing);
         assert_eq!(f.text(), "recovered partial missing");
         assert_eq!(std::mem::size_of::<FrameFlags>(), 1);
+    }
+
+    #[test]
+    fn what_pass_1_keeps_of_a_frame_reads_back_from_its_bytes() {
+        let c = Circle {
+            x_px: 1.5,
+            z_px: -0.0,
+            r_px: 1e-300,
+        };
+        let all = [
+            None,
+            Some(Kept::Points {
+                start: usize::MAX >> 1,
+                len: 17,
+                centre: c,
+                radial_sigma_px: 0.25,
+            }),
+            Some(Kept::Again(Look::Search)),
+            Some(Kept::Again(Look::At(c))),
+        ];
+        for k in all {
+            let mut bytes = Vec::new();
+            k.put(&mut bytes);
+            assert_eq!(bytes.len(), <Option<Kept> as Record>::BYTES);
+            let back = <Option<Kept> as Record>::get(&bytes);
+            assert_eq!(format!("{back:?}"), format!("{k:?}"));
+        }
     }
 
     #[test]

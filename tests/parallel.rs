@@ -107,10 +107,12 @@ fn a_long_movie_gives_the_same_bytes_on_one_thread_and_two() {
 
 /// What the tracker holds does not grow with the movie's length: pass 1
 /// keeps at most `kept_points_max` edge points for pass 2 (the frames past
-/// it are measured again in pass 2, to the same points), and what other
+/// it are measured again in pass 2, to the same points), what other
 /// threads measure ahead is at most `2 × threads − 1` chunks of at most
-/// `chunk_frames_max` frames. With both set far below this movie's needs,
-/// the track is the same bits as with the defaults, on one thread and two.
+/// `chunk_frames_max` frames, and past `frames_in_memory_max` frames the
+/// per-frame records go to a temporary file. With all three set far below
+/// this movie's needs, the track is the same bits as with the defaults, on
+/// one thread and two.
 #[test]
 fn the_points_kept_and_the_frames_measured_ahead_are_bounded() {
     let data = tempfile::tempdir().unwrap();
@@ -119,6 +121,7 @@ fn the_points_kept_and_the_frames_measured_ahead_are_bounded() {
     let bounded = TrackSettings {
         kept_points_max: 10_000,
         chunk_frames_max: 100,
+        frames_in_memory_max: 100,
         ..default.clone()
     };
     let tracked = |threads: usize, st: &TrackSettings| {
@@ -128,6 +131,7 @@ fn the_points_kept_and_the_frames_measured_ahead_are_bounded() {
         })
     };
     let full = tracked(2, &default);
+    assert!(!full.frames.spilled());
     let n = full.frames.len();
     let fitted = full.frames.iter().filter(|f| f.free.is_some()).count();
     println!(
@@ -162,8 +166,10 @@ fn the_points_kept_and_the_frames_measured_ahead_are_bounded() {
         if threads == 2 {
             assert!(b.measured_ahead > n / 3, "{} ahead", b.measured_ahead);
         }
-        // The same track, bit for bit.
+        // The same track, bit for bit, read back from its file.
+        assert!(b.frames.spilled());
         assert_eq!(format!("{:?}", b.frames), format!("{:?}", full.frames));
+        b.frames.check().unwrap();
         assert_eq!(b.radius_px.to_bits(), full.radius_px.to_bits());
     }
 }

@@ -1,0 +1,441 @@
+//! A run's per-frame records, held in memory up to a budget and past it in
+//! an unnamed temporary file, so that what a long movie's tracker holds
+//! does not grow with its length (issue 16). Records are appended in the
+//! frames' order, then read back a block at a time: walked in order,
+//! updated block by block, or one at a time. A record is stored as the bits
+//! of its fields, so what is read back is the same value.
+
+use std::fs::File;
+
+use crate::detect::{CircleFit, Covariance};
+use crate::track::{FrameFlags, FrameTrack};
+
+/// A record of a fixed number of bytes in the file.
+pub trait Record: Clone {
+    /// Bytes of one record.
+    const BYTES: usize;
+    /// Append exactly [`Self::BYTES`] bytes to `out`.
+    fn put(&self, out: &mut Vec<u8>);
+    /// The record from its [`Self::BYTES`] bytes.
+    fn get(b: &[u8]) -> Self;
+}
+
+/// Records read or written at once from the file.
+pub const BLOCK: usize = 4096;
+
+/// Records in order, in memory while at most `memory_max`, else in a file.
+pub struct Records<T> {
+    /// Every record while they fit the budget; past it, those appended and
+    /// not yet written (fewer than [`BLOCK`]).
+    mem: Vec<T>,
+    file: Option<File>,
+    /// Records in the file.
+    in_file: usize,
+    memory_max: usize,
+    /// The first read of the file that failed in [`Records::iter`], which
+    /// then ended early: [`Records::check`] returns it.
+    failed: std::sync::OnceLock<String>,
+}
+
+/// The records, as a list (the same text in memory and in a file).
+impl<T: Record + std::fmt::Debug> std::fmt::Debug for Records<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
+}
+
+impl<T: Record> Records<T> {
+    /// None yet; at most `memory_max` of them held in memory.
+    pub fn new(memory_max: usize) -> Self {
+        Records::with_capacity(0, memory_max)
+    }
+
+    /// [`Self::new`], with room for `n` records in memory (at most
+    /// `memory_max`).
+    pub fn with_capacity(n: usize, memory_max: usize) -> Self {
+        Records {
+            mem: Vec::with_capacity(n.min(memory_max)),
+            file: None,
+            in_file: 0,
+            memory_max,
+            failed: std::sync::OnceLock::new(),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.in_file + self.mem.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Whether the records are in a file.
+    pub fn spilled(&self) -> bool {
+        self.file.is_some()
+    }
+
+    /// Append `r`. Past the budget, the records go to the file a block at
+    /// a time (the first time, all of them).
+    pub fn push(&mut self, r: T) -> std::io::Result<()> {
+        if self.file.is_none() && self.mem.len() < self.memory_max {
+            self.mem.push(r);
+            return Ok(());
+        }
+        if self.file.is_none() {
+            self.file = Some(tempfile::tempfile()?);
+        }
+        self.mem.push(r);
+        if self.mem.len() >= BLOCK {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Write the records held in memory to the file, when there is one:
+    /// after the last [`Self::push`], before reading.
+    pub fn flush(&mut self) -> std::io::Result<()> {
+        let Some(file) = &self.file else {
+            return Ok(());
+        };
+        // A block at a time (the first time, the whole budget is written).
+        let mut bytes = Vec::with_capacity(BLOCK.min(self.mem.len()) * T::BYTES);
+        for (k, block) in self.mem.chunks(BLOCK).enumerate() {
+            bytes.clear();
+            for r in block {
+                r.put(&mut bytes);
+            }
+            let at = self.in_file + k * BLOCK;
+            write_at(file, (at * T::BYTES) as u64, &bytes)?;
+        }
+        self.in_file += self.mem.len();
+        self.mem.clear();
+        if self.mem.capacity() > BLOCK {
+            self.mem = Vec::with_capacity(BLOCK);
+        }
+        Ok(())
+    }
+
+    /// Records `lo..hi` (copied from memory, or read from the file).
+    pub fn block(&self, lo: usize, hi: usize) -> std::io::Result<Vec<T>> {
+        match &self.file {
+            None => Ok(self.mem[lo..hi].to_vec()),
+            Some(file) => {
+                assert!(self.mem.is_empty(), "records read before their flush");
+                let mut bytes = vec![0u8; (hi - lo) * T::BYTES];
+                read_at(file, (lo * T::BYTES) as u64, &mut bytes)?;
+                Ok(bytes.chunks_exact(T::BYTES).map(T::get).collect())
+            }
+        }
+    }
+
+    /// Record `i`.
+    pub fn get(&self, i: usize) -> std::io::Result<T> {
+        Ok(self.block(i, i + 1)?.remove(0))
+    }
+
+    /// Replace record `i`.
+    pub fn set(&mut self, i: usize, r: T) -> std::io::Result<()> {
+        match &self.file {
+            None => self.mem[i] = r,
+            Some(file) => {
+                let mut bytes = Vec::with_capacity(T::BYTES);
+                r.put(&mut bytes);
+                write_at(file, (i * T::BYTES) as u64, &bytes)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The records in order, a block read at a time. A read of the file
+    /// that fails ends the walk early and is kept for [`Self::check`]: what
+    /// was made from the records is used only after that check.
+    pub fn iter(&self) -> impl Iterator<Item = T> + '_ {
+        let n = self.len();
+        (0..n)
+            .step_by(BLOCK)
+            .map_while(move |lo| match self.block(lo, (lo + BLOCK).min(n)) {
+                Ok(block) => Some(block),
+                Err(e) => {
+                    let _ = self.failed.set(e.to_string());
+                    None
+                }
+            })
+            .flatten()
+    }
+
+    /// The first failed read of [`Self::iter`], if any.
+    pub fn check(&self) -> std::io::Result<()> {
+        match self.failed.get() {
+            Some(e) => Err(std::io::Error::other(format!(
+                "reading a temporary file of per-frame records back: {e}"
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// `f(first index, block)` on the records a block at a time (all at
+    /// once in memory), each block written back after it.
+    pub fn update<E: From<std::io::Error>>(
+        &mut self,
+        mut f: impl FnMut(usize, &mut [T]) -> Result<(), E>,
+    ) -> Result<(), E> {
+        if self.file.is_none() {
+            return f(0, &mut self.mem);
+        }
+        let n = self.len();
+        for lo in (0..n).step_by(BLOCK) {
+            let hi = (lo + BLOCK).min(n);
+            let mut block = self.block(lo, hi)?;
+            f(lo, &mut block)?;
+            let mut bytes = Vec::with_capacity(block.len() * T::BYTES);
+            for r in &block {
+                r.put(&mut bytes);
+            }
+            write_at(
+                self.file.as_ref().expect("a file"),
+                (lo * T::BYTES) as u64,
+                &bytes,
+            )?;
+        }
+        Ok(())
+    }
+}
+
+fn read_at(file: &File, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
+    }
+    #[cfg(not(unix))]
+    {
+        use std::io::{Read, Seek, SeekFrom};
+        let mut f = file;
+        f.seek(SeekFrom::Start(offset))?;
+        f.read_exact(buf)
+    }
+}
+
+fn write_at(file: &File, offset: u64, buf: &[u8]) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::FileExt::write_all_at(file, buf, offset)
+    }
+    #[cfg(not(unix))]
+    {
+        use std::io::{Seek, SeekFrom, Write};
+        let mut f = file;
+        f.seek(SeekFrom::Start(offset))?;
+        f.write_all(buf)
+    }
+}
+
+/// Writes a record's fields as their bits, little-endian.
+pub struct Put<'a>(pub &'a mut Vec<u8>);
+
+impl Put<'_> {
+    pub fn u8(&mut self, v: u8) {
+        self.0.push(v);
+    }
+    pub fn u32(&mut self, v: u32) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    pub fn u64(&mut self, v: u64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    pub fn f64(&mut self, v: f64) {
+        self.u64(v.to_bits());
+    }
+}
+
+/// Reads back what [`Put`] wrote, in the same order.
+pub struct Take<'a>(pub &'a [u8]);
+
+impl Take<'_> {
+    fn bytes<const N: usize>(&mut self) -> [u8; N] {
+        let (head, rest) = self.0.split_at(N);
+        self.0 = rest;
+        head.try_into().expect("N bytes")
+    }
+    pub fn u8(&mut self) -> u8 {
+        self.bytes::<1>()[0]
+    }
+    pub fn u32(&mut self) -> u32 {
+        u32::from_le_bytes(self.bytes())
+    }
+    pub fn u64(&mut self) -> u64 {
+        u64::from_le_bytes(self.bytes())
+    }
+    pub fn f64(&mut self) -> f64 {
+        f64::from_bits(self.u64())
+    }
+}
+
+/// A circle fit: a tag (0 none, 1 full covariance, 2 centre only), then
+/// its fields, a centre-only covariance padded to six numbers.
+const FIT_BYTES: usize = 1 + 8 * 3 + 8 * 6 + 8 + 4 * 3 + 8;
+
+fn put_fit(p: &mut Put, fit: &Option<CircleFit>) {
+    let Some(f) = fit else {
+        p.0.resize(p.0.len() + FIT_BYTES, 0);
+        return;
+    };
+    let cov: [f64; 6] = match f.cov {
+        Covariance::Full(c) => {
+            p.u8(1);
+            c
+        }
+        Covariance::CentreOnly([a, b, c]) => {
+            p.u8(2);
+            [a, b, c, 0.0, 0.0, 0.0]
+        }
+    };
+    for v in [f.x_px, f.z_px, f.r_px].into_iter().chain(cov) {
+        p.f64(v);
+    }
+    p.f64(f.residual_px);
+    for v in [f.n_used, f.inliers, f.iterations] {
+        p.u32(v);
+    }
+    p.f64(f.scale_px);
+}
+
+fn take_fit(t: &mut Take) -> Option<CircleFit> {
+    let tag = t.u8();
+    if tag == 0 {
+        t.0 = &t.0[FIT_BYTES - 1..];
+        return None;
+    }
+    let (x_px, z_px, r_px) = (t.f64(), t.f64(), t.f64());
+    let c: [f64; 6] = std::array::from_fn(|_| t.f64());
+    let cov = if tag == 1 {
+        Covariance::Full(c)
+    } else {
+        Covariance::CentreOnly([c[0], c[1], c[2]])
+    };
+    Some(CircleFit {
+        x_px,
+        z_px,
+        r_px,
+        cov,
+        residual_px: t.f64(),
+        n_used: t.u32(),
+        inliers: t.u32(),
+        iterations: t.u32(),
+        scale_px: t.f64(),
+    })
+}
+
+impl Record for FrameTrack {
+    const BYTES: usize = 8 * 3 + 1 + 2 * FIT_BYTES;
+
+    fn put(&self, out: &mut Vec<u8>) {
+        let mut p = Put(out);
+        p.u64(self.index as u64);
+        p.u64(self.frame as u64);
+        p.f64(self.t_s);
+        p.u8(self.flags.bits());
+        put_fit(&mut p, &self.free);
+        put_fit(&mut p, &self.held);
+    }
+
+    fn get(b: &[u8]) -> Self {
+        let mut t = Take(b);
+        FrameTrack {
+            index: t.u64() as usize,
+            frame: t.u64() as i64,
+            t_s: t.f64(),
+            flags: FrameFlags::from_bits(t.u8()),
+            free: take_fit(&mut t),
+            held: take_fit(&mut t),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::track::Flag;
+
+    fn fit(i: usize, full: bool) -> CircleFit {
+        let v = |k: usize| (i * 7 + k) as f64 / 3.0 - 5.0;
+        CircleFit {
+            x_px: v(1),
+            z_px: -0.0,
+            r_px: v(2),
+            cov: if full {
+                Covariance::Full([v(3), v(4), v(5), v(6), v(7), f64::MIN_POSITIVE])
+            } else {
+                Covariance::CentreOnly([v(3), -v(4), 1e-300])
+            },
+            residual_px: v(8),
+            n_used: i as u32,
+            inliers: u32::MAX - i as u32,
+            iterations: 3,
+            scale_px: v(9),
+        }
+    }
+
+    /// Frames with no fit, a free fit only, both, and flags.
+    fn frame(i: usize) -> FrameTrack {
+        let mut flags = FrameFlags::default();
+        if i.is_multiple_of(3) {
+            flags.insert(Flag::Missing);
+        }
+        if i.is_multiple_of(5) {
+            flags.insert(Flag::Partial);
+        }
+        FrameTrack {
+            index: i,
+            frame: i as i64 - 1000,
+            t_s: (i as f64 - 1000.0) / 60_000.0,
+            free: (!i.is_multiple_of(4)).then(|| fit(i, true)),
+            held: (i % 4 > 1).then(|| fit(i, false)),
+            flags,
+        }
+    }
+
+    #[test]
+    fn records_in_a_file_read_back_as_the_same_bits_as_in_memory() {
+        let n = 2 * BLOCK + 123;
+        let (mut mem, mut file) = (Records::new(n), Records::new(100));
+        for i in 0..n {
+            mem.push(frame(i)).unwrap();
+            file.push(frame(i)).unwrap();
+        }
+        mem.flush().unwrap();
+        file.flush().unwrap();
+        assert!(!mem.spilled() && file.spilled());
+        assert_eq!((mem.len(), file.len()), (n, n));
+        // Debug prints each f64's shortest round-trip form: equal text is
+        // equal bits.
+        assert_eq!(format!("{mem:?}"), format!("{file:?}"));
+        let expected: Vec<FrameTrack> = (0..n).map(frame).collect();
+        assert_eq!(format!("{file:?}"), format!("{expected:?}"));
+        // One record, replaced, and every record updated block by block.
+        for r in [&mut mem, &mut file] {
+            assert_eq!(
+                format!("{:?}", r.get(BLOCK + 7).unwrap()),
+                format!("{:?}", frame(BLOCK + 7))
+            );
+            r.set(BLOCK + 7, frame(1)).unwrap();
+            let mut seen = Vec::new();
+            r.update(|lo, block| -> std::io::Result<()> {
+                seen.push((lo, block.len()));
+                for f in block {
+                    f.index += 1;
+                }
+                Ok(())
+            })
+            .unwrap();
+            assert_eq!(seen.iter().map(|s| s.1).sum::<usize>(), n);
+            r.check().unwrap();
+        }
+        assert_eq!(format!("{mem:?}"), format!("{file:?}"));
+        let got: Vec<usize> = file.iter().map(|f| f.index).collect();
+        let want: Vec<usize> = (0..n)
+            .map(|i| if i == BLOCK + 7 { 2 } else { i + 1 })
+            .collect();
+        assert_eq!(got, want);
+    }
+}

@@ -26,15 +26,14 @@ pub fn of_file(path: &Path) -> std::io::Result<String> {
 const DESC_PREFIX: &str = "<desc>dropscope dataset_id ";
 
 /// `svg` with its dataset id as the first element inside `<svg …>`.
-pub fn tag_svg(svg: &[u8], id: &str) -> Vec<u8> {
+pub fn tag_svg(mut svg: Vec<u8>, id: &str) -> Vec<u8> {
     let Some(end) = svg.iter().position(|&b| b == b'>') else {
-        return svg.to_vec();
+        return svg;
     };
-    let mut out = Vec::with_capacity(svg.len() + 64);
-    out.extend_from_slice(&svg[..=end]);
-    out.extend_from_slice(format!("{DESC_PREFIX}{id}</desc>").as_bytes());
-    out.extend_from_slice(&svg[end + 1..]);
-    out
+    // In place: a long movie's figure is megabytes.
+    let desc = format!("{DESC_PREFIX}{id}</desc>");
+    svg.splice(end + 1..end + 1, desc.bytes());
+    svg
 }
 
 /// The dataset id an SVG written by [`tag_svg`] carries.
@@ -83,7 +82,7 @@ mod tests {
         assert_eq!(a.len(), 16);
         assert_eq!(a, of_bytes(b"run,status\na,ok\n"));
         assert_ne!(a, of_bytes(b"run,status\nb,ok\n"));
-        let svg = tag_svg(b"<svg width=\"3\"><rect/></svg>", &a);
+        let svg = tag_svg(b"<svg width=\"3\"><rect/></svg>".to_vec(), &a);
         let text = String::from_utf8(svg).unwrap();
         assert!(text.starts_with("<svg width=\"3\"><desc>"), "{text}");
         assert_eq!(of_svg(&text), Some(a.as_str()));

@@ -218,7 +218,7 @@ mod tests {
     #[test]
     fn only_files_of_another_dataset_are_removed() {
         let (_dir, out) = out_with_tracks(&[]);
-        let tag = |id: &str| crate::dataset_id::tag_svg(b"<svg><g/></svg>", id);
+        let tag = |id: &str| crate::dataset_id::tag_svg(b"<svg><g/></svg>".to_vec(), id);
         std::fs::create_dir_all(out.join("plots")).unwrap();
         for (rel, bytes) in [
             (

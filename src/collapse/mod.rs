@@ -308,17 +308,13 @@ pub fn run(
         for (name, bytes) in crate::plot::collapse_figures(&used, &fits)? {
             let rel = Path::new("plots").join(&name);
             let bytes = if rel.extension().is_some_and(|e| e == "svg") {
-                crate::dataset_id::tag_svg(&bytes, &dataset_id)
+                crate::dataset_id::tag_svg(bytes, &dataset_id)
             } else {
                 bytes
             };
             write(&out_dir, &rel, &bytes, &mut files)?;
         }
-        per_drop::replace(
-            &out_dir,
-            per_drop::figures(&diags, &dataset_id)?,
-            &mut files,
-        )?;
+        per_drop::replace(&out_dir, per_drop::figures(diags, &dataset_id)?, &mut files)?;
     } else {
         per_drop::replace(&out_dir, Vec::new(), &mut files)?;
     }

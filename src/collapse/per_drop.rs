@@ -51,17 +51,18 @@ pub fn diagnose_all<'a>(
 
 /// The figures of `diags`, as (path relative to the output folder, bytes),
 /// each SVG tagged with the dataset id of the drops.csv they come from.
+/// Each drop's track is let go once its figures are drawn.
 pub fn figures(
-    diags: &[DropDiagnostics],
+    diags: Vec<DropDiagnostics>,
     dataset_id: &str,
 ) -> Result<Vec<(PathBuf, Vec<u8>)>, CollapseError> {
     // Each drop's figures on their own (on every thread), in order.
     use rayon::prelude::*;
     let drawn: Vec<_> = diags
-        .par_iter()
+        .into_par_iter()
         .map(|d| {
             crate::timings::time(crate::timings::Stage::Figures, || {
-                crate::plot::drop_figures(d)
+                crate::plot::drop_figures(&d)
             })
         })
         .collect();
@@ -70,7 +71,7 @@ pub fn figures(
         for (name, bytes) in d? {
             let rel = Path::new("plots").join("drops").join(name);
             let bytes = if rel.extension().is_some_and(|e| e == "svg") {
-                crate::dataset_id::tag_svg(&bytes, dataset_id)
+                crate::dataset_id::tag_svg(bytes, dataset_id)
             } else {
                 bytes
             };
@@ -105,7 +106,7 @@ pub fn write(
         cfg.surfaces.get(name)
     });
     let mut files = Vec::new();
-    replace(out_dir, figures(&diags, &id)?, &mut files)?;
+    replace(out_dir, figures(diags, &id)?, &mut files)?;
     Ok((files, warnings))
 }
 

@@ -84,25 +84,27 @@ pub(crate) fn hover(x: i32, y: i32, text: String) {
 
 /// `svg` with one invisible circle per hover target, each holding its text
 /// as `<title>` (shown by every browser on hover), on top of the drawing.
-fn with_hover(svg: String, targets: &[(i32, i32, String)]) -> String {
+/// Written into `svg` itself: a copy of a long movie's figure (10.7 MB for
+/// 124 166 frames) was, grown by doubling, 21 MB.
+fn with_hover(mut svg: String, targets: &[(i32, i32, String)]) -> String {
     let Some(end) = svg.rfind("</svg>") else {
         return svg;
     };
-    let mut out = String::with_capacity(svg.len() + targets.len() * 120);
-    out.push_str(&svg[..end]);
-    out.push_str("<g fill=\"#000\" fill-opacity=\"0\">");
+    let tail = svg.split_off(end);
+    svg.reserve_exact(tail.len() + 40 + targets.len() * 120);
+    svg.push_str("<g fill=\"#000\" fill-opacity=\"0\">");
     for (x, y, text) in targets {
         let text = text
             .replace('&', "&amp;")
             .replace('<', "&lt;")
             .replace('>', "&gt;");
-        out.push_str(&format!(
+        svg.push_str(&format!(
             "<circle cx=\"{x}\" cy=\"{y}\" r=\"9\"><title>{text}</title></circle>"
         ));
     }
-    out.push_str("</g>");
-    out.push_str(&svg[end..]);
-    out
+    svg.push_str("</g>");
+    svg.push_str(&tail);
+    svg
 }
 
 /// Register DejaVu Sans as plotters' "sans-serif" (all styles fall back to

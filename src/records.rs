@@ -129,6 +129,20 @@ impl<T: Record> Records<T> {
         }
     }
 
+    /// `f` on records `lo..hi`: those in memory as they are, those in the
+    /// file read first.
+    pub fn with_block<R>(
+        &self,
+        lo: usize,
+        hi: usize,
+        f: impl FnOnce(&[T]) -> R,
+    ) -> std::io::Result<R> {
+        match &self.file {
+            None => Ok(f(&self.mem[lo..hi])),
+            Some(_) => Ok(f(&self.block(lo, hi)?)),
+        }
+    }
+
     /// Record `i`.
     pub fn get(&self, i: usize) -> std::io::Result<T> {
         Ok(self.block(i, i + 1)?.remove(0))
@@ -151,8 +165,13 @@ impl<T: Record> Records<T> {
     /// that fails ends the walk early and is kept for [`Self::check`]: what
     /// was made from the records is used only after that check.
     pub fn iter(&self) -> impl Iterator<Item = T> + '_ {
-        let n = self.len();
-        (0..n)
+        // In memory, each record copied as it is taken, not a block at a
+        // time; in a file, a block at a time.
+        let (in_memory, n) = match self.file {
+            None => (&self.mem[..], 0),
+            Some(_) => (&[][..], self.len()),
+        };
+        let from_file = (0..n)
             .step_by(BLOCK)
             .map_while(move |lo| match self.block(lo, (lo + BLOCK).min(n)) {
                 Ok(block) => Some(block),
@@ -161,7 +180,8 @@ impl<T: Record> Records<T> {
                     None
                 }
             })
-            .flatten()
+            .flatten();
+        in_memory.iter().cloned().chain(from_file)
     }
 
     /// The first failed read of [`Self::iter`], if any.

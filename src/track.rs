@@ -394,57 +394,59 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     let mut remeasured_frames = 0;
     frames.update(|lo, block| -> Result<(), TrackError> {
         use rayon::prelude::*;
-        let kept = kept.block(lo, lo + block.len())?;
-        reread.par_extend(
-            block
-                .par_iter_mut()
-                .zip(&kept)
+        let hi = lo + block.len();
+        kept.with_block(lo, hi, |kept| -> Result<(), TrackError> {
+            reread.par_extend(
+                block
+                    .par_iter_mut()
+                    .zip(kept)
+                    .enumerate()
+                    .with_min_len(64)
+                    .map_init(
+                        || (Vec::new(), FitScratch::default()),
+                        |(points, fs), (i, (ft, k))| {
+                            let h = timings::time(Stage::Pass2, || match k {
+                                Some(Kept::Points {
+                                    start,
+                                    len,
+                                    centre,
+                                    radial_sigma_px,
+                                }) => {
+                                    let k = KeptRef {
+                                        points: &kept_points[*start..start + len],
+                                        centre: *centre,
+                                        radial_sigma_px: *radial_sigma_px,
+                                    };
+                                    hold(ft, Some(k), radius_px, st, points, fs)
+                                }
+                                // Below, with a source.
+                                Some(Kept::Again(_)) => Held::NoFit,
+                                None => hold(ft, None, radius_px, st, points, fs),
+                            });
+                            settle(ft, h).map(|p| (lo + i, p))
+                        },
+                    )
+                    .flatten(),
+            );
+            let again: Vec<(usize, Look)> = kept
+                .iter()
                 .enumerate()
-                .with_min_len(64)
-                .map_init(
-                    || (Vec::new(), FitScratch::default()),
-                    |(points, fs), (i, (ft, k))| {
-                        let h = timings::time(Stage::Pass2, || match k {
-                            Some(Kept::Points {
-                                start,
-                                len,
-                                centre,
-                                radial_sigma_px,
-                            }) => {
-                                let k = KeptRef {
-                                    points: &kept_points[*start..start + len],
-                                    centre: *centre,
-                                    radial_sigma_px: *radial_sigma_px,
-                                };
-                                hold(ft, Some(k), radius_px, st, points, fs)
-                            }
-                            // Below, with a source.
-                            Some(Kept::Again(_)) => Held::NoFit,
-                            None => hold(ft, None, radius_px, st, points, fs),
-                        });
-                        settle(ft, h).map(|p| (lo + i, p))
-                    },
-                )
-                .flatten(),
-        );
-        let again: Vec<(usize, Look)> = kept
-            .iter()
-            .enumerate()
-            .filter_map(|(i, k)| match k {
-                Some(Kept::Again(look)) => Some((i, *look)),
-                _ => None,
-            })
-            .collect();
-        remeasured_frames += again.len();
-        if !again.is_empty() {
-            let redone = timings::time(Stage::Pass2, || {
-                remeasure(source, &ctx, block, &again, radius_px, st, &pool)
-            })?;
-            for ((i, _), h) in again.iter().zip(redone) {
-                reread.extend(settle(&mut block[*i], h).map(|p| (lo + *i, p)));
+                .filter_map(|(i, k)| match k {
+                    Some(Kept::Again(look)) => Some((i, *look)),
+                    _ => None,
+                })
+                .collect();
+            remeasured_frames += again.len();
+            if !again.is_empty() {
+                let redone = timings::time(Stage::Pass2, || {
+                    remeasure(source, &ctx, block, &again, radius_px, st, &pool)
+                })?;
+                for ((i, _), h) in again.iter().zip(redone) {
+                    reread.extend(settle(&mut block[*i], h).map(|p| (lo + *i, p)));
+                }
             }
-        }
-        Ok(())
+            Ok(())
+        })?
     })?;
     reread.sort_by_key(|r| r.0);
     let kept_points = kept_points.len();

@@ -130,6 +130,28 @@ fn the_steel_balls_rim_halo_and_highlight_at_their_strongest() {
     check("highlight", &["--highlight", "0.15"]);
 }
 
+/// A highlight lights part of the ball's inside. The transmission τ was
+/// taken over the whole visible inside, which shrank as the ball sank (its
+/// lower part hidden): τ changed, and so did every edge, which the held
+/// radius on the short arc in contact made a centre moving up by up to
+/// 0.09 px at the deepest point: the contact law's exponent came out
+/// 1.989–1.992 (± 0.01) and δmax 0.6–1.0e-3 short from 50 cm with a sharp
+/// image. τ is now taken over the upper half of a ring inside the edge, in
+/// view throughout: n 1.999–2.002, δmax within 1.8e-4 (seeds 13 and 15). Held: n within
+/// 0.005 of 2, δmax within 5e-4 (half the median target).
+#[test]
+fn a_highlight_does_not_move_the_centre_as_the_ball_sinks() {
+    for seed in ["13", "15"] {
+        let opts = ["--highlight", "0.15", "--blur-px", "0.6", "--seed", seed];
+        let (r, t) = measure_from("50", &opts, |_| String::new());
+        let n = r.force_exponent.unwrap();
+        let delta = r.delta_max_mm.unwrap() / t["delta_max_mm"].as_f64().unwrap() - 1.0;
+        eprintln!("highlight from 50 cm, seed {seed}: n {n:.4}, δmax {delta:+.2e}");
+        assert!((n - 2.0).abs() < 5e-3, "seed {seed}: n = {n}");
+        assert!(delta.abs() < 5e-4, "seed {seed}: δmax off by {delta:.2e}");
+    }
+}
+
 #[test]
 fn a_glossy_band_top_and_a_bright_or_dark_top_row_at_their_strongest() {
     check("gloss", &["--gloss", "0.3", "--gloss-width-px", "4"]);

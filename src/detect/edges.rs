@@ -13,7 +13,8 @@
 //! (`j = 0..=2w`), at full bit depth. `1/(g·B)` is interpolated linearly
 //! between its values at the window's ends (the light varies slowly; a
 //! 13-px window sees it as linear to 1e-5). `τ` is the trimmed mean of
-//! `I/(g·B)` over ~256 pixels inside `r − 2w`, clear of the blurred
+//! `I/(g·B)` over ~256 pixels of the upper half of a ring inside `r − 2w`
+//! (the same part of a ball with a highlight in flight and in contact), clear of the blurred
 //! transition: a `τ` off by `ε` moves every edge outward by `ε·w/(1 − τ)`,
 //! which a free radius absorbs but a held radius on a short arc turns into
 //! a centre error, so it is averaged well. The edge radius is then
@@ -375,14 +376,31 @@ pub fn edge_points<'s>(
 const MIN_INTERIOR: usize = 32;
 /// Interior pixels aimed at by [`transmission`].
 const TARGET_INTERIOR: f64 = 256.0;
+/// [`transmission`] samples the inside between this fraction of `r_in` and `r_in`.
+const INTERIOR_INNER_FRACTION: f64 = 0.6;
 
 /// The sphere's transmission τ and its standard error: the trimmed mean of `I/(g·B)` over about
-/// [`TARGET_INTERIOR`] pixels on a square grid inside radius `r_in` (clear of
-/// the blurred edge), above the surface line minus the margin and inside
-/// the band. An error `ε` in τ moves every edge by about `ε·w/(1−τ)`, so it
-/// is averaged over many pixels (noise 2/200 per pixel → ε ≈ 6e-4 → 0.005
-/// px). `None` when fewer than [`MIN_INTERIOR`] pixels qualify (a sphere
-/// just entering the frame).
+/// [`TARGET_INTERIOR`] pixels on a square grid in the upper half of the
+/// ring between [`INTERIOR_INNER_FRACTION`]·`r_in` and `r_in` (clear of the
+/// blurred edge), above the surface line minus the margin and inside the
+/// band. An error `ε` in τ
+/// moves every edge by about `ε·w/(1−τ)`, so it is averaged over many
+/// pixels (noise 2/200 per pixel → ε ≈ 6e-4 → 0.005 px). `None` when fewer
+/// than [`MIN_INTERIOR`] pixels qualify (a sphere just entering the frame).
+///
+/// The upper half only: the same part of the ball in flight and in
+/// contact. A polished ball's inside is not uniform (a highlight lights
+/// part of it), so τ depends on which part is sampled; over the whole
+/// visible inside that part shrank as the ball sank into the band, τ
+/// changed, every edge moved with it, and with the radius held on the arc
+/// left in contact the centre rose with δ: 0.07–0.09 px at δ = 42 px under
+/// a 15 % highlight (the contact law's surface 0.16 px high, its exponent
+/// 1.99). The upper half stays in view until δ nears R. The ring, not the
+/// disk: the level nearer the edges, and less of the highlight (over the
+/// upper half-disk the apparent radii of one set-up's drops spread by up
+/// to 0.56 px with the highlight's strength, beyond what
+/// [`crate::setup_infer::EDGE_SPREAD_PX`] allows; over the ring 0.49,
+/// the whole disk's 0.45).
 #[allow(clippy::too_many_arguments)]
 fn transmission(
     band: &Band,
@@ -398,10 +416,12 @@ fn transmission(
     if r_in <= 1.0 {
         return None;
     }
-    let step = ((std::f64::consts::PI * r_in * r_in / TARGET_INTERIOR).sqrt()).max(1.0);
+    let inner = INTERIOR_INNER_FRACTION * r_in;
+    let half_annulus = 0.5 * std::f64::consts::PI * (r_in * r_in - inner * inner);
+    let step = ((half_annulus / TARGET_INTERIOR).sqrt()).max(1.0);
     let n = (r_in / step).floor() as i64;
     let (z_lo, z_end) = (band.row0 as f64, (band.row0 + band.nrows) as f64);
-    for a in -n..=n {
+    for a in -n..=0 {
         let z = c.z_px + a as f64 * step;
         // Nearest row (z + ½ truncated; the range check keeps it ≥ 0).
         let zr = z + 0.5;
@@ -412,7 +432,8 @@ fn transmission(
         let dz2 = (z - c.z_px) * (z - c.z_px);
         for b in -n..=n {
             let x = c.x_px + b as f64 * step;
-            if (x - c.x_px) * (x - c.x_px) + dz2 > r_in * r_in {
+            let d2 = (x - c.x_px) * (x - c.x_px) + dz2;
+            if d2 > r_in * r_in || d2 < inner * inner {
                 continue;
             }
             let xr = x + 0.5;

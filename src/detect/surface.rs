@@ -397,33 +397,42 @@ pub fn step_edge_row(v: &[f64], first_row: f64, e0: f64) -> Option<f64> {
 /// is `c₀ + c₁·A(z; e₁, σ) + c₂·A(z; e₂, σ)`; the levels `c` are solved
 /// linearly for each `(e₁, e₂, σ)` (variable projection), which a small
 /// Levenberg–Marquardt fits from `e0`. `None` when the fit does not end on
-/// two ordered steps inside the samples.
+/// two ordered steps inside the samples. `first_row` is a row number (an
+/// integer).
 pub fn two_step_edge_row(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<f64> {
     use nalgebra::{Matrix3, Vector3};
     let n = v.len();
     if n < 8 {
         return None;
     }
-    // The pixel-averaged blurred unit step A(z; e, σ) (module doc, step 2).
-    let unit_step =
-        |z: f64, e: f64, s: f64| s * (int_cdf((z + 0.5 - e) / s) - int_cdf((z - 0.5 - e) / s));
-    // Residuals at θ = (e₁, e₂, σ), the levels projected out.
-    let resid = |th: &Vector3<f64>| -> Option<Vec<f64>> {
-        let design = nalgebra::DMatrix::from_fn(n, 3, |k, c| {
-            let z = first_row + k as f64;
-            match c {
-                0 => 1.0,
-                1 => unit_step(z, th[0], th[2]),
-                _ => unit_step(z, th[1], th[2]),
-            }
+    debug_assert_eq!(first_row.fract(), 0.0, "a row number");
+    // The pixel-averaged blurred unit step A(z; e, σ) (module doc, step 2)
+    // of every sample row, from int_cdf at the n + 1 pixel boundaries: row
+    // k's upper boundary z + 0.5 is row k + 1's lower one (z + 1) − 0.5, the
+    // same number for integer rows, so each is computed once.
+    let unit_steps = |e: f64, s: f64| -> Vec<f64> {
+        let at: Vec<f64> = (0..=n)
+            .map(|k| int_cdf((first_row + k as f64 - 0.5 - e) / s))
+            .collect();
+        at.windows(2).map(|b| s * (b[1] - b[0])).collect()
+    };
+    // Residuals with the steps' columns `a1`, `a2`, the levels projected out.
+    let resid_of = |a1: &[f64], a2: &[f64]| -> Option<Vec<f64>> {
+        let design = nalgebra::DMatrix::from_fn(n, 3, |k, c| match c {
+            0 => 1.0,
+            1 => a1[k],
+            _ => a2[k],
         });
         let y = nalgebra::DVector::from_column_slice(v);
         let levels = design.clone().svd(true, true).solve(&y, 1e-12).ok()?;
         Some((design * levels - y).iter().copied().collect())
     };
+    // The columns at θ = (e₁, e₂, σ).
+    let columns = |th: &Vector3<f64>| (unit_steps(th[0], th[2]), unit_steps(th[1], th[2]));
     let cost = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>();
     let mut th = Vector3::new(e0[0], e0[1], 1.0);
-    let mut r = resid(&th)?;
+    let mut cols = columns(&th);
+    let mut r = resid_of(&cols.0, &cols.1)?;
     let mut c = cost(&r);
     let mut lambda = 1e-3;
     for _ in 0..60 {
@@ -433,7 +442,15 @@ pub fn two_step_edge_row(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<f64>
             let h = 1e-6 * (1.0 + th[a].abs());
             let mut t = th;
             t[a] += h;
-            let rt = resid(&t)?;
+            // e₁ moves the first column only, e₂ the second.
+            let rt = match a {
+                0 => resid_of(&unit_steps(t[0], t[2]), &cols.1)?,
+                1 => resid_of(&cols.0, &unit_steps(t[1], t[2]))?,
+                _ => {
+                    let (a1, a2) = columns(&t);
+                    resid_of(&a1, &a2)?
+                }
+            };
             for k in 0..n {
                 jac[k][a] = (rt[k] - r[k]) / h;
             }
@@ -456,10 +473,11 @@ pub fn two_step_edge_row(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<f64>
             };
             let mut q = th - step;
             q[2] = q[2].clamp(0.2, 6.0);
-            match resid(&q).map(|rq| (cost(&rq), rq)) {
+            let cols_q = columns(&q);
+            match resid_of(&cols_q.0, &cols_q.1).map(|rq| (cost(&rq), rq)) {
                 Some((cq, rq)) if cq <= c => {
                     improved = c - cq > 1e-14 * (1.0 + c);
-                    (th, r, c) = (q, rq, cq);
+                    (th, r, c, cols) = (q, rq, cq, cols_q);
                     lambda = (lambda * 0.3).max(1e-9);
                     break;
                 }

@@ -236,7 +236,7 @@ pub enum ForceFitError {
 }
 
 /// The trajectory fit's work limit, in trajectories' worth of steps (a
-/// trajectory at its usual cost: [`CONTACT_STEPS_PER_FRAME`] RK4 steps per
+/// trajectory at its usual cost: `CONTACT_STEPS_PER_FRAME` (20) RK4 steps per
 /// frame interval of the contact, one step per time asked for): a clean
 /// drop's two fits integrate 113–259 trajectories (counted on the unit
 /// tests' drops and the three fixtures), so this is reached only by a fit

@@ -13,11 +13,12 @@
 //! (`j = 0..=2w`), at full bit depth. `1/(g·B)` is interpolated linearly
 //! between its values at the window's ends (the light varies slowly; a
 //! 13-px window sees it as linear to 1e-5). `τ` is the trimmed mean of
-//! `I/(g·B)` over ~256 pixels of the upper half of a ring inside `r − 2w`
-//! (the same part of a ball with a highlight in flight and in contact), clear of the blurred
-//! transition: a `τ` off by `ε` moves every edge outward by `ε·w/(1 − τ)`,
-//! which a free radius absorbs but a held radius on a short arc turns into
-//! a centre error, so it is averaged well. The edge radius is then
+//! `I/(g·B)` over ~256 pixels of the upper half of a ring inside `r − 2w`,
+//! clear of the blurred transition and the same part of the ball in flight
+//! and in contact (`transmission`): a `τ` off by `ε` moves every edge
+//! outward by `ε·w/(1 − τ)`, which a free radius absorbs but a held radius
+//! on a short arc turns into a centre error, so it is averaged well. The
+//! edge radius is then
 //!
 //! `t_e² = t_a² + 2 Σ_j P_j t_j`,   `t_a = t_0 − ½`,
 //!
@@ -383,10 +384,10 @@ const INTERIOR_INNER_FRACTION: f64 = 0.6;
 /// [`TARGET_INTERIOR`] pixels on a square grid in the upper half of the
 /// ring between [`INTERIOR_INNER_FRACTION`]·`r_in` and `r_in` (clear of the
 /// blurred edge), above the surface line minus the margin and inside the
-/// band. An error `ε` in τ
-/// moves every edge by about `ε·w/(1−τ)`, so it is averaged over many
-/// pixels (noise 2/200 per pixel → ε ≈ 6e-4 → 0.005 px). `None` when fewer
-/// than [`MIN_INTERIOR`] pixels qualify (a sphere just entering the frame).
+/// band. An error `ε` in τ moves every edge by about `ε·w/(1−τ)`, so it is
+/// averaged over many pixels (noise 2/200 per pixel → ε ≈ 6e-4 → 0.005
+/// px). `None` when fewer than [`MIN_INTERIOR`] pixels qualify (a sphere
+/// just entering the frame).
 ///
 /// The upper half only: the same part of the ball in flight and in
 /// contact. A polished ball's inside is not uniform (a highlight lights

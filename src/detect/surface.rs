@@ -416,16 +416,24 @@ pub fn two_step_edge_row(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<f64>
             .collect();
         at.windows(2).map(|b| s * (b[1] - b[0])).collect()
     };
-    // Residuals with the steps' columns `a1`, `a2`, the levels projected out.
+    // Residuals with the steps' columns `a1`, `a2`, the levels projected
+    // out: the three levels by their normal equations (3 × 3, Cholesky;
+    // `None` where the two steps' columns are too alike to tell apart).
     let resid_of = |a1: &[f64], a2: &[f64]| -> Option<Vec<f64>> {
-        let design = nalgebra::DMatrix::from_fn(n, 3, |k, c| match c {
-            0 => 1.0,
-            1 => a1[k],
-            _ => a2[k],
-        });
-        let y = nalgebra::DVector::from_column_slice(v);
-        let levels = design.clone().svd(true, true).solve(&y, 1e-12).ok()?;
-        Some((design * levels - y).iter().copied().collect())
+        let (mut ata, mut aty) = (Matrix3::zeros(), Vector3::zeros());
+        for ((&p, &q), &y) in a1.iter().zip(a2).zip(v) {
+            let row = Vector3::new(1.0, p, q);
+            ata += row * row.transpose();
+            aty += row * y;
+        }
+        let levels = ata.cholesky()?.solve(&aty);
+        Some(
+            a1.iter()
+                .zip(a2)
+                .zip(v)
+                .map(|((&p, &q), &y)| levels[0] + levels[1] * p + levels[2] * q - y)
+                .collect(),
+        )
     };
     // The columns at θ = (e₁, e₂, σ).
     let columns = |th: &Vector3<f64>| (unit_steps(th[0], th[2]), unit_steps(th[1], th[2]));

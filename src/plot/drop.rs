@@ -8,6 +8,7 @@ use plotters::prelude::*;
 use super::{axis_tick, file_stem, render, tick, Backend, DrawResult, Plane, LIGHT_LINES};
 use crate::collapse::diagnostics::DropDiagnostics;
 use crate::collapse::CollapseError;
+use crate::dataset::TrackRow;
 
 /// Size of a per-drop figure in pixels.
 pub const DROP_FIGURE_SIZE: (u32, u32) = (1650, 560);
@@ -24,6 +25,18 @@ fn span(v: impl Iterator<Item = f64>) -> [f64; 2] {
     }
     let m = ((hi - lo) * 0.06).max(1e-9 + hi.abs() * 1e-3);
     [lo - m, hi + m]
+}
+
+/// The time axis (ms): the frames with a centre, as a movie may run for
+/// hundreds of milliseconds before the sphere comes into view; all frames
+/// when none has one.
+fn time_span_ms(rows: &[TrackRow]) -> [f64; 2] {
+    let tracked = rows.iter().filter(|r| r.z_px.is_some());
+    if rows.iter().any(|r| r.z_px.is_some()) {
+        span(tracked.map(|r| r.t_s * 1e3))
+    } else {
+        span(rows.iter().map(|r| r.t_s * 1e3))
+    }
 }
 
 /// Dashed vertical lines at contact and rebound, labelled near the top
@@ -80,7 +93,7 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
     let (left, force_panel) = root.split_horizontally((f64::from(w) * 0.6) as i32);
     let mut cols = left.split_evenly((1, 2));
     cols.push(force_panel);
-    let t_range = span(d.rows.iter().map(|r| r.t_s * 1e3));
+    let t_range = time_span_ms(&d.rows);
     let label = ("sans-serif", super::LEGEND_FONT);
     let desc = ("sans-serif", super::DESC_FONT - 4);
 
@@ -300,4 +313,40 @@ fn legend_font<DB: Backend>(
 /// The diagnostics figure of one drop as `(file name, bytes)`, SVG and PNG.
 pub fn drop_figures(d: &DropDiagnostics) -> Result<Vec<(String, Vec<u8>)>, CollapseError> {
     render!(&file_stem(&d.run), DROP_FIGURE_SIZE, |a| panels(a, d))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(t_s: f64, z_px: Option<f64>) -> TrackRow {
+        TrackRow {
+            frame: 0,
+            t_s,
+            x_px: z_px,
+            z_px,
+            r_px: z_px,
+            residual_px: None,
+            edge_points: 0,
+            in_contact: false,
+            delta_mm: None,
+            sigma_z_px: None,
+            force_n: None,
+            flags: String::new(),
+        }
+    }
+
+    #[test]
+    fn the_time_axis_spans_the_tracked_frames_not_the_whole_movie() {
+        // 300 ms of movie before the sphere enters, then 5 ms tracked.
+        let mut rows: Vec<TrackRow> = (0..3000)
+            .map(|k| row(-0.3 + 1e-4 * f64::from(k), None))
+            .collect();
+        rows.extend((0..50).map(|k| row(1e-4 * f64::from(k), Some(100.0))));
+        let [lo, hi] = time_span_ms(&rows);
+        assert!(lo > -0.5 && lo < 0.0 && hi > 4.9 && hi < 5.5, "{lo}..{hi}");
+        // Nothing tracked: the whole movie.
+        let [lo, _] = time_span_ms(&rows[..3000]);
+        assert!(lo < -300.0, "{lo}");
+    }
 }

@@ -249,12 +249,14 @@ pub fn configured_runs(cfg: &PipelineConfig) -> Result<Vec<RunSpec>, BatchError>
 /// cached results when all are still valid, else all processed together
 /// (their scale is pooled) and committed. A run's key in a set-up of
 /// several also covers the other runs' keys, since its numbers depend on them.
+/// `kept`: the members' tracks [`crate::process::prepare`] kept, if any.
 fn run_setup(
     members: &[&RunSpec],
     cfg: &PipelineConfig,
     out: &Path,
     force: bool,
     overlay_frames: &[i64],
+    kept: Vec<Option<crate::process::KeptRun>>,
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<Vec<(Entry, bool)>, BatchError> {
     // The inputs' fingerprints and the runs' keys. An input that cannot be
@@ -303,11 +305,11 @@ fn run_setup(
             }
         }
         started();
-        (fps, keys, process_setup(members, cfg, overlay_frames))
+        (fps, keys, process_setup(members, cfg, overlay_frames, kept))
     } else {
         started();
         let ((fps, keys), outcomes) =
-            rayon::join(keyed, || process_setup(members, cfg, overlay_frames));
+            rayon::join(keyed, || process_setup(members, cfg, overlay_frames, kept));
         (fps, keys, outcomes)
     };
     let mut done = Vec::with_capacity(members.len());
@@ -492,16 +494,25 @@ pub fn process_runs(
     // On the job's threads, finding the set-ups too.
     let work = || {
         let threads = rayon::current_num_threads();
-        let crate::process::Prepared { runs, cfg } =
+        let crate::process::Prepared { runs, cfg, kept } =
             crate::process::prepare(runs, cfg, &scene_of, &notice);
-        let (runs, cfg) = (&runs, &cfg);
+        let (runs, cfg, kept) = (&runs, &cfg, &kept);
         let groups = crate::process::setups(runs);
         groups
             .par_iter()
             .map(|g| {
                 let members: Vec<&RunSpec> = g.iter().map(|&i| &runs[i]).collect();
-                run_setup(&members, cfg, out, options.force, overlay_frames, events)
-                    .map(|d| g.iter().copied().zip(d).collect::<Vec<_>>())
+                let kept = g.iter().map(|&i| kept.take(i)).collect();
+                run_setup(
+                    &members,
+                    cfg,
+                    out,
+                    options.force,
+                    overlay_frames,
+                    kept,
+                    events,
+                )
+                .map(|d| g.iter().copied().zip(d).collect::<Vec<_>>())
             })
             .collect::<Result<Vec<_>, BatchError>>()
             .map(|v| {

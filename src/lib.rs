@@ -27,6 +27,7 @@
 //! | [`cache`] | the main job's per-run result cache: input fingerprints and keys |
 //! | [`leftovers`] | an earlier job's files in the output folder that this job did not write again |
 //! | [`lock`] | one job at a time per output folder; shards of one job together |
+//! | [`shelf`] | tracks kept in a temporary file between reading the runs' set-ups and processing them |
 //! | [`shard`] | `run --shard K/N`: the K-th of N frame-balanced shares of the runs |
 //! | [`slurm`] | `dropscope slurm`: the shards as a Slurm array, then a finishing job |
 //! | [`report`] | `report.html`: counts, collapse plots, fits and every drop on one self-contained page |
@@ -71,6 +72,7 @@ pub mod run_name;
 pub mod scale;
 pub mod setup_infer;
 pub mod shard;
+pub mod shelf;
 pub mod slurm;
 pub mod source;
 #[cfg(test)]

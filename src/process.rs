@@ -15,10 +15,12 @@ use crate::measure::{annotate_track, measure_drop, measure_drop_with, surface_fr
 use crate::quality;
 use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
 use crate::setup_infer::SceneSignature;
+use crate::shelf::{Shelf, ShelvedTrack};
 use crate::source::{open, OpenOptions};
 use crate::track::{track, FrameTrack, Track, TrackSettings};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// The command line of `dropscope process`.
 #[derive(Debug, clap::Args)]
@@ -146,7 +148,7 @@ pub fn runs_from_inputs(
 /// does a panic in any stage (caught here, at the run's boundary, so that
 /// one bad input never ends the job).
 pub fn process_run(run: &RunSpec, cfg: &PipelineConfig, overlay_frames: &[i64]) -> RunOutcome {
-    process_setup(&[run], cfg, overlay_frames)
+    process_setup(&[run], cfg, overlay_frames, Vec::new())
         .pop()
         .expect("one outcome per run")
 }
@@ -157,16 +159,24 @@ pub fn process_run(run: &RunSpec, cfg: &PipelineConfig, overlay_frames: &[i64]) 
 /// [`crate::scale`]), and each is measured with it. Never fails: a run that
 /// cannot be measured, or panics, gets a `failed` record; the outcomes come in `runs`'
 /// order.
+///
+/// `kept` holds, member by member, the track [`prepare`] made of it, if
+/// any: taken off its shelf rather than made again (the same track).
 pub fn process_setup(
     runs: &[&RunSpec],
     cfg: &PipelineConfig,
     overlay_frames: &[i64],
+    mut kept: Vec<Option<KeptRun>>,
 ) -> Vec<RunOutcome> {
+    kept.resize_with(runs.len(), || None);
     let (tracked, track_s): (Vec<Result<Tracked, String>>, Vec<f64>) = runs
         .par_iter()
-        .map(|r| {
+        .zip(kept)
+        .map(|(r, kept)| {
             let start = std::time::Instant::now();
-            let t = caught(r, || track_run(r, cfg));
+            let t = kept
+                .and_then(|k| k.restore(r, cfg))
+                .unwrap_or_else(|| caught(r, || track_run(r, cfg)));
             (t, start.elapsed().as_secs_f64())
         })
         .unzip();
@@ -259,12 +269,94 @@ pub struct Prepared {
     /// The configuration, with the edge offset the runs measured
     /// ([`crate::scale::EdgeOffset::measure`]) where it gives none.
     pub cfg: PipelineConfig,
+    /// The runs tracked to read their scenes, kept for [`process_setup`].
+    pub kept: KeptRuns,
+}
+
+/// The runs [`prepare`] tracked, by their index in its runs: each track on
+/// a [`Shelf`] (its background and records in the job's temporary file),
+/// or the reason it could not be made, for [`process_setup`] to take
+/// instead of tracking the run again. A run whose track could not be
+/// shelved (no temporary file) is not kept: it is tracked again.
+#[derive(Default)]
+pub struct KeptRuns {
+    runs: Vec<std::sync::Mutex<Option<KeptRun>>>,
+}
+
+impl KeptRuns {
+    /// Run `i`'s, once.
+    pub fn take(&self, i: usize) -> Option<KeptRun> {
+        self.runs.get(i)?.lock().ok()?.take()
+    }
+}
+
+/// A run [`prepare`] tracked (see [`KeptRuns`]).
+pub struct KeptRun(Result<ShelvedRun, String>);
+
+/// A [`Tracked`] without its source (opened again: a job's runs are not
+/// all held open) and the distortion bound's track (made again from the
+/// track), its track on the shelf.
+struct ShelvedRun {
+    shelf: Arc<Shelf>,
+    meta: crate::source::SourceMeta,
+    track: ShelvedTrack,
+    settings: TrackSettings,
+    surface_name: String,
+    curvature: Option<Curvature>,
+}
+
+impl KeptRun {
+    /// What [`track_run`] gave, or `t`'s track put on `shelf`; `None` when
+    /// it could not be put there.
+    fn new(t: Result<Tracked, String>, shelf: Option<&Arc<Shelf>>) -> Option<KeptRun> {
+        let t = match t {
+            Ok(t) => t,
+            Err(e) => return Some(KeptRun(Err(e))),
+        };
+        let shelf = shelf?;
+        let track = crate::timings::time(crate::timings::Stage::Shelf, || shelf.put(t.tr)).ok()?;
+        Some(KeptRun(Ok(ShelvedRun {
+            shelf: Arc::clone(shelf),
+            meta: t.meta,
+            track,
+            settings: t.settings,
+            surface_name: t.surface_name,
+            curvature: t.curvature,
+        })))
+    }
+
+    /// The run as [`track_run`] gave it; `None` when its track cannot be
+    /// read back (the run is then tracked again).
+    fn restore(self, run: &RunSpec, cfg: &PipelineConfig) -> Option<Result<Tracked, String>> {
+        let s = match self.0 {
+            Ok(s) => s,
+            Err(e) => return Some(Err(e)),
+        };
+        let tr =
+            crate::timings::time(crate::timings::Stage::Shelf, || s.shelf.take(s.track)).ok()?;
+        Some(caught(run, || {
+            let source = open_run(run, cfg)?;
+            let bounded = bounded_of(&tr, &s.meta, cfg);
+            tr.frames
+                .check()
+                .map_err(|e| format!("{}: {e}", run.path.display()))?;
+            Ok(Tracked {
+                source,
+                meta: s.meta,
+                tr,
+                settings: s.settings,
+                surface_name: s.surface_name,
+                curvature: s.curvature,
+                bounded,
+            })
+        }))
+    }
 }
 
 /// Prepare a job's runs (see [`Prepared`]). With `camera.infer_setups` and
-/// two runs or more without a `setup`, each of those is tracked once more
-/// to read its scene (about a fifth of its processing); `scene_of` gives a
-/// run's scene when it is already known (a cache). A run that cannot be
+/// two runs or more without a `setup`, each of those is tracked to read its
+/// scene, and its track kept for its processing ([`KeptRuns`]); `scene_of`
+/// gives a run's scene when it is already known (a cache). A run that cannot be
 /// tracked stays without a set-up (its processing says why). The edge
 /// offset is measured on those runs whose own free fall gives their scale
 /// within [`crate::scale::EDGE_OFFSET_FREE_FALL_REL_ERR`].
@@ -277,6 +369,7 @@ pub fn prepare(
     let mut out = Prepared {
         runs: runs.to_vec(),
         cfg: cfg.clone(),
+        kept: KeptRuns::default(),
     };
     let open: Vec<usize> = (0..runs.len())
         .filter(|&i| runs[i].setup.is_none())
@@ -291,18 +384,26 @@ pub fn prepare(
             "camera set-ups: reading the scenes of {unknown} run(s) without a `setup` (camera.infer_setups)"
         ));
     }
-    let scenes: Vec<Option<SceneSignature>> = open
+    let shelf = (unknown > 0)
+        .then(|| Shelf::new().ok().map(Arc::new))
+        .flatten();
+    let (scenes, kept): (Vec<Option<SceneSignature>>, Vec<Option<KeptRun>>) = open
         .par_iter()
         .zip(known)
         .map(|(&i, known)| {
             let run = &runs[i];
-            known.or_else(|| {
-                caught(run, || track_run(run, cfg))
-                    .ok()
-                    .map(|t| t.scene(run.sphere_radius_mm))
-            })
+            if known.is_some() {
+                return (known, None);
+            }
+            let t = caught(run, || track_run(run, cfg));
+            let scene = t.as_ref().ok().map(|t| t.scene(run.sphere_radius_mm));
+            (scene, KeptRun::new(t, shelf.as_ref()))
         })
-        .collect();
+        .unzip();
+    out.kept.runs = (0..runs.len()).map(|_| Default::default()).collect();
+    for (&i, k) in open.iter().zip(kept) {
+        out.kept.runs[i] = std::sync::Mutex::new(k);
+    }
     let taken: Vec<&str> = runs.iter().filter_map(|r| r.setup.as_deref()).collect();
     let groups = crate::setup_infer::infer_groups(&scenes);
     for (k, group) in groups.iter().enumerate() {
@@ -400,6 +501,46 @@ fn panic_reason(input: &Path, payload: &(dyn std::any::Any + Send)) -> String {
     )
 }
 
+/// `run`'s frames, opened.
+fn open_run(
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+) -> Result<Box<dyn crate::source::FrameSource>, String> {
+    let options = OpenOptions {
+        fps_fallback: run.fps.or(cfg.camera.fps),
+        ..OpenOptions::default()
+    };
+    crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
+        .map_err(|e| e.to_string())
+}
+
+/// The track through a lens at `camera.distortion_bound_px`, when no k1 is
+/// given and the bound is not 0.
+fn bounded_of(
+    tr: &Track,
+    meta: &crate::source::SourceMeta,
+    cfg: &PipelineConfig,
+) -> Option<crate::lens::Bounded> {
+    use crate::timings::{time, Stage};
+    let camera = &cfg.camera;
+    (camera.distortion_k1_per_px2.is_none() && camera.distortion_bound_px > 0.0).then(|| {
+        let lens = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
+        let (points, surface, radius_px, curvature) = time(Stage::Events, || {
+            let (held, surface, radius_px) = crate::lens::undistort_held(tr, &lens);
+            let points = points_of(held, |_| (None, None));
+            let c = free_fall_curvature(&points, |x| surface.row_at(x), radius_px);
+            (points, surface, radius_px, c)
+        });
+        crate::lens::Bounded {
+            points,
+            surface_row0_px: surface.row0_px,
+            surface_slope: surface.slope,
+            radius_px,
+            curvature,
+        }
+    })
+}
+
 fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
     crate::run_name::check(&run.run)?;
     let surface_name = run
@@ -412,12 +553,8 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
             cfg.surfaces.keys().cloned().collect::<Vec<_>>().join(", ")
         ));
     }
-    let options = OpenOptions {
-        fps_fallback: run.fps.or(cfg.camera.fps),
-        ..OpenOptions::default()
-    };
     use crate::timings::{time, Stage};
-    let mut source = time(Stage::Open, || open(&run.path, &options)).map_err(|e| e.to_string())?;
+    let mut source = open_run(run, cfg)?;
     let meta = source.meta().clone();
     let settings = TrackSettings::from_config(&cfg.detect);
     let mut tr =
@@ -431,23 +568,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         let points = track_points(&tr, |_| (None, None));
         free_fall_curvature(&points, |x| tr.surface.row_at(x), tr.radius_px)
     });
-    let bounded = (camera.distortion_k1_per_px2.is_none() && camera.distortion_bound_px > 0.0)
-        .then(|| {
-            let lens = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
-            let (points, surface, radius_px, curvature) = time(Stage::Events, || {
-                let (held, surface, radius_px) = crate::lens::undistort_held(&tr, &lens);
-                let points = points_of(held, |_| (None, None));
-                let c = free_fall_curvature(&points, |x| surface.row_at(x), radius_px);
-                (points, surface, radius_px, c)
-            });
-            crate::lens::Bounded {
-                points,
-                surface_row0_px: surface.row0_px,
-                surface_slope: surface.slope,
-                radius_px,
-                curvature,
-            }
-        });
+    let bounded = bounded_of(&tr, &meta, cfg);
     tr.frames
         .check()
         .map_err(|e| format!("{}: {e}", run.path.display()))?;
@@ -928,14 +1049,15 @@ pub fn process_all_with_overlays(
     overlay_frames: &[i64],
     progress: &(dyn Fn(&DropRecord) + Sync),
 ) -> Result<Vec<DropRecord>, ProcessError> {
-    let Prepared { runs, cfg } = prepare(runs, cfg, &|_| None, &|_| {});
-    let (runs, cfg) = (&runs, &cfg);
+    let Prepared { runs, cfg, kept } = prepare(runs, cfg, &|_| None, &|_| {});
+    let (runs, cfg, kept) = (&runs, &cfg, &kept);
     let groups = setups(runs);
     let done = groups
         .par_iter()
         .map(|g| {
             let members: Vec<&RunSpec> = g.iter().map(|&i| &runs[i]).collect();
-            let outcomes = process_setup(&members, cfg, overlay_frames);
+            let kept = g.iter().map(|&i| kept.take(i)).collect();
+            let outcomes = process_setup(&members, cfg, overlay_frames, kept);
             let mut recs = Vec::with_capacity(g.len());
             for (&i, o) in g.iter().zip(outcomes) {
                 write_run_outputs(out, &o)?;
@@ -1054,6 +1176,68 @@ mod tests {
                 && o.record.reason.contains("min > max"),
             "{}",
             o.record.reason
+        );
+    }
+
+    /// What a [`Tracked`] holds, as text: the same text is the same bits
+    /// (`{:?}` prints the shortest decimal that reads back as the same f64).
+    fn tracked_text(t: &Tracked) -> String {
+        format!(
+            "{:?}\n{:?}\n{:?}\n{:?}\n{:?}\n{}",
+            t.meta,
+            t.tr,
+            t.curvature,
+            t.bounded,
+            t.source.meta(),
+            t.surface_name
+        )
+    }
+
+    #[test]
+    fn a_track_kept_from_reading_the_scenes_is_the_track_made_again() {
+        let cfg = PipelineConfig::from_toml_str(
+            crate::config::EMBEDDED_DEFAULT,
+            Path::new("pipeline.toml"),
+            Path::new(""),
+        )
+        .unwrap();
+        let mut runs = crate::manifest::read_manifest(Path::new("fixtures/runs.csv")).unwrap();
+        let mut missing = runs[0].clone();
+        missing.run = "missing".into();
+        missing.path = PathBuf::from("fixtures/no-such-run");
+        runs.push(missing);
+        let p = prepare(&runs, &cfg, &|_| None, &|_| {});
+        for (i, run) in p.runs.iter().enumerate() {
+            let kept = p.kept.take(i).expect("every run without a set-up is kept");
+            assert!(p.kept.take(i).is_none(), "taken once");
+            let again = track_run(run, &p.cfg);
+            match (kept.restore(run, &p.cfg).expect("read back"), again) {
+                (Ok(a), Ok(b)) => assert!(
+                    tracked_text(&a) == tracked_text(&b),
+                    "{}: the kept track differs",
+                    run.run
+                ),
+                (Err(a), Err(b)) => assert_eq!(a, b),
+                (a, b) => panic!("{}: {:?} against {:?}", run.run, a.err(), b.err()),
+            }
+        }
+        // Records in their own file (a long movie's) stay there and read
+        // back the same.
+        let shelf = Shelf::new().unwrap();
+        let mut t = track_run(&p.runs[1], &p.cfg).unwrap();
+        let expected = format!("{:?}", t.tr);
+        let mut spilled = crate::records::Records::new(10);
+        for r in t.tr.frames.iter() {
+            spilled.push(r).unwrap();
+        }
+        spilled.flush().unwrap();
+        assert!(spilled.spilled());
+        t.tr.frames = spilled;
+        let back = shelf.take(shelf.put(t.tr).unwrap()).unwrap();
+        assert!(back.frames.spilled());
+        assert!(
+            format!("{back:?}") == expected,
+            "a track with its records in a file"
         );
     }
 

@@ -75,6 +75,11 @@ impl<T: Record> Records<T> {
         self.file.is_some()
     }
 
+    /// Most records held in memory before they go to a file.
+    pub fn memory_max(&self) -> usize {
+        self.memory_max
+    }
+
     /// Append `r`. Past the budget, the records go to the file a block at
     /// a time (the first time, all of them).
     pub fn push(&mut self, r: T) -> std::io::Result<()> {
@@ -222,7 +227,7 @@ impl<T: Record> Records<T> {
     }
 }
 
-fn read_at(file: &File, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
+pub(crate) fn read_at(file: &File, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
     #[cfg(unix)]
     {
         std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
@@ -236,7 +241,7 @@ fn read_at(file: &File, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
     }
 }
 
-fn write_at(file: &File, offset: u64, buf: &[u8]) -> std::io::Result<()> {
+pub(crate) fn write_at(file: &File, offset: u64, buf: &[u8]) -> std::io::Result<()> {
     #[cfg(unix)]
     {
         std::os::unix::fs::FileExt::write_all_at(file, buf, offset)

@@ -32,6 +32,9 @@ pub enum Stage {
     Pass1,
     /// Tracking pass 2 (radius held).
     Pass2,
+    /// Tracks put in the job's temporary file when the runs' set-ups are
+    /// read, and read back for their processing ([`crate::shelf`]).
+    Shelf,
     /// Events, kinematics, scale and the force table: the measurement but
     /// for the force fits.
     Events,
@@ -60,7 +63,7 @@ pub enum Stage {
 
 impl Stage {
     /// Every stage, in the table's order.
-    pub const ALL: [Stage; 18] = [
+    pub const ALL: [Stage; 19] = [
         Stage::Fingerprint,
         Stage::Open,
         Stage::Read,
@@ -68,6 +71,7 @@ impl Stage {
         Stage::Surface,
         Stage::Pass1,
         Stage::Pass2,
+        Stage::Shelf,
         Stage::Events,
         Stage::ForceFree,
         Stage::ForceN2,
@@ -91,6 +95,7 @@ impl Stage {
             Stage::Surface => "surface line",
             Stage::Pass1 => "tracking pass 1",
             Stage::Pass2 => "tracking pass 2",
+            Stage::Shelf => "tracks kept (temporary file)",
             Stage::Events => "events, kinematics, scale",
             Stage::ForceFree => "force fit 1 (n free)",
             Stage::ForceN2 => "force fit 2 (n = 2)",

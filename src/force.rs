@@ -344,26 +344,16 @@ fn fit_force_law_to(
     let dmax = ((z_peak + geom.radius_px - y_imp) * s_m).max(1e-6);
     let v_in = (v0 * v0 + 2.0 * g_m_s2 * (-d0).max(0.0)).sqrt();
 
-    // The work and time limits, shared by both fits.
+    // The work and time limits, shared by the fits as if they ran one after
+    // another (see [`Ledger`]).
     let usual_steps = CONTACT_STEPS_PER_FRAME as usize * (c1 - c0 + 2) + times.len();
-    let max_steps = max_trajectories * usual_steps;
-    let steps = std::cell::Cell::new(0usize);
-    let started = std::time::Instant::now();
-    let limit = || -> Option<String> {
-        if steps.get() > max_steps {
-            Some(format!("{max_trajectories} trajectories' work"))
-        } else if started.elapsed().as_secs_f64() > FORCE_FIT_TIME_LIMIT_S {
-            Some(format!("{FORCE_FIT_TIME_LIMIT_S} s"))
-        } else {
-            None
-        }
+    let limits = Limits {
+        max_steps: max_trajectories * usual_steps,
+        max_trajectories,
+        started: std::time::Instant::now(),
     };
-    let resid = |th: &[f64]| -> Result<DVector<f64>, ForceFitError> {
-        if let Some(what) = limit() {
-            return Err(ForceFitError::Limit(what));
-        }
+    let resid = |th: &[f64]| -> (DVector<f64>, usize) {
         let (model, taken) = integrate_counted(&times, th, g_m_s2, h_max);
-        steps.set(steps.get() + taken);
         let seen = |i: usize| {
             if half_exposure > 0.0 {
                 (model[3 * i] + 4.0 * model[3 * i + 1] + model[3 * i + 2]) / 6.0
@@ -372,9 +362,8 @@ fn fit_force_law_to(
             }
         };
         // θ[5]: the surface's offset below the line, in metres of δ.
-        Ok(DVector::from_fn(m_pts, |i, _| {
-            (seen(i) - (obs[i] - th[5])) / sig[i]
-        }))
+        let r = DVector::from_fn(m_pts, |i, _| (seen(i) - (obs[i] - th[5])) / sig[i]);
+        (r, taken)
     };
     let theta0 = [
         d0,
@@ -387,18 +376,33 @@ fn fit_force_law_to(
     // (δ0, v0, ln K/m, n, c/m) all free; then n held at the model's 2; then
     // n held and the surface free: with n free the surface and n trade off
     // (σ ≈ 0.2–0.7 px on the real preset), with n = 2 the trajectory pins
-    // the surface to 0.01–0.05 px.
+    // the surface to 0.01–0.05 px. The first fit beside the others (on
+    // another thread when there is one); their work is counted in this
+    // order all the same.
     use crate::timings::{time, Stage};
-    let free = time(Stage::ForceFree, || {
-        levenberg_marquardt(&theta0, &[0, 1, 2, 3, 4], &resid, rel_tol)
-    })?;
-    let held = time(Stage::ForceN2, || {
-        levenberg_marquardt(&theta0, &[0, 1, 2, 4], &resid, rel_tol)
-    })?;
-    let on_law_surface = time(Stage::ForceSurface, || {
-        levenberg_marquardt(&held.theta, &[0, 1, 2, 4, 5], &resid, rel_tol)
-    })
-    .ok();
+    let lm = |theta: &[f64], free: &[usize]| {
+        let mut ledger = Ledger::default();
+        let fit = levenberg_marquardt(theta, free, &resid, rel_tol, &limits, &mut ledger);
+        (fit, ledger)
+    };
+    let ((free, free_work), later) = rayon::join(
+        || time(Stage::ForceFree, || lm(&theta0, &[0, 1, 2, 3, 4])),
+        || {
+            let held = time(Stage::ForceN2, || lm(&theta0, &[0, 1, 2, 4]));
+            let on_law_surface = held
+                .0
+                .as_ref()
+                .ok()
+                .map(|held| time(Stage::ForceSurface, || lm(&held.theta, &[0, 1, 2, 4, 5])));
+            (held, on_law_surface)
+        },
+    );
+    let ((held, held_work), on_law_surface) = later;
+    let mut done = 0usize;
+    let free = limits.replay(&mut done, &free_work, free)?;
+    let held = limits.replay(&mut done, &held_work, held)?;
+    let on_law_surface =
+        on_law_surface.and_then(|(fit, work)| limits.replay(&mut done, &work, fit).ok());
     // Only where the law rejects the image's line are K and n taken from
     // the fit with the surface free too (see [`ForceLaw::with_surface_free`]):
     // it costs more than the three others together.
@@ -409,10 +413,8 @@ fn fit_force_law_to(
     let rejects = surface_offset_px
         .is_some_and(|d| crate::measure::law_rejects_line(d, geom.surface_row_err_px));
     let both_free = on_law_surface.as_ref().filter(|_| rejects).and_then(|f| {
-        time(Stage::ForceBoth, || {
-            levenberg_marquardt(&f.theta, &[0, 1, 2, 3, 4, 5], &resid, rel_tol)
-        })
-        .ok()
+        let (fit, work) = time(Stage::ForceBoth, || lm(&f.theta, &[0, 1, 2, 3, 4, 5]));
+        limits.replay(&mut done, &work, fit).ok()
     });
     // The geometry's errors (see the module doc): ∂r_i/∂q = −(∂obs_i/∂q)/σ_i
     // with obs_i = δ_i·s, times σ_q. With the scale from the radius,
@@ -527,40 +529,157 @@ impl LmFit {
 /// then spent 20 trials failing.
 const LM_REL_TOL: f64 = 1e-10;
 
-/// The scaled residuals of a θ, or why they could not be computed.
-type Residuals<'a> = dyn Fn(&[f64]) -> Result<DVector<f64>, ForceFitError> + 'a;
+/// The scaled residuals of a θ and the integrator's steps they took.
+type Residuals<'a> = dyn Fn(&[f64]) -> (DVector<f64>, usize) + Sync + 'a;
+
+/// The trajectory fits' work and time limits (see [`fit_force_law`]).
+struct Limits {
+    /// Integrator steps of all the fits together.
+    max_steps: usize,
+    max_trajectories: usize,
+    started: std::time::Instant,
+}
+
+/// The integrator's steps of each trajectory a fit computed, in the order
+/// the fit asked for them. The fits run beside each other and the columns
+/// of a Jacobian on every thread, yet the work limit counts their work as
+/// one thread computing the fits in turn would: each trajectory is refused
+/// once the steps of those before it pass the limit ([`Limits::replay`]),
+/// so where a fit stops does not depend on the threads.
+#[derive(Default)]
+struct Ledger {
+    steps: Vec<usize>,
+    /// This fit's own steps so far.
+    total: usize,
+}
+
+impl Limits {
+    /// Why a fit that has taken `ledger`'s steps stops before its next
+    /// trajectories: its own steps alone past the limit (those of the fits
+    /// before it only add to them, see [`Self::replay`]), or the time limit.
+    fn reached(&self, ledger: &Ledger) -> Option<ForceFitError> {
+        if ledger.total > self.max_steps {
+            Some(self.work_limit())
+        } else if self.started.elapsed().as_secs_f64() > FORCE_FIT_TIME_LIMIT_S {
+            Some(ForceFitError::Limit(format!("{FORCE_FIT_TIME_LIMIT_S} s")))
+        } else {
+            None
+        }
+    }
+
+    fn work_limit(&self) -> ForceFitError {
+        ForceFitError::Limit(format!("{} trajectories' work", self.max_trajectories))
+    }
+
+    /// A fit's outcome as it is when the fits run one after another, `done`
+    /// steps taken before it: the work limit reached before one of its
+    /// trajectories (or before the next it would have asked for) stops it
+    /// there; else its own outcome. Adds its steps to `done`.
+    fn replay(
+        &self,
+        done: &mut usize,
+        ledger: &Ledger,
+        outcome: Result<LmFit, ForceFitError>,
+    ) -> Result<LmFit, ForceFitError> {
+        for &taken in &ledger.steps {
+            if *done > self.max_steps {
+                return Err(self.work_limit());
+            }
+            *done += taken;
+        }
+        match outcome {
+            // It stopped before its next trajectory.
+            Err(ForceFitError::Limit(_)) if *done > self.max_steps => Err(self.work_limit()),
+            other => other,
+        }
+    }
+}
+
+impl Ledger {
+    /// The residuals of the trajectories `thetas`, computed on every thread,
+    /// their steps entered in order; `None` when the limits stop the fit
+    /// first.
+    fn trajectories(
+        &mut self,
+        thetas: &[Vec<f64>],
+        resid: &Residuals<'_>,
+        limits: &Limits,
+    ) -> Result<Vec<DVector<f64>>, ForceFitError> {
+        use rayon::prelude::*;
+        if let Some(e) = limits.reached(self) {
+            return Err(e);
+        }
+        let out: Vec<(DVector<f64>, usize)> = if thetas.len() == 1 {
+            vec![resid(&thetas[0])]
+        } else {
+            thetas.par_iter().map(|th| resid(th)).collect()
+        };
+        Ok(out
+            .into_iter()
+            .map(|(r, taken)| {
+                self.steps.push(taken);
+                self.total += taken;
+                r
+            })
+            .collect())
+    }
+
+    /// The residuals of one trajectory (see [`Self::trajectories`]).
+    fn trajectory(
+        &mut self,
+        theta: &[f64],
+        resid: &Residuals<'_>,
+        limits: &Limits,
+    ) -> Result<DVector<f64>, ForceFitError> {
+        Ok(self
+            .trajectories(&[theta.to_vec()], resid, limits)?
+            .remove(0))
+    }
+}
 
 /// Minimise |r(θ)|² over θ[free] from θ0 (central-difference Jacobian,
-/// multiplicative damping of the diagonal). Stops when an accepted step
-/// lowers the cost by less than `rel_tol` of it ([`LM_REL_TOL`]), or no
-/// step helps.
+/// its columns' trajectories on every thread; multiplicative damping of
+/// the diagonal). Stops when an accepted step lowers the cost by less than
+/// `rel_tol` of it ([`LM_REL_TOL`]), or no step helps. Each trajectory's
+/// steps go to `ledger`.
 fn levenberg_marquardt(
     theta0: &[f64],
     free: &[usize],
     resid: &Residuals<'_>,
     rel_tol: f64,
+    limits: &Limits,
+    ledger: &mut Ledger,
 ) -> Result<LmFit, ForceFitError> {
     const STEPS: [f64; 6] = [1e-9, 1e-6, 1e-6, 1e-6, 1e-3, 1e-9];
     let p = free.len();
-    let jacobian = |th: &[f64], rows: usize| -> Result<DMatrix<f64>, ForceFitError> {
-        let mut j = DMatrix::zeros(rows, p);
-        for (col, &k) in free.iter().enumerate() {
+    let jacobian = |th: &[f64], rows: usize, ledger: &mut Ledger| {
+        // θ ± h along each free parameter, in the order one thread takes them.
+        let mut thetas = Vec::with_capacity(2 * p);
+        let mut hs = Vec::with_capacity(p);
+        for &k in free {
             let h = STEPS[k] * (1.0 + th[k].abs());
             let mut tp = th.to_vec();
             let mut tm = th.to_vec();
             tp[k] += h;
             tm[k] -= h;
-            j.set_column(col, &((resid(&tp)? - resid(&tm)?) / (2.0 * h)));
+            thetas.push(tp);
+            thetas.push(tm);
+            hs.push(h);
         }
-        Ok(j)
+        let rs = ledger.trajectories(&thetas, resid, limits)?;
+        let mut j = DMatrix::zeros(rows, p);
+        for (col, h) in hs.into_iter().enumerate() {
+            j.set_column(col, &((&rs[2 * col] - &rs[2 * col + 1]) / (2.0 * h)));
+        }
+        Ok::<_, ForceFitError>(j)
     };
     let mut theta = theta0.to_vec();
-    let mut r = resid(&theta)?;
+    let mut r = ledger.trajectory(&theta, resid, limits)?;
     let mut cost = r.norm_squared();
     let mut lambda = 1e-3;
     let mut converged = false;
     for _ in 0..100 {
-        let j = jacobian(&theta, r.len())?;
+        let j = jacobian(&theta, r.len(), ledger)?;
         let jtj = j.transpose() * &j;
         let g = j.transpose() * &r;
         let mut improved = false;
@@ -577,7 +696,7 @@ fn levenberg_marquardt(
             for (col, &k) in free.iter().enumerate() {
                 cand[k] += step[col];
             }
-            let rc = resid(&cand)?;
+            let rc = ledger.trajectory(&cand, resid, limits)?;
             let cc = rc.norm_squared();
             if cc.is_finite() && cc < cost {
                 converged = cost - cc < rel_tol * cost;
@@ -594,7 +713,7 @@ fn levenberg_marquardt(
             break;
         }
     }
-    let j = jacobian(&theta, r.len())?;
+    let j = jacobian(&theta, r.len(), ledger)?;
     let dof = r.len().saturating_sub(p).max(1);
     let inv = (j.transpose() * &j)
         .try_inverse()
@@ -937,6 +1056,37 @@ mod tests {
             .to_string()
             .contains("stopped at its limit of 10 trajectories"));
         assert!(fit(FORCE_FIT_MAX_TRAJECTORIES).is_ok());
+    }
+
+    #[test]
+    fn where_the_work_limit_stops_the_fits_does_not_depend_on_the_threads() {
+        // The fits run beside each other and a Jacobian's trajectories on
+        // every thread; the limit counts their work in the one-thread order.
+        // Limits from one that stops the first fit to one none reaches, so
+        // that it stops each fit at many places (this drop's fits take ~150
+        // trajectories; the third fit runs where the law rejects the line).
+        let drop = Drop::new(4.5e-3, 1.7, 0.5e-4);
+        let geom = geometry();
+        let tr = track(&drop, &geom, 0.03, 3);
+        let ev = find_events(&tr, &geom, &EventConfig::default()).unwrap();
+        let on = |threads: usize, max: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    let f =
+                        fit_force_law_to(&tr, &ev, &geom, &sphere(), 9.81, 0.0, LM_REL_TOL, max);
+                    format!("{f:?}")
+                })
+        };
+        let mut stopped = 0;
+        for max in (2..=240).step_by(3) {
+            let one = on(1, max);
+            assert_eq!(one, on(2, max), "limit of {max} trajectories");
+            stopped += usize::from(one.contains("Limit"));
+        }
+        assert!(stopped > 10 && stopped < 75, "{stopped} of 80 stopped");
     }
 
     #[test]

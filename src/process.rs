@@ -653,11 +653,16 @@ fn measure_run(
     let mut m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
     // The surface: the image's line, checked against (and moved to) where
     // the contact law puts it, unless the configuration gave the line.
-    let by_law = m
-        .law
-        .as_ref()
-        .ok()
-        .and_then(|law| surface_from_law(law, geom.surface_row_err_px));
+    // Without the law's surface, the image's line alone, with the band
+    // top's systematic in its error.
+    let band_top_px = crate::measure::band_top_systematic_px(tr.surface.model_err_px);
+    let by_law = Some(
+        m.law
+            .as_ref()
+            .ok()
+            .and_then(|law| surface_from_law(law, geom.surface_row_err_px, band_top_px))
+            .unwrap_or_else(|| (0.0, geom.surface_row_err_px.hypot(band_top_px), "image")),
+    );
     let mut geom = geom;
     let mut surface_source = "image";
     if let (Some((offset_px, err_px, source)), false) = (by_law, tr.surface_from_config) {

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use dropscope::collapse::synthetic::{
-    contact_track, eq8_dataset, power_law_dataset, SyntheticSpec,
+    contact_track, eq8_dataset, power_law_dataset, write_track, SyntheticSpec,
 };
 use dropscope::collapse::{self, groups::ContactRadius, CollapseArgs};
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
@@ -767,11 +767,7 @@ fn flight_parabolas_of_a_track_have_free_fall_curvature() {
     let (rows, t_in, t_out) = contact_track(4.5, 7800.0, 1.2, &s, 10_000.0, 0.05);
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("r.csv");
-    let mut w = csv::Writer::from_path(&p).unwrap();
-    for r in rows {
-        w.serialize(r).unwrap();
-    }
-    w.flush().unwrap();
+    write_track(&p, &rows).unwrap();
     let mut rec = DropRecord::failed("r", 4.5, "");
     rec.t_contact_s = Some(t_in);
     rec.t_rebound_s = Some(t_out);
@@ -781,6 +777,65 @@ fn flight_parabolas_of_a_track_have_free_fall_curvature() {
     }
     let law = d.force_law.unwrap();
     assert!((law.n.value - 2.0).abs() < 1e-9);
+}
+
+/// The figure and fits keep only a track's frames with a centre, a
+/// penetration or contact (issue 16: a long movie's whole track read back
+/// was its peak memory): frames without any — before the sphere enters,
+/// after it leaves, missed in between — change neither its fits nor a byte
+/// of its figure.
+#[test]
+fn untracked_frames_change_neither_the_fits_nor_the_figure() {
+    let s = dropscope::config::Surface::paper_pdms();
+    let (rows, t_in, t_out) = contact_track(4.5, 7800.0, 1.2, &s, 10_000.0, 0.05);
+    let untracked = |t_s: f64| dataset::TrackRow {
+        frame: 0,
+        t_s,
+        x_px: None,
+        z_px: None,
+        r_px: None,
+        residual_px: None,
+        edge_points: 0,
+        in_contact: false,
+        delta_mm: None,
+        sigma_z_px: None,
+        force_n: None,
+        flags: "missing".into(),
+    };
+    let (t0, t1) = (rows[0].t_s, rows[rows.len() - 1].t_s);
+    let mut padded: Vec<_> = (1..400)
+        .rev()
+        .map(|k| untracked(t0 - 1e-4 * f64::from(k)))
+        .collect();
+    for (i, r) in rows.iter().enumerate() {
+        padded.push(r.clone());
+        if i % 7 == 3 && i + 1 < rows.len() {
+            padded.push(untracked(0.5 * (r.t_s + rows[i + 1].t_s)));
+        }
+    }
+    padded.extend((1..300).map(|k| untracked(t1 + 1e-4 * f64::from(k))));
+    let dir = tempfile::tempdir().unwrap();
+    let mut rec = DropRecord::failed("r", 4.5, "");
+    rec.t_contact_s = Some(t_in);
+    rec.t_rebound_s = Some(t_out);
+    let figure = |name: &str, rows: &[dataset::TrackRow]| {
+        let p = dir.path().join(name);
+        write_track(&p, rows).unwrap();
+        let d = dropscope::collapse::diagnostics::diagnose(&rec, &s, &p).unwrap();
+        let figures = dropscope::plot::drop_figures(&d).unwrap();
+        (
+            d.track.samples.len(),
+            d.flight_in,
+            d.flight_out,
+            d.force_law,
+            figures,
+        )
+    };
+    let bare = figure("bare.csv", &rows);
+    let with_gaps = figure("padded.csv", &padded);
+    assert!(padded.len() > rows.len() + 700);
+    assert_eq!(bare.0, rows.len());
+    assert_eq!(bare, with_gaps);
 }
 
 /// Issue 17 item 1: `collapse` writes beside its drops.csv, and the report

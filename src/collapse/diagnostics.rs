@@ -49,12 +49,67 @@ pub struct ForceLaw {
     pub source: &'static str,
 }
 
+/// What the diagnostics and the drop figure use of one track row: its time,
+/// centre row, penetration, force and contact flag (64 bytes; a whole
+/// [`TrackRow`] read back is 168 and its flags' text).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackSample {
+    pub t_s: f64,
+    pub z_px: Option<f64>,
+    pub delta_mm: Option<f64>,
+    pub force_n: Option<f64>,
+    pub in_contact: bool,
+}
+
+impl TrackSample {
+    fn of(r: &TrackRow) -> TrackSample {
+        TrackSample {
+            t_s: r.t_s,
+            z_px: r.z_px,
+            delta_mm: r.delta_mm,
+            force_n: r.force_n,
+            in_contact: r.in_contact,
+        }
+    }
+}
+
+/// A track as its figure and fits use it: the samples of the frames with a
+/// centre, a penetration or contact (a frame without any of them is in no
+/// fit and no panel), and the range of every frame's time in ms (the time
+/// axis when no frame has a centre).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackSamples {
+    pub samples: Vec<TrackSample>,
+    /// The least and greatest `t_s · 1e3` over all rows (±∞ for none).
+    pub all_t_ms: [f64; 2],
+}
+
+/// Read a track file as [`TrackSamples`], one row at a time: a long movie's
+/// track read back whole was its largest allocation (22 MB for 124 166
+/// frames). Every row is read and checked as by [`read_track`]; the error
+/// names the file and the CSV row.
+pub fn read_track_samples(path: &Path) -> Result<TrackSamples, String> {
+    let mut rdr = csv::Reader::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut samples = Vec::new();
+    let mut all_t_ms = [f64::INFINITY, f64::NEG_INFINITY];
+    for (i, r) in rdr.deserialize::<TrackRow>().enumerate() {
+        let r = r.map_err(|e| format!("{}: row {}: {e}", path.display(), i + 2))?;
+        let t_ms = r.t_s * 1e3;
+        all_t_ms = [all_t_ms[0].min(t_ms), all_t_ms[1].max(t_ms)];
+        if r.z_px.is_some() || r.delta_mm.is_some() || r.in_contact {
+            samples.push(TrackSample::of(&r));
+        }
+    }
+    samples.shrink_to_fit();
+    Ok(TrackSamples { samples, all_t_ms })
+}
+
 /// One drop's track and what was fitted to it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DropDiagnostics {
     pub run: String,
     pub track_path: PathBuf,
-    pub rows: Vec<TrackRow>,
+    pub track: TrackSamples,
     pub t_contact_s: Option<f64>,
     pub t_rebound_s: Option<f64>,
     pub flight_in: Option<FlightFit>,
@@ -72,7 +127,7 @@ pub fn read_track(path: &Path) -> Result<Vec<TrackRow>, String> {
     Ok(out)
 }
 
-fn flight(rows: &[&TrackRow], t0: f64) -> Option<FlightFit> {
+fn flight(rows: &[&TrackSample], t0: f64) -> Option<FlightFit> {
     let pts: Vec<(f64, f64)> = rows
         .iter()
         .filter_map(|r| r.z_px.map(|z| (r.t_s - t0, z)))
@@ -91,7 +146,7 @@ fn flight(rows: &[&TrackRow], t0: f64) -> Option<FlightFit> {
 }
 
 /// Fit F = K δⁿ to the contact frames of a track.
-pub fn force_law(run: &str, rows: &[TrackRow], model_k_n_per_mm2: f64) -> Option<ForceLaw> {
+pub fn force_law(run: &str, rows: &[TrackSample], model_k_n_per_mm2: f64) -> Option<ForceLaw> {
     let (x, y): (Vec<f64>, Vec<f64>) = rows
         .iter()
         .filter(|r| r.in_contact)
@@ -149,16 +204,17 @@ pub fn diagnose(
     surface: &Surface,
     track_path: &Path,
 ) -> Result<DropDiagnostics, String> {
-    let rows = read_track(track_path)?;
+    let track = read_track_samples(track_path)?;
+    let rows = &track.samples;
     let first_contact = rows.iter().find(|r| r.in_contact).map(|r| r.t_s);
     let last_contact = rows.iter().rev().find(|r| r.in_contact).map(|r| r.t_s);
     let t_in = rec.t_contact_s.or(first_contact);
     let t_out = rec.t_rebound_s.or(last_contact);
-    let before: Vec<&TrackRow> = rows
+    let before: Vec<&TrackSample> = rows
         .iter()
         .filter(|r| !r.in_contact && t_in.is_some_and(|t| r.t_s < t))
         .collect();
-    let after: Vec<&TrackRow> = rows
+    let after: Vec<&TrackSample> = rows
         .iter()
         .filter(|r| !r.in_contact && t_out.is_some_and(|t| r.t_s > t))
         .collect();
@@ -172,10 +228,10 @@ pub fn diagnose(
         flight_in: t_in.and_then(|t| flight(&before, t)),
         flight_out: t_out.and_then(|t| flight(&after, t)),
         force_law: record_force_law(rec, rows.iter().filter(|r| r.in_contact).count(), model_k)
-            .or_else(|| force_law(&rec.run, &rows, model_k)),
+            .or_else(|| force_law(&rec.run, rows, model_k)),
         t_contact_s: t_in,
         t_rebound_s: t_out,
-        rows,
+        track,
     })
 }
 
@@ -203,10 +259,10 @@ mod tests {
     #[test]
     fn exact_force_law_is_recovered() {
         // F = 3.5 δ^2 (N, mm): n = 2 and K = 3.5 to round-off.
-        let rows: Vec<TrackRow> = (1..20)
+        let rows: Vec<TrackSample> = (1..20)
             .map(|i| {
                 let d = 0.05 * i as f64;
-                row(i as f64 * 1e-4, d, Some(3.5 * d * d))
+                TrackSample::of(&row(i as f64 * 1e-4, d, Some(3.5 * d * d)))
             })
             .collect();
         let f = force_law("r", &rows, 1.0).unwrap();

@@ -143,6 +143,16 @@ pub fn power_law_dataset(spec: &SyntheticSpec, laws: &[(f64, f64, f64)]) -> Vec<
     out
 }
 
+/// Write `rows` as a track file at `path`, as `process` writes one.
+pub fn write_track(path: &std::path::Path, rows: &[crate::dataset::TrackRow]) -> csv::Result<()> {
+    let mut w = csv::Writer::from_path(path)?;
+    for r in rows {
+        w.serialize(r)?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
 /// A track (`tracks/<run>.csv` rows) for a drop falling at `v_m_s` onto the
 /// elastic-foundation contact F = (πEφR/h) δ² (Maruoka 2019 above Eq. (1b)),
 /// integrated with RK4 at 100 substeps per frame and sampled at `fps`;

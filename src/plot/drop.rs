@@ -6,9 +6,8 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::{axis_tick, file_stem, render, tick, Backend, DrawResult, Plane, LIGHT_LINES};
-use crate::collapse::diagnostics::DropDiagnostics;
+use crate::collapse::diagnostics::{DropDiagnostics, TrackSamples};
 use crate::collapse::CollapseError;
-use crate::dataset::TrackRow;
 
 /// Size of a per-drop figure in pixels.
 pub const DROP_FIGURE_SIZE: (u32, u32) = (1650, 560);
@@ -20,6 +19,11 @@ fn span(v: impl Iterator<Item = f64>) -> [f64; 2] {
     let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
         (a.min(x), b.max(x))
     });
+    with_margin(lo, hi)
+}
+
+/// `[lo, hi]` widened by 6 % each side; `[0, 1]` unless both are finite.
+fn with_margin(lo: f64, hi: f64) -> [f64; 2] {
     if !(lo.is_finite() && hi.is_finite()) {
         return [0.0, 1.0];
     }
@@ -30,12 +34,13 @@ fn span(v: impl Iterator<Item = f64>) -> [f64; 2] {
 /// The time axis (ms): the frames with a centre, as a movie may run for
 /// hundreds of milliseconds before the sphere comes into view; all frames
 /// when none has one.
-fn time_span_ms(rows: &[TrackRow]) -> [f64; 2] {
+fn time_span_ms(track: &TrackSamples) -> [f64; 2] {
+    let rows = &track.samples;
     let tracked = rows.iter().filter(|r| r.z_px.is_some());
     if rows.iter().any(|r| r.z_px.is_some()) {
         span(tracked.map(|r| r.t_s * 1e3))
     } else {
-        span(rows.iter().map(|r| r.t_s * 1e3))
+        with_margin(track.all_t_ms[0], track.all_t_ms[1])
     }
 }
 
@@ -93,17 +98,20 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
     let (left, force_panel) = root.split_horizontally((f64::from(w) * 0.6) as i32);
     let mut cols = left.split_evenly((1, 2));
     cols.push(force_panel);
-    let t_range = time_span_ms(&d.rows);
+    let t_range = time_span_ms(&d.track);
     let label = ("sans-serif", super::LEGEND_FONT);
     let desc = ("sans-serif", super::DESC_FONT - 4);
 
     // z(t): rows grow downward, so the axis is reversed (up on the page is up in the lab).
-    let zs: Vec<(f64, f64)> = d
-        .rows
-        .iter()
-        .filter_map(|r| r.z_px.map(|z| (r.t_s * 1e3, z)))
-        .collect();
-    let zr = span(zs.iter().map(|p| p.1));
+    // Each panel's points are walked from the track as they are drawn (a
+    // long movie's would be copied once for the SVG and once for the PNG).
+    let samples = &d.track.samples;
+    let zs = || {
+        samples
+            .iter()
+            .filter_map(|r| r.z_px.map(|z| (r.t_s * 1e3, z)))
+    };
+    let zr = span(zs().map(|p| p.1));
     let mut c = ChartBuilder::on(&cols[0])
         .margin(14)
         .x_label_area_size(50)
@@ -119,12 +127,9 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
         .light_line_style(RGBColor(238, 238, 238))
         .max_light_lines(LIGHT_LINES)
         .draw()?;
-    c.draw_series(
-        zs.iter()
-            .map(|&p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
-    )?
-    .label("track")
-    .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
+    c.draw_series(zs().map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())))?
+        .label("track")
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
     for (i, f) in [&d.flight_in, &d.flight_out].into_iter().enumerate() {
         let Some(f) = f else { continue };
         // Drawn from the first frame used to the event it was fitted for.
@@ -156,12 +161,12 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
         .draw()?;
 
     // δ(t).
-    let ds: Vec<(f64, f64)> = d
-        .rows
-        .iter()
-        .filter_map(|r| r.delta_mm.map(|v| (r.t_s * 1e3, v)))
-        .collect();
-    let dr = span(ds.iter().map(|p| p.1).chain([0.0]));
+    let ds = || {
+        samples
+            .iter()
+            .filter_map(|r| r.delta_mm.map(|v| (r.t_s * 1e3, v)))
+    };
+    let dr = span(ds().map(|p| p.1).chain([0.0]));
     let mut c = ChartBuilder::on(&cols[1])
         .margin(14)
         .x_label_area_size(50)
@@ -181,21 +186,18 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
         vec![(t_range[0], 0.0), (t_range[1], 0.0)],
         RGBColor(150, 150, 150).stroke_width(1),
     ))?;
-    c.draw_series(
-        ds.iter()
-            .map(|&p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
-    )?;
+    c.draw_series(ds().map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())))?;
     events(&mut c, d, dr, false)?;
 
     // F(δ).
-    let fs: Vec<(f64, f64)> = d
-        .rows
-        .iter()
-        .filter(|r| r.in_contact)
-        .filter_map(|r| r.delta_mm.zip(r.force_n))
-        .collect();
-    let xr = span(fs.iter().map(|p| p.0).chain([0.0]));
-    let mut y_all: Vec<f64> = fs.iter().map(|p| p.1).chain([0.0]).collect();
+    let fs = || {
+        samples
+            .iter()
+            .filter(|r| r.in_contact)
+            .filter_map(|r| r.delta_mm.zip(r.force_n))
+    };
+    let xr = span(fs().map(|p| p.0).chain([0.0]));
+    let mut y_all: Vec<f64> = fs().map(|p| p.1).chain([0.0]).collect();
     if let Some(l) = &d.force_law {
         y_all.push(l.model_k_n_per_mm2 * xr[1].powi(2));
         y_all.push(l.k_n_per_mm_pow_n.value * xr[1].max(0.0).powf(l.n.value));
@@ -245,15 +247,12 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
         .light_line_style(RGBColor(238, 238, 238))
         .max_light_lines(LIGHT_LINES)
         .draw()?;
-    c.draw_series(
-        fs.iter()
-            .map(|&p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
-    )?
-    .label(&labels[0])
-    .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
+    c.draw_series(fs().map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())))?
+        .label(&labels[0])
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
     if let Some(l) = &d.force_law {
         let (k, n) = (l.k_n_per_mm_pow_n.value, l.n.value);
-        let top = fs.iter().map(|p| p.0).fold(0.0, f64::max);
+        let top = fs().map(|p| p.0).fold(0.0, f64::max);
         let curve = |kk: f64, nn: f64| {
             (0..=50).map(move |i| {
                 let x = top * i as f64 / 50.0;
@@ -318,6 +317,8 @@ pub fn drop_figures(d: &DropDiagnostics) -> Result<Vec<(String, Vec<u8>)>, Colla
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::collapse::diagnostics::read_track_samples;
+    use crate::dataset::TrackRow;
 
     fn row(t_s: f64, z_px: Option<f64>) -> TrackRow {
         TrackRow {
@@ -336,6 +337,14 @@ mod tests {
         }
     }
 
+    /// `rows` written as a track file and read back as the figure reads it.
+    fn samples_of(rows: &[TrackRow]) -> TrackSamples {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        crate::collapse::synthetic::write_track(&path, rows).unwrap();
+        read_track_samples(&path).unwrap()
+    }
+
     #[test]
     fn the_time_axis_spans_the_tracked_frames_not_the_whole_movie() {
         // 300 ms of movie before the sphere enters, then 5 ms tracked.
@@ -343,10 +352,15 @@ mod tests {
             .map(|k| row(-0.3 + 1e-4 * f64::from(k), None))
             .collect();
         rows.extend((0..50).map(|k| row(1e-4 * f64::from(k), Some(100.0))));
-        let [lo, hi] = time_span_ms(&rows);
+        let track = samples_of(&rows);
+        // The frames without a centre are not kept.
+        assert_eq!(track.samples.len(), 50);
+        let [lo, hi] = time_span_ms(&track);
         assert!(lo > -0.5 && lo < 0.0 && hi > 4.9 && hi < 5.5, "{lo}..{hi}");
-        // Nothing tracked: the whole movie.
-        let [lo, _] = time_span_ms(&rows[..3000]);
-        assert!(lo < -300.0, "{lo}");
+        // Nothing tracked: the whole movie, though no frame is kept.
+        let untracked = samples_of(&rows[..3000]);
+        assert!(untracked.samples.is_empty());
+        let [lo, hi] = time_span_ms(&untracked);
+        assert!(lo < -300.0 && hi > 0.0 && hi - lo > 300.0, "{lo}..{hi}");
     }
 }

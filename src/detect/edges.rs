@@ -505,8 +505,10 @@ fn window_inside(w: &Window, m: usize, band: &Band) -> bool {
         && band.nrows < (1 << 15)
 }
 
-/// The sums of every window's `m` samples, interpolated bilinearly in `f32`
-/// and summed in `f64`, into `out`: eight windows at a time with AVX2
+/// The sums of every window's `m` samples `r_j = I_j/B_j` — the frame and
+/// the background (`bg_rows`: its rows of the band) each interpolated
+/// bilinearly in `f32`, divided in `f32` — summed in `f64`, into `out`:
+/// eight windows at a time with AVX2
 /// (gathers), one at a time without; the same operations in the same order
 /// per window, so the same bits (tested).
 fn sample_windows(

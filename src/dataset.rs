@@ -316,12 +316,22 @@ pub enum DatasetError {
 /// rows always give the same bytes. Every CSV dropscope writes goes through
 /// here (drops.csv, tracks, the manifest).
 pub fn csv_bytes<T: Serialize>(rows: impl IntoIterator<Item = T>) -> Vec<u8> {
-    let mut w = csv::Writer::from_writer(Vec::new());
+    let mut bytes = Vec::new();
+    write_csv_rows(&mut bytes, rows).expect("serialising plain rows into memory cannot fail");
+    bytes
+}
+
+/// [`csv_bytes`] written into `out` as they are made (a long movie's track
+/// into an [`crate::io_util::Spool`]).
+pub fn write_csv_rows<T: Serialize>(
+    out: impl std::io::Write,
+    rows: impl IntoIterator<Item = T>,
+) -> std::io::Result<()> {
+    let mut w = csv::Writer::from_writer(out);
     for r in rows {
-        w.serialize(r)
-            .expect("serialising plain rows into memory cannot fail");
+        w.serialize(r)?;
     }
-    w.into_inner().expect("flushing into memory cannot fail")
+    w.flush()
 }
 
 /// `drops.csv` as bytes (see [`csv_bytes`]).

@@ -120,15 +120,124 @@ pub fn temporary_path(path: &Path) -> io::Result<PathBuf> {
 /// A reader never sees a half-written file, and a crash leaves either the
 /// old file or the new one.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    write_atomic_with(path, |f| f.write_all(bytes))
+}
+
+/// [`write_atomic`] of what `write` writes into the temporary: a file
+/// made as it is written (a [`Spool`]'s), never whole in memory. A
+/// temporary whose writing failed is removed.
+pub fn write_atomic_with(
+    path: &Path,
+    write: impl FnOnce(&mut fs::File) -> io::Result<()>,
+) -> io::Result<()> {
     let tmp = temporary_path(path)?;
-    {
-        let mut f = fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
+    let written = fs::File::create(&tmp).and_then(|mut f| {
+        write(&mut f)?;
+        f.sync_all()
+    });
+    written
+        .and_then(|()| fs::rename(&tmp, path))
+        .inspect_err(|_| {
+            let _ = fs::remove_file(&tmp);
+        })
+}
+
+/// Bytes made in order to be written out later ([`Spool::copy_to`]): held
+/// in memory up to `memory_max` bytes, past it in an unnamed temporary file
+/// (in `TMPDIR`), so that a long movie's track CSV is not held whole. Their
+/// SHA-256 is taken as they come.
+pub struct Spool {
+    mem: Vec<u8>,
+    file: Option<fs::File>,
+    len: u64,
+    memory_max: usize,
+    sha256: sha2::Sha256,
+}
+
+impl Spool {
+    /// None yet; at most `memory_max` bytes in memory.
+    pub fn new(memory_max: usize) -> Self {
+        Spool {
+            mem: Vec::new(),
+            file: None,
+            len: 0,
+            memory_max,
+            sha256: sha2::Sha256::default(),
+        }
     }
-    fs::rename(&tmp, path).inspect_err(|_| {
-        let _ = fs::remove_file(&tmp);
-    })
+
+    /// Bytes written.
+    pub fn len(&self) -> u64 {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Whether the bytes went to a file.
+    pub fn spilled(&self) -> bool {
+        self.file.is_some()
+    }
+
+    /// The SHA-256 of the bytes written, in lowercase hex.
+    pub fn sha256_hex(&self) -> String {
+        use sha2::Digest;
+        self.sha256
+            .clone()
+            .finalize()
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect()
+    }
+
+    /// Write every byte, in order, to `out`: from memory, or read back from
+    /// the file a block at a time.
+    pub fn copy_to(&self, out: &mut impl Write) -> io::Result<()> {
+        let Some(file) = &self.file else {
+            return out.write_all(&self.mem);
+        };
+        let mut buf = vec![0u8; 1 << 16];
+        let mut at = 0u64;
+        while at < self.len {
+            let n = (self.len - at).min(buf.len() as u64) as usize;
+            crate::records::read_at(file, at, &mut buf[..n])?;
+            out.write_all(&buf[..n])?;
+            at += n as u64;
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Debug for Spool {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Spool")
+            .field("len", &self.len)
+            .field("spilled", &self.spilled())
+            .finish()
+    }
+}
+
+impl Write for Spool {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        if self.file.is_none() && self.mem.len() + buf.len() > self.memory_max {
+            let file = tempfile::tempfile()?;
+            crate::records::write_at(&file, 0, &self.mem)?;
+            self.mem = Vec::new();
+            self.file = Some(file);
+        }
+        match &self.file {
+            Some(file) => crate::records::write_at(file, self.len, buf)?,
+            None => self.mem.extend_from_slice(buf),
+        }
+        sha2::Digest::update(&mut self.sha256, buf);
+        self.len += buf.len() as u64;
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
 }
 
 /// [`write_atomic`] without the sync: a reader (or a later run after a
@@ -263,6 +372,36 @@ mod tests {
         assert_eq!(fs::read(&p).unwrap(), b"second");
         let names: Vec<_> = fs::read_dir(dir.path()).unwrap().collect();
         assert_eq!(names.len(), 1, "a temporary file was left behind");
+    }
+
+    #[test]
+    fn a_spool_gives_back_its_bytes_in_memory_or_from_its_file() {
+        let bytes: Vec<u8> = (0..200_000u32).map(|i| (i * 31 % 251) as u8).collect();
+        for memory_max in [0, 1000, 1 << 20] {
+            let mut s = Spool::new(memory_max);
+            for chunk in bytes.chunks(7_777) {
+                s.write_all(chunk).unwrap();
+            }
+            assert_eq!(s.spilled(), memory_max < bytes.len(), "{memory_max}");
+            assert_eq!(s.len(), bytes.len() as u64);
+            let mut back = Vec::new();
+            s.copy_to(&mut back).unwrap();
+            assert!(back == bytes, "{memory_max}");
+            assert_eq!(
+                s.sha256_hex(),
+                crate::cache::OutputFile::new(String::new(), &bytes).sha256
+            );
+            // Written atomically from the spool: the same bytes in the file.
+            let dir = tempfile::tempdir().unwrap();
+            let p = dir.path().join("t.csv");
+            write_atomic_with(&p, |f| s.copy_to(f)).unwrap();
+            assert!(fs::read(&p).unwrap() == bytes);
+            // A failed write leaves neither the file nor its temporary.
+            let q = dir.path().join("u.csv");
+            let e = write_atomic_with(&q, |_| Err(io::Error::other("no room"))).unwrap_err();
+            assert_eq!(e.to_string(), "no room");
+            assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+        }
     }
 
     #[test]

@@ -107,6 +107,55 @@ pub fn weighted_lsq_built(
     })
 }
 
+/// Least squares fed one row at a time: each row `a·p ≈ y` (already
+/// weighted) is rotated into a p × p upper triangle R and Qᵀy by Givens
+/// rotations, its remainder added to the residual sum of squares. The
+/// triangle of a QR of the whole design (up to the rows' signs) without
+/// holding the design: a fit over any number of rows in a few numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RowQr<const P: usize> {
+    /// R, upper triangular.
+    pub r: [[f64; P]; P],
+    /// Qᵀy.
+    pub qty: [f64; P],
+    /// The residual sum of squares, Σ (y − a·p)² at the fit.
+    pub rss: f64,
+    /// Rows taken.
+    pub rows: usize,
+}
+
+impl<const P: usize> Default for RowQr<P> {
+    fn default() -> Self {
+        RowQr {
+            r: [[0.0; P]; P],
+            qty: [0.0; P],
+            rss: 0.0,
+            rows: 0,
+        }
+    }
+}
+
+impl<const P: usize> RowQr<P> {
+    /// Take the row `a·p ≈ y`.
+    pub fn push(&mut self, mut a: [f64; P], mut y: f64) {
+        for i in 0..P {
+            if a[i] == 0.0 {
+                continue;
+            }
+            let h = self.r[i][i].hypot(a[i]);
+            let (c, s) = (self.r[i][i] / h, a[i] / h);
+            for (r, w) in self.r[i][i..].iter_mut().zip(&mut a[i..]) {
+                (*r, *w) = (c * *r + s * *w, c * *w - s * *r);
+            }
+            let (x, w) = (self.qty[i], y);
+            self.qty[i] = c * x + s * w;
+            y = c * w - s * x;
+        }
+        self.rss += y * y;
+        self.rows += 1;
+    }
+}
+
 /// A polynomial `y = Σ c_k u^k`, u = (x − x0)/x_scale, fitted by weighted
 /// least squares. The scaling keeps the design matrix well conditioned
 /// whatever the units of x (e.g. seconds over a millisecond).
@@ -242,6 +291,39 @@ mod tests {
         assert!((p.derivative_at_x0(1) - 3.0).abs() < 1e-12);
         assert!((slope_err * slope_err - 0.25 / sxx).abs() < 1e-14);
         assert!((p.fit.cov[(0, 0)] - 0.25 / 11.0).abs() < 1e-14);
+    }
+
+    #[test]
+    fn rows_fed_one_at_a_time_give_the_whole_designs_fit() {
+        // A weighted quadratic with noise: the same coefficients, covariance
+        // and χ² as the QR of the whole design, to rounding.
+        let n = 500;
+        let x: Vec<f64> = (0..n).map(|i| i as f64 * 0.01 - 2.0).collect();
+        let s: Vec<f64> = (0..n).map(|i| 0.1 + 0.05 * (i % 7) as f64).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|i| {
+                1.0 + 0.5 * x[i] - 3.0 * x[i] * x[i] + s[i] * ((i * 7919 % 13) as f64 / 6.0 - 1.0)
+            })
+            .collect();
+        let a = DMatrix::from_fn(n, 3, |i, k| x[i].powi(k as i32));
+        let whole = weighted_lsq(&a, &y, &s).unwrap();
+        let mut rows = RowQr::<3>::default();
+        for i in 0..n {
+            let w = 1.0 / s[i];
+            rows.push([w, x[i] * w, x[i] * x[i] * w], y[i] * w);
+        }
+        let r = DMatrix::from_fn(3, 3, |i, j| rows.r[i][j]);
+        let coef = r
+            .solve_upper_triangular(&nalgebra::DVector::from_column_slice(&rows.qty))
+            .unwrap();
+        let r_inv = r.solve_upper_triangular(&DMatrix::identity(3, 3)).unwrap();
+        let cov = &r_inv * r_inv.transpose();
+        for k in 0..3 {
+            assert!((coef[k] / whole.coef[k] - 1.0).abs() < 1e-12, "{k}");
+            assert!((cov[(k, k)] / whole.cov[(k, k)] - 1.0).abs() < 1e-12, "{k}");
+        }
+        assert!((rows.rss / whole.chi2 - 1.0).abs() < 1e-10);
+        assert_eq!(rows.rows, n);
     }
 
     #[test]

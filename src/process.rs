@@ -9,6 +9,7 @@ use crate::cache::OutputFile;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
 use crate::events::{EventConfig, Geometry, TrackPoint};
+use crate::io_util::Spool;
 use crate::lens::{undistort_track, Lens};
 use crate::manifest::RunSpec;
 use crate::measure::{annotate_track, measure_drop, measure_drop_with, surface_from_law, DropInfo};
@@ -19,6 +20,7 @@ use crate::shelf::{Shelf, ShelvedTrack};
 use crate::source::{open, OpenOptions};
 use crate::track::{track, FrameTrack, Track, TrackSettings};
 use rayon::prelude::*;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -64,11 +66,12 @@ pub struct ProcessArgs {
 }
 
 /// The outcome of one run.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct RunOutcome {
     pub record: DropRecord,
-    /// The track CSV's bytes (empty for a run that failed).
-    pub track_csv: Vec<u8>,
+    /// The track CSV's bytes (none for a run that failed): past
+    /// [`TRACK_CSV_IN_MEMORY_MAX`], in a temporary file.
+    pub track_csv: Spool,
     /// Its rows (one a frame of the movie).
     pub track_rows: usize,
     /// PNG bytes of the overlay at maximum penetration.
@@ -84,6 +87,11 @@ pub struct RunOutcome {
     /// shown to the user; no output depends on it.
     pub seconds: f64,
 }
+
+/// The most bytes of a run's track CSV held in memory (~11 000 frames'
+/// rows); a longer track goes to a temporary file as it is made, and from
+/// there to its output file (a 124 166-frame movie's is 11 MB).
+pub const TRACK_CSV_IN_MEMORY_MAX: usize = 1 << 20;
 
 /// Why the command could not run at all (a bad run is a row, not this).
 #[derive(Debug, thiserror::Error)]
@@ -231,7 +239,7 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
     record.path = run.path.display().to_string();
     RunOutcome {
         record,
-        track_csv: Vec::new(),
+        track_csv: Spool::new(0),
         track_rows: 0,
         overlay: None,
         frame_overlays: Vec::new(),
@@ -527,8 +535,9 @@ fn bounded_of(
         let lens = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
         let (points, surface, radius_px, curvature) = time(Stage::Events, || {
             let (held, surface, radius_px) = crate::lens::undistort_held(tr, &lens);
-            let points = points_of(held, |_| (None, None));
-            let c = free_fall_curvature(&points, |x| surface.row_at(x), radius_px);
+            let points: Vec<TrackPoint> = points_of(held, |_| (None, None)).collect();
+            let c =
+                free_fall_curvature(|| points.iter().copied(), |x| surface.row_at(x), radius_px);
             (points, surface, radius_px, c)
         });
         crate::lens::Bounded {
@@ -565,8 +574,11 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
             .map_err(|e| format!("{}: {e}", run.path.display()))?;
     }
     let curvature = time(Stage::Events, || {
-        let points = track_points(&tr, |_| (None, None));
-        free_fall_curvature(&points, |x| tr.surface.row_at(x), tr.radius_px)
+        free_fall_curvature(
+            || held_points(&tr, |_| (None, None)),
+            |x| tr.surface.row_at(x),
+            tr.radius_px,
+        )
     });
     let bounded = bounded_of(&tr, &meta, cfg);
     tr.frames
@@ -801,7 +813,15 @@ fn measure_run(
         .t_contact_s
         .filter(|_| cfg.output.animation)
         .and_then(|t| pictures.impact(t, record.t_rebound_s));
-    let track_csv = crate::dataset::csv_bytes(tr.frames.iter().map(|f| row_of(&f)));
+    let mut track_csv = Spool::new(TRACK_CSV_IN_MEMORY_MAX);
+    crate::dataset::write_csv_rows(&mut track_csv, tr.frames.iter().map(|f| row_of(&f))).map_err(
+        |e| {
+            format!(
+                "{}: cannot hold its track CSV in a temporary file: {e}",
+                run.path.display()
+            )
+        },
+    )?;
     // Everything above walked the track's records: none failed to be read.
     tr.frames
         .check()
@@ -862,6 +882,14 @@ fn track_points(
     tr: &Track,
     half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
 ) -> Vec<TrackPoint> {
+    held_points(tr, half_width).collect()
+}
+
+/// [`track_points`] as they are walked: none held.
+fn held_points<'a>(
+    tr: &'a Track,
+    half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>) + 'a,
+) -> impl Iterator<Item = TrackPoint> + 'a {
     points_of(
         tr.frames.iter().filter_map(|f| f.held.map(|h| (f, h))),
         half_width,
@@ -874,9 +902,9 @@ fn track_points(
 fn points_of(
     held: impl Iterator<Item = (FrameTrack, crate::detect::CircleFit)>,
     half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
-) -> Vec<TrackPoint> {
+) -> impl Iterator<Item = TrackPoint> {
     held.filter(|(f, _)| !f.flags.contains(crate::track::Flag::Partial))
-        .map(|(f, h)| {
+        .map(move |(f, h)| {
             let (hw, hw_err) = f.free.as_ref().map_or((None, None), &half_width);
             TrackPoint {
                 frame: f.frame,
@@ -888,7 +916,6 @@ fn points_of(
                 sigma_half_width_px: hw_err,
             }
         })
-        .collect()
 }
 
 /// With a given scale, the speeds use [`crate::scale::Scale::for_speeds`]:
@@ -1082,6 +1109,15 @@ pub fn process_all_with_overlays(
 
 /// Write `bytes` to `out/rel` atomically, creating folders.
 pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessError> {
+    write_file_with(out, rel, |f| f.write_all(bytes))
+}
+
+/// [`write_file`] of what `write` writes ([`crate::io_util::write_atomic_with`]).
+fn write_file_with(
+    out: &Path,
+    rel: &str,
+    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> Result<(), ProcessError> {
     let path = output_path(out, rel)?;
     if let Some(d) = path.parent() {
         std::fs::create_dir_all(d).map_err(|source| ProcessError::Write {
@@ -1089,7 +1125,7 @@ pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessErro
             source,
         })?;
     }
-    crate::io_util::write_atomic(&path, bytes)
+    crate::io_util::write_atomic_with(&path, write)
         .map_err(|source| ProcessError::Write { path, source })
 }
 
@@ -1109,16 +1145,21 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, 
     let track = format!("tracks/{run}.csv");
     let main_overlay = format!("plots/overlays/{run}.png");
     let mut written = Vec::new();
+    if o.track_csv.is_empty() {
+        remove_if_present(out, &track)?;
+    } else {
+        // From its spool to the file, never whole in memory.
+        write_file_with(out, &track, |f| o.track_csv.copy_to(f))?;
+        written.push(OutputFile {
+            sha256: o.track_csv.sha256_hex(),
+            path: track,
+        });
+    }
     let mut write = |rel: String, bytes: &[u8]| -> Result<(), ProcessError> {
         write_file(out, &rel, bytes)?;
         written.push(OutputFile::new(rel, bytes));
         Ok(())
     };
-    if o.track_csv.is_empty() {
-        remove_if_present(out, &track)?;
-    } else {
-        write(track, &o.track_csv)?;
-    }
     match &o.overlay {
         Some(png) => write(main_overlay, png)?,
         None => remove_if_present(out, &main_overlay)?,
@@ -1164,7 +1205,7 @@ mod tests {
             let lo = 2.0_f64;
             Ok(RunOutcome {
                 record: DropRecord::failed("never", 1.0, format!("{}", 1.0_f64.clamp(lo, 1.0))),
-                track_csv: Vec::new(),
+                track_csv: Spool::new(0),
                 track_rows: 0,
                 overlay: None,
                 frame_overlays: Vec::new(),

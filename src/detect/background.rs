@@ -543,7 +543,13 @@ fn coarse_pass(
         region,
         gains: gains.to_vec(),
     };
-    let surface = super::surface::fit_surface(&bg, &super::surface::SurfaceParams::default()).ok();
+    // The line only bounds the coarse search and the light's smooth model
+    // (margins of pixels): the area rows suffice.
+    let params_line = super::surface::SurfaceParams {
+        flank_fits: false,
+        ..Default::default()
+    };
+    let surface = super::surface::fit_surface(&bg, &params_line).ok();
     let mut scratch = coarse::CoarseScratch::default();
     let circles = data
         .iter()

@@ -102,6 +102,12 @@ pub struct SurfaceParams {
     pub tukey_c: f64,
     /// Floor of the residual scale (px).
     pub min_scale_px: f64,
+    /// Fit the blurred step to each column's flank (module doc, step 2);
+    /// `false`: the area row alone, a line to a small fraction of a pixel
+    /// on a clean band top and to half a pixel on a structured one — enough
+    /// where the line is only a bound (the background's coarse passes),
+    /// without the flank fits' cost (most of the line's).
+    pub flank_fits: bool,
 }
 
 impl Default for SurfaceParams {
@@ -112,6 +118,7 @@ impl Default for SurfaceParams {
             min_contrast: 0.2,
             tukey_c: 4.685,
             min_scale_px: 0.005,
+            flank_fits: true,
         }
     }
 }
@@ -172,6 +179,13 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
             .map(|i| (bg.at(i, j) as f64 - lo) / (hi - lo))
             .sum();
         let row_area_px = top as f64 - 0.5 + sum;
+        if !params.flank_fits {
+            return Some(ColumnEdge {
+                x_px: j as f64,
+                row_px: row_area_px,
+                row_area_px,
+            });
+        }
         flank.clear();
         let strip = strip_edge_row(bg, j, zs, best_step[j]).filter(|&z| z + 3 < r_hi);
         let two = strip.and_then(|z2| {

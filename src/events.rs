@@ -299,22 +299,95 @@ pub struct Events {
 /// Times finite and strictly increasing; positions and uncertainties finite
 /// (σ > 0). Every fit below relies on it.
 pub fn check_track(track: &[TrackPoint]) -> Result<(), EventError> {
-    for (i, p) in track.iter().enumerate() {
-        let finite = p.x_px.is_finite()
-            && p.z_px.is_finite()
-            && p.sigma_z_px.is_finite()
-            && p.sigma_z_px > 0.0;
-        if !finite {
-            return Err(EventError::NotFinite { frame: p.frame });
-        }
-        if !p.t_s.is_finite() || (i > 0 && p.t_s <= track[i - 1].t_s) {
-            return Err(EventError::TimesNotIncreasing {
-                frame: p.frame,
-                t_s: p.t_s,
-            });
-        }
+    let mut prev_t_s = None;
+    for p in track {
+        check_point(p, prev_t_s)?;
+        prev_t_s = Some(p.t_s);
     }
     Ok(())
+}
+
+/// [`check_track`] of one point after a point at `prev_t_s`.
+fn check_point(p: &TrackPoint, prev_t_s: Option<f64>) -> Result<(), EventError> {
+    let finite =
+        p.x_px.is_finite() && p.z_px.is_finite() && p.sigma_z_px.is_finite() && p.sigma_z_px > 0.0;
+    if !finite {
+        return Err(EventError::NotFinite { frame: p.frame });
+    }
+    if !p.t_s.is_finite() || prev_t_s.is_some_and(|t| p.t_s <= t) {
+        return Err(EventError::TimesNotIncreasing {
+            frame: p.frame,
+            t_s: p.t_s,
+        });
+    }
+    Ok(())
+}
+
+/// The points of `points` that [`find_events`] and everything measured
+/// from its events (kinematics, the contact law, the force table, the
+/// quality checks) use, under `geom`: the first points up to the second
+/// contact (the first point past the post-contact flight) and at least
+/// [`crate::force::FLIGHT_FRAMES`] past the contact, or the whole track
+/// when it has no second contact. On them every result and every error
+/// is the same as on the whole track; an error is returned as
+/// [`find_events`] would return it, without the points. Walked once, in
+/// order: what a long movie holds for its measurement is its first
+/// bounce's points, not every frame with the sphere (a resting sphere's,
+/// later bounces'), except a sphere still in its first contact at the
+/// movie's end (which fails, "no rebound").
+pub fn first_contact_window(
+    points: impl Iterator<Item = TrackPoint>,
+    geom: &Geometry,
+    cfg: &EventConfig,
+) -> Result<Vec<TrackPoint>, EventError> {
+    let mut kept: Vec<TrackPoint> = Vec::new();
+    let (mut n, mut prev_t) = (0usize, None::<f64>);
+    let mut bad: Option<EventError> = None;
+    let mut max_pen = f64::NEG_INFINITY;
+    // Indices of the first and last contact frame, and where the window ends.
+    let (mut first, mut last, mut end) = (None::<usize>, None::<usize>, None::<usize>);
+    let mut last_frame = 0;
+    for p in points {
+        if bad.is_none() {
+            bad = check_point(&p, prev_t).err();
+        }
+        prev_t = Some(p.t_s);
+        last_frame = p.frame;
+        let pen = geom.penetration_px(p.x_px, p.z_px);
+        let i = n;
+        n += 1;
+        if end.is_none() && bad.is_none() {
+            max_pen = max_pen.max(pen);
+            match (first, last) {
+                (None, _) if pen > 0.0 => first = Some(i),
+                (Some(_), None) if pen <= 0.0 => last = Some(i - 1),
+                (Some(_), Some(c1)) if pen > 0.0 => {
+                    // The second contact: the window ends past it and
+                    // past the contact law's flight frames.
+                    end = Some((i + 1).max(c1 + crate::force::FLIGHT_FRAMES + 1));
+                }
+                _ => {}
+            }
+        }
+        if bad.is_none() && end.is_none_or(|e| kept.len() < e.max(2 * cfg.min_flight_frames + 1)) {
+            kept.push(p);
+        }
+    }
+    // In find_events's order.
+    if n < 2 * cfg.min_flight_frames + 1 {
+        return Err(EventError::TooFewFrames(n));
+    }
+    if let Some(e) = bad {
+        return Err(e);
+    }
+    match (first, last) {
+        (None, _) => Err(EventError::NeverLands { gap_px: -max_pen }),
+        (Some(0), _) => Err(EventError::NoFlightBeforeContact {
+            frame: kept[0].frame,
+        }),
+        (Some(_), None) => Err(EventError::NoRebound { frame: last_frame }),
+        _ => Ok(kept),
+    }
 }
 
 /// Split the track into flight, contact and flight, and fit each part.

@@ -118,39 +118,44 @@ pub fn undistort_track(tr: Track, lens: &Lens) -> std::io::Result<Track> {
     Ok(out)
 }
 
+/// The surface line and the calibrated radius that [`undistort_track`]
+/// gives `tr` through `lens`, without a copy of the track (one walk of it).
+pub fn undistorted_line(tr: &Track, lens: &Lens) -> (SurfaceLine, f64) {
+    let lowest = held_centres(tr, lens).fold(None, |lowest, (_, x, z, _)| lower(lowest, (x, z)));
+    let (r, surface) = radius_and_line(lens, lowest, tr.radius_px, tr.surface);
+    (surface, r)
+}
+
 /// What [`undistort_track`] makes of `tr`'s held circles, without a copy
-/// of the track: each frame with a held fit and that fit moved (made as
-/// the iterator is walked, in the track's order), the surface line and the
-/// calibrated radius.
+/// of the track: each frame with a held fit and that fit moved, with the
+/// calibrated radius `r_px` ([`undistorted_line`]), made as the iterator is
+/// walked, in the track's order.
 pub fn undistort_held<'a>(
     tr: &'a Track,
     lens: &'a Lens,
-) -> (
-    impl Iterator<Item = (FrameTrack, CircleFit)> + 'a,
-    SurfaceLine,
-    f64,
-) {
-    let moved = move |f: FrameTrack| {
-        let h = f.held?;
-        let (x, z, _) = lens.disc(h.x_px, h.z_px, h.r_px);
-        Some((f, x, z, h))
-    };
-    let lowest = tr
-        .frames
-        .iter()
-        .filter_map(moved)
-        .fold(None, |lowest, (_, x, z, _)| lower(lowest, (x, z)));
-    let (r, surface) = radius_and_line(lens, lowest, tr.radius_px, tr.surface);
-    let held = tr.frames.iter().filter_map(moved).map(move |(f, x, z, h)| {
+    r_px: f64,
+) -> impl Iterator<Item = (FrameTrack, CircleFit)> + 'a {
+    held_centres(tr, lens).map(move |(f, x, z, h)| {
         let fit = CircleFit {
             x_px: x,
             z_px: z,
-            r_px: r,
+            r_px,
             ..h
         };
         (f, fit)
-    });
-    (held, surface, r)
+    })
+}
+
+/// `tr`'s frames with a held fit, with that fit's centre moved by `lens`.
+fn held_centres<'a>(
+    tr: &'a Track,
+    lens: &'a Lens,
+) -> impl Iterator<Item = (FrameTrack, f64, f64, CircleFit)> + 'a {
+    tr.frames.iter().filter_map(|f: FrameTrack| {
+        let h = f.held?;
+        let (x, z, _) = lens.disc(h.x_px, h.z_px, h.r_px);
+        Some((f, x, z, h))
+    })
 }
 
 /// The lower (larger row) of the centre so far and `(x, z)`; the first
@@ -194,7 +199,9 @@ fn radius_and_line(
 /// [`shift_at_bound`] measures again.
 #[derive(Debug, Clone)]
 pub struct Bounded {
-    pub points: Vec<TrackPoint>,
+    /// The lens at the bound: the track's points through it are made again
+    /// when measured ([`undistort_held`]), never held.
+    pub lens: Lens,
     /// The surface line and the calibrated radius, corrected.
     pub surface_row0_px: f64,
     pub surface_slope: f64,
@@ -218,13 +225,16 @@ pub struct Shift {
 /// magnification at the impact), δmax and τc become when its track, its
 /// set-up's `pooled` curvature and its surface line are corrected for the
 /// lens at the bound, less what the same events and kinematics give
-/// without it (on `points` and `geom` at the scale `sc` resolved from
-/// `inputs`). `surface_shift_px` is what the measurement moved the image's
-/// line by (the contact law), kept. `None` when either side cannot be
-/// measured.
+/// without it (on `geom` at the scale `sc` resolved from `inputs`).
+/// `points_at(geom)` and `bounded_points_at(geom)` give the track's points
+/// and its points through the lens that the events under `geom` use
+/// ([`crate::events::first_contact_window`]). `surface_shift_px` is what
+/// the measurement moved the image's line by (the contact law), kept.
+/// `None` when either side cannot be measured.
 #[allow(clippy::too_many_arguments)]
 pub fn shift_at_bound(
-    points: &[TrackPoint],
+    points_at: impl Fn(&Geometry) -> Option<Vec<TrackPoint>>,
+    bounded_points_at: impl Fn(&Geometry) -> Option<Vec<TrackPoint>>,
     geom: &Geometry,
     sc: &Scale,
     inputs: &ScaleInputs,
@@ -235,9 +245,9 @@ pub fn shift_at_bound(
     cfg: &EventConfig,
     speed_factor: impl Fn(&Scale) -> f64,
 ) -> Option<Shift> {
-    let measure = |points: &[TrackPoint], geom: &Geometry, sc: &Scale| {
-        let ev = find_events(points, geom, cfg).ok()?;
-        let kin = kinematics(points, &ev, geom, sphere, cfg.exposure_s).ok()?;
+    let measure = |points: Vec<TrackPoint>, geom: &Geometry, sc: &Scale| {
+        let ev = find_events(&points, geom, cfg).ok()?;
+        let kin = kinematics(&points, &ev, geom, sphere, cfg.exposure_s).ok()?;
         let f = speed_factor(sc);
         Some(Shift {
             mm_per_px: sc.mm_per_px,
@@ -247,7 +257,7 @@ pub fn shift_at_bound(
             tau_c_ms: kin.tau_c_s.value * 1e3,
         })
     };
-    let base = measure(points, geom, sc)?;
+    let base = measure(points_at(geom)?, geom, sc)?;
     // Seen from the bound, the lens's change of the scale is the same.
     let inputs_b = ScaleInputs {
         setup: pooled,
@@ -268,7 +278,7 @@ pub fn shift_at_bound(
         mm_per_px_err: sc.mm_per_px * sc.rel_err,
         ..*geom
     };
-    let at = measure(&bounded.points, &geom_b, &sc)?;
+    let at = measure(bounded_points_at(&geom_b)?, &geom_b, &sc)?;
     Some(Shift {
         mm_per_px: at.mm_per_px - base.mm_per_px,
         v_impact_m_s: at.v_impact_m_s - base.v_impact_m_s,

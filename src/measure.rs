@@ -378,6 +378,7 @@ pub fn annotate_track(rows: &mut [TrackRow], m: &DropMeasurement, geom: &Geometr
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::events::TrackPoint;
     use crate::kinematics::Measured;
     use crate::test_support::{geometry, track, Drop};
 
@@ -484,6 +485,89 @@ mod tests {
             "{}",
             e[0].1
         );
+    }
+
+    #[test]
+    fn a_long_movie_is_measured_on_its_first_bounce_alone_to_the_same_bits() {
+        use crate::events::{find_events, first_contact_window};
+        let drop = Drop::new(4.5e-3, 1.7, 0.4e-4);
+        let geom = geometry();
+        let cfg = EventConfig::default();
+        let info = DropInfo {
+            run: "r".into(),
+            sphere_radius_mm: 4.5,
+            sphere_density_kg_m3: 7800.0,
+            surface: "pdms".into(),
+        };
+        let first = track(&drop, &geom, 0.02, 3);
+        let end = first.last().unwrap().frame + 1;
+        // Then the sphere lands again and rests on the surface.
+        let resting = |n: i64| TrackPoint {
+            frame: n,
+            t_s: n as f64 / 1e4,
+            x_px: 256.0,
+            z_px: geom.surface_row_px - geom.radius_px + 2.0 + 0.01 * (n % 7) as f64,
+            sigma_z_px: 0.02,
+            half_width_px: None,
+            sigma_half_width_px: None,
+        };
+        let movie = |rest: i64| -> Vec<TrackPoint> {
+            first
+                .iter()
+                .copied()
+                .chain((end..end + rest).map(resting))
+                .collect()
+        };
+        let window = |pts: &[TrackPoint]| first_contact_window(pts.iter().copied(), &geom, &cfg);
+        let (short, long) = (movie(1_000), movie(100_000));
+        let w = window(&long).unwrap();
+        // What is held does not grow with the movie: the first bounce, the
+        // second contact's first frame and the contact law's flight frames.
+        assert_eq!(w, window(&short).unwrap());
+        assert!(
+            w.len() <= first.len() + crate::force::FLIGHT_FRAMES,
+            "{}",
+            w.len()
+        );
+        assert_eq!(w[..], long[..w.len()]);
+        let whole = measure_drop(&info, &long, &geom, &cfg).unwrap();
+        assert!(whole.record.second_contact_s.is_some());
+        assert_eq!(measure_drop(&info, &w, &geom, &cfg).unwrap(), whole);
+
+        // Every error of the whole track, the same from the window's walk.
+        let events = |pts: &[TrackPoint]| find_events(pts, &geom, &cfg).map(|_| ());
+        let windowed = |pts: &[TrackPoint]| window(pts).and_then(|w| events(&w));
+        let mut not_finite = long.clone();
+        not_finite[50_000].z_px = f64::NAN;
+        let mut backwards = long.clone();
+        backwards[60_000].t_s = backwards[59_999].t_s;
+        let above: Vec<TrackPoint> = first
+            .iter()
+            .map(|p| TrackPoint {
+                z_px: p.z_px - 40.0,
+                ..*p
+            })
+            .collect();
+        let c0 = first
+            .iter()
+            .position(|p| geom.penetration_px(p.x_px, p.z_px) > 0.0)
+            .unwrap();
+        let never_leaves: Vec<TrackPoint> = first[..c0]
+            .iter()
+            .copied()
+            .chain((first[c0].frame..end + 500).map(resting))
+            .collect();
+        for (what, pts) in [
+            ("not finite", &not_finite[..]),
+            ("times", &backwards[..]),
+            ("never lands", &above[..]),
+            ("already in contact", &long[c0..]),
+            ("no rebound", &never_leaves[..]),
+            ("too few", &long[..8]),
+        ] {
+            let e = events(pts).unwrap_err();
+            assert_eq!(windowed(pts), Err(e), "{what}");
+        }
     }
 
     #[test]

@@ -533,15 +533,17 @@ fn bounded_of(
     let camera = &cfg.camera;
     (camera.distortion_k1_per_px2.is_none() && camera.distortion_bound_px > 0.0).then(|| {
         let lens = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
-        let (points, surface, radius_px, curvature) = time(Stage::Events, || {
-            let (held, surface, radius_px) = crate::lens::undistort_held(tr, &lens);
-            let points: Vec<TrackPoint> = points_of(held, |_| (None, None)).collect();
-            let c =
-                free_fall_curvature(|| points.iter().copied(), |x| surface.row_at(x), radius_px);
-            (points, surface, radius_px, c)
+        let (surface, radius_px, curvature) = time(Stage::Events, || {
+            let (surface, radius_px) = crate::lens::undistorted_line(tr, &lens);
+            let c = free_fall_curvature(
+                || bounded_points(tr, &lens, radius_px),
+                |x| surface.row_at(x),
+                radius_px,
+            );
+            (surface, radius_px, c)
         });
         crate::lens::Bounded {
-            points,
+            lens,
             surface_row0_px: surface.row0_px,
             surface_slope: surface.slope,
             radius_px,
@@ -633,12 +635,14 @@ fn measure_run(
     let sc = crate::scale::resolve(&inputs);
     let (radius_px, radius_err_px) = sc.radius_px(&inputs);
     let edge_offset = sc.edge_offset_px(&inputs);
-    let xs: Vec<f64> = tr
+    let mut held = 0usize;
+    let x_sum: f64 = tr
         .frames
         .iter()
         .filter_map(|f| f.held.map(|h| h.x_px))
-        .collect();
-    let x_mid = xs.iter().sum::<f64>() / xs.len().max(1) as f64;
+        .inspect(|_| held += 1)
+        .sum();
+    let x_mid = x_sum / held.max(1) as f64;
     // The scale and the true radius in pixels are tied (R_px = R_mm / s)
     // whatever the source, so the kinematics carries them as one.
     let geom = Geometry {
@@ -654,7 +658,14 @@ fn measure_run(
     // The free-radius circle measures the silhouette: its radius, less the
     // edge offset, is the sphere's.
     let offset_px_edge = edge_offset.map_or(0.0, |(o, _)| o);
-    let points = track_points(&tr, |f| half_width(f, offset_px_edge, &geom));
+    // The points of the first bounce that the events under a geometry use,
+    // with the contact half-widths of another: made again from the track
+    // when needed, never every frame's.
+    let window = |half_widths: &Geometry, geom: &Geometry| {
+        let held = held_points(&tr, |f| half_width(f, offset_px_edge, half_widths));
+        crate::events::first_contact_window(held, geom, &event_cfg)
+    };
+    let first_geom = geom;
     let info = DropInfo {
         run: run.run.clone(),
         sphere_radius_mm: run.sphere_radius_mm,
@@ -662,7 +673,9 @@ fn measure_run(
         surface: surface_name,
     };
     let failed = |e: crate::events::EventError| format!("{}: {e}", run.path.display());
+    let points = window(&geom, &geom).map_err(failed)?;
     let mut m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
+    drop(points);
     // The surface: the image's line, checked against (and moved to) where
     // the contact law puts it, unless the configuration gave the line.
     // Without the law's surface, the image's line alone, with the band
@@ -681,7 +694,7 @@ fn measure_run(
         geom.surface_row_px += offset_px;
         geom.surface_row_err_px = err_px;
         surface_source = source;
-        let points = track_points(&tr, |f| half_width(f, offset_px_edge, &geom));
+        let points = window(&geom, &geom).map_err(failed)?;
         m = measure_drop_with(&info, &points, &geom, &event_cfg, Some(&m.law)).map_err(failed)?;
     }
     // A frame's row of the track CSV, with contact, δ and force: made
@@ -724,8 +737,14 @@ fn measure_run(
     speeds_at_the_impact_scale(&mut record, &sc);
     record.distortion_k1_per_px2 = cfg.camera.distortion_k1_per_px2;
     if let Some(b) = &bounded {
+        // The first look's points (their half-widths on the image's line)
+        // and the lens's, each under the geometry measured on them.
         let shift = crate::lens::shift_at_bound(
-            &points,
+            |g| window(&first_geom, g).ok(),
+            |g| {
+                let held = bounded_points(&tr, &b.lens, b.radius_px);
+                crate::events::first_contact_window(held, g, &event_cfg).ok()
+            },
             &geom,
             &sc,
             &inputs,
@@ -844,26 +863,20 @@ fn measure_run(
 /// [`quality::SATURATED_SHARE`].
 fn saturated_share(tr: &Track, bit_depth: u8) -> Option<f64> {
     let white = 0.99 * ((1u32 << bit_depth.min(16)) - 1) as f32;
-    let fits: Vec<_> = tr.frames.iter().filter_map(|f| f.held).collect();
+    // The box of the held centres, walked once (none held).
+    let (mut any, mut x_lo, mut x_hi, mut z_lo) =
+        (false, f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY);
+    for c in tr.frames.iter().filter_map(|f| f.held) {
+        any = true;
+        (x_lo, x_hi, z_lo) = (x_lo.min(c.x_px), x_hi.max(c.x_px), z_lo.min(c.z_px));
+    }
     let bg = &tr.background;
     let (w, h) = (bg.width as f64, bg.height as f64);
     let r = tr.radius_px;
     let clampf = |v: f64, hi: f64| v.clamp(0.0, (hi - 1.0).max(0.0)) as usize;
-    let x0 = clampf(
-        fits.iter().map(|c| c.x_px).fold(f64::INFINITY, f64::min) - 1.2 * r,
-        w,
-    );
-    let x1 = clampf(
-        fits.iter()
-            .map(|c| c.x_px)
-            .fold(f64::NEG_INFINITY, f64::max)
-            + 1.2 * r,
-        w,
-    );
-    let z0 = clampf(
-        fits.iter().map(|c| c.z_px).fold(f64::INFINITY, f64::min) - 1.2 * r,
-        h,
-    );
+    let x0 = clampf(x_lo - 1.2 * r, w);
+    let x1 = clampf(x_hi + 1.2 * r, w);
+    let z0 = clampf(z_lo - 1.2 * r, h);
     let (mut clipped, mut total) = (0usize, 0usize);
     for col in x0..=x1 {
         let z1 = clampf(tr.surface.row_at(col as f64) - 2.0, h);
@@ -873,19 +886,12 @@ fn saturated_share(tr: &Track, bit_depth: u8) -> Option<f64> {
         }
     }
     let share = clipped as f64 / total.max(1) as f64;
-    (!fits.is_empty() && share > quality::SATURATED_SHARE).then_some(share)
+    (any && share > quality::SATURATED_SHARE).then_some(share)
 }
 
 /// The held-radius fits as event-stage points, with the contact
-/// half-width that `half_width` gives from the free-radius fit.
-fn track_points(
-    tr: &Track,
-    half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
-) -> Vec<TrackPoint> {
-    held_points(tr, half_width).collect()
-}
-
-/// [`track_points`] as they are walked: none held.
+/// half-width that `half_width` gives from the free-radius fit, made as
+/// they are walked: none held.
 fn held_points<'a>(
     tr: &'a Track,
     half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>) + 'a,
@@ -896,7 +902,19 @@ fn held_points<'a>(
     )
 }
 
-/// [`track_points`] of frames given with their held fits (the track's, or
+/// The held fits through `lens` ([`crate::lens::undistort_held`]) as points
+/// without half-widths, as they are walked.
+fn bounded_points<'a>(
+    tr: &'a Track,
+    lens: &'a Lens,
+    r_px: f64,
+) -> impl Iterator<Item = TrackPoint> + 'a {
+    points_of(crate::lens::undistort_held(tr, lens, r_px), |_| {
+        (None, None)
+    })
+}
+
+/// [`held_points`] of frames given with their held fits (the track's, or
 /// moved by a lens: [`crate::lens::undistort_held`]); a circle leaving the
 /// frame is no point.
 fn points_of(

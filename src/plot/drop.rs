@@ -2,7 +2,7 @@
 //! z(t) with the free-flight parabolas and the contact / rebound events,
 //! δ(t), and F(δ) with the fitted F = K δⁿ and the model F = (πEφR/h) δ².
 
-use plotters::coord::Shift;
+use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
 
 use super::{axis_tick, file_stem, render, tick, Backend, DrawResult, Plane, LIGHT_LINES};
@@ -11,6 +11,41 @@ use crate::collapse::CollapseError;
 
 /// Size of a per-drop figure in pixels.
 pub const DROP_FIGURE_SIZE: (u32, u32) = (1650, 560);
+
+/// A panel's series of more points than this is drawn one marker a pixel:
+/// a marker drawn again where one is adds nothing to see (its anti-aliased
+/// rim only darkens), and a long movie's panels would hold and write one
+/// a frame (86 bytes of SVG each, 10 MB for 124 166 frames). Above every
+/// drop of the e2e bench's data (the 31 166-frame movie: 15 091 points),
+/// whose figures stay the same bytes.
+pub const ONE_MARKER_A_PIXEL_ABOVE: usize = 1 << 14;
+
+/// `points` (`n` of them) as a panel with the coordinates `coord` draws
+/// them: all of them, or past [`ONE_MARKER_A_PIXEL_ABOVE`] the first at
+/// each pixel of the figure, so that what is drawn is bounded by the
+/// figure's size, not the movie's length.
+fn markers<'a, C: CoordTranslate<From = (f64, f64)>>(
+    coord: &'a C,
+    points: impl Iterator<Item = (f64, f64)> + 'a,
+    n: usize,
+) -> impl Iterator<Item = (f64, f64)> + 'a {
+    let (w, h) = (DROP_FIGURE_SIZE.0 as usize, DROP_FIGURE_SIZE.1 as usize);
+    let thin = n > ONE_MARKER_A_PIXEL_ABOVE;
+    let mut seen = vec![0u64; if thin { (w * h).div_ceil(64) } else { 0 }];
+    points.filter(move |p| {
+        let (x, y) = coord.translate(p);
+        let (Ok(x), Ok(y)) = (usize::try_from(x), usize::try_from(y)) else {
+            return true;
+        };
+        if !thin || x >= w || y >= h {
+            return true;
+        }
+        let (word, bit) = ((y * w + x) / 64, 1u64 << ((y * w + x) % 64));
+        let first = seen[word] & bit == 0;
+        seen[word] |= bit;
+        first
+    })
+}
 
 const EVENT: RGBColor = RGBColor(200, 0, 0);
 const FIT: RGBColor = RGBColor(0, 110, 220);
@@ -127,9 +162,13 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
         .light_line_style(RGBColor(238, 238, 238))
         .max_light_lines(LIGHT_LINES)
         .draw()?;
-    c.draw_series(zs().map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())))?
-        .label("track")
-        .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
+    let coord = c.as_coord_spec().clone();
+    c.draw_series(
+        markers(&coord, zs(), zs().count())
+            .map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
+    )?
+    .label("track")
+    .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
     for (i, f) in [&d.flight_in, &d.flight_out].into_iter().enumerate() {
         let Some(f) = f else { continue };
         // Drawn from the first frame used to the event it was fitted for.
@@ -186,7 +225,11 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
         vec![(t_range[0], 0.0), (t_range[1], 0.0)],
         RGBColor(150, 150, 150).stroke_width(1),
     ))?;
-    c.draw_series(ds().map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())))?;
+    let coord = c.as_coord_spec().clone();
+    c.draw_series(
+        markers(&coord, ds(), ds().count())
+            .map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
+    )?;
     events(&mut c, d, dr, false)?;
 
     // F(δ).
@@ -247,9 +290,13 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
         .light_line_style(RGBColor(238, 238, 238))
         .max_light_lines(LIGHT_LINES)
         .draw()?;
-    c.draw_series(fs().map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())))?
-        .label(&labels[0])
-        .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
+    let coord = c.as_coord_spec().clone();
+    c.draw_series(
+        markers(&coord, fs(), fs().count())
+            .map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
+    )?
+    .label(&labels[0])
+    .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
     if let Some(l) = &d.force_law {
         let (k, n) = (l.k_n_per_mm_pow_n.value, l.n.value);
         let top = fs().map(|p| p.0).fold(0.0, f64::max);
@@ -317,7 +364,7 @@ pub fn drop_figures(d: &DropDiagnostics) -> Result<Vec<(String, Vec<u8>)>, Colla
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::collapse::diagnostics::read_track_samples;
+    use crate::collapse::diagnostics::{read_track_samples, DropDiagnostics};
     use crate::dataset::TrackRow;
 
     fn row(t_s: f64, z_px: Option<f64>) -> TrackRow {
@@ -343,6 +390,82 @@ mod tests {
         let path = dir.path().join("r.csv");
         crate::collapse::synthetic::write_track(&path, rows).unwrap();
         read_track_samples(&path).unwrap()
+    }
+
+    #[test]
+    fn a_long_series_is_drawn_once_at_every_pixel_it_touches() {
+        use plotters::coord::cartesian::Cartesian2d;
+        use plotters::coord::types::RangedCoordf64;
+        let coord: Cartesian2d<RangedCoordf64, RangedCoordf64> =
+            Cartesian2d::new(0.0..2.0, 300.0..0.0, (84..975, 60..480));
+        // A bouncing sphere's z(t) sampled 200 000 times, with noise.
+        let n = 200_000;
+        let z = |k: usize| {
+            let t = 2.0 * k as f64 / n as f64;
+            let u = (t * 4.0).fract();
+            250.0 - 900.0 * u * (1.0 - u) + 0.3 * ((k * 7919 % 13) as f64 / 6.0 - 1.0)
+        };
+        let points = || (0..n).map(move |k| (2.0 * k as f64 / n as f64, z(k)));
+        let every: std::collections::HashSet<(i32, i32)> =
+            points().map(|p| coord.translate(&p)).collect();
+        let drawn: Vec<(i32, i32)> = markers(&coord, points(), n)
+            .map(|p| coord.translate(&p))
+            .collect();
+        let distinct: std::collections::HashSet<(i32, i32)> = drawn.iter().copied().collect();
+        // Each pixel the series touches, once: far fewer markers than points.
+        assert_eq!(distinct.len(), drawn.len());
+        assert_eq!(distinct, every);
+        assert!(drawn.len() < n / 10, "{}", drawn.len());
+        // A series of at most ONE_MARKER_A_PIXEL_ABOVE points: every one, in order.
+        let short: Vec<(f64, f64)> = points().take(ONE_MARKER_A_PIXEL_ABOVE).collect();
+        let kept: Vec<(f64, f64)> = markers(&coord, short.iter().copied(), short.len()).collect();
+        assert_eq!(kept, short);
+    }
+
+    #[test]
+    fn a_long_movies_figure_holds_a_marker_a_pixel_not_a_frame() {
+        use crate::collapse::diagnostics::TrackSample;
+        let figure = |frames: usize| {
+            let samples = (0..frames)
+                .map(|k| {
+                    let t_s = 2.0 * k as f64 / frames as f64;
+                    let u = (t_s * 4.0).fract();
+                    let z = 250.0 - 900.0 * u * (1.0 - u);
+                    TrackSample {
+                        t_s,
+                        z_px: Some(z),
+                        delta_mm: Some(0.08 * (z - 240.0)),
+                        force_n: None,
+                        in_contact: false,
+                    }
+                })
+                .collect();
+            let d = DropDiagnostics {
+                run: "long".into(),
+                track_path: "long.csv".into(),
+                track: TrackSamples {
+                    samples,
+                    all_t_ms: [0.0, 2000.0],
+                },
+                t_contact_s: None,
+                t_rebound_s: None,
+                flight_in: None,
+                flight_out: None,
+                force_law: None,
+            };
+            let figs = drop_figures(&d).unwrap();
+            let svg = String::from_utf8(figs[0].1.clone()).unwrap();
+            (svg.matches("<circle").count(), svg.len())
+        };
+        let (c1, len1) = figure(50_000);
+        let (c4, len4) = figure(200_000);
+        // Four times the frames, about the same figure: at most the pixels
+        // the two panels' curves touch.
+        assert!(c1 < 20_000 && c4 < 20_000, "{c1} {c4}");
+        assert!(len4 < len1 + len1 / 4, "{len1} {len4}");
+        // Below the bound, a marker a frame.
+        let (c, _) = figure(ONE_MARKER_A_PIXEL_ABOVE);
+        assert!(c >= 2 * ONE_MARKER_A_PIXEL_ABOVE, "{c}");
     }
 
     #[test]

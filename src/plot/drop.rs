@@ -358,7 +358,14 @@ fn legend_font<DB: Backend>(
 
 /// The diagnostics figure of one drop as `(file name, bytes)`, SVG and PNG.
 pub fn drop_figures(d: &DropDiagnostics) -> Result<Vec<(String, Vec<u8>)>, CollapseError> {
-    render!(&file_stem(&d.run), DROP_FIGURE_SIZE, |a| panels(a, d))
+    let figures = render!(&file_stem(&d.run), DROP_FIGURE_SIZE, |a| panels(a, d))?;
+    // The panels walked the samples (from their file, past its budget):
+    // none failed to be read.
+    d.track.samples.check().map_err(|e| CollapseError::Plot {
+        name: file_stem(&d.run),
+        message: e.to_string(),
+    })?;
+    Ok(figures)
 }
 
 #[cfg(test)]
@@ -425,21 +432,25 @@ mod tests {
     #[test]
     fn a_long_movies_figure_holds_a_marker_a_pixel_not_a_frame() {
         use crate::collapse::diagnostics::TrackSample;
-        let figure = |frames: usize| {
-            let samples = (0..frames)
-                .map(|k| {
-                    let t_s = 2.0 * k as f64 / frames as f64;
-                    let u = (t_s * 4.0).fract();
-                    let z = 250.0 - 900.0 * u * (1.0 - u);
-                    TrackSample {
-                        t_s,
-                        z_px: Some(z),
-                        delta_mm: Some(0.08 * (z - 240.0)),
-                        force_n: None,
-                        in_contact: false,
-                    }
-                })
-                .collect();
+        // The samples held in memory, or in a file past `memory_max`.
+        let figure = |frames: usize, memory_max: usize| {
+            let mut samples = crate::records::Records::new(memory_max);
+            for s in (0..frames).map(|k| {
+                let t_s = 2.0 * k as f64 / frames as f64;
+                let u = (t_s * 4.0).fract();
+                let z = 250.0 - 900.0 * u * (1.0 - u);
+                TrackSample {
+                    t_s,
+                    z_px: Some(z),
+                    delta_mm: Some(0.08 * (z - 240.0)),
+                    force_n: None,
+                    in_contact: false,
+                }
+            }) {
+                samples.push(s).unwrap();
+            }
+            samples.flush().unwrap();
+            assert_eq!(samples.spilled(), frames > memory_max);
             let d = DropDiagnostics {
                 run: "long".into(),
                 track_path: "long.csv".into(),
@@ -455,17 +466,20 @@ mod tests {
             };
             let figs = drop_figures(&d).unwrap();
             let svg = String::from_utf8(figs[0].1.clone()).unwrap();
-            (svg.matches("<circle").count(), svg.len())
+            (svg.matches("<circle").count(), svg.len(), figs)
         };
-        let (c1, len1) = figure(50_000);
-        let (c4, len4) = figure(200_000);
+        let (c1, len1, in_memory) = figure(50_000, usize::MAX);
+        let (c4, len4, _) = figure(200_000, usize::MAX);
         // Four times the frames, about the same figure: at most the pixels
         // the two panels' curves touch.
         assert!(c1 < 20_000 && c4 < 20_000, "{c1} {c4}");
         assert!(len4 < len1 + len1 / 4, "{len1} {len4}");
         // Below the bound, a marker a frame.
-        let (c, _) = figure(ONE_MARKER_A_PIXEL_ABOVE);
+        let (c, _, _) = figure(ONE_MARKER_A_PIXEL_ABOVE, usize::MAX);
         assert!(c >= 2 * ONE_MARKER_A_PIXEL_ABOVE, "{c}");
+        // Samples read back from their file draw the same bytes.
+        let (_, _, from_file) = figure(50_000, 1_000);
+        assert!(from_file == in_memory);
     }
 
     #[test]

@@ -474,7 +474,8 @@ pub struct Processed {
 /// time and set-ups in parallel on `options.threads` workers: each set-up's
 /// cached results when still valid (unless `options.force`), else processed
 /// and committed to the cache. `overlay_frames` are extra overlays drawn for
-/// every run (part of the cache key). Writes no drops.csv.
+/// every run (part of the cache key). Writes no drops.csv; the runs' files
+/// are on the disk when it returns ([`crate::process::sync_outputs`]).
 pub fn process_runs(
     runs: &[RunSpec],
     cfg: &PipelineConfig,
@@ -534,6 +535,9 @@ pub fn process_runs(
             .install(work)?,
         None => work()?,
     };
+    // The runs' files and cache entries, written unsynced, made durable at
+    // once before the caller's drops.csv.
+    crate::process::sync_outputs(out)?;
     Ok(Processed {
         done,
         seconds: start.elapsed().as_secs_f64(),

@@ -375,7 +375,11 @@ pub fn store(out: &Path, entry: &Entry) -> std::io::Result<()> {
     }
     let mut bytes = serde_json::to_vec_pretty(entry).map_err(std::io::Error::other)?;
     bytes.push(b'\n');
-    crate::io_util::write_atomic(&path, &bytes)
+    // Unsynced, as the run's outputs: made durable with them before the
+    // job's drops.csv (`process::sync_outputs`); an entry a crash left
+    // short does not parse and is a miss, one whose outputs a crash left
+    // short fails their SHA-256 and is a miss.
+    crate::io_util::write_atomic_unsynced(&path, &bytes)
 }
 
 #[cfg(test)]

@@ -1121,6 +1121,7 @@ pub fn process_all_with_overlays(
     let mut done: Vec<(usize, DropRecord)> = done.into_iter().flatten().collect();
     done.sort_by_key(|(i, _)| *i);
     let records: Vec<DropRecord> = done.into_iter().map(|(_, r)| r).collect();
+    sync_outputs(out)?;
     write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
     Ok(records)
 }
@@ -1136,6 +1137,26 @@ fn write_file_with(
     rel: &str,
     write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
 ) -> Result<(), ProcessError> {
+    write_file_as(out, rel, Durable::Now, write)
+}
+
+/// When a file written into the output folder reaches the disk.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Durable {
+    /// Synced before it is renamed into place ([`crate::io_util::write_atomic_with`]).
+    Now,
+    /// Renamed into place whole but unsynced
+    /// ([`crate::io_util::write_atomic_unsynced_with`]): a run's files, made
+    /// durable together by [`sync_outputs`] before drops.csv is written.
+    WithTheJob,
+}
+
+fn write_file_as(
+    out: &Path,
+    rel: &str,
+    durable: Durable,
+    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> Result<(), ProcessError> {
     let path = output_path(out, rel)?;
     if let Some(d) = path.parent() {
         std::fs::create_dir_all(d).map_err(|source| ProcessError::Write {
@@ -1143,14 +1164,29 @@ fn write_file_with(
             source,
         })?;
     }
-    crate::io_util::write_atomic_with(&path, write)
-        .map_err(|source| ProcessError::Write { path, source })
+    match durable {
+        Durable::Now => crate::io_util::write_atomic_with(&path, write),
+        Durable::WithTheJob => crate::io_util::write_atomic_unsynced_with(&path, write),
+    }
+    .map_err(|source| ProcessError::Write { path, source })
+}
+
+/// Make the files written by [`write_run_outputs`] (and the cache entries)
+/// into `out` durable, all at once: called before the drops.csv that lists
+/// them. Until then an operating-system crash may leave a run's file short;
+/// the cache finds it by its SHA-256 and processes the run again.
+pub fn sync_outputs(out: &Path) -> Result<(), ProcessError> {
+    crate::io_util::sync_file_system(out).map_err(|source| ProcessError::Write {
+        path: out.to_path_buf(),
+        source,
+    })
 }
 
 /// Write one run's track (`tracks/<run>.csv`), overlays
 /// (`plots/overlays/<run>[_<number>].png`) and animated impact
-/// (`plots/impacts/<run>.png`) into `out`, each atomically.
-/// A track or main overlay left by an earlier job for this run, which this
+/// (`plots/impacts/<run>.png`) into `out`, each atomically but unsynced:
+/// the job makes them durable at once ([`sync_outputs`]) before its
+/// drops.csv. A track or main overlay left by an earlier job for this run, which this
 /// outcome does not have (the run now fails), is removed. A run whose name
 /// is no file name writes and removes nothing. Returns the files written,
 /// relative to `out`, with the SHA-256 of their bytes.
@@ -1167,14 +1203,14 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, 
         remove_if_present(out, &track)?;
     } else {
         // From its spool to the file, never whole in memory.
-        write_file_with(out, &track, |f| o.track_csv.copy_to(f))?;
+        write_file_as(out, &track, Durable::WithTheJob, |f| o.track_csv.copy_to(f))?;
         written.push(OutputFile {
             sha256: o.track_csv.sha256_hex(),
             path: track,
         });
     }
     let mut write = |rel: String, bytes: &[u8]| -> Result<(), ProcessError> {
-        write_file(out, &rel, bytes)?;
+        write_file_as(out, &rel, Durable::WithTheJob, |f| f.write_all(bytes))?;
         written.push(OutputFile::new(rel, bytes));
         Ok(())
     };

@@ -108,6 +108,18 @@ fn write(
     bytes: &[u8],
     files: &mut Vec<PathBuf>,
 ) -> Result<(), CollapseError> {
+    write_as(out, rel, bytes, files, true)
+}
+
+/// [`write`], synced (`synced`) or left for one [`crate::io_util::sync_file_system`]
+/// of them all ([`crate::io_util::write_atomic_unsynced`]).
+fn write_as(
+    out: &Path,
+    rel: &Path,
+    bytes: &[u8],
+    files: &mut Vec<PathBuf>,
+    synced: bool,
+) -> Result<(), CollapseError> {
     let path = out.join(rel);
     if let Some(parent) = path.parent() {
         std::fs::create_dir_all(parent).map_err(|source| CollapseError::Write {
@@ -115,7 +127,12 @@ fn write(
             source,
         })?;
     }
-    crate::io_util::write_atomic(&path, bytes).map_err(|source| CollapseError::Write {
+    let written = if synced {
+        crate::io_util::write_atomic(&path, bytes)
+    } else {
+        crate::io_util::write_atomic_unsynced(&path, bytes)
+    };
+    written.map_err(|source| CollapseError::Write {
         path: path.clone(),
         source,
     })?;

@@ -110,7 +110,8 @@ pub fn write(
     Ok((files, warnings))
 }
 
-/// Write `figures` (paths under `plots/drops/`), each atomically, adding
+/// Write `figures` (paths under `plots/drops/`), each atomically (and all
+/// synced at once, [`crate::io_util::sync_file_system`]), adding
 /// them to `files`, then remove the other figures (`.svg`, `.png`) in
 /// `out_dir/plots/drops/`: those of drops no longer measured or no longer
 /// in the job. A reader sees the old figure or the new one, never none;
@@ -121,9 +122,18 @@ pub fn replace(
     files: &mut Vec<PathBuf>,
 ) -> Result<(), CollapseError> {
     let mut kept = std::collections::BTreeSet::new();
+    // Unsynced, then all synced at once (one journal commit, not two a
+    // drop), before the old ones go.
+    let any = !figures.is_empty();
     for (rel, bytes) in figures {
-        super::write(out_dir, &rel, &bytes, files)?;
+        super::write_as(out_dir, &rel, &bytes, files, false)?;
         kept.insert(out_dir.join(rel));
+    }
+    if any {
+        crate::io_util::sync_file_system(out_dir).map_err(|source| CollapseError::Write {
+            path: out_dir.join("plots").join("drops"),
+            source,
+        })?;
     }
     let dir = out_dir.join("plots").join("drops");
     let gone = |source| CollapseError::Write {

@@ -42,6 +42,7 @@ use crate::detect::background_rows::{from_sample_rows, SampleRows};
 use crate::detect::calibrate::{calibrate_radius, full_circle};
 use crate::detect::circle::FitScratch;
 use crate::detect::coarse::{detect_coarse, BinnedBackground, CoarseParams, CoarseScratch};
+pub(crate) use crate::detect::columns::window_columns;
 use crate::detect::surface::{fit_surface, SurfaceParams};
 use crate::detect::{
     fit_circle, measure_circle, Background, Band, Circle, CircleFit, DetectError, EdgeParams,
@@ -1133,10 +1134,12 @@ impl SampleRows for SampleReader<'_> {
         &mut self,
         k: usize,
         row0: usize,
+        cols: &[std::ops::Range<usize>],
         out: &mut ndarray::ArrayViewMut2<u16>,
     ) -> Result<(), SourceError> {
         timings::time(Stage::Read, || {
-            self.source.read_rows_into(self.indices[k], row0, out)
+            self.source
+                .read_window_into(self.indices[k], row0, cols, out)
         })
     }
 }
@@ -1237,29 +1240,6 @@ fn measure_in_band(
     };
     Ok(measure_circle(&band, bg, p, Some(surface), hold, &st.edge, es).ok())
 }
-
-/// The columns a band around the sphere needs: `window` and the strips of
-/// `strip` columns at each edge of a `width`-wide frame, in increasing
-/// order, merged where they overlap or lie less than [`WINDOW_GAP_PX`]
-/// apart (converting a short gap costs less than another run).
-pub(crate) fn window_columns(
-    window: std::ops::Range<usize>,
-    strip: usize,
-    width: usize,
-) -> Vec<std::ops::Range<usize>> {
-    let mut cols: Vec<std::ops::Range<usize>> = Vec::with_capacity(3);
-    for c in [0..strip, window, width.saturating_sub(strip)..width] {
-        match cols.last_mut() {
-            Some(last) if c.start <= last.end + WINDOW_GAP_PX => last.end = last.end.max(c.end),
-            _ if c.start < c.end => cols.push(c),
-            _ => {}
-        }
-    }
-    cols
-}
-
-/// Column runs of a window read closer than this (px) are converted as one.
-const WINDOW_GAP_PX: usize = 128;
 
 /// The edge points of the held-radius fit of one frame (for overlays), from
 /// `band`: that frame's rows, already read by the caller (whole, or the

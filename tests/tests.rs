@@ -18,6 +18,7 @@ mod slurm;
 mod source;
 mod source_tiff;
 mod timings;
+mod wide_frames;
 
 /// `../shared/data/phantom-samples/` beside the checkout, with `rel` joined:
 /// the real Phantom files some tests read. Without that folder, the test

@@ -11,6 +11,7 @@
 
 use super::circle::Circle;
 use super::coarse;
+use super::columns::{near_columns, window_columns, MIN_COLUMNS};
 use super::surface::SurfaceLine;
 use super::{Band, DetectError};
 
@@ -73,6 +74,12 @@ pub struct Background {
     pub region: GainRegion,
     /// Gains of the frames the background was built from.
     pub gains: Vec<f64>,
+    /// Columns `near_cols.0..near_cols.1` ([`super::columns::near_columns`]):
+    /// within reach of the sphere's path in the sample frames (all of them
+    /// when no sphere was found there). The levels are the samples' medians
+    /// in these columns and in the reference strips, and the surface line is
+    /// fitted in them; elsewhere the levels are the first sample frame's.
+    pub near_cols: (usize, usize),
 }
 
 impl Background {
@@ -97,6 +104,7 @@ impl Background {
             levels,
             region,
             gains,
+            near_cols: (0, width),
         })
     }
 
@@ -159,20 +167,29 @@ impl Background {
             data.clone()
         };
         let (circles, surface) = circles_and_line(&seen, w, h, &gains, region, coarse)?;
-        // Pass 3: per-pixel median over uncovered frames; pixels never
-        // uncovered get a smooth model of the light (below).
+        // Pass 3: per-pixel median over uncovered frames, in the columns near
+        // the sphere and the strips; pixels never uncovered get a smooth
+        // model of the light (below).
+        let near_cols = near_columns(&circles, w, MIN_COLUMNS);
         let mut levels = vec![f32::NAN; w * h];
-        let mut median = SphereMedian::new(&inv, &circles, pad_px, w);
+        let mut median = SphereMedian::new(
+            &inv,
+            &circles,
+            pad_px,
+            w,
+            median_columns(near_cols, w, region),
+        );
         for (r, out) in levels.chunks_exact_mut(w).enumerate() {
             median.row(r, |k| &data[k][r * w..(r + 1) * w], out);
         }
-        fill_covered(&mut levels, w, h, surface.as_ref());
+        fill_covered(&mut levels, w, h, surface.as_ref(), near_cols);
         Ok(Background {
             width: w,
             height: h,
             levels,
             region,
             gains,
+            near_cols,
         })
     }
 
@@ -340,8 +357,14 @@ impl FrameGain {
 /// The pixels pass 3 of [`Background::from_frames_with_sphere`] left NaN
 /// (covered in every frame): above the surface line by [`fill_smooth`],
 /// the rest along their rows.
-pub(super) fn fill_covered(levels: &mut [f32], w: usize, h: usize, surface: Option<&SurfaceLine>) {
-    fill_smooth(levels, w, h, surface);
+pub(super) fn fill_covered(
+    levels: &mut [f32],
+    w: usize,
+    h: usize,
+    surface: Option<&SurfaceLine>,
+    near_cols: (usize, usize),
+) {
+    fill_smooth(levels, w, h, surface, near_cols);
     for row in levels.chunks_exact_mut(w) {
         fill_row(row);
     }
@@ -349,7 +372,8 @@ pub(super) fn fill_covered(levels: &mut [f32], w: usize, h: usize, surface: Opti
 
 /// Fill the NaN pixels above the surface line (all of them without one)
 /// from a quadratic `B = a₀ + a₁x + a₂z + a₃x² + a₄xz + a₅z²` fitted to the
-/// finite pixels above the line (minus 4 px) on a 4-px grid (thousands of
+/// finite pixels above the line (minus 4 px) on a 4-px grid in columns
+/// `near_cols` (thousands of
 /// pixels for six coefficients, each a median of several frames), refitted
 /// once without residuals over 3 MAD. Coordinates are scaled to ±1 for
 /// conditioning. Leaves the rest (below the line) to the caller.
@@ -360,6 +384,7 @@ fn fill_smooth(
     w: usize,
     h: usize,
     surface: Option<&super::surface::SurfaceLine>,
+    (c0, c1): (usize, usize),
 ) {
     if !levels.iter().any(|v| v.is_nan()) {
         return;
@@ -377,6 +402,7 @@ fn fill_smooth(
     let samples: Vec<([f64; 6], f64)> = (0..h)
         .step_by(GRID)
         .flat_map(|r| (0..w).step_by(GRID).map(move |c| (r, c)))
+        .filter(|&(_, c)| (c0..c1).contains(&c))
         .filter(|&(r, c)| !levels[r * w + c].is_nan() && above(r, c, 4.0))
         .map(|(r, c)| (basis(r, c), levels[r * w + c] as f64))
         .collect();
@@ -507,8 +533,7 @@ fn batcher_pairs(n: usize) -> Vec<(usize, usize)> {
 #[allow(clippy::type_complexity)]
 fn coarse_pass(
     data: &[&[u16]],
-    w: usize,
-    h: usize,
+    (w, h): (usize, usize),
     gains: &[f64],
     region: GainRegion,
     params: &coarse::CoarseParams,
@@ -542,6 +567,7 @@ fn coarse_pass(
         levels: max,
         region,
         gains: gains.to_vec(),
+        near_cols: (0, w),
     };
     // The line only bounds the coarse search and the light's smooth model
     // (margins of pixels): the area rows suffice.
@@ -772,10 +798,10 @@ pub(super) fn circles_and_line(
     coarse: &coarse::CoarseParams,
 ) -> Result<(Vec<Option<Circle>>, Option<SurfaceLine>), DetectError> {
     if !binned_pass(w, h) {
-        return coarse_pass(seen, w, h, gains, region, coarse);
+        return coarse_pass(seen, (w, h), gains, region, coarse);
     }
     let params = coarse::binned_params(coarse);
-    let (circles, line) = coarse_pass(seen, w / 2, h / 2, gains, region, &params)?;
+    let (circles, line) = coarse_pass(seen, (w / 2, h / 2), gains, region, &params)?;
     Ok((
         circles
             .iter()
@@ -785,15 +811,29 @@ pub(super) fn circles_and_line(
     ))
 }
 
+/// The columns where pass 3 takes medians: those near the sphere
+/// (`near_cols`) and the reference strips, which set every frame's gain
+/// ([`window_columns`]).
+pub(super) fn median_columns(
+    (c0, c1): (usize, usize),
+    w: usize,
+    region: GainRegion,
+) -> Vec<std::ops::Range<usize>> {
+    window_columns(c0..c1, region.strip_px.min(w), w)
+}
+
 /// Pass 3 of [`Background::from_frames_with_sphere`], row by row: the
 /// per-pixel median of `I_f / g_f` (the gain at the pixel's column,
 /// [`ReferenceGains`]) over the frames whose circle (plus the pad) does
-/// not cover the pixel; NaN where every frame covers it.
+/// not cover the pixel, in the columns `cols` ([`median_columns`]); NaN
+/// where every frame covers it; the first frame's `I / g` in the other
+/// columns.
 pub(super) struct SphereMedian<'a> {
     inv: &'a [Vec<f32>],
     circles: &'a [Option<Circle>],
     pad_px: f64,
     w: usize,
+    cols: Vec<std::ops::Range<usize>>,
     rows: Vec<f32>,
     count: Vec<usize>,
     values: Vec<f64>,
@@ -806,48 +846,88 @@ impl<'a> SphereMedian<'a> {
         circles: &'a [Option<Circle>],
         pad_px: f64,
         w: usize,
+        cols: Vec<std::ops::Range<usize>>,
     ) -> Self {
         let n = inverse.len();
+        let widest = cols.iter().map(|c| c.len()).max().unwrap_or(0);
         SphereMedian {
             inv: inverse,
             circles,
             pad_px,
             w,
-            rows: vec![0f32; n * w],
-            count: vec![0usize; w],
+            cols,
+            rows: vec![0f32; n * widest],
+            count: vec![0usize; widest],
             values: Vec::with_capacity(n),
             pairs: batcher_pairs(n),
         }
     }
 
     /// Row `r` of the levels into `out` (NaN left where no frame is
-    /// uncovered), from `frame_row(k)`, row `r` of sample frame `k`.
+    /// uncovered), from `frame_row(k)`, row `r` of sample frame `k` (of
+    /// which only the median columns are read, but in the first frame).
     pub(super) fn row<'r>(
         &mut self,
         r: usize,
         frame_row: impl Fn(usize) -> &'r [u16],
         out: &mut [f32],
     ) {
-        let (n, w) = (self.inv.len(), self.w);
-        let (rows, count) = (&mut self.rows, &mut self.count);
+        // The first frame's `I / g` in columns `c`.
+        let first = |out: &mut [f32], inv: &[f32], c: std::ops::Range<usize>| {
+            for ((o, &v), &ig) in out[c.clone()]
+                .iter_mut()
+                .zip(&frame_row(0)[c.clone()])
+                .zip(&inv[c])
+            {
+                *o = v as f32 * ig;
+            }
+        };
+        let mut end = 0;
+        for k in 0..self.cols.len() {
+            let c = self.cols[k].clone();
+            first(out, &self.inv[0], end..c.start);
+            end = c.end;
+            self.median_run(r, c.clone(), &frame_row, &mut out[c]);
+        }
+        first(out, &self.inv[0], end..self.w);
+    }
+
+    /// Columns `c` of row `r` (see [`Self::row`]) into `out`.
+    fn median_run<'r>(
+        &mut self,
+        r: usize,
+        c: std::ops::Range<usize>,
+        frame_row: &impl Fn(usize) -> &'r [u16],
+        out: &mut [f32],
+    ) {
+        let (n, w) = (self.inv.len(), c.len());
+        let (rows, count) = (&mut self.rows[..n * w], &mut self.count[..w]);
         count.fill(n);
         for (k, ig) in self.inv.iter().enumerate() {
             let row = &mut rows[k * w..(k + 1) * w];
-            for ((o, &v), &ig) in row.iter_mut().zip(frame_row(k)).zip(ig) {
+            for ((o, &v), &ig) in row
+                .iter_mut()
+                .zip(&frame_row(k)[c.clone()])
+                .zip(&ig[c.clone()])
+            {
                 *o = v as f32 * ig;
             }
-            if let Some(c) = self.circles[k] {
+            if let Some(circle) = self.circles[k] {
                 // Covered: (j − x)² + (r − z)² < (R + pad)².
-                let (reach, dz) = (c.r_px + self.pad_px, r as f64 - c.z_px);
+                let (reach, dz) = (circle.r_px + self.pad_px, r as f64 - circle.z_px);
                 let s2 = reach * reach - dz * dz;
                 if s2 > 0.0 {
                     let s = s2.sqrt();
-                    let lo = ((c.x_px - s).floor() + 1.0).max(0.0);
-                    let hi = ((c.x_px + s).ceil() - 1.0).min(w as f64 - 1.0);
+                    let lo = ((circle.x_px - s).floor() + 1.0).max(0.0);
+                    let hi = ((circle.x_px + s).ceil() - 1.0).min(self.w as f64 - 1.0);
                     if lo <= hi {
-                        let span = lo as usize..=hi as usize;
-                        row[span.clone()].fill(f32::INFINITY);
-                        count[span].iter_mut().for_each(|c| *c -= 1);
+                        // In this run's columns.
+                        let (lo, hi) = ((lo as usize).max(c.start), (hi as usize + 1).min(c.end));
+                        if lo < hi {
+                            let span = lo - c.start..hi - c.start;
+                            row[span.clone()].fill(f32::INFINITY);
+                            count[span].iter_mut().for_each(|c| *c -= 1);
+                        }
                     }
                 }
             }

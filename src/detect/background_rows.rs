@@ -14,21 +14,28 @@
 
 use super::background::{
     binned_pass, circles_and_line, clamp_region, coarse_view, fill_covered, gains_from_sums,
-    plain_median_row, reference_sum, Background, GainRegion, ReferenceGains, SphereMedian,
+    median_columns, plain_median_row, reference_sum, Background, GainRegion, ReferenceGains,
+    SphereMedian,
 };
 use super::coarse::CoarseParams;
+use super::columns::{near_columns, MIN_COLUMNS};
 use super::DetectError;
 use ndarray::{s, Array2, ArrayViewMut2};
+use std::ops::Range;
 
 /// Where [`from_sample_rows`] reads its `n` sample frames, all of one shape.
 pub trait SampleRows: Send {
     /// What a read can fail with.
     type Error: Send;
-    /// Whole rows `row0..row0 + out.nrows()` of sample frame `k` into `out`.
+    /// Rows `row0..row0 + out.nrows()` of sample frame `k` into `out`: at
+    /// least the columns `cols` (ranges in increasing order), the others
+    /// may keep what they held
+    /// ([`crate::source::FrameSource::read_window_into`]).
     fn read_rows(
         &mut self,
         k: usize,
         row0: usize,
+        cols: &[Range<usize>],
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), Self::Error>;
 }
@@ -73,7 +80,7 @@ pub fn from_sample_rows<R: SampleRows>(
             let mut out = Vec::new();
             for k in g * n / groups..(g + 1) * n / groups {
                 let mut frame = buf.slice_mut(s![..h, ..]);
-                if let Err(e) = reader.read_rows(k, 0, &mut frame) {
+                if let Err(e) = reader.read_rows(k, 0, std::slice::from_ref(&(0..w)), &mut frame) {
                     return (out, Some(e));
                 }
                 let data = frame
@@ -107,6 +114,13 @@ pub fn from_sample_rows<R: SampleRows>(
     let found = circles_and_line(&views, w, h, &gains, region, coarse).ok();
     drop(views);
     drop(seen);
+    // The columns near the sphere and the strips are read for every sample,
+    // the first sample's whole rows (its levels elsewhere).
+    let near_cols = found
+        .as_ref()
+        .map_or((0, w), |f| near_columns(&f.0, w, MIN_COLUMNS));
+    let cols = median_columns(near_cols, w, region);
+    let whole = 0..w;
     // Pass 3, a band of rows at a time, the bands shared out between the
     // threads in order.
     let mut levels = vec![f32::NAN; w * h];
@@ -126,14 +140,19 @@ pub fn from_sample_rows<R: SampleRows>(
         .zip(buffers.par_iter_mut())
         .zip(parts)
         .map(|((reader, buf), (row0, part))| {
-            let mut sphere = circles.map(|c| SphereMedian::new(&inv, c, pad_px, w));
+            let mut sphere = circles.map(|c| SphereMedian::new(&inv, c, pad_px, w, cols.clone()));
             let mut column = vec![0f64; n];
             for (b, out) in part.chunks_mut(band * w).enumerate() {
                 let r0 = row0 + b * band;
                 let rows = out.len() / w;
                 for k in 0..n {
                     let mut dst = buf.slice_mut(s![k * band..k * band + rows, ..]);
-                    reader.read_rows(k, r0, &mut dst)?;
+                    let read = if k == 0 {
+                        std::slice::from_ref(&whole)
+                    } else {
+                        &cols[..]
+                    };
+                    reader.read_rows(k, r0, read, &mut dst)?;
                 }
                 let data = buf.as_slice().expect("a whole buffer is contiguous");
                 let at = |k: usize, i: usize| &data[(k * band + i) * w..][..w];
@@ -151,7 +170,7 @@ pub fn from_sample_rows<R: SampleRows>(
         r?;
     }
     if let Some((_, surface)) = &found {
-        fill_covered(&mut levels, w, h, surface.as_ref());
+        fill_covered(&mut levels, w, h, surface.as_ref(), near_cols);
     }
     Ok(Ok(Background {
         width: w,
@@ -159,12 +178,14 @@ pub fn from_sample_rows<R: SampleRows>(
         levels,
         region,
         gains,
+        near_cols,
     }))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detect::surface::{fit_surface, SurfaceParams};
     use crate::detect::synth::{self, PillarBand, Scene};
     use crate::source::Frame;
     use rand::{Rng, SeedableRng};
@@ -182,12 +203,19 @@ mod tests {
             &mut self,
             k: usize,
             row0: usize,
+            cols: &[Range<usize>],
             out: &mut ArrayViewMut2<u16>,
         ) -> Result<(), String> {
             if self.fail == Some(k) {
                 return Err(format!("frame {k} unreadable"));
             }
-            out.assign(&self.frames[k].slice(s![row0..row0 + out.nrows(), ..]));
+            // Only `cols`; the others hold what no frame does.
+            out.fill(7);
+            let rows = row0..row0 + out.nrows();
+            for c in cols {
+                out.slice_mut(s![.., c.clone()])
+                    .assign(&self.frames[k].slice(s![rows.clone(), c.clone()]));
+            }
             Ok(())
         }
     }
@@ -241,6 +269,8 @@ mod tests {
         // where passes 1 and 2 fail).
         for (w, h, n, radius) in [
             (512, 384, 8, Some(40.0)),
+            // Wider than the window near the sphere (columns 240..752).
+            (1100, 140, 8, Some(12.0)),
             (301, 203, 7, Some(25.0)),
             (100, 90, 8, Some(12.0)),
             (256, 192, 8, None),
@@ -277,6 +307,57 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn columns_far_from_the_sphere_change_nothing_near_it() {
+        // 1 100 px wide, the sphere (R 12 px) at x 495: the medians are
+        // taken in columns 240..752 and the strips; columns 880..1076 lie
+        // beyond them.
+        let (w, h, n) = (1100, 140, 8);
+        let held = frames(w, h, n, Some(12.0), 11);
+        let coarse = CoarseParams::default();
+        let background = |frames: &[Frame]| {
+            let mut readers = [Held { frames, fail: None }];
+            from_sample_rows(&mut readers, n, (h, w), GainRegion::default(), &coarse, 6.0)
+                .unwrap()
+                .unwrap()
+        };
+        // Two different darkenings (10–20 %) of those columns in every
+        // sample but the first, whose pixels they are in the levels (and,
+        // the others darker, in the samples' maximum).
+        let darkened = |seed: u64| -> Vec<Frame> {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut f = held.clone();
+            for frame in f.iter_mut().skip(1) {
+                for v in frame.slice_mut(s![.., 880..1076]).iter_mut() {
+                    *v = (*v as f64 * rng.gen_range(0.8..0.9)).round() as u16;
+                }
+            }
+            f
+        };
+        let (a, b) = (darkened(1), darkened(2));
+        let (bg_a, bg_b) = (background(&a), background(&b));
+        assert_eq!(bg_a.near_cols, (240, 752));
+        assert!(
+            bits(&bg_a) == bits(&bg_b),
+            "the far columns moved the background"
+        );
+        let line = |bg: &Background| {
+            let l = fit_surface(bg, &SurfaceParams::default()).unwrap();
+            (
+                l.row0_px.to_bits(),
+                l.slope.to_bits(),
+                l.model_err_px.to_bits(),
+            )
+        };
+        assert_eq!(line(&bg_a), line(&bg_b), "the far columns moved the line");
+        // A median over every column sees them.
+        let plain = |f: &[Frame]| {
+            let views: Vec<_> = f.iter().map(|f| f.view()).collect();
+            Background::from_frames(&views, GainRegion::default()).unwrap()
+        };
+        assert!(bits(&plain(&a)) != bits(&plain(&b)));
     }
 
     #[test]

@@ -265,6 +265,7 @@ impl BinnedBackground {
                 levels,
                 region: bg.region,
                 gains: Vec::new(),
+                near_cols: ((bg.near_cols.0 / 2).min(wb), (bg.near_cols.1 / 2).min(wb)),
             },
         }
     }

@@ -133,26 +133,28 @@ pub struct ColumnEdge {
     pub row_area_px: f64,
 }
 
-/// Sub-pixel row of the band's top in every column where one is found.
+/// Sub-pixel row of the band's top in every column of the background's
+/// [`Background::near_cols`] where one is found.
 pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> {
     let w = params.half_window;
     let (r_lo, r_hi) = params.rows.unwrap_or((0, bg.height));
     let r_hi = r_hi.min(bg.height);
-    let mut out = Vec::with_capacity(bg.width);
-    if r_hi < r_lo + 2 * w + 2 {
+    let (c0, c1) = (bg.near_cols.0.min(bg.width), bg.near_cols.1.min(bg.width));
+    let mut out = Vec::with_capacity(c1.saturating_sub(c0));
+    if r_hi < r_lo + 2 * w + 2 || c0 >= c1 {
         return out;
     }
     // Row by row (the image is row-major): per column, the first row of
     // the largest step.
-    let width = bg.width;
-    let mut best_row = vec![0usize; width];
-    let mut best_step = vec![f64::NEG_INFINITY; width];
+    let (width, cols) = (bg.width, c1 - c0);
+    let mut best_row = vec![0usize; cols];
+    let mut best_step = vec![f64::NEG_INFINITY; cols];
     for i in r_lo + w..r_hi - w - 1 {
         let (upper, lower) = (
-            &bg.levels[i * width..][..width],
-            &bg.levels[(i + 1) * width..][..width],
+            &bg.levels[i * width + c0..][..cols],
+            &bg.levels[(i + 1) * width + c0..][..cols],
         );
-        for j in 0..width {
+        for j in 0..cols {
             let step = upper[j] as f64 - lower[j] as f64;
             if step > best_step[j] {
                 best_step[j] = step;
@@ -163,10 +165,11 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
     // Each column on its own (on every thread), in order.
     use rayon::prelude::*;
     let edge = |flank: &mut Vec<f64>, j: usize| -> Option<ColumnEdge> {
-        if best_step[j] <= 0.0 {
+        let (best_row, best_step) = (best_row[j - c0], best_step[j - c0]);
+        if best_step <= 0.0 {
             return None;
         }
-        let zs = top_step_row(bg, j, r_lo + w, best_row[j], best_step[j]);
+        let zs = top_step_row(bg, j, r_lo + w, best_row, best_step);
         // Window rows zs − w ..= zs + 1 + w.
         let top = zs - w;
         let bot = zs + 1 + w;
@@ -187,7 +190,7 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
             });
         }
         flank.clear();
-        let strip = strip_edge_row(bg, j, zs, best_step[j]).filter(|&z| z + 3 < r_hi);
+        let strip = strip_edge_row(bg, j, zs, best_step).filter(|&z| z + 3 < r_hi);
         let two = strip.and_then(|z2| {
             // A strip below the top (a glossy or pillar-top row): both edges.
             flank.extend((top..=z2 + 3).map(|i| bg.at(i, j) as f64));
@@ -207,7 +210,7 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
             row_area_px,
         })
     };
-    let edges: Vec<Option<ColumnEdge>> = (0..width)
+    let edges: Vec<Option<ColumnEdge>> = (c0..c1)
         .into_par_iter()
         .with_min_len(32)
         .map_init(|| Vec::with_capacity(w + 3), edge)
@@ -819,7 +822,49 @@ mod tests {
             levels,
             region: Default::default(),
             gains: vec![1.0],
+            near_cols: (0, width),
         }
+    }
+
+    #[test]
+    fn the_line_is_fitted_in_the_columns_near_the_sphere_whatever_the_others_hold() {
+        // A tilted band top (0.01 rows a column), 400 columns; the line
+        // taken in columns 100..300.
+        let (w, h) = (400, 48);
+        let mut bg = background_of(&vec![0.0; h], w);
+        for j in 0..w {
+            let e = 20.3 + 0.01 * j as f64;
+            let v = blurred(&[-1e3, e, 1e3], &[200.0, 80.0], 0.8, h);
+            for (i, v) in v.into_iter().enumerate() {
+                bg.levels[i * w + j] = v as f32;
+            }
+        }
+        bg.near_cols = (100, 300);
+        let bits = |l: SurfaceLine| (l.row0_px.to_bits(), l.slope.to_bits(), l.n_used);
+        let near = fit_surface(&bg, &SurfaceParams::default()).unwrap();
+        assert!((near.row_at(200.0) - 22.3).abs() < 1e-3, "{near:?}");
+        assert!((near.slope - 0.01).abs() < 1e-5, "{near:?}");
+        assert_eq!(near.n_used, 200);
+        // The other columns: a step 10 rows higher, noise, NaN.
+        let mut x = 7u64;
+        for i in 0..h {
+            for j in (0..100).chain(300..w) {
+                x = x.wrapping_mul(6364136223846793005).wrapping_add(1);
+                bg.levels[i * w + j] = match (x >> 59, i < 12) {
+                    (0, _) => f32::NAN,
+                    (_, true) => 200.0 + (x >> 61) as f32,
+                    (_, false) => 60.0,
+                };
+            }
+        }
+        assert_eq!(
+            bits(fit_surface(&bg, &SurfaceParams::default()).unwrap()),
+            bits(near)
+        );
+        // Over every column, they move it (or leave no line).
+        bg.near_cols = (0, w);
+        let all = fit_surface(&bg, &SurfaceParams::default()).ok();
+        assert_ne!(all.map(bits), Some(bits(near)));
     }
 
     #[test]

@@ -1128,16 +1128,7 @@ pub fn process_all_with_overlays(
 
 /// Write `bytes` to `out/rel` atomically, creating folders.
 pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessError> {
-    write_file_with(out, rel, |f| f.write_all(bytes))
-}
-
-/// [`write_file`] of what `write` writes ([`crate::io_util::write_atomic_with`]).
-fn write_file_with(
-    out: &Path,
-    rel: &str,
-    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
-) -> Result<(), ProcessError> {
-    write_file_as(out, rel, Durable::Now, write)
+    write_file_as(out, rel, Durable::Now, |f| f.write_all(bytes))
 }
 
 /// When a file written into the output folder reaches the disk.
@@ -1151,6 +1142,8 @@ enum Durable {
     WithTheJob,
 }
 
+/// Write what `write` writes to `out/rel` atomically, creating folders,
+/// durable as `durable` says.
 fn write_file_as(
     out: &Path,
     rel: &str,

@@ -103,6 +103,51 @@ fn a_long_movie_gives_the_same_bytes_on_one_thread_and_two() {
             p.display()
         );
     }
+
+    // A late frame file of another bit depth, then of another size: the
+    // folder still opens (only its first header is read then), and tracking
+    // fails where that frame is read, naming its file, its frame and the
+    // first frame's file, with the same error on one thread and two (the
+    // thread measuring ahead stops there; the walk in order reads it).
+    let index = n - 60;
+    let folder =
+        dropscope::source::folder::FolderSource::open(&runs[0].path, &OpenOptions::default())
+            .unwrap();
+    let (first, bad) = (&folder.files()[0], &folder.files()[index]);
+    let (w, h) = (256u32, 192u32);
+    for (bits, size, says) in [
+        (16, (w, h), "256×192 16-bit, but the sequence's first frame"),
+        (
+            8,
+            (w, h - 1),
+            "256×191 8-bit, but the sequence's first frame",
+        ),
+    ] {
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        let mut enc = tiff::encoder::TiffEncoder::new(&mut bytes).unwrap();
+        let pixels = (size.0 * size.1) as usize;
+        if bits == 16 {
+            enc.write_image::<tiff::encoder::colortype::Gray16>(size.0, size.1, &vec![900; pixels])
+        } else {
+            enc.write_image::<tiff::encoder::colortype::Gray8>(size.0, size.1, &vec![90; pixels])
+        }
+        .unwrap();
+        std::fs::write(bad, bytes.into_inner()).unwrap();
+        let failed = |threads: usize| {
+            pool(threads).install(|| {
+                let mut src = open(&runs[0].path, &OpenOptions::default()).unwrap();
+                track(src.as_mut(), &st).unwrap_err().to_string()
+            })
+        };
+        let (one, two) = (failed(1), failed(2));
+        assert_eq!(one, two, "the error on 1 and 2 threads");
+        let file = bad.display().to_string();
+        assert!(
+            one.contains(&format!("{file}: frame {index}: {says}"))
+                && one.contains(&format!("{} is 256×192 8-bit", first.display())),
+            "{one}"
+        );
+    }
 }
 
 /// What the tracker holds does not grow with the movie's length: pass 1

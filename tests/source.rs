@@ -917,11 +917,11 @@ fn folders_of_every_format_read_back_their_values() {
         assert_eq!(header.unwrap(), (w, h, bits), "{ext} {max} from memory");
         let mut dec = FrameDecoder::for_frames();
         let mut got = Frame::zeros((h, w));
-        dec.read_rows_from_bytes(name, kind, &bytes, (w, h), 0, &mut got.view_mut())
+        dec.read_rows_from_bytes(name, kind, &bytes, (w, h, bits), 0, &mut got.view_mut())
             .unwrap();
         assert_eq!(got, frames[1], "{ext} {max} frame from memory");
         let mut band = Frame::zeros((4, w));
-        dec.read_rows_from_bytes(name, kind, &bytes, (w, h), 3, &mut band.view_mut())
+        dec.read_rows_from_bytes(name, kind, &bytes, (w, h, bits), 3, &mut band.view_mut())
             .unwrap();
         assert_eq!(
             band,
@@ -931,7 +931,9 @@ fn folders_of_every_format_read_back_their_values() {
         let cut = &bytes[..bytes.len() / 2];
         let e = FrameDecoder::for_headers()
             .probe_bytes(name, kind, cut)
-            .and_then(|_| dec.read_rows_from_bytes(name, kind, cut, (w, h), 0, &mut got.view_mut()))
+            .and_then(|_| {
+                dec.read_rows_from_bytes(name, kind, cut, (w, h, bits), 0, &mut got.view_mut())
+            })
             .expect_err(&format!("{ext} {max} cut short was read"))
             .to_string();
         assert!(e.contains("in-memory.frame"), "{ext} {max} cut short: {e}");
@@ -1014,24 +1016,47 @@ fn folder_errors_name_the_file() {
         fps_fallback: Some(1000.0),
         ..OpenOptions::default()
     };
-    // Mixed sizes, then mixed depths: the first offending file is named.
+    // Mixed sizes, then mixed depths, a corrupt file, a truncated one: the
+    // folder opens (only the first frame's header is read then), and reading
+    // the offending frame is an error naming its file and frame, and the
+    // first frame's file for a size or depth; the other frames still read.
+    let read_err = |index: usize| {
+        let mut src = open(dir.path(), &opts).unwrap();
+        let mut f = Frame::zeros((4, 4));
+        src.read_into(1, &mut f).unwrap();
+        let mut band = Frame::zeros((2, 4));
+        let e = src
+            .read_rows_into(index, 1, &mut band.view_mut())
+            .unwrap_err()
+            .to_string();
+        let whole = src.read_into(index, &mut f).unwrap_err().to_string();
+        assert_eq!(e, whole, "a band and the whole frame: the same error");
+        e
+    };
     write_gray8(&dir.path().join("a_2.tif"), &test_frame(4, 4, 255, 2));
     write_gray8(&dir.path().join("a_3.tif"), &test_frame(5, 4, 255, 3));
-    let e = open_err(dir.path(), &opts);
-    assert!(e.contains("a_3.tif") && e.contains("4×5"), "{e}");
+    let e = read_err(2);
+    assert!(
+        e.contains("a_3.tif: frame 2: 4×5 8-bit, but the sequence's first frame")
+            && e.contains("a_1.tif is 4×4 8-bit"),
+        "{e}"
+    );
     write_tiff16(&dir.path().join("a_3.tif"), &test_frame(4, 4, 999, 3));
-    let e = open_err(dir.path(), &opts);
-    assert!(e.contains("a_3.tif") && e.contains("16-bit"), "{e}");
+    let e = read_err(2);
+    assert!(
+        e.contains("a_3.tif: frame 2: 4×4 16-bit") && e.contains("a_1.tif is 4×4 8-bit"),
+        "{e}"
+    );
     // A corrupt file.
     std::fs::write(dir.path().join("a_3.tif"), b"II*\0garbage").unwrap();
-    let e = open_err(dir.path(), &opts);
-    assert!(e.contains("a_3.tif"), "{e}");
+    let e = read_err(2);
+    assert!(e.contains("a_3.tif") && e.contains("frame 2"), "{e}");
     // A truncated file.
     let good = dir.path().join("a_2.tif");
     let bytes = std::fs::read(&good).unwrap();
     std::fs::write(dir.path().join("a_3.tif"), &bytes[..bytes.len() / 2]).unwrap();
-    let e = open_err(dir.path(), &opts);
-    assert!(e.contains("a_3.tif"), "{e}");
+    let e = read_err(2);
+    assert!(e.contains("a_3.tif") && e.contains("frame 2"), "{e}");
     // A file that goes bad after opening: the read names file and frame.
     std::fs::copy(&good, dir.path().join("a_3.tif")).unwrap();
     let mut src = open(dir.path(), &opts).unwrap();

@@ -36,7 +36,7 @@ fuzz_target!(|data: &[u8]| {
     };
     let (kind, name) = KINDS[usize::from(kind) % KINDS.len()];
     let name = Path::new(name);
-    let Ok((w, h, _bits)) = FrameDecoder::for_headers().probe_bytes(name, kind, bytes) else {
+    let Ok((w, h, bits)) = FrameDecoder::for_headers().probe_bytes(name, kind, bytes) else {
         return;
     };
     if h.saturating_mul(w) > 1 << 18 {
@@ -44,7 +44,7 @@ fuzz_target!(|data: &[u8]| {
     }
     let mut decoder = FrameDecoder::for_frames();
     let mut frame = Frame::zeros((h, w));
-    let _ = decoder.read_rows_from_bytes(name, kind, bytes, (w, h), 0, &mut frame.view_mut());
+    let _ = decoder.read_rows_from_bytes(name, kind, bytes, (w, h, bits), 0, &mut frame.view_mut());
     let mut band = frame.slice_mut(ndarray::s![h / 3..h / 2, ..]);
-    let _ = decoder.read_rows_from_bytes(name, kind, bytes, (w, h), h / 3, &mut band);
+    let _ = decoder.read_rows_from_bytes(name, kind, bytes, (w, h, bits), h / 3, &mut band);
 });

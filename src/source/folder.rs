@@ -13,18 +13,22 @@
 //! Missing numbers are reported as gaps; frame index `i` is the `i`-th file
 //! present, and its time comes from its number, so a gap never shifts time.
 //!
-//! Every file's header is read when the folder is opened: a file whose size
-//! or bit depth differs from the first frame's is an error naming it.
+//! Opening reads the first frame's header only: its size and bit depth are
+//! the sequence's. Every other file's header is read with its rows, and a
+//! file of another size or bit depth is an error naming it and its frame
+//! when it is read (probing all 6 166 files of a long movie at open took a
+//! tenth of its CPU time).
 //!
-//! A frame file's bytes are decoded by [`super::frame_decode`] (its header
-//! when the folder is opened, its rows on each read), which says what is
-//! parsed here and what goes through the `png` and `image` crates.
+//! A frame file's bytes are decoded by [`super::frame_decode`] (the first
+//! one's header when the folder is opened, each one's header and rows on
+//! each read), which says what is parsed here and what goes through the
+//! `png` and `image` crates.
 
 use std::path::{Path, PathBuf};
 
 use ndarray::ArrayViewMut2;
 
-use super::frame_decode::{format_err, io_err, FrameDecoder, Probe};
+use super::frame_decode::{format_err, io_err, FrameDecoder, Probe, Shape};
 use super::pcc_xml::{self, PccXml};
 use super::{check_band, Frame, FrameSource, OpenOptions, SourceDetails, SourceError, SourceMeta};
 
@@ -108,8 +112,8 @@ impl std::fmt::Debug for FolderSource {
 }
 
 impl FolderSource {
-    /// List `dir`, pick its frame sequence, read every file's header and the
-    /// PCC XML side file if there is one.
+    /// List `dir`, pick its frame sequence, read its first file's header and
+    /// the PCC XML side file if there is one.
     pub fn open(dir: &Path, options: &OpenOptions) -> Result<Self, SourceError> {
         let entries = std::fs::read_dir(dir).map_err(io_err(dir))?;
         let mut names = Vec::new();
@@ -235,60 +239,12 @@ impl FolderSource {
             ));
         }
 
-        // Every header: same size and depth as the first frame.
-        // Headers only: opening must not read the movie.
+        // The first frame's header gives the sequence's size and depth; the
+        // others are checked against it as each is read (the decoder reads
+        // the header anyway), not here: opening must not touch every file.
         let first = open_and_probe(&files[0], kind, &mut FrameDecoder::for_headers())?;
-        // On every thread, in chunks; the first bad file in order is named,
-        // as one thread would name it. The PCC XML side file is read and
-        // parsed meanwhile (a long movie's holds every frame's time: ~10 ms
-        // for 6 000 frames); a bad header is still the error named first.
-        use rayon::prelude::*;
-        let stage = crate::timings::current();
-        let probe = || {
-            files[1..]
-                .par_chunks(256)
-                .map(|chunk| {
-                    let _timed = stage.and_then(crate::timings::start);
-                    let mut headers = FrameDecoder::for_headers();
-                    for f in chunk {
-                        match open_and_probe(f, kind, &mut headers) {
-                            Ok(p)
-                                if (p.width, p.height, p.bits)
-                                    == (first.width, first.height, first.bits) => {}
-                            Ok(p) => return Some(Ok((f, p))),
-                            Err(e) => return Some(Err(e)),
-                        }
-                    }
-                    None
-                })
-                .find_first(Option::is_some)
-                .flatten()
-        };
-        let side_file = || {
-            let _timed = stage.and_then(crate::timings::start);
-            let mut found = Vec::new();
-            (pick_xml(dir, &prefix, &xmls, &mut found), found)
-        };
-        let (bad, (xml, xml_warnings)) = rayon::join(probe, side_file);
-        if let Some(bad) = bad {
-            let (f, p) = bad?;
-            {
-                return Err(format_err(
-                    f,
-                    format!(
-                        "{}×{} {}-bit, but the sequence's first frame {} is {}×{} {}-bit: \
-                         one size and bit depth per folder",
-                        p.width,
-                        p.height,
-                        p.bits,
-                        files[0].display(),
-                        first.width,
-                        first.height,
-                        first.bits
-                    ),
-                ));
-            }
-        }
+        let mut xml_warnings = Vec::new();
+        let xml = pick_xml(dir, &prefix, &xmls, &mut xml_warnings);
 
         // The PCC XML side file.
         warnings.extend(xml_warnings);
@@ -596,9 +552,14 @@ impl FolderSource {
         check_band(&self.meta, index, row0, out)?;
         let path = &self.files[index];
         let (mut file, len) = crate::io_util::open_regular_len(path).map_err(io_err(path))?;
-        let size = (self.meta.width, self.meta.height);
+        let shape = Shape {
+            width: self.meta.width,
+            height: self.meta.height,
+            bits: self.container_bits,
+            first: &self.files[0],
+        };
         self.decoder.read_rows(
-            path, index, &mut file, len, self.kind, size, row0, cols, out,
+            path, index, &mut file, len, self.kind, shape, row0, cols, out,
         )
     }
 }

@@ -1,5 +1,6 @@
 //! Decoding one frame file's bytes (TIFF, PNG, BMP or JPEG): its header
-//! (`probe`, which opening a folder runs on every file) and its rows. The
+//! (`probe`, which opening a folder runs on its first file and every read
+//! on the file it reads) and its rows. The
 //! bytes are read from the file by [`super::folder::FolderSource`], or
 //! taken from memory by [`FrameDecoder::probe_bytes`] and
 //! [`FrameDecoder::read_rows_from_bytes`] (the `folder_frame` fuzz target):
@@ -50,6 +51,16 @@ enum Layout {
     PngGrey,
     /// Anything else: whole-image decode by the `image` crate, then grey.
     Generic,
+}
+
+/// What every frame file of a folder must hold: the first frame's size and
+/// container bits per sample; `first` names that file in the error.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Shape<'a> {
+    pub(super) width: usize,
+    pub(super) height: usize,
+    pub(super) bits: u8,
+    pub(super) first: &'a Path,
 }
 
 /// Buffers reused from frame to frame: header bytes, IFD entries, strip
@@ -165,14 +176,14 @@ impl FrameDecoder {
     }
 
     /// Rows `row0..row0 + out.nrows()` of a frame file held in memory whose
-    /// header said `(width, height)`, decoded as a folder's frame reads
-    /// decode them.
+    /// header said `(width, height, bits per sample)`, decoded as a folder's
+    /// frame reads decode them (another header is an error).
     pub fn read_rows_from_bytes(
         &mut self,
         name: &Path,
         kind: ImageKind,
         bytes: &[u8],
-        (width, height): (usize, usize),
+        (width, height, bits): (usize, usize, u8),
         row0: usize,
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), SourceError> {
@@ -200,7 +211,12 @@ impl FrameDecoder {
             &mut file,
             len,
             kind,
-            (width, height),
+            Shape {
+                width,
+                height,
+                bits,
+                first: name,
+            },
             row0,
             None,
             out,
@@ -208,10 +224,11 @@ impl FrameDecoder {
     }
 
     /// Rows `row0..row0 + out.nrows()` of frame `index` (for messages) from
-    /// `file` of `len` bytes, whose header must still say `(width, height)`;
-    /// with `cols`, only those columns of raw TIFF and BMP rows are
-    /// converted (see [`super::FrameSource::read_window_into`]).
-    /// The caller has checked the band against that size.
+    /// `file` of `len` bytes, whose header must say `shape`'s size and bits
+    /// (else an error naming the file, the frame and `shape.first`); with
+    /// `cols`, only those columns of raw TIFF and BMP rows are converted
+    /// (see [`super::FrameSource::read_window_into`]). The caller has
+    /// checked the band against that size.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn read_rows<F: FrameBytes>(
         &mut self,
@@ -220,7 +237,7 @@ impl FrameDecoder {
         file: &mut F,
         len: u64,
         kind: ImageKind,
-        (width, height): (usize, usize),
+        shape: Shape,
         row0: usize,
         cols: Option<&[std::ops::Range<usize>]>,
         out: &mut ArrayViewMut2<u16>,
@@ -230,15 +247,22 @@ impl FrameDecoder {
             index,
             reason,
         };
-        self.scratch.small_band = 2 * out.nrows() < height;
+        self.scratch.small_band = 2 * out.nrows() < shape.height;
         let p = probe(path, file, len, kind, &mut self.scratch).map_err(|e| match e {
             SourceError::Format { reason, .. } => frame_err(reason),
             other => other,
         })?;
-        if (p.width, p.height) != (width, height) {
+        if (p.width, p.height, p.bits) != (shape.width, shape.height, shape.bits) {
             return Err(frame_err(format!(
-                "size changed to {}×{} since the folder was opened",
-                p.width, p.height
+                "{}×{} {}-bit, but the sequence's first frame {} is {}×{} {}-bit: \
+                 one size and bit depth per folder",
+                p.width,
+                p.height,
+                p.bits,
+                shape.first.display(),
+                shape.width,
+                shape.height,
+                shape.bits
             )));
         }
         let n = out.nrows();

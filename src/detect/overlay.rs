@@ -98,13 +98,16 @@ pub fn overlay(
         let cols = view.width.min(band.width.saturating_sub(view.x0));
         let row = &band.data[(i - band.row0) * band.width..][..band.width];
         let (first, rest) = out.split_at_mut(row_bytes);
-        for (&v, block) in row[view.x0.min(band.width)..][..cols]
-            .iter()
-            .zip(first.chunks_exact_mut(3 * z))
-        {
-            let v = (v >> shift).min(255) as u8;
-            for px in block.chunks_exact_mut(3) {
-                px.copy_from_slice(&[v; 3]);
+        let grey = |v: u16| (v >> shift).min(255) as u8;
+        let row = row[view.x0.min(band.width)..][..cols].iter();
+        // A pixel's `zoom` copies across are its grey in every channel.
+        if z == 1 {
+            for (&v, px) in row.zip(first.chunks_exact_mut(3)) {
+                px.fill(grey(v));
+            }
+        } else {
+            for (&v, block) in row.zip(first.chunks_exact_mut(3 * z)) {
+                block.fill(grey(v));
             }
         }
         for copy in rest.chunks_exact_mut(row_bytes) {

@@ -85,36 +85,178 @@ pub fn with_caption(img: &RgbImage, c: &Caption) -> Result<RgbImage, String> {
     for px in buf[img.as_raw().len()..].chunks_exact_mut(3) {
         px.copy_from_slice(&BAND_RGB);
     }
-    {
+    // Each text with the point plotters would draw it at.
+    let mut y = h as i32 + 6;
+    let mut placed = Vec::with_capacity(lines.len() + 1);
+    for line in lines {
+        placed.push((line, (6, y)));
+        y += LINE_PX as i32;
+    }
+    if let Some((mm, px)) = bar {
+        let x1 = w as i32 - 8;
+        let x0 = x1 - px.round() as i32;
+        let yb = y + (LINE_PX as i32 - BAR_THICK_PX as i32) / 2;
+        let white = RGBColor(BAR_RGB[0], BAR_RGB[1], BAR_RGB[2]);
         let root = BitMapBackend::with_buffer(&mut buf, (w, h + band)).into_drawing_area();
         let err = |e: DrawingAreaErrorKind<_>| e.to_string();
-        let mut y = h as i32 + 6;
-        for line in &lines {
-            root.draw_text(line, &font, (6, y)).map_err(err)?;
-            y += LINE_PX as i32;
-        }
-        if let Some((mm, px)) = bar {
-            let x1 = w as i32 - 8;
-            let x0 = x1 - px.round() as i32;
-            let yb = y + (LINE_PX as i32 - BAR_THICK_PX as i32) / 2;
-            let white = RGBColor(BAR_RGB[0], BAR_RGB[1], BAR_RGB[2]);
-            root.draw(&Rectangle::new(
-                [(x0, yb), (x1, yb + BAR_THICK_PX as i32 - 1)],
-                white.filled(),
-            ))
-            .map_err(err)?;
-            let label = mm_text(mm);
-            let lx = x0 - width(&label) as i32 - 8;
-            root.draw_text(&label, &font, (lx.max(6), y)).map_err(err)?;
-        }
+        root.draw(&Rectangle::new(
+            [(x0, yb), (x1, yb + BAR_THICK_PX as i32 - 1)],
+            white.filled(),
+        ))
+        .map_err(err)?;
         root.present().map_err(err)?;
+        let label = mm_text(mm);
+        let lx = x0 - width(&label) as i32 - 8;
+        placed.push((label, (lx.max(6), y)));
+    }
+    let glyphs = glyphs()?;
+    for (text, at) in &placed {
+        glyphs.draw_white(&mut buf, (w, h + band), text, at);
     }
     RgbImage::from_raw(w, h + band, buf).ok_or_else(|| "caption buffer size".to_string())
+}
+
+/// One glyph of the caption's font as plotters' ab_glyph font draws it:
+/// its ink (pixel offsets and coverage, the glyph's left bearing dropped as
+/// plotters drops it) and its row offset.
+struct Ink {
+    rows_down: i32,
+    coverage: Vec<(i32, i32, f32)>,
+}
+
+/// The caption's font (DejaVu Sans at [`FONT_PX`]) with the ink of its
+/// common characters rasterised once. Plotters rasterises every glyph of
+/// every text anew, most of a caption's cost (an animation captions ~50
+/// frames a drop); this draws the same pixels from the stored ink: the
+/// placement is plotters' `ab_glyph` font's (advances, kerning, the row
+/// offset) and the blending its bitmap backend's (`draw_pixel`). A test
+/// compares the two byte for byte.
+struct Glyphs {
+    font: ab_glyph::PxScaleFont<ab_glyph::FontRef<'static>>,
+    ink: std::collections::HashMap<char, Ink>,
+}
+
+/// The characters whose ink is kept: printable ASCII and the caption's
+/// symbols.
+const KEPT_GLYPHS: &str = "·δ×−";
+
+fn glyphs() -> Result<&'static Glyphs, String> {
+    use ab_glyph::Font;
+    static GLYPHS: std::sync::OnceLock<Option<Glyphs>> = std::sync::OnceLock::new();
+    GLYPHS
+        .get_or_init(|| {
+            let font = ab_glyph::FontRef::try_from_slice(dejavu::sans::regular()).ok()?;
+            let font = font.into_scaled(FONT_PX as f32);
+            let ink = (' '..='~')
+                .chain(KEPT_GLYPHS.chars())
+                .map(|c| (c, ink_of(&font, c)))
+                .collect();
+            Some(Glyphs { font, ink })
+        })
+        .as_ref()
+        .ok_or_else(|| "the embedded DejaVu Sans font could not be parsed".to_string())
+}
+
+/// The ink of `c` (see [`Ink`]).
+fn ink_of(font: &ab_glyph::PxScaleFont<ab_glyph::FontRef<'static>>, c: char) -> Ink {
+    use ab_glyph::ScaleFont;
+    let Some(outline) = font.outline_glyph(font.scaled_glyph(c)) else {
+        return Ink {
+            rows_down: 0,
+            coverage: Vec::new(),
+        };
+    };
+    let rows_down = (FONT_PX as f32 / 2.0 + outline.px_bounds().min.y) as i32;
+    let mut coverage = Vec::new();
+    outline.draw(|x, y, a| {
+        if a > 0.0 {
+            coverage.push((x as i32, y as i32, a));
+        }
+    });
+    Ink {
+        rows_down,
+        coverage,
+    }
+}
+
+impl Glyphs {
+    /// Draw `text` in white into `buf` (`size` RGB pixels) with its top
+    /// left at `at`, as plotters' `draw_text` would.
+    fn draw_white(&self, buf: &mut [u8], size: (u32, u32), text: &str, at: &(i32, i32)) {
+        use ab_glyph::ScaleFont;
+        let (w, h) = (size.0 as i32, size.1 as i32);
+        let mut advance = 0f32;
+        let mut prev = None;
+        for c in text.chars() {
+            let id = self.font.glyph_id(c);
+            if let Some(p) = prev {
+                advance += self.font.kern(p, id);
+            }
+            prev = Some(id);
+            let computed;
+            let ink = match self.ink.get(&c) {
+                Some(ink) => ink,
+                None => {
+                    computed = ink_of(&self.font, c);
+                    &computed
+                }
+            };
+            let (dx, dy) = (at.0 + advance as i32, at.1 + ink.rows_down);
+            for &(x, y, a) in &ink.coverage {
+                let (x, y) = (x + dx, y + dy);
+                if (0..w).contains(&x) && (0..h).contains(&y) {
+                    let i = 3 * (y as usize * size.0 as usize + x as usize);
+                    blend_white(&mut buf[i..i + 3], f64::from(a));
+                }
+            }
+            advance += self.font.h_advance(id);
+        }
+    }
+}
+
+/// White drawn over `px` at coverage `alpha`, in the integers of plotters'
+/// bitmap backend: opaque from 255/256, else `alpha` in 256ths.
+fn blend_white(px: &mut [u8], alpha: f64) {
+    if alpha >= 1.0 - 1.0 / 256.0 {
+        px.fill(255);
+    } else if alpha > 0.0 {
+        let a = (alpha * 256.0).floor() as u64;
+        for v in px {
+            *v += (u64::from(255 - *v) * a / 256) as u8;
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_kept_glyphs_draw_the_pixels_plotters_draws() {
+        super::super::register_fonts();
+        let (w, h) = (420u32, 60u32);
+        // A background of every grey and some colour, for the blending.
+        let background: Vec<u8> = (0..w * h * 3)
+            .map(|i| ((i / 3) % 256) as u8 ^ (i % 3 * 40) as u8)
+            .collect();
+        let font = ("sans-serif", FONT_PX).into_font().color(&WHITE);
+        for (text, at) in [
+            ("frame -12  ·  t = -1.200 ms  ·  δ = -0.750 mm", (6, 10)),
+            ("AVWa fi Ty 0.5 mm ×−", (-3, 40)),
+            ("Ωжé€ outside the kept set", (100, 5)),
+        ] {
+            let mut by_plotters = background.clone();
+            {
+                let root = BitMapBackend::with_buffer(&mut by_plotters, (w, h)).into_drawing_area();
+                root.draw_text(text, &font, at).unwrap();
+                root.present().unwrap();
+            }
+            let mut kept = background.clone();
+            glyphs().unwrap().draw_white(&mut kept, (w, h), text, &at);
+            assert!(kept != background, "{text}: nothing drawn");
+            assert!(kept == by_plotters, "{text}: pixels differ");
+        }
+    }
 
     #[test]
     fn the_scale_bar_is_a_round_length_that_fits() {

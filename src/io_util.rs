@@ -130,10 +130,35 @@ pub fn write_atomic_with(
     path: &Path,
     write: impl FnOnce(&mut fs::File) -> io::Result<()>,
 ) -> io::Result<()> {
+    write_atomic_as(path, Durable::Now, write)
+}
+
+/// When a file written atomically reaches the disk.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Durable {
+    /// Synced before it is renamed into place ([`write_atomic`]).
+    Now,
+    /// Renamed into place whole but unsynced ([`write_atomic_unsynced`]):
+    /// one of many files made durable together by [`sync_file_system`]
+    /// before the file that says they are done.
+    WithTheJob,
+}
+
+/// What `write` writes, into a temporary in `path`'s folder
+/// ([`temporary_path`]), synced or not as `durable` says, then renamed
+/// over `path`. A temporary whose writing failed is removed.
+pub fn write_atomic_as(
+    path: &Path,
+    durable: Durable,
+    write: impl FnOnce(&mut fs::File) -> io::Result<()>,
+) -> io::Result<()> {
     let tmp = temporary_path(path)?;
     let written = fs::File::create(&tmp).and_then(|mut f| {
         write(&mut f)?;
-        f.sync_all()
+        match durable {
+            Durable::Now => f.sync_all(),
+            Durable::WithTheJob => Ok(()),
+        }
     });
     written
         .and_then(|()| fs::rename(&tmp, path))
@@ -246,24 +271,7 @@ impl Write for Spool {
 /// regenerate and numerous, where one sync per file costs more than making
 /// the file (rendered frames: ~4 ms per file here).
 pub fn write_atomic_unsynced(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    write_atomic_unsynced_with(path, |f| f.write_all(bytes))
-}
-
-/// [`write_atomic_unsynced`] of what `write` writes into the temporary (as
-/// [`write_atomic_with`]). A job that writes many such files makes them
-/// durable at once with [`sync_file_system`] before the file that says
-/// they are done.
-pub fn write_atomic_unsynced_with(
-    path: &Path,
-    write: impl FnOnce(&mut fs::File) -> io::Result<()>,
-) -> io::Result<()> {
-    let tmp = temporary_path(path)?;
-    fs::File::create(&tmp)
-        .and_then(|mut f| write(&mut f))
-        .and_then(|()| fs::rename(&tmp, path))
-        .inspect_err(|_| {
-            let _ = fs::remove_file(&tmp);
-        })
+    write_atomic_as(path, Durable::WithTheJob, |f| f.write_all(bytes))
 }
 
 /// Flush every file written to the file system holding `dir` to the disk
@@ -414,13 +422,15 @@ mod tests {
     fn unsynced_writes_are_whole_leave_no_temporary_and_are_synced_at_once() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("a.png");
-        write_atomic_unsynced_with(&p, |f| f.write_all(b"first, long")).unwrap();
-        write_atomic_unsynced_with(&p, |f| f.write_all(b"second")).unwrap();
+        write_atomic_unsynced(&p, b"first, long").unwrap();
+        write_atomic_as(&p, Durable::WithTheJob, |f| f.write_all(b"second")).unwrap();
         assert_eq!(fs::read(&p).unwrap(), b"second");
         // A failed write leaves the old file and no temporary.
-        let e = write_atomic_unsynced_with(&p, |_| Err(io::Error::other("no room"))).unwrap_err();
-        assert_eq!(e.to_string(), "no room");
-        assert_eq!(fs::read(&p).unwrap(), b"second");
+        for durable in [Durable::Now, Durable::WithTheJob] {
+            let e = write_atomic_as(&p, durable, |_| Err(io::Error::other("no room"))).unwrap_err();
+            assert_eq!(e.to_string(), "no room");
+            assert_eq!(fs::read(&p).unwrap(), b"second");
+        }
         assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
         sync_file_system(dir.path()).unwrap();
         // The folder must exist: its file system is found through it.

@@ -9,7 +9,7 @@ use crate::cache::OutputFile;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
 use crate::events::{EventConfig, Geometry, TrackPoint};
-use crate::io_util::Spool;
+use crate::io_util::{Durable, Spool};
 use crate::lens::{undistort_track, Lens};
 use crate::manifest::RunSpec;
 use crate::measure::{annotate_track, measure_drop, measure_drop_with, surface_from_law, DropInfo};
@@ -1131,17 +1131,6 @@ pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessErro
     write_file_as(out, rel, Durable::Now, |f| f.write_all(bytes))
 }
 
-/// When a file written into the output folder reaches the disk.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Durable {
-    /// Synced before it is renamed into place ([`crate::io_util::write_atomic_with`]).
-    Now,
-    /// Renamed into place whole but unsynced
-    /// ([`crate::io_util::write_atomic_unsynced_with`]): a run's files, made
-    /// durable together by [`sync_outputs`] before drops.csv is written.
-    WithTheJob,
-}
-
 /// Write what `write` writes to `out/rel` atomically, creating folders,
 /// durable as `durable` says.
 fn write_file_as(
@@ -1157,11 +1146,8 @@ fn write_file_as(
             source,
         })?;
     }
-    match durable {
-        Durable::Now => crate::io_util::write_atomic_with(&path, write),
-        Durable::WithTheJob => crate::io_util::write_atomic_unsynced_with(&path, write),
-    }
-    .map_err(|source| ProcessError::Write { path, source })
+    crate::io_util::write_atomic_as(&path, durable, write)
+        .map_err(|source| ProcessError::Write { path, source })
 }
 
 /// Make the files written by [`write_run_outputs`] (and the cache entries)

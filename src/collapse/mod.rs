@@ -23,7 +23,10 @@ pub mod per_drop;
 pub mod stats;
 pub mod synthetic;
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
+
+use crate::io_util::Durable;
 
 use crate::config::PipelineConfig;
 use crate::dataset::{self, DatasetError};
@@ -108,17 +111,17 @@ fn write(
     bytes: &[u8],
     files: &mut Vec<PathBuf>,
 ) -> Result<(), CollapseError> {
-    write_as(out, rel, bytes, files, true)
+    write_as(out, rel, bytes, files, Durable::Now)
 }
 
-/// [`write`], synced (`synced`) or left for one [`crate::io_util::sync_file_system`]
-/// of them all ([`crate::io_util::write_atomic_unsynced`]).
+/// [`write`], synced now or left for one [`crate::io_util::sync_file_system`]
+/// of them all ([`Durable`]).
 fn write_as(
     out: &Path,
     rel: &Path,
     bytes: &[u8],
     files: &mut Vec<PathBuf>,
-    synced: bool,
+    durable: Durable,
 ) -> Result<(), CollapseError> {
     let path = out.join(rel);
     if let Some(parent) = path.parent() {
@@ -127,14 +130,11 @@ fn write_as(
             source,
         })?;
     }
-    let written = if synced {
-        crate::io_util::write_atomic(&path, bytes)
-    } else {
-        crate::io_util::write_atomic_unsynced(&path, bytes)
-    };
-    written.map_err(|source| CollapseError::Write {
-        path: path.clone(),
-        source,
+    crate::io_util::write_atomic_as(&path, durable, |f| f.write_all(bytes)).map_err(|source| {
+        CollapseError::Write {
+            path: path.clone(),
+            source,
+        }
     })?;
     files.push(rel.to_path_buf());
     Ok(())

@@ -10,6 +10,7 @@ use super::diagnostics::{self, DropDiagnostics};
 use super::CollapseError;
 use crate::config::{PipelineConfig, Surface};
 use crate::dataset::{DropRecord, DropStatus};
+use crate::io_util::Durable;
 
 /// The diagnostics of the drops of `records` (the rows of `drops_csv`)
 /// that were measured and have a track beside it; `surface_of(i, record)`
@@ -126,7 +127,7 @@ pub fn replace(
     // drop), before the old ones go.
     let any = !figures.is_empty();
     for (rel, bytes) in figures {
-        super::write_as(out_dir, &rel, &bytes, files, false)?;
+        super::write_as(out_dir, &rel, &bytes, files, Durable::WithTheJob)?;
         kept.insert(out_dir.join(rel));
     }
     if any {

@@ -84,7 +84,8 @@ pub struct TrackSettings {
     pub kept_points_max: usize,
     /// Most frames in one chunk of pass 1 measured ahead by another thread
     /// (see [`speculate`]): what is measured ahead and not yet taken is at
-    /// most `2 × threads − 1` such chunks, whatever the movie's length.
+    /// most `CHUNKS_PER_THREAD × threads − 1` such chunks, whatever the
+    /// movie's length.
     pub chunk_frames_max: usize,
     /// Most frames whose records (the track's, and what pass 1 keeps of
     /// each for pass 2) are held in memory; past it, all of them go to a
@@ -97,12 +98,20 @@ pub struct TrackSettings {
 /// 14 000 frames of a sphere of R = 75 px (150 points a frame).
 pub const KEPT_POINTS_MAX: usize = 2 << 20;
 
-/// [`TrackSettings::chunk_frames_max`] by default: on 2 threads at most 3
-/// chunks of 8 192 frames are held ahead (~35 MB with the points of a
+/// [`TrackSettings::chunk_frames_max`] by default: on 2 threads at most 7
+/// chunks of 4 096 frames are held ahead (~40 MB with the points of a
 /// sphere of R = 75 px). Smaller chunks hold less but cost more: each round
-/// of chunks ends waiting for its slowest chunk (2 048 made a 31 000-frame
-/// movie 13 % slower on 2 threads, in four rounds instead of one).
-pub const CHUNK_FRAMES_MAX: usize = 8192;
+/// of chunks ends waiting for its slowest chunk (chunks of 2 048 made a
+/// 31 000-frame movie 13 % slower on 2 threads than chunks of 8 192, in
+/// four rounds instead of one, with 2 chunks a thread).
+pub const CHUNK_FRAMES_MAX: usize = 4096;
+
+/// Chunks of pass 1 per thread in a round: the threads take them as they
+/// become free, so the round ends within about one chunk of even (a
+/// stretch of frames searched whole, without the sphere, costs more than
+/// one followed in bands: with 2 chunks a thread the long TIFF movie's
+/// walker had one searched chunk more than the other thread).
+const CHUNKS_PER_THREAD: usize = 4;
 
 /// [`TrackSettings::frames_in_memory_max`] by default: 8 MB of the track's
 /// records (256 bytes a frame) and 1.8 MB of pass 1's (56).
@@ -281,7 +290,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     // walks the first of each round of `per_round` chunks (see
     // `speculate`); chunks of at most `chunk_frames_max` frames.
     let threads = rayon::current_num_threads();
-    let per_round = (threads * 2).min(n / MIN_CHUNK_FRAMES);
+    let per_round = (threads * CHUNKS_PER_THREAD).min(n / MIN_CHUNK_FRAMES);
     let mut copies: Option<Vec<Box<dyn FrameSource>>> = if threads >= 2 && per_round >= 2 {
         (1..per_round).map(|_| source.try_clone()).collect()
     } else {

@@ -285,6 +285,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         // The coarse search runs on frames binned 2×2 (a quarter of the
         // pixels); the measurement's re-centring absorbs its ~1 px error.
         binned: (w >= 128 && h >= 128).then(|| BinnedBackground::new(&bg)),
+        dark_grid: DarkGrid::new(&bg, &surface),
     };
     // Chunks of the movie measured ahead by other threads, while this one
     // walks the first of each round of `per_round` chunks (see
@@ -854,6 +855,8 @@ struct Pass1<'a> {
     surface: &'a SurfaceLine,
     st: &'a TrackSettings,
     binned: Option<BinnedBackground>,
+    /// The quick look's grid points, for the frames searched whole.
+    dark_grid: DarkGrid,
 }
 
 /// One thread's buffers for [`Pass1::look_at`].
@@ -908,7 +911,7 @@ impl Pass1<'_> {
                 timings::time(Stage::Read, || source.read_into(i, &mut sc.buf))?;
                 let band = Band::frame(&sc.buf).map_err(|e| detect_err(number, e))?;
                 let gain = bg.gain(&band).map_err(|e| detect_err(number, e))?.gain;
-                if anything_dark(&sc.buf, bg, gain, surface) {
+                if self.dark_grid.any_dark(&sc.buf, bg, gain, surface) {
                     match self.binned.as_ref() {
                         Some(b) => b.detect(&band, gain, Some(surface), &st.coarse, &mut sc.cs),
                         None => {
@@ -1178,6 +1181,61 @@ fn anything_dark(frame: &Frame, bg: &Background, gain: f64, surface: &SurfaceLin
     false
 }
 
+/// The points of [`anything_dark`]'s grid above the surface line, found
+/// once for a movie with their background levels, so that a frame searched
+/// whole (most of a long movie's, where the sphere is out of view) is
+/// checked by one pass over its grid: the same comparisons, the same
+/// answer.
+struct DarkGrid {
+    /// Frame size the points were taken for (rows, columns).
+    dim: (usize, usize),
+    /// Row-major index of each point in the frame, and its background level.
+    points: Vec<(u32, f32)>,
+}
+
+impl DarkGrid {
+    fn new(bg: &Background, surface: &SurfaceLine) -> DarkGrid {
+        let (h, w) = (bg.height, bg.width);
+        let mut points = Vec::new();
+        // A frame of 2^32 pixels or more is checked by `anything_dark`.
+        let fits = u32::try_from(h * w).is_ok();
+        if fits {
+            for i in (QUICK_STEP_PX / 2..h).step_by(QUICK_STEP_PX) {
+                for j in (QUICK_STEP_PX / 2..w).step_by(QUICK_STEP_PX) {
+                    if i as f64 > surface.row_at(j as f64) - 2.0 {
+                        continue;
+                    }
+                    points.push(((i * w + j) as u32, bg.at(i, j)));
+                }
+            }
+        }
+        DarkGrid {
+            dim: if fits { (h, w) } else { (0, 0) },
+            points,
+        }
+    }
+
+    /// [`anything_dark`] of `frame`, from the points when the frame is the
+    /// size they were taken for and contiguous.
+    fn any_dark(&self, frame: &Frame, bg: &Background, gain: f64, surface: &SurfaceLine) -> bool {
+        let data = match frame.as_slice() {
+            Some(d) if frame.dim() == self.dim && !d.is_empty() => d,
+            _ => return anything_dark(frame, bg, gain, surface),
+        };
+        let mut dark = 0;
+        for &(k, level) in &self.points {
+            // As `anything_dark` computes it: (0.5 · gain) · level.
+            if (data[k as usize] as f64) < 0.5 * gain * level as f64 {
+                dark += 1;
+                if dark >= 3 {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+}
+
 fn detect_err(frame: i64, source: DetectError) -> TrackError {
     TrackError::Detect { frame, source }
 }
@@ -1411,6 +1469,74 @@ mod tests {
         assert!(buf.len() > max - 60);
         // Still grown by doubling: a handful of reallocations, not one a frame.
         assert!(grown <= 10, "{grown} reallocations");
+    }
+
+    /// The quick look's grid found once gives `anything_dark`'s answer:
+    /// random levels and frames darkened at random, gains about 1, surface
+    /// lines flat, tilted, above and below the frame.
+    #[test]
+    fn the_dark_grid_answers_as_anything_dark() {
+        let mut rng = ChaCha8Rng::seed_from_u64(16);
+        let (h, w) = (61, 97);
+        let bg = Background {
+            width: w,
+            height: h,
+            levels: (0..h * w).map(|_| rng.gen_range(20.0..250.0f32)).collect(),
+            region: Default::default(),
+            gains: Vec::new(),
+            near_cols: (0, w),
+        };
+        let (mut yes, mut no) = (0, 0);
+        for (row0_px, slope) in [
+            (45.3, 0.0),
+            (30.0, 0.2),
+            (70.0, -0.3),
+            (-5.0, 0.0),
+            (200.0, 0.0),
+        ] {
+            let surface = SurfaceLine {
+                row0_px,
+                slope,
+                cov: [[0.0; 2]; 2],
+                residual_px: 0.0,
+                n_used: 0,
+                model_err_px: 0.0,
+            };
+            let grid = DarkGrid::new(&bg, &surface);
+            for _ in 0..200 {
+                let dark_share = [0.0, 0.0005, 0.002, 0.01, 0.3][rng.gen_range(0..5)];
+                let frame = Frame::from_shape_fn((h, w), |(i, j)| {
+                    let level = bg.at(i, j);
+                    let f = if rng.gen::<f64>() < dark_share {
+                        0.3
+                    } else {
+                        0.9
+                    };
+                    (level * f) as u16
+                });
+                let gain = rng.gen_range(0.95..1.05);
+                let want = anything_dark(&frame, &bg, gain, &surface);
+                assert_eq!(grid.any_dark(&frame, &bg, gain, &surface), want);
+                if want {
+                    yes += 1;
+                } else {
+                    no += 1;
+                }
+            }
+        }
+        assert!(yes > 100 && no > 100, "{yes} dark, {no} not");
+        // A frame of another size is looked at the plain way.
+        let surface = SurfaceLine {
+            row0_px: 50.0,
+            slope: 0.0,
+            cov: [[0.0; 2]; 2],
+            residual_px: 0.0,
+            n_used: 0,
+            model_err_px: 0.0,
+        };
+        let other = Frame::zeros((h - 1, w));
+        let grid = DarkGrid::new(&bg, &surface);
+        assert!(grid.any_dark(&other, &bg, 1.0, &surface));
     }
 
     #[test]

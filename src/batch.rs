@@ -484,6 +484,26 @@ pub fn process_runs(
     overlay_frames: &[i64],
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<Processed, BatchError> {
+    let processed = process_runs_unsynced(runs, cfg, out, options, overlay_frames, events)?;
+    // The runs' files and cache entries, written unsynced, made durable at
+    // once before the caller's drops.csv.
+    crate::process::sync_outputs(out)?;
+    Ok(processed)
+}
+
+/// [`process_runs`] but for its end: the runs' files and cache entries are
+/// written and renamed into place, not yet synced. The caller makes them
+/// durable ([`crate::process::sync_outputs`]) before it writes drops.csv;
+/// meanwhile it may read them (`process` draws the per-drop figures from
+/// the tracks while the disk syncs).
+pub fn process_runs_unsynced(
+    runs: &[RunSpec],
+    cfg: &PipelineConfig,
+    out: &Path,
+    options: &JobOptions,
+    overlay_frames: &[i64],
+    events: &(dyn Fn(RunEvent) + Sync),
+) -> Result<Processed, BatchError> {
     let start = std::time::Instant::now();
     events(RunEvent::Planned { runs: runs.len() });
     let scene_of = |r: &RunSpec| {
@@ -535,9 +555,6 @@ pub fn process_runs(
             .install(work)?,
         None => work()?,
     };
-    // The runs' files and cache entries, written unsynced, made durable at
-    // once before the caller's drops.csv.
-    crate::process::sync_outputs(out)?;
     Ok(Processed {
         done,
         seconds: start.elapsed().as_secs_f64(),

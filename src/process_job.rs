@@ -6,7 +6,9 @@
 
 use std::path::Path;
 
-use crate::batch::{process_runs, replace_provenance, BatchError, JobOptions, Processed, RunEvent};
+use crate::batch::{
+    process_runs_unsynced, replace_provenance, BatchError, JobOptions, Processed, RunEvent,
+};
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::RunSpec;
@@ -89,7 +91,7 @@ pub fn run(
         done,
         seconds,
         threads,
-    } = process_runs(runs, cfg, out, options, overlay_frames, events)?;
+    } = process_runs_unsynced(runs, cfg, out, options, overlay_frames, events)?;
     let cached = done.iter().filter(|(_, hit)| *hit).count();
     let frames = done
         .iter()
@@ -98,14 +100,30 @@ pub fn run(
         .sum();
     let entries: Vec<_> = done.into_iter().map(|(e, _)| e).collect();
     let records: Vec<DropRecord> = entries.iter().map(|e| e.record.clone()).collect();
-    time(Stage::Writes, || -> Result<(), BatchError> {
-        let drops = crate::dataset::to_csv_bytes(&records);
-        write_file(out, "drops.csv", &drops)?;
-        remove_other_collapse(out, &crate::dataset_id::of_bytes(&drops), events)?;
-        replace_provenance(out, cfg, config_name, &entries, events)
-    })?;
-    let (_, warnings) = time(Stage::Figures, || {
-        crate::collapse::per_drop::write(out, &out.join("drops.csv"), &records, cfg)
+    let drops = crate::dataset::to_csv_bytes(&records);
+    let id = crate::dataset_id::of_bytes(&drops);
+    // The per-drop figures are drawn from the tracks while the runs' files
+    // are synced and drops.csv and provenance.json written; they are
+    // written after, as before.
+    let (written, drawn) = rayon::join(
+        || {
+            crate::process::sync_outputs(out)?;
+            time(Stage::Writes, || -> Result<(), BatchError> {
+                write_file(out, "drops.csv", &drops)?;
+                remove_other_collapse(out, &id, events)?;
+                replace_provenance(out, cfg, config_name, &entries, events)
+            })
+        },
+        || {
+            time(Stage::Figures, || {
+                crate::collapse::per_drop::draw(&out.join("drops.csv"), &records, cfg, &id)
+            })
+        },
+    );
+    written?;
+    let (drawn, warnings) = drawn?;
+    time(Stage::Figures, || {
+        crate::collapse::per_drop::replace(out, drawn, &mut Vec::new())
     })?;
     Ok(ProcessSummary {
         records,

@@ -1,8 +1,8 @@
 //! The per-drop figures (`plots/drops/<run>.svg` and `.png`: z(t), δ(t),
 //! F(δ)) of every measured drop whose track lies beside its drops.csv
-//! (`tracks/<run>.csv`). `process` draws them as soon as it has written
-//! drops.csv; `collapse` draws them again with its own figures, from the
-//! same files, to the same bytes.
+//! (`tracks/<run>.csv`). `process` draws them while it writes drops.csv
+//! ([`draw`]) and writes them after it ([`replace`]); `collapse` draws them
+//! again with its own figures, from the same files, to the same bytes.
 
 use std::path::{Path, PathBuf};
 
@@ -82,22 +82,18 @@ pub fn figures(
     Ok(out)
 }
 
-/// Replace `out_dir/plots/drops/` by the figures of the drops in
-/// `drops_csv` (whose rows are `records`), each row's surface taken from
-/// `cfg` by name ([`replace`]). Returns the files written (relative to
-/// `out_dir`) and the warnings about tracks that could not be used.
-pub fn write(
-    out_dir: &Path,
+/// The figures of the drops in `drops_csv` (whose rows are `records`; it
+/// need not be written yet), drawn from the tracks beside it, each row's
+/// surface taken from `cfg` by name, and tagged with `dataset_id`, the id
+/// of its bytes: (path relative to the output folder, bytes) for
+/// [`replace`], and the warnings about tracks that could not be used.
+#[allow(clippy::type_complexity)]
+pub fn draw(
     drops_csv: &Path,
     records: &[DropRecord],
     cfg: &PipelineConfig,
-) -> Result<(Vec<PathBuf>, Vec<String>), CollapseError> {
-    let id = crate::dataset_id::of_file(drops_csv).map_err(|source| {
-        CollapseError::Dataset(crate::dataset::DatasetError::Io {
-            path: drops_csv.to_path_buf(),
-            source,
-        })
-    })?;
+    dataset_id: &str,
+) -> Result<(Vec<(PathBuf, Vec<u8>)>, Vec<String>), CollapseError> {
     let (diags, warnings) = diagnose_all(drops_csv, records, |_, r| {
         let name = if r.surface.is_empty() {
             &cfg.input.surface
@@ -106,9 +102,7 @@ pub fn write(
         };
         cfg.surfaces.get(name)
     });
-    let mut files = Vec::new();
-    replace(out_dir, figures(diags, &id)?, &mut files)?;
-    Ok((files, warnings))
+    Ok((figures(diags, dataset_id)?, warnings))
 }
 
 /// Write `figures` (paths under `plots/drops/`), each atomically (and all

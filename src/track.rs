@@ -15,7 +15,12 @@
 //!    copy of the band's whole rows out of the file, which are contiguous
 //!    there). A frame whose
 //!    fit fails is marked `missing` (never guessed); after two misses the
-//!    coarse detector searches the whole frame again (`recovered`).
+//!    coarse detector searches the whole frame again (`recovered`), but
+//!    where the sphere was lost rising through the top of the frame: the
+//!    parabola of its rise says when it is back at that height, and the
+//!    frames until the last quarter of that time are not looked at
+//!    ([`Look::Away`]; they hold no sphere, as a search of them would
+//!    find). A long movie's bounces out of view cost nothing then.
 //! 3. Calibration ([`calibrate_radius`]): R_px is the median radius of the
 //!    pass-1 fits whose whole circle is in view, clear of the frame's border
 //!    and of the surface line.
@@ -92,6 +97,10 @@ pub struct TrackSettings {
     /// temporary file ([`crate::records`]) and are read back a block at a
     /// time, so that they do not grow the memory with the movie's length.
     pub frames_in_memory_max: usize,
+    /// Frames are not looked at while a sphere that left through the top of
+    /// the frame is on its way back ([`Look::Away`]); off, every frame
+    /// without the sphere is searched whole.
+    pub skip_away: bool,
 }
 
 /// [`TrackSettings::kept_points_max`] by default: 16 MB of points, about
@@ -129,6 +138,7 @@ impl TrackSettings {
             kept_points_max: KEPT_POINTS_MAX,
             chunk_frames_max: CHUNK_FRAMES_MAX,
             frames_in_memory_max: FRAMES_IN_MEMORY_MAX,
+            skip_away: true,
         }
     }
 }
@@ -238,6 +248,9 @@ pub struct Track {
     /// Most frames measured ahead and not yet taken at any one time (0 on
     /// one thread).
     pub ahead_frames_max: usize,
+    /// Frames pass 1 did not look at: the sphere was away above the frame
+    /// ([`TrackSettings::skip_away`]).
+    pub away_frames: usize,
 }
 
 /// Why a run could not be tracked.
@@ -316,6 +329,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         state: Pass1State::default(),
         scratch: LookScratch::new(h, w),
         measured_ahead: 0,
+        away_frames: 0,
     };
     let mut ahead_frames_max = 0;
     timings::time(Stage::Pass1, || -> Result<(), TrackError> {
@@ -359,6 +373,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         state,
         scratch,
         measured_ahead,
+        away_frames,
         ..
     } = walk;
     frames.flush()?;
@@ -497,6 +512,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         kept_points,
         remeasured_frames,
         ahead_frames_max,
+        away_frames,
     })
 }
 
@@ -680,6 +696,7 @@ impl Record for Option<Kept> {
             }) => (1, start, len, centre, radial_sigma_px),
             Some(Kept::Again(Look::Search)) => (2, 0, 0, none, 0.0),
             Some(Kept::Again(Look::At(c))) => (3, 0, 0, c, 0.0),
+            Some(Kept::Again(Look::Away)) => (4, 0, 0, none, 0.0),
         };
         let mut p = Put(out);
         p.u8(tag);
@@ -708,6 +725,7 @@ impl Record for Option<Kept> {
                 radial_sigma_px,
             }),
             2 => Some(Kept::Again(Look::Search)),
+            4 => Some(Kept::Again(Look::Away)),
             _ => Some(Kept::Again(Look::At(c))),
         }
     }
@@ -742,6 +760,9 @@ enum Look {
     /// Measured around this circle, predicted from the last fits (on the
     /// [`PREDICTION_GRID_PX`] grid).
     At(Circle),
+    /// Not looked at: the sphere left through the top of the frame and is
+    /// on its way back ([`Pass1State::back_in_view_s`]).
+    Away,
 }
 
 impl Look {
@@ -751,6 +772,7 @@ impl Look {
         match (self, other) {
             (Look::Search, Look::Search) => true,
             (Look::At(a), Look::At(b)) => bits(a) == bits(b),
+            (Look::Away, Look::Away) => true,
             _ => false,
         }
     }
@@ -770,18 +792,40 @@ struct Seen {
 }
 
 /// Pass 1's state between frames: the last three fits (for the
-/// prediction), how many fits so far, misses in a row, searching or not.
+/// prediction), how many fits so far, misses in a row, searching or not,
+/// the heights of the sphere's rise and, when it left through the top of
+/// the frame, until when it is away.
 #[derive(Debug, Clone, Default)]
 struct Pass1State {
     history: Vec<(f64, Circle)>,
     fits: usize,
     misses: usize,
     following: bool,
+    /// `(t, z_px)` of the fits since the sphere last moved down (its rise
+    /// from the bottom of the contact), the newest [`RISE_KEPT`].
+    rise: std::collections::VecDeque<(f64, f64)>,
+    /// Frames before this time are not looked at ([`Look::Away`]).
+    away_until_s: Option<f64>,
 }
+
+/// Heights of the rise kept for [`Pass1State::back_in_view_s`].
+const RISE_KEPT: usize = 128;
+
+/// Least fits of the rise that [`Pass1State::back_in_view_s`] takes.
+const RISE_FITS_MIN: usize = 8;
+
+/// Share of the time away, at its end, in which frames are searched again.
+/// The return is predicted from the rise's parabola; a quarter covers an
+/// error of a quarter in its curvature (a parabola fitted to 8 partial
+/// circles near the top of the frame is good to a few per cent).
+const AWAY_SEARCHED_SHARE: f64 = 0.25;
 
 impl Pass1State {
     /// How to look at the frame of time `t`.
     fn look(&self, t: f64) -> Look {
+        if !self.following && self.away_until_s.is_some_and(|u| t < u) {
+            return Look::Away;
+        }
         if self.following {
             let p = predict(&self.history, t);
             let grid = |v: f64| (v / PREDICTION_GRID_PX).round() * PREDICTION_GRID_PX;
@@ -795,6 +839,53 @@ impl Pass1State {
         }
     }
 
+    /// When the sphere that was just lost is back in view, if it left
+    /// through the top of the frame while rising: the parabola of its rise
+    /// (least squares over the newer half of the rise's heights, at least
+    /// [`RISE_FITS_MIN`]) brings it back to the height of its last fit
+    /// after `−b/c`, the start of the last [`AWAY_SEARCHED_SHARE`] of which
+    /// is returned. `None` (search every frame) when it left any other way,
+    /// or the rise is short or not a parabola that falls back.
+    fn back_in_view_s(&self) -> Option<f64> {
+        let &(t_last, last) = self.history.last()?;
+        if last.z_px - last.r_px >= last.r_px {
+            return None;
+        }
+        let n = self.rise.len();
+        let used = if n == RISE_KEPT { n } else { n / 2 };
+        if used < RISE_FITS_MIN {
+            return None;
+        }
+        // z = a + b·u + c·u², u = (t − t_last) / span: the normal equations.
+        let span = t_last - self.rise[n - used].0;
+        if span.is_nan() || span <= 0.0 {
+            return None;
+        }
+        let mut m = [[0.0f64; 3]; 3];
+        let mut v = [0.0f64; 3];
+        for &(t, z) in self.rise.iter().skip(n - used) {
+            let u = (t - t_last) / span;
+            let p = [1.0, u, u * u];
+            for r in 0..3 {
+                for c in 0..3 {
+                    m[r][c] += p[r] * p[c];
+                }
+                v[r] += p[r] * z;
+            }
+        }
+        let m = nalgebra::Matrix3::from_fn(|r, c| m[r][c]);
+        let abc = m.lu().solve(&nalgebra::Vector3::from(v))?;
+        let (b, c) = (abc[1], abc[2]);
+        // Rising (z falls) at the last fit, and falling back (z″ > 0).
+        if b >= 0.0 || c <= 0.0 || b.is_nan() || c.is_nan() {
+            return None;
+        }
+        let away_s = -b / c * span;
+        away_s
+            .is_finite()
+            .then_some(t_last + (1.0 - AWAY_SEARCHED_SHARE) * away_s)
+    }
+
     /// Take frame `i`'s result: its track entry, the state moved on.
     fn step(
         &mut self,
@@ -802,6 +893,7 @@ impl Pass1State {
         i: usize,
         seen: &Seen,
         w: usize,
+        skip_away: bool,
     ) -> FrameTrack {
         let t = meta.time_s(i);
         let number = meta.frame_numbers.get(i).copied().unwrap_or(i as i64);
@@ -814,9 +906,20 @@ impl Pass1State {
                 seen.found
             }
             Look::At(_) => true,
+            Look::Away => false,
         };
         match seen.fit {
             Some(f) => {
+                match self.history.last() {
+                    Some(&(_, last)) if self.following && f.z_px < last.z_px => {
+                        if self.rise.len() == RISE_KEPT {
+                            self.rise.pop_front();
+                        }
+                        self.rise.push_back((t, f.z_px));
+                    }
+                    _ => self.rise.clear(),
+                }
+                self.away_until_s = None;
                 self.misses = 0;
                 self.following = true;
                 self.fits += 1;
@@ -833,8 +936,11 @@ impl Pass1State {
                     flags.insert(Flag::Missing);
                 }
                 self.misses += 1;
-                if self.misses >= 2 {
+                if self.misses >= 2 && self.following {
                     self.following = false;
+                    if skip_away {
+                        self.away_until_s = self.back_in_view_s();
+                    }
                 }
             }
         }
@@ -906,6 +1012,14 @@ impl Pass1<'_> {
         let (bg, surface, st) = (self.bg, self.surface, self.st);
         let number = source_number(source, i);
         let predicted = match look {
+            Look::Away => {
+                return Ok(Seen {
+                    look,
+                    found: false,
+                    fit: None,
+                    points: None,
+                })
+            }
             Look::At(p) => Some(p),
             Look::Search => {
                 timings::time(Stage::Read, || source.read_into(i, &mut sc.buf))?;
@@ -978,6 +1092,8 @@ struct Walk {
     state: Pass1State,
     scratch: LookScratch,
     measured_ahead: usize,
+    /// Frames not looked at: the sphere was away ([`Look::Away`]).
+    away_frames: usize,
 }
 
 impl Walk {
@@ -1017,7 +1133,12 @@ impl Walk {
             }
         }))?;
         let w = meta.width;
-        self.frames.push(self.state.step(meta, i, &seen, w))?;
+        if matches!(seen.look, Look::Away) {
+            self.away_frames += 1;
+        }
+        let skip_away = ctx.st.skip_away;
+        self.frames
+            .push(self.state.step(meta, i, &seen, w, skip_away))?;
         Ok(())
     }
 }
@@ -1067,7 +1188,7 @@ fn speculate(
                 let Ok(s) = ctx.look_at(src.as_mut(), i, look, &mut sc) else {
                     break;
                 };
-                state.step(meta, i, &s, meta.width);
+                state.step(meta, i, &s, meta.width, ctx.st.skip_away);
                 seen.push(s);
             }
             pool.give(sc);
@@ -1401,6 +1522,130 @@ mod tests {
         TrackSettings::from_config(&DetectConfig::default())
     }
 
+    /// 172 frames of 256×192 px, 8-bit: a sphere of R = 20 px rising from
+    /// row 130 on the parabola z = 130 − 7k + 0.04k² (frame k), out through
+    /// the top of the frame from frame ~25 to ~150 and back down to row
+    /// ~103; noise σ 2 levels, ±3 % flicker.
+    fn away_movie() -> MemorySource {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let n = 172;
+        let frames = (0..n)
+            .map(|k| {
+                let k = k as f64;
+                let img = Scene {
+                    width: 256,
+                    height: 192,
+                    background: 200.0,
+                    vignetting: 0.1,
+                    sphere_transmission: 0.2,
+                    disk: Some((128.0 + 0.1 * k, 130.0 - 7.0 * k + 0.04 * k * k, 20.0)),
+                    band: Some(PillarBand {
+                        row0_px: 170.4,
+                        slope: 0.003,
+                        pillar_level: 60.0,
+                        channel_level: 90.0,
+                        period_px: 40.0,
+                        solid_fraction: 0.625,
+                    }),
+                    blur_px: 1.0,
+                }
+                .render();
+                let gain = 1.0 + 0.03 * (2.0 * rng.gen::<f64>() - 1.0);
+                synth::quantize(&img, gain, 255, || {
+                    let u1: f64 = rng.gen_range(f64::EPSILON..1.0);
+                    let u2: f64 = rng.gen();
+                    2.0 * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+                })
+            })
+            .collect();
+        let meta = SourceMeta {
+            width: 256,
+            height: 192,
+            bit_depth: 8,
+            fps: 10_000.0,
+            frame_numbers: (0..n as i64).collect(),
+            ..SourceMeta::default()
+        };
+        MemorySource::new(meta, frames).unwrap()
+    }
+
+    #[test]
+    fn frames_are_not_looked_at_while_the_sphere_is_away_above_the_frame() {
+        let mut m = away_movie();
+        let st = settings();
+        let skipped = track(&mut m, &st).unwrap();
+        let every = track(
+            &mut m,
+            &TrackSettings {
+                skip_away: false,
+                ..st.clone()
+            },
+        )
+        .unwrap();
+        // The same track, bit for bit: the frames not looked at hold no
+        // sphere, and a search of them finds none.
+        let all = |t: &Track| -> Vec<FrameTrack> { t.frames.iter().collect() };
+        assert_eq!(all(&skipped), all(&every));
+        assert_eq!(every.away_frames, 0);
+        // Out of view (its circle wholly above row 0) from frame 25 to 150:
+        // the return predicted from the rise's parabola, less its last
+        // quarter, is not looked at.
+        let fitted: Vec<i64> = all(&skipped)
+            .iter()
+            .filter(|f| f.free.is_some())
+            .map(|f| f.frame)
+            .collect();
+        let last_before = fitted.iter().copied().filter(|&k| k < 80).max().unwrap();
+        let first_after = fitted.iter().copied().find(|&k| k > 80).unwrap();
+        assert!((18..=26).contains(&last_before), "{last_before}");
+        assert!((146..=156).contains(&first_after), "{first_after}");
+        let away = (first_after - last_before - 1) as usize;
+        assert!(
+            skipped.away_frames >= away * 6 / 10 && skipped.away_frames <= away * 8 / 10,
+            "{} of {away}",
+            skipped.away_frames
+        );
+    }
+
+    #[test]
+    fn the_return_is_where_the_rise_s_parabola_comes_back() {
+        // Heights of an exact parabola z = 40 − 3u + 0.01u² (u in frames
+        // of 0.1 ms): back at the last height after −b/c from there.
+        let z = |k: f64| 40.0 - 3.0 * k + 0.01 * k * k;
+        let circle = |k: f64| Circle {
+            x_px: 100.0,
+            z_px: z(k),
+            r_px: 20.0,
+        };
+        let mut state = Pass1State {
+            following: true,
+            ..Pass1State::default()
+        };
+        for k in 0..30 {
+            let (t, c) = (k as f64 * 1e-4, circle(k as f64));
+            state.rise.push_back((t, c.z_px));
+            state.history = vec![(t, c)];
+        }
+        // The last fit (frame 29, z = −38.6) is near the top: back at
+        // frame 300 − 29 = 271; searched from three quarters of the way.
+        let back = state.back_in_view_s().unwrap();
+        let expected = 29e-4 + 0.75 * (271.0 - 29.0) * 1e-4;
+        assert!((back - expected).abs() < 1e-12, "{back} vs {expected}");
+        // Lost in mid-frame (its top a radius or more below row 0): none.
+        state.history = vec![(
+            29e-4,
+            Circle {
+                z_px: 45.0,
+                ..circle(29.0)
+            },
+        )];
+        assert_eq!(state.back_in_view_s(), None);
+        // Too short a rise: none.
+        state.history = vec![(29e-4, circle(29.0))];
+        state.rise.drain(..state.rise.len() - 15);
+        assert_eq!(state.back_in_view_s(), None);
+    }
+
     #[test]
     fn pass_2_on_kept_points_matches_a_fresh_measurement_of_the_frame() {
         let (mut m, truth) = movie();
@@ -1570,6 +1815,7 @@ mod tests {
             }),
             Some(Kept::Again(Look::Search)),
             Some(Kept::Again(Look::At(c))),
+            Some(Kept::Again(Look::Away)),
         ];
         for k in all {
             let mut bytes = Vec::new();

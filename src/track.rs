@@ -305,11 +305,17 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     // `speculate`); chunks of at most `chunk_frames_max` frames.
     let threads = rayon::current_num_threads();
     let per_round = (threads * CHUNKS_PER_THREAD).min(n / MIN_CHUNK_FRAMES);
-    let mut copies: Option<Vec<Box<dyn FrameSource>>> = if threads >= 2 && per_round >= 2 {
-        (1..per_round).map(|_| source.try_clone()).collect()
-    } else {
-        None
-    };
+    // One copy of the source a thread measuring ahead, not one a chunk: a
+    // copy's buffers hold a whole frame file (1 MB at 1280 × 800).
+    let copies: Option<std::sync::Mutex<Vec<Box<dyn FrameSource>>>> =
+        if threads >= 2 && per_round >= 2 {
+            (0..threads.min(per_round - 1))
+                .map(|_| source.try_clone())
+                .collect::<Option<Vec<_>>>()
+                .map(std::sync::Mutex::new)
+        } else {
+            None
+        };
     // Whole rounds, so that every round has work for every thread.
     let (per_round, chunks) = match &copies {
         Some(_) => (
@@ -345,9 +351,9 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
                     Ok(())
                 },
                 || {
-                    copies.as_mut().map(|c| {
+                    copies.as_ref().map(|c| {
                         let b = &bounds[first..=first + 1 + ahead];
-                        speculate(&mut c[..ahead], b, &ctx, &meta, &pool)
+                        speculate(c, b, &ctx, &meta, &pool)
                     })
                 },
             );
@@ -1154,8 +1160,11 @@ fn reserve_within<T>(buf: &mut Vec<T>, end: usize, max: usize) {
 }
 
 /// Pass 1 measured ahead: chunk `k + 1` of the movie (frames
-/// `bounds[k + 1]..bounds[k + 2]`) followed on `copies[k]` of the source by
-/// another thread, from a search at its first frame, while the calling
+/// `bounds[k + 1]..bounds[k + 2]`, for each of the `bounds.len() − 2`
+/// chunks after the first) followed by another thread on one of `copies`
+/// of the source (one a thread: a chunk finds none free only if a thread
+/// took up a second chunk while it waited inside the first, and is then
+/// left to the walk), from a search at its first frame, while the calling
 /// thread walks the first chunk. Per chunk, what was seen in each frame up
 /// to the end or an error. Pass 1 proper then walks on in order and takes a
 /// frame's result from here when it looks at the frame in the same way,
@@ -1165,17 +1174,20 @@ fn reserve_within<T>(buf: &mut Vec<T>, end: usize, max: usize) {
 /// number of threads, and the work ahead is lost only where the two
 /// disagree.
 fn speculate(
-    copies: &mut [Box<dyn FrameSource>],
+    copies: &std::sync::Mutex<Vec<Box<dyn FrameSource>>>,
     bounds: &[usize],
     ctx: &Pass1,
     meta: &crate::source::SourceMeta,
     pool: &ScratchPool,
 ) -> Vec<Vec<Seen>> {
     use rayon::prelude::*;
-    copies
-        .par_iter_mut()
-        .enumerate()
-        .map(|(k, src)| {
+    let lock = || copies.lock().unwrap_or_else(|e| e.into_inner());
+    (0..bounds.len().saturating_sub(2))
+        .into_par_iter()
+        .map(|k| {
+            let Some(mut src) = lock().pop() else {
+                return Vec::new();
+            };
             let _pass1 = timings::start(Stage::Pass1);
             // At most one buffer set per thread measuring ahead, kept
             // from chunk to chunk and round to round.
@@ -1192,6 +1204,7 @@ fn speculate(
                 seen.push(s);
             }
             pool.give(sc);
+            lock().push(src);
             seen
         })
         .collect()

@@ -897,12 +897,12 @@ impl Pass1State {
         &mut self,
         meta: &crate::source::SourceMeta,
         i: usize,
+        t: f64,
         seen: &Seen,
         w: usize,
         skip_away: bool,
     ) -> FrameTrack {
-        let t = meta.time_s(i);
-        let number = meta.frame_numbers.get(i).copied().unwrap_or(i as i64);
+        let number = meta.frame_number(i);
         let mut flags = FrameFlags::default();
         let looked = match seen.look {
             Look::Search => {
@@ -1079,12 +1079,7 @@ impl Pass1<'_> {
 }
 
 fn source_number(source: &dyn FrameSource, i: usize) -> i64 {
-    source
-        .meta()
-        .frame_numbers
-        .get(i)
-        .copied()
-        .unwrap_or(i as i64)
+    source.meta().frame_number(i)
 }
 
 /// Pass 1 in order, frame by frame.
@@ -1114,7 +1109,8 @@ impl Walk {
         i: usize,
         ahead: Option<Seen>,
     ) -> Result<(), TrackError> {
-        let look = self.state.look(meta.time_s(i));
+        let t = meta.time_s(i)?;
+        let look = self.state.look(t);
         let seen = match ahead.filter(|m| m.look.same(&look)) {
             Some(m) => {
                 self.measured_ahead += 1;
@@ -1144,7 +1140,7 @@ impl Walk {
         }
         let skip_away = ctx.st.skip_away;
         self.frames
-            .push(self.state.step(meta, i, &seen, w, skip_away))?;
+            .push(self.state.step(meta, i, t, &seen, w, skip_away))?;
         Ok(())
     }
 }
@@ -1196,11 +1192,16 @@ fn speculate(
             let (first, last) = (bounds[k + 1], bounds[k + 2]);
             let mut seen = Vec::with_capacity(last - first);
             for i in first..last {
-                let look = state.look(meta.time_s(i));
+                // A time or a frame that cannot be read: the walk in
+                // order meets it and says so.
+                let Ok(t) = meta.time_s(i) else {
+                    break;
+                };
+                let look = state.look(t);
                 let Ok(s) = ctx.look_at(src.as_mut(), i, look, &mut sc) else {
                     break;
                 };
-                state.step(meta, i, &s, meta.width, ctx.st.skip_away);
+                state.step(meta, i, t, &s, meta.width, ctx.st.skip_away);
                 seen.push(s);
             }
             pool.give(sc);

@@ -113,7 +113,7 @@ fn a_long_movie_gives_the_same_bytes_on_one_thread_and_two() {
     let folder =
         dropscope::source::folder::FolderSource::open(&runs[0].path, &OpenOptions::default())
             .unwrap();
-    let (first, bad) = (&folder.files()[0], &folder.files()[index]);
+    let (first, bad) = (&folder.file(0), &folder.file(index));
     let (w, h) = (256u32, 192u32);
     for (bits, size, says) in [
         (16, (w, h), "256×192 16-bit, but the sequence's first frame"),

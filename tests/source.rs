@@ -9,11 +9,25 @@ use dropscope::source::cine::{self, CineSource};
 use dropscope::source::cine_write::{CinePacking, CineSpec, CineWriter};
 use dropscope::source::folder::{FolderSource, ImageKind};
 use dropscope::source::frame_decode::FrameDecoder;
-use dropscope::source::{open, pcc_xml, Frame, FrameSource, OpenOptions, P10Mode, SourceError};
+use dropscope::source::{
+    open, pcc_xml, Frame, FrameSource, FrameValues, OpenOptions, P10Mode, SourceError, SourceMeta,
+};
 use ndarray::s;
+use std::sync::Arc;
 
 fn sample(rel: &str) -> PathBuf {
     crate::phantom_sample(rel)
+}
+
+/// Every time stamp of a source's metadata.
+fn times(m: &SourceMeta) -> Vec<f64> {
+    m.timestamps_s.as_ref().unwrap().to_vec().unwrap()
+}
+
+/// Image `i`'s offset in the offset table of a cine's `bytes`.
+fn image_offset(bytes: &[u8], layout: &cine::CineLayout, i: usize) -> usize {
+    let at = layout.header.off_image_offsets as usize + 8 * i;
+    u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize
 }
 
 fn open_default(p: &Path) -> Result<Box<dyn FrameSource>, SourceError> {
@@ -174,7 +188,7 @@ fn every_grey_sample_matches_its_readme_values() {
         assert_eq!(m.first_frame, k.first, "{}", k.file);
         assert_eq!(m.frame_numbers.len(), k.frames);
         assert_eq!(
-            *m.frame_numbers.last().unwrap(),
+            m.frame_numbers.last().unwrap(),
             k.first + k.frames as i64 - 1
         );
         assert!(m.gaps.is_empty());
@@ -212,6 +226,7 @@ fn time_stamps_are_monotonic_and_spaced_by_the_saved_frame_rate() {
         let src = open_default(&sample(k.file)).unwrap();
         let m = src.meta();
         let t = m.timestamps_s.as_ref().expect("every sample has tag 1002");
+        let t = t.to_vec().unwrap();
         assert_eq!(t.len(), k.frames);
         for w in t.windows(2) {
             let dt = w[1] - w[0];
@@ -222,29 +237,23 @@ fn time_stamps_are_monotonic_and_spaced_by_the_saved_frame_rate() {
         // Per-frame exposures (tag 1003) agree with the SETUP exposure within 5 %
         // (seen: cam_1 63.853 µs vs ShutterNs 65 000, cine_781 9.696 µs vs 10 µs).
         let e = m.details.exposures_s.as_ref().expect("tag 1003");
+        let e = e.to_vec().unwrap();
         let setup = m.exposure_s.unwrap();
         for x in e.iter() {
             assert!((x / setup - 1.0).abs() < 0.05, "{}: {x} vs {setup}", k.file);
         }
     }
     // The notes' values: v7.3 first frame −0.22005 s, cine_781 −0.60167 s.
-    let t = |f: &str| {
-        open_default(&sample(f))
-            .unwrap()
-            .meta()
-            .timestamps_s
-            .clone()
-            .unwrap()[0]
-    };
+    let t = |f: &str| open_default(&sample(f)).unwrap().meta().time_s(0).unwrap();
     assert!((t("pims/cine_legacy.cine") + 0.22005).abs() < 1e-5);
     assert!((t("pims/cine_781.cine") + 0.60167).abs() < 1e-5);
 }
 
 #[test]
 fn clones_of_a_cine_share_its_per_frame_tables_and_read_the_same_frames() {
-    // A long movie's per-frame tables (image numbers, times, exposures) are
-    // megabytes, and a run reads it through several clones at once: they
-    // are shared, not copied, by clones of the source and of its metadata.
+    // A run reads a movie through several clones at once: its per-frame
+    // times and exposures (read from the file when looked up) are shared,
+    // not copied, by clones of the source and of its metadata.
     let path = sample("pims/cine_legacy.cine");
     let mut src = open_default(&path).unwrap();
     let mut a = src.try_clone().expect("a clone");
@@ -254,18 +263,21 @@ fn clones_of_a_cine_share_its_per_frame_tables_and_read_the_same_frames() {
     assert!(n >= 2, "{n} frames");
     for m in [a.meta(), b.meta(), &copy] {
         let m0 = src.meta();
-        assert!(std::ptr::eq(
-            m0.frame_numbers.as_ptr(),
-            m.frame_numbers.as_ptr()
-        ));
-        let t = |m: &dropscope::source::SourceMeta| m.timestamps_s.as_deref().unwrap().as_ptr();
-        assert!(std::ptr::eq(t(m0), t(m)), "tag 1002 times copied");
-        let e =
-            |m: &dropscope::source::SourceMeta| m.details.exposures_s.as_deref().unwrap().as_ptr();
-        assert!(std::ptr::eq(e(m0), e(m)), "tag 1003 exposures copied");
+        assert_eq!(m0.frame_numbers, m.frame_numbers);
+        let shared = |a: &Option<FrameValues>, b: &Option<FrameValues>| match (a, b) {
+            (Some(FrameValues::File(a)), Some(FrameValues::File(b))) => Arc::ptr_eq(a, b),
+            _ => false,
+        };
+        assert!(
+            shared(&m0.timestamps_s, &m.timestamps_s),
+            "tag 1002 times copied"
+        );
+        assert!(
+            shared(&m0.details.exposures_s, &m.details.exposures_s),
+            "tag 1003 exposures copied"
+        );
     }
-    // The image records' checked annotation sizes are shared too: frames
-    // read first by one clone read the same through the others.
+    // Frames read first by one clone read the same through the others.
     let (h, w) = (src.meta().height, src.meta().width);
     let mut fresh = open_default(&path).unwrap();
     for i in [n - 1, 0, n / 2] {
@@ -439,7 +451,7 @@ fn real_pcc_xml_files_parse_to_their_values() {
         let m = src.meta();
         for (frame, t) in &xml.times {
             let i = (frame - m.first_frame) as usize;
-            let tc = m.timestamps_s.as_ref().unwrap()[i];
+            let tc = m.time_s(i).unwrap();
             assert!(
                 (t - tc).abs() < 5e-8,
                 "{n} frame {frame}: xml {t} cine {tc}"
@@ -554,10 +566,11 @@ fn writer_round_trip_is_bit_identical_in_every_format() {
         assert!((m.exposure_s.unwrap() - 20e-6).abs() < 1e-12);
         // Time stamps: (first + i)/fps within 1 ns (TIME64 is 2^-32 s and
         // the two flag bits are masked).
-        for (i, t) in m.timestamps_s.as_ref().unwrap().iter().enumerate() {
+        for (i, t) in times(&m).iter().enumerate() {
             assert!((t - (i as f64 - 2.0) / 12_345.0).abs() < 1e-9);
         }
-        for (i, e) in m.details.exposures_s.as_ref().unwrap().iter().enumerate() {
+        let exposures = m.details.exposures_s.as_ref().unwrap().to_vec().unwrap();
+        for (i, e) in exposures.iter().enumerate() {
             assert!((e - 20e-6).abs() < 1e-9, "frame {i}");
         }
         for (i, f) in frames.iter().enumerate() {
@@ -624,7 +637,7 @@ fn a_cine_past_4_gb_reads_through_64_bit_offsets() {
     head[table + 8..table + 16].copy_from_slice(&far.to_le_bytes());
     f.write_all(&head).unwrap();
     f.seek(SeekFrom::Start(far)).unwrap();
-    let first1 = layout.image_offsets[1] as usize;
+    let first1 = image_offset(&bytes, &layout, 1);
     f.write_all(&bytes[first1..first1 + record]).unwrap();
     drop(f);
     assert!(std::fs::metadata(&big).unwrap().len() > 4 << 30);
@@ -976,7 +989,7 @@ fn a_folder_with_negative_numbers_a_gap_a_stray_file_and_an_xml() {
     write_pcc_xml(&dir.path().join("drop.xml"), &numbers, 8000.0, 12);
     let mut src = open_default(dir.path()).unwrap();
     let m = src.meta().clone();
-    assert_eq!(*m.frame_numbers, numbers);
+    assert_eq!(m.frame_numbers.iter().collect::<Vec<_>>(), numbers);
     assert_eq!(m.first_frame, -3);
     assert_eq!(m.gaps, vec![(2, 2), (4, 9)]);
     assert_eq!((m.fps, m.bit_depth), (8000.0, 12));
@@ -988,14 +1001,14 @@ fn a_folder_with_negative_numbers_a_gap_a_stray_file_and_an_xml() {
         .iter()
         .any(|w| w.contains("background.tif")));
     // Times come from the XML by frame number: a gap does not shift time.
-    let t = m.timestamps_s.as_ref().unwrap();
+    let t = times(&m);
     for (i, n) in numbers.iter().enumerate() {
         assert!(
             (t[i] - *n as f64 / 8000.0).abs() < 1e-6,
             "frame {n}: {}",
             t[i]
         );
-        assert!((m.time_s(i) - *n as f64 / 8000.0).abs() < 1e-6);
+        assert!((m.time_s(i).unwrap() - *n as f64 / 8000.0).abs() < 1e-6);
     }
     for (i, f) in frames.iter().enumerate() {
         assert_eq!(&read_all(src.as_mut(), i), f);
@@ -1151,8 +1164,8 @@ fn export_writes_stored_values_as_16_bit_png_named_by_frame_index() {
             (
                 format!("cine_781_0{i}.png"),
                 i,
-                src.meta().frame_numbers[i],
-                src.meta().time_s(i),
+                src.meta().frame_number(i),
+                src.meta().time_s(i).unwrap(),
             )
         })
         .collect();
@@ -1169,7 +1182,7 @@ fn export_writes_stored_values_as_16_bit_png_named_by_frame_index() {
         ..OpenOptions::default()
     };
     let back = open(dir.path(), &opts).unwrap();
-    assert_eq!(*back.meta().frame_numbers, [2, 3]);
+    assert_eq!(back.meta().frame_numbers, (2..4).collect());
 }
 
 /// Issue 17 item 1 (of what remained): names sort in frame order in a plain
@@ -1180,7 +1193,7 @@ fn export_writes_stored_values_as_16_bit_png_named_by_frame_index() {
 fn exported_names_sort_in_frame_order_with_negative_camera_numbers() {
     let input = sample("cinefiles-jl/12bpp.cine");
     let meta = open_default(&input).unwrap().meta().clone();
-    assert_eq!((meta.frame_numbers[0], meta.frame_count), (-100, 202));
+    assert_eq!((meta.frame_number(0), meta.frame_count), (-100, 202));
     let dir = tempfile::tempdir().unwrap();
     for frames in ["0:12", "195:"] {
         export_frames(&input, frames, dir.path());
@@ -1205,7 +1218,7 @@ fn exported_names_sort_in_frame_order_with_negative_camera_numbers() {
     for (r, &i) in rows.iter().zip(&indices) {
         assert_eq!(
             (r.index, r.camera_number, r.time_s),
-            (i, meta.frame_numbers[i], meta.time_s(i))
+            (i, meta.frame_number(i), meta.time_s(i).unwrap())
         );
     }
     assert!(rows
@@ -1243,7 +1256,7 @@ fn export_takes_camera_numbers_single_frames_and_scales_to_16_bits() {
         names.sort();
         (out, names, dir)
     };
-    let first = numbers[0];
+    let first = numbers.first().unwrap();
     let (out, names, _) = export(&["--numbers", &format!("{first}:{}", first + 2)]);
     assert!(
         out.status.success(),
@@ -1388,7 +1401,7 @@ fn eight_bit_rows_padded_to_4_bytes_are_read() {
     write_cine(&plain, &spec, std::slice::from_ref(&frame));
     let bytes = std::fs::read(&plain).unwrap();
     let layout = cine::parse_layout(&bytes, bytes.len() as u64).unwrap();
-    let start = layout.image_offsets[0] as usize;
+    let start = image_offset(&bytes, &layout, 0);
     let mut b = bytes[..start].to_vec();
     b[44 + 20..44 + 24].copy_from_slice(&((8 * h) as u32).to_le_bytes());
     b.extend_from_slice(&8u32.to_le_bytes());
@@ -1428,8 +1441,8 @@ fn a_folder_holding_a_real_pcc_export_reads_its_xml() {
     assert!(m.details.warnings.iter().any(|w| w.contains("RealBPP 12")));
     // Its time equals the cine's tag-1002 time of image −100 (50 ns).
     let cine = open_default(&sample("cinefiles-jl/12bpp.cine")).unwrap();
-    let t_cine = cine.meta().timestamps_s.as_ref().unwrap()[0];
-    assert!((m.timestamps_s.as_ref().unwrap()[0] - t_cine).abs() < 5e-8);
+    let t_cine = times(cine.meta())[0];
+    assert!((times(&m)[0] - t_cine).abs() < 5e-8);
     // Pixels: exactly what the image crate decodes.
     let f = read_all(src.as_mut(), 0);
     let img = image::open(sample("cinefiles-jl/12bpp.tif"))
@@ -1471,9 +1484,9 @@ fn a_single_image_pcc_export_is_the_image_its_xml_names() {
         );
         let cine = open_default(&sample(&format!("cinefiles-jl/{name}.cine"))).unwrap();
         let c = cine.meta();
-        let at = c.frame_numbers.iter().position(|n| *n == number).unwrap();
-        let t = m.timestamps_s.as_ref().map(|t| t[0]);
-        let t_cine = c.timestamps_s.as_ref().map(|t| t[at]);
+        let at = c.frame_numbers.iter().position(|n| n == number).unwrap();
+        let t = m.timestamps_s.as_ref().map(|t| t.get(0).unwrap().unwrap());
+        let t_cine = c.timestamps_s.as_ref().map(|t| t.get(at).unwrap().unwrap());
         match (t, t_cine) {
             (Some(t), Some(tc)) => assert!((t - tc).abs() < 5e-8, "{name}: {t} vs {tc}"),
             // packed_10's cine carries no time stamps: its frame number's time.
@@ -1499,5 +1512,171 @@ fn reading_into_a_non_contiguous_view_gives_the_same_rows() {
         src.read_rows_into(1, 0, &mut view).unwrap();
         assert_eq!(wide.slice(s![.., 1..w + 1]), full, "{file}");
         assert!(wide.column(0).iter().all(|&v| v == 0));
+    }
+}
+
+// ---------------------------------------------- a long movie's index (issue 16)
+
+/// The tag-1002 time (s after the trigger) and tag-1003 exposure (s) of
+/// every frame of a cine, decoded from its bytes as the tables were.
+fn cine_tables(bytes: &[u8], layout: &cine::CineLayout) -> (Vec<f64>, Vec<f64>) {
+    let n = layout.header.image_count as usize;
+    let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+    let (t, e) = (
+        layout.times_at.unwrap() as usize,
+        layout.exposures_at.unwrap() as usize,
+    );
+    let times = (0..n)
+        .map(|i| {
+            cine::Time64 {
+                fractions: u32_at(t + 8 * i),
+                seconds: u32_at(t + 8 * i + 4),
+            }
+            .seconds_since(layout.header.trigger_time)
+        })
+        .collect();
+    let exposures = (0..n)
+        .map(|i| f64::from(u32_at(e + 4 * i)) / 4_294_967_296.0)
+        .collect();
+    (times, exposures)
+}
+
+/// A cine of 300 000 frames holds an index of a few bytes, not 36 a frame:
+/// its numbers are one run, its times and exposures are read from the file
+/// when looked up (the same bits as the tables were), its image offsets a
+/// block at a time.
+#[test]
+fn a_long_cines_index_is_a_few_bytes_and_looks_up_as_its_tables() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("long.cine");
+    let n = 300_000;
+    let spec = CineSpec {
+        width: 4,
+        height: 4,
+        frame_count: n,
+        fps: 60_000.0,
+        exposure_s: 10e-6,
+        first_image_no: -1000,
+        ..CineSpec::default()
+    };
+    let mut w = CineWriter::create(&path, &spec).unwrap();
+    for i in 0..n {
+        w.write_frame(&Frame::from_elem((4, 4), (i % 251) as u16))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let mut src = open_default(&path).unwrap();
+    let m = src.meta().clone();
+    assert_eq!(m.frame_count, n);
+    // 36 bytes a frame before (10.8 MB here).
+    assert!(
+        m.index_heap_bytes() <= 256,
+        "{} bytes",
+        m.index_heap_bytes()
+    );
+    let bytes = std::fs::read(&path).unwrap();
+    let layout = cine::parse_layout(&bytes, bytes.len() as u64).unwrap();
+    let (want_t, exposures) = cine_tables(&bytes, &layout);
+    for (i, t) in want_t.iter().enumerate() {
+        assert_eq!(m.time_s(i).unwrap().to_bits(), t.to_bits(), "frame {i}");
+        assert_eq!(m.frame_number(i), i as i64 - 1000);
+    }
+    assert_eq!(times(&m), want_t);
+    let e = m.details.exposures_s.as_ref().unwrap();
+    assert_eq!(e.to_vec().unwrap(), exposures);
+    assert_eq!(e.get(n - 1).unwrap(), Some(exposures[n - 1]));
+    // Frames anywhere, in any order, on clones too.
+    let mut clone = src.try_clone().unwrap();
+    for i in [n - 1, 0, 4095, 4096, 4097, 150_001, 8191] {
+        let want = Frame::from_elem((4, 4), (i % 251) as u16);
+        assert_eq!(read_all(src.as_mut(), i), want, "frame {i}");
+        assert_eq!(read_all(clone.as_mut(), i), want, "frame {i}");
+    }
+}
+
+/// What is read of a cine's index when looked up fails, if the file was cut
+/// short after it was opened, with an error naming the file and the frame.
+#[test]
+fn a_cine_cut_after_opening_fails_its_lookups_naming_file_and_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cut.cine");
+    let n = 10_000;
+    let spec = CineSpec {
+        width: 4,
+        height: 4,
+        frame_count: n,
+        ..CineSpec::default()
+    };
+    let mut w = CineWriter::create(&path, &spec).unwrap();
+    for _ in 0..n {
+        w.write_frame(&Frame::from_elem((4, 4), 9)).unwrap();
+    }
+    w.finish().unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let layout = cine::parse_layout(&bytes, bytes.len() as u64).unwrap();
+    let mut src = open_default(&path).unwrap();
+    // Cut in the middle of the time stamps: later times, the offsets and
+    // the pixels are gone.
+    let cut = layout.times_at.unwrap() + 8 * 5000;
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(cut)
+        .unwrap();
+    // On a thread that has read none of it yet (each keeps a few blocks).
+    let m = src.meta().clone();
+    let e = std::thread::spawn(move || m.time_s(9000).unwrap_err().to_string())
+        .join()
+        .unwrap();
+    assert!(
+        e.contains("cut.cine") && e.contains("frame 9000") && e.contains("tag 1002"),
+        "{e}"
+    );
+    let mut f = Frame::zeros((4, 4));
+    let e = src.read_into(9001, &mut f).unwrap_err().to_string();
+    assert!(e.contains("cut.cine") && e.contains("frame 9001"), "{e}");
+    // Opened now, the cut table is an error naming the file.
+    let e = open_err(&path, &OpenOptions::default());
+    assert!(e.contains("cut.cine") && e.contains("truncated"), "{e}");
+}
+
+/// A folder's files as `<prefix><number>.<ext>` zero-padded to one width:
+/// what is held does not grow with the frames; names that are not so
+/// (another padding, an extension's case) are kept by index and read.
+#[test]
+fn a_folders_files_are_a_pattern_and_its_exceptions() {
+    let dir = tempfile::tempdir().unwrap();
+    let numbers: Vec<i64> = (-3..2000).filter(|n| *n != 7).collect();
+    let name = |n: i64| match n {
+        -2 => "run_-2.tif".to_string(),
+        11 => "run_000011.TIF".to_string(),
+        1500 => "run_1500.tif".to_string(),
+        n if n < 0 => format!("run_-{:05}.tif", -n),
+        n => format!("run_{n:05}.tif"),
+    };
+    for &n in &numbers {
+        let f = Frame::from_elem((2, 4), (n + 3) as u16);
+        write_tiff16(&dir.path().join(name(n)), &f);
+    }
+    let opts = OpenOptions {
+        fps_fallback: Some(1000.0),
+        ..OpenOptions::default()
+    };
+    let mut src = FolderSource::open(dir.path(), &opts).unwrap();
+    let m = src.meta().clone();
+    assert_eq!(m.frame_count, numbers.len());
+    assert_eq!(m.frame_numbers.iter().collect::<Vec<_>>(), numbers);
+    assert_eq!(m.gaps, vec![(7, 7)]);
+    for (i, &n) in numbers.iter().enumerate() {
+        assert_eq!(src.file(i), dir.path().join(name(n)), "frame {i}");
+    }
+    // Three names outside the pattern, two runs of numbers: a few hundred
+    // bytes for 2 003 files (a path each before: ~200 kB).
+    let held = src.files().heap_bytes() + m.index_heap_bytes();
+    assert!(held < 1024, "{held} bytes");
+    for i in [0, 1, 10, 14, 1502, numbers.len() - 1] {
+        let want = Frame::from_elem((2, 4), (numbers[i] + 3) as u16);
+        assert_eq!(read_all(&mut src, i), want, "frame {i}");
     }
 }

@@ -20,16 +20,16 @@
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
-use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
 
 use ndarray::ArrayViewMut2;
 
+use super::index::{Stored, ValuesInFile};
 use super::p10_lut::P10_TO_LINEAR12;
 use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
 use super::{
-    check_band, fill_rows, for_cols, grown, FrameSource, OpenOptions, P10Mode, SourceDetails,
-    SourceError, SourceMeta,
+    check_band, fill_rows, for_cols, grown, FrameNumbers, FrameSource, FrameValues, OpenOptions,
+    P10Mode, SourceDetails, SourceError, SourceMeta,
 };
 
 /// Largest accepted frame (pixels); 16 k × 16 k is far beyond any Phantom.
@@ -212,19 +212,57 @@ impl CineHeader {
     }
 }
 
-/// Everything located in the header region: the header, per-frame times and
-/// exposures from the tagged blocks, and the image offsets.
+/// Everything located in the header region: the header, where the
+/// per-frame times and exposures are (tagged blocks), and where the image
+/// offsets are. The per-frame values stay in the file (issue 16: a long
+/// movie's index would be 36 bytes a frame in memory).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CineLayout {
     pub header: CineHeader,
-    /// Tag 1002 time of each image relative to TriggerTime, seconds.
-    pub timestamps_s: Option<Arc<[f64]>>,
-    /// Tag 1003 exposure of each image, seconds.
-    pub exposures_s: Option<Arc<[f64]>>,
-    /// Absolute file offset of each image record.
-    pub image_offsets: Vec<u64>,
+    /// Byte where tag 1002's time stamps (a TIME64 an image) start.
+    pub times_at: Option<u64>,
+    /// Byte where tag 1003's exposures (a u32 an image) start.
+    pub exposures_at: Option<u64>,
     /// Tagged block types in file order.
     pub block_types: Vec<u16>,
+}
+
+impl CineLayout {
+    /// The end of the header region: the end of the image offset table.
+    pub fn region_len(&self) -> u64 {
+        u64::from(self.header.off_image_offsets) + 8 * u64::from(self.header.image_count)
+    }
+}
+
+/// Bytes at an offset: of a file, or of a copy of it in memory (the fuzz
+/// target's).
+pub trait ReadAt {
+    fn read_at(&self, offset: u64, dst: &mut [u8]) -> std::io::Result<()>;
+}
+
+impl ReadAt for File {
+    fn read_at(&self, offset: u64, dst: &mut [u8]) -> std::io::Result<()> {
+        read_exact_at(self, offset, dst)
+    }
+}
+
+impl ReadAt for [u8] {
+    fn read_at(&self, offset: u64, dst: &mut [u8]) -> std::io::Result<()> {
+        let src = usize::try_from(offset)
+            .ok()
+            .and_then(|o| self.get(o..o.checked_add(dst.len())?))
+            .ok_or(std::io::ErrorKind::UnexpectedEof)?;
+        dst.copy_from_slice(src);
+        Ok(())
+    }
+}
+
+/// `len` bytes at `offset` of `r`, a failure said as text.
+fn bytes_at<R: ReadAt + ?Sized>(r: &R, offset: u64, len: usize) -> Result<Vec<u8>, String> {
+    let mut b = vec![0u8; len];
+    r.read_at(offset, &mut b)
+        .map_err(|e| format!("reading bytes {offset}..{}: {e}", offset + len as u64))?;
+    Ok(b)
 }
 
 fn u16_at(b: &[u8], off: usize) -> Option<u16> {
@@ -303,13 +341,17 @@ pub fn header_region_len(first44: &[u8], file_len: u64) -> Result<u64, String> {
 /// `file_len` bytes. Pure and allocation-bounded by `data.len()`: this is the
 /// function the fuzz target drives.
 pub fn parse_layout(data: &[u8], file_len: u64) -> Result<CineLayout, String> {
-    let region = header_region_len(data, file_len)?;
-    if (data.len() as u64) < region {
-        return Err(format!(
-            "header region needs {region} bytes, only {} available",
-            data.len()
-        ));
-    }
+    parse_layout_at(data, file_len)
+}
+
+/// Parse the header region of the cine `r` (a file of `file_len` bytes),
+/// reading only the fixed headers and the tagged blocks' own headers, and
+/// checking the image offset table a block at a time: what it holds does
+/// not grow with the number of images.
+pub fn parse_layout_at<R: ReadAt + ?Sized>(r: &R, file_len: u64) -> Result<CineLayout, String> {
+    let first = bytes_at(r, 0, 44.min(file_len) as usize)?;
+    let region = header_region_len(&first, file_len)?;
+    let data = &first[..];
     let h = |off| u32_at(data, off).unwrap_or(0);
     let header_size = u16_at(data, 2).unwrap_or(0);
     let compression = u16_at(data, 4).unwrap_or(0);
@@ -339,9 +381,12 @@ pub fn parse_layout(data: &[u8], file_len: u64) -> Result<CineLayout, String> {
         }
     }
     // BITMAPINFOHEADER
-    let bih = data
-        .get(off_ih as usize..off_ih as usize + 40)
-        .ok_or_else(|| format!("BITMAPINFOHEADER at {off_ih} lies outside the header region"))?;
+    if u64::from(off_ih) + 40 > region {
+        return Err(format!(
+            "BITMAPINFOHEADER at {off_ih} lies outside the header region"
+        ));
+    }
+    let bih = &bytes_at(r, u64::from(off_ih), 40)?[..];
     let width = i32_at(bih, 4).unwrap_or(0);
     let height = i32_at(bih, 8).unwrap_or(0);
     let bit_count = u16_at(bih, 14).unwrap_or(0);
@@ -357,22 +402,30 @@ pub fn parse_layout(data: &[u8], file_len: u64) -> Result<CineLayout, String> {
         return Err(format!("image size {width}×{height} is implausibly large"));
     }
     // SETUP
-    let setup_start = off_setup as usize;
-    let mark = data.get(setup_start + 140..setup_start + 142);
-    if mark != Some(b"ST".as_slice()) {
+    let setup_start = u64::from(off_setup);
+    let setup_head = if setup_start + 144 <= region {
+        bytes_at(r, setup_start, 144)?
+    } else {
+        Vec::new()
+    };
+    if setup_head.get(140..142) != Some(b"ST".as_slice()) {
         return Err(format!(
             "SETUP at {off_setup} has no \"ST\" mark at +140: corrupt header"
         ));
     }
-    let setup_length = u16_at(data, setup_start + 142).unwrap_or(0);
+    let setup_length = u16_at(&setup_head, 142).unwrap_or(0);
     if setup_length < 144 {
         return Err(format!("SETUP.Length {setup_length} is too small (< 144)"));
     }
-    let setup_end = setup_start + usize::from(setup_length);
+    let setup_end = setup_start + u64::from(setup_length);
+    if setup_end > region {
+        return Err(format!(
+            "SETUP (Length {setup_length}) runs past the header region"
+        ));
+    }
+    let setup_bytes = bytes_at(r, setup_start, usize::from(setup_length))?;
     let setup = Setup {
-        bytes: data
-            .get(setup_start..setup_end)
-            .ok_or_else(|| format!("SETUP (Length {setup_length}) runs past the header region"))?,
+        bytes: &setup_bytes,
     };
     let cfa = setup.u32(808);
     let is_colour = compression == 2
@@ -460,82 +513,105 @@ pub fn parse_layout(data: &[u8], file_len: u64) -> Result<CineLayout, String> {
             header.bit_depth()
         ));
     }
-    // Tagged blocks from OffSetup + Length to OffImageOffsets (§5).
-    let n = image_count as usize;
-    let mut timestamps_s = None;
-    let mut exposures_s = None;
+    // Tagged blocks from OffSetup + Length to OffImageOffsets (§5): where
+    // the per-image values start.
+    let n = u64::from(image_count);
+    let mut times_at = None;
+    let mut exposures_at = None;
     let mut block_types = Vec::new();
     let mut pos = setup_end;
-    let blocks_end = off_offsets as usize;
+    let blocks_end = u64::from(off_offsets);
     while pos + 8 <= blocks_end {
-        let size = u32_at(data, pos).unwrap_or(0) as usize;
-        let kind = u16_at(data, pos + 4).unwrap_or(0);
+        let head = bytes_at(r, pos, 8)?;
+        let size = u64::from(u32_at(&head, 0).unwrap_or(0));
+        let kind = u16_at(&head, 4).unwrap_or(0);
         if size < 8 || pos + size > blocks_end {
             break;
         }
         block_types.push(kind);
-        let body = &data[pos + 8..pos + size];
+        let body = size - 8;
         match kind {
-            1002 if body.len() >= 8 * n => {
-                let t = (0..n)
-                    .map(|i| {
-                        let v = u64_at(body, 8 * i).unwrap_or(0);
-                        Time64 {
-                            fractions: v as u32,
-                            seconds: (v >> 32) as u32,
-                        }
-                        .seconds_since(header.trigger_time)
-                    })
-                    .collect();
-                timestamps_s = Some(t);
-            }
-            1003 if body.len() >= 4 * n => {
-                let e = (0..n)
-                    .map(|i| f64::from(u32_at(body, 4 * i).unwrap_or(0)) / 4_294_967_296.0)
-                    .collect();
-                exposures_s = Some(e);
-            }
+            1002 if body >= 8 * n => times_at = Some(pos + 8),
+            1003 if body >= 4 * n => exposures_at = Some(pos + 8),
             _ => {}
         }
         pos += size;
     }
-    // Image offsets: int64, absolute (§6). Checked against the file length.
-    let table = &data[blocks_end..blocks_end + 8 * n];
-    let min_record = 8 + header.image_bytes();
-    let mut image_offsets = Vec::with_capacity(n);
-    for (i, c) in table.chunks_exact(8).enumerate() {
+    // Image offsets: int64, absolute (§6). Checked against the file length,
+    // a block at a time.
+    let layout = CineLayout {
+        header,
+        times_at,
+        exposures_at,
+        block_types,
+    };
+    let mut table = Vec::new();
+    for lo in (0..image_count as usize).step_by(OFFSETS_BLOCK) {
+        let hi = (lo + OFFSETS_BLOCK).min(image_count as usize);
+        read_offsets(r, &layout, file_len, lo..hi, lo, &mut table)
+            .map_err(|(frame, reason)| format!("frame {frame}: {reason}"))?;
+    }
+    Ok(layout)
+}
+
+/// Image offsets read from a table at once.
+const OFFSETS_BLOCK: usize = 4096;
+
+/// The image offsets of frames `frames` into `out`, each checked to leave
+/// room for its image before the end of the file. An error names its frame:
+/// the one whose offset is wrong, or `asked` when the table cannot be read.
+fn read_offsets<R: ReadAt + ?Sized>(
+    r: &R,
+    layout: &CineLayout,
+    file_len: u64,
+    frames: std::ops::Range<usize>,
+    asked: usize,
+    out: &mut Vec<u64>,
+) -> Result<(), (usize, String)> {
+    let at = u64::from(layout.header.off_image_offsets) + 8 * frames.start as u64;
+    let mut b = vec![0u8; 8 * frames.len()];
+    r.read_at(at, &mut b).map_err(|e| {
+        let (lo, hi) = (frames.start, frames.end);
+        let reason = format!("reading the image offsets of frames {lo}..{hi} at byte {at}: {e}");
+        (asked, reason)
+    })?;
+    let region = layout.region_len();
+    let min_record = 8 + layout.header.image_bytes();
+    out.clear();
+    for (i, c) in frames.zip(b.chunks_exact(8)) {
         let v = i64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
         if v < region as i64 || (v as u64).saturating_add(min_record) > file_len {
-            return Err(format!(
-                "frame {i}: image offset {v} does not leave room for the image \
+            let reason = format!(
+                "image offset {v} does not leave room for the image \
                  (file is {file_len} bytes): truncated or corrupt"
-            ));
+            );
+            return Err((i, reason));
         }
-        image_offsets.push(v as u64);
+        out.push(v as u64);
     }
-    Ok(CineLayout {
-        header,
-        timestamps_s,
-        exposures_s,
-        image_offsets,
-        block_types,
-    })
+    Ok(())
+}
+
+/// Image offsets `first..first + offsets.len()`, with the annotation size of
+/// each image once read and checked (0 = not yet).
+#[derive(Debug, Default)]
+struct OffsetsBlock {
+    first: usize,
+    offsets: Vec<u64>,
+    annotation: Vec<u32>,
 }
 
 /// A `.cine` opened for random access; frames are read on demand.
 #[derive(Debug)]
 pub struct CineSource {
     meta: SourceMeta,
-    /// Shared with the source's clones, as are the annotation sizes: a long
-    /// movie's per-image tables are megabytes, and a run reads it through
-    /// several clones at once.
+    /// Shared with the source's clones.
     layout: Arc<CineLayout>,
     file: File,
     file_len: u64,
     options: OpenOptions,
-    /// Annotation size of each image once read and checked (0 = not yet):
-    /// the same for every clone, whichever read it first.
-    annotation: Arc<[AtomicU32]>,
+    /// The block of the image offset table last read (each handle its own).
+    offsets: OffsetsBlock,
     bytes: Vec<u8>,
     row_scratch: Vec<u16>,
 }
@@ -560,32 +636,18 @@ impl CineSource {
                 }
             }
         };
-        let mut file = crate::io_util::open_regular(path).map_err(io)?;
+        let file = crate::io_util::open_regular(path).map_err(io)?;
         let file_len = file.metadata().map_err(io)?.len();
-        let mut first = Vec::with_capacity(44);
-        (&mut file).take(44).read_to_end(&mut first).map_err(io)?;
-        let region = header_region_len(&first, file_len).map_err(fmt)?;
-        let mut data = Vec::new();
-        file.seek(SeekFrom::Start(0)).map_err(io)?;
-        data.try_reserve_exact(region as usize)
-            .map_err(|e| fmt(format!("cannot hold a {region}-byte header: {e}")))?;
-        (&mut file)
-            .take(region)
-            .read_to_end(&mut data)
-            .map_err(io)?;
-        let layout = parse_layout(&data, file_len).map_err(fmt)?;
-        let mut meta = build_meta(path, &layout, options);
+        let layout = parse_layout_at(&file, file_len).map_err(fmt)?;
+        let mut meta = build_meta(path, &layout, options, &file).map_err(io)?;
         super::validate::check_meta(&mut meta)?;
-        let annotation = (0..layout.image_offsets.len())
-            .map(|_| AtomicU32::new(0))
-            .collect();
         let mut src = CineSource {
             meta,
             layout: Arc::new(layout),
             file,
             file_len,
             options: options.clone(),
-            annotation,
+            offsets: OffsetsBlock::default(),
             bytes: Vec::new(),
             row_scratch: Vec::new(),
         };
@@ -639,23 +701,51 @@ impl CineSource {
     /// Absolute offset of image `index`'s pixel data, checking the
     /// annotation and its ImageSize against biSizeImage and the file (§0.7).
     fn pixel_offset(&mut self, index: usize) -> Result<u64, SourceError> {
-        let start = self.layout.image_offsets[index];
+        // This image's offset and the next one's, from a block of the table.
+        let lo = index / OFFSETS_BLOCK * OFFSETS_BLOCK;
+        if self.offsets.first != lo || self.offsets.offsets.is_empty() {
+            let hi = (lo + OFFSETS_BLOCK + 1).min(self.meta.frame_count);
+            let b = &mut self.offsets;
+            let path = &self.meta.path;
+            read_offsets(
+                &self.file,
+                &self.layout,
+                self.file_len,
+                lo..hi,
+                index,
+                &mut b.offsets,
+            )
+            .map_err(|(index, reason)| {
+                // Nothing kept of a block not read whole.
+                b.offsets.clear();
+                SourceError::Frame {
+                    path: path.clone(),
+                    index,
+                    reason,
+                }
+            })?;
+            b.first = lo;
+            b.annotation.clear();
+            b.annotation.resize(b.offsets.len(), 0);
+        }
+        let k = index - lo;
+        let start = self.offsets.offsets[k];
         let io = |source| SourceError::Io {
             path: self.meta.path.clone(),
             source,
         };
-        let known = self.annotation[index].load(Ordering::Relaxed);
+        let known = self.offsets.annotation[k];
         if known != 0 {
             return Ok(start + u64::from(known));
         }
         let mut head = [0u8; 4];
         // Positioned: copies of the source share the file's offset.
-        read_exact_at(&mut self.file, start, &mut head).map_err(io)?;
+        read_exact_at(&self.file, start, &mut head).map_err(io)?;
         let annot = u32::from_le_bytes(head);
         let expect = self.layout.header.image_bytes();
         // The image must fit before the end of the file and before the
         // next image when that follows this one.
-        let limit = match self.layout.image_offsets.get(index + 1) {
+        let limit = match self.offsets.offsets.get(k + 1) {
             Some(&next) if next > start => next.min(self.file_len),
             _ => self.file_len,
         };
@@ -672,15 +762,31 @@ impl CineSource {
         // pixel size follows from width, height and packing. A mismatch
         // (packed_10.cine stores 0xE4005000 for 0x5000) is tolerated as
         // long as the computed image fits, which was just checked.
-        self.annotation[index].store(annot, Ordering::Relaxed);
+        self.offsets.annotation[k] = annot;
         Ok(start + u64::from(annot))
     }
 }
 
-/// The generic metadata of a parsed cine.
-fn build_meta(path: &Path, layout: &CineLayout, options: &OpenOptions) -> SourceMeta {
+/// The generic metadata of a parsed cine; its per-frame times and
+/// exposures read from `file` (a handle of their own) when looked up.
+fn build_meta(
+    path: &Path,
+    layout: &CineLayout,
+    options: &OpenOptions,
+    file: &File,
+) -> std::io::Result<SourceMeta> {
     let h = &layout.header;
-    let n = layout.image_offsets.len();
+    let n = h.image_count as usize;
+    let values = |at: Option<u64>, stored| -> std::io::Result<Option<FrameValues>> {
+        at.map(|at| {
+            let file = file.try_clone()?;
+            let table = ValuesInFile::new(file, path.to_path_buf(), at, n, stored);
+            Ok(FrameValues::File(Arc::new(table)))
+        })
+        .transpose()
+    };
+    let timestamps_s = values(layout.times_at, Stored::Time64Since(h.trigger_time))?;
+    let exposures_s = values(layout.exposures_at, Stored::Fraction32)?;
     let first = i64::from(h.first_image_no);
     let mut fps = h.saved_fps();
     let mut warnings = Vec::new();
@@ -691,7 +797,7 @@ fn build_meta(path: &Path, layout: &CineLayout, options: &OpenOptions) -> Source
     let linear = h.storage == CineStorage::P10 && options.p10 == P10Mode::Linear;
     let flip_h = h.flip_h.unwrap_or(false);
     let flip_v = h.flip_v.unwrap_or(false);
-    SourceMeta {
+    Ok(SourceMeta {
         path: path.to_path_buf(),
         format: "cine".into(),
         frame_count: n,
@@ -701,9 +807,9 @@ fn build_meta(path: &Path, layout: &CineLayout, options: &OpenOptions) -> Source
         fps,
         exposure_s: h.exposure_s(),
         first_frame: first,
-        frame_numbers: (0..n as i64).map(|i| first + i).collect(),
+        frame_numbers: FrameNumbers::consecutive(first, n),
         gaps: Vec::new(),
-        timestamps_s: layout.timestamps_s.clone(),
+        timestamps_s,
         details: SourceDetails {
             container: format!(
                 "{}{}",
@@ -721,7 +827,7 @@ fn build_meta(path: &Path, layout: &CineLayout, options: &OpenOptions) -> Source
             flip_v,
             rotate_deg: h.rotate.unwrap_or(0),
             flips_applied: options.apply_flips && (flip_h || flip_v),
-            exposures_s: layout.exposures_s.clone(),
+            exposures_s,
             acquisition_fps: Some(h.acquisition_fps()),
             decimation: h.decimation(),
             camera: Some(match (&h.camera_model, h.camera_version) {
@@ -735,7 +841,7 @@ fn build_meta(path: &Path, layout: &CineLayout, options: &OpenOptions) -> Source
             side_file: None,
             warnings,
         },
-    }
+    })
 }
 
 impl FrameSource for CineSource {
@@ -752,7 +858,7 @@ impl FrameSource for CineSource {
             file: self.file.try_clone().ok()?,
             file_len: self.file_len,
             options: self.options.clone(),
-            annotation: self.annotation.clone(),
+            offsets: OffsetsBlock::default(),
             bytes: Vec::new(),
             row_scratch: Vec::new(),
         }))
@@ -823,7 +929,7 @@ impl CineSource {
         {
             if let Some(dst) = out.as_slice_mut() {
                 let dst: &mut [u8] = bytemuck::cast_slice_mut(dst);
-                let r = read_rows(&mut self.file, byte0, dst, stride, descending);
+                let r = read_rows(&self.file, byte0, dst, stride, descending);
                 return r.map_err(|e| SourceError::Frame {
                     path: self.meta.path.clone(),
                     index,
@@ -831,8 +937,7 @@ impl CineSource {
                 });
             }
         }
-        if let Err(e) = read_exact_at(&mut self.file, byte0, grown(&mut self.bytes, span as usize))
-        {
+        if let Err(e) = read_exact_at(&self.file, byte0, grown(&mut self.bytes, span as usize)) {
             return Err(self.frame_err(index, format!("reading pixels: {e}")));
         }
         let linear = storage == CineStorage::P10 && self.options.p10 == P10Mode::Linear;
@@ -886,7 +991,7 @@ impl CineSource {
 /// copy they save). The swap itself (5.2 µs) beat a swap through a row
 /// buffer and 32/64-byte block swaps (6.0–7.5 µs).
 fn read_rows(
-    file: &mut File,
+    file: &File,
     offset: u64,
     dst: &mut [u8],
     row_bytes: usize,
@@ -903,13 +1008,14 @@ fn read_rows(
 /// (a seek is a system call of its own, 1–2 µs on this VM: a 64 kB band
 /// read measured 2.1 µs with `pread` against 3.9 µs with seek + read,
 /// medians of five runs).
-fn read_exact_at(file: &mut File, offset: u64, dst: &mut [u8]) -> std::io::Result<()> {
+pub(crate) fn read_exact_at(file: &File, offset: u64, dst: &mut [u8]) -> std::io::Result<()> {
     #[cfg(unix)]
     {
         std::os::unix::fs::FileExt::read_exact_at(file, dst, offset)
     }
     #[cfg(not(unix))]
     {
+        let mut file = file;
         file.seek(SeekFrom::Start(offset))?;
         file.read_exact(dst)
     }

@@ -144,14 +144,19 @@ pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
             meta.fps
         ));
     }
-    println!("{}", inspect_report(&meta, args.json));
+    println!("{}", inspect_report(&meta, args.json)?);
     Ok(())
 }
 
 /// The inspect report as JSON (`json`) or as aligned text.
-pub fn inspect_report(m: &SourceMeta, json: bool) -> String {
+pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, super::SourceError> {
     let d = &m.details;
     let times = m.timestamps_s.as_ref();
+    // The first and the last time stamp, when there are any.
+    let (first_time, last_time) = match times.filter(|t| !t.is_empty()) {
+        Some(t) => (t.get(0)?, t.get(t.len() - 1)?),
+        None => (None, None),
+    };
     let value = json!({
         "path": m.path.display().to_string(),
         "format": m.format,
@@ -178,12 +183,12 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> String {
         "setup_length": d.setup_length,
         "side_file": d.side_file.as_ref().map(|p| p.display().to_string()),
         "has_timestamps": times.is_some(),
-        "first_time_s": times.and_then(|t| t.first()),
-        "last_time_s": times.and_then(|t| t.last()),
+        "first_time_s": first_time,
+        "last_time_s": last_time,
         "warnings": d.warnings,
     });
     if json {
-        return serde_json::to_string_pretty(&value).unwrap_or_default();
+        return Ok(serde_json::to_string_pretty(&value).unwrap_or_default());
     }
     let opt = |v: Option<String>| v.unwrap_or_else(|| "—".into());
     let mut lines = vec![
@@ -193,7 +198,7 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> String {
             "frames        {} (numbers {} … {})",
             m.frame_count,
             m.first_frame,
-            m.frame_numbers.last().copied().unwrap_or(m.first_frame)
+            m.frame_numbers.last().unwrap_or(m.first_frame)
         ),
         format!(
             "size          {} × {} px (width × height)",
@@ -249,9 +254,8 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> String {
         ),
         format!(
             "time stamps   {}",
-            match times {
-                Some(t) if !t.is_empty() =>
-                    format!("{:.9} s … {:.9} s after the trigger", t[0], t[t.len() - 1]),
+            match (first_time, last_time) {
+                (Some(a), Some(b)) => format!("{a:.9} s … {b:.9} s after the trigger"),
                 _ => "none (times from frame number / fps)".into(),
             }
         ),
@@ -269,12 +273,15 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> String {
     for w in &d.warnings {
         lines.push(format!("warning       {w}"));
     }
-    lines.join("\n")
+    Ok(lines.join("\n"))
 }
 
 /// Parse `A:B` (or `A:`) into the index range `A..B` within `count` frames.
 /// `--numbers A:B` (or `A`): the indices of camera numbers A..B−1.
-fn number_range(text: &str, numbers: &[i64]) -> anyhow::Result<std::ops::Range<usize>> {
+fn number_range(
+    text: &str,
+    numbers: &super::FrameNumbers,
+) -> anyhow::Result<std::ops::Range<usize>> {
     let parse = |s: &str| -> anyhow::Result<i64> {
         s.trim()
             .parse()
@@ -294,8 +301,8 @@ fn number_range(text: &str, numbers: &[i64]) -> anyhow::Result<std::ops::Range<u
             (a, a + 1)
         }
     };
-    let first = numbers.iter().position(|n| *n >= a);
-    let end = numbers.iter().rposition(|n| *n < b).map(|i| i + 1);
+    let first = numbers.iter().position(|n| n >= a);
+    let end = numbers.iter().rposition(|n| n < b).map(|i| i + 1);
     match (first, end, numbers.first(), numbers.last()) {
         (Some(i), Some(j), _, _) if i < j => Ok(i..j),
         (_, _, Some(lo), Some(hi)) => {
@@ -380,8 +387,8 @@ pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
         rows.push(ExportedFrame {
             file: name,
             index: i,
-            camera_number: meta.frame_numbers[i],
-            time_s: meta.time_s(i),
+            camera_number: meta.frame_number(i),
+            time_s: meta.time_s(i)?,
         });
         written.push(path);
     }

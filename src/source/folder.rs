@@ -30,7 +30,10 @@ use ndarray::ArrayViewMut2;
 
 use super::frame_decode::{format_err, io_err, FrameDecoder, Probe, Shape};
 use super::pcc_xml::{self, PccXml};
-use super::{check_band, Frame, FrameSource, OpenOptions, SourceDetails, SourceError, SourceMeta};
+use super::{
+    check_band, Frame, FrameNumbers, FrameSource, OpenOptions, SourceDetails, SourceError,
+    SourceMeta,
+};
 
 /// Image file kinds a folder may hold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -91,11 +94,79 @@ pub fn parse_frame_name(name: &str) -> Option<(String, i64, ImageKind)> {
     }
 }
 
+/// The files of a sequence: `<prefix><number>.<ext>` with the number
+/// zero-padded to one width (as PCC names them), and the names that are
+/// not so (by frame index): what is held does not grow with the number of
+/// frames when they follow the pattern.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameFiles {
+    dir: PathBuf,
+    prefix: String,
+    ext: String,
+    /// Digits of a number (zero-padded to this), its sign apart.
+    digits: usize,
+    /// `(frame index, file name)` of the files not named by the pattern.
+    others: Vec<(usize, String)>,
+}
+
+impl FrameFiles {
+    /// The files `(number, name)` of a sequence in `dir`, in index order.
+    fn new(dir: &Path, frames: &[(i64, String)]) -> Self {
+        let (prefix, ext, digits) = frames
+            .first()
+            .and_then(|(_, name)| {
+                let (prefix, _, _) = parse_frame_name(name)?;
+                let (stem, ext) = name.rsplit_once('.')?;
+                let digits = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+                Some((prefix, ext.to_string(), digits))
+            })
+            .unwrap_or_default();
+        let mut files = FrameFiles {
+            dir: dir.to_path_buf(),
+            prefix,
+            ext,
+            digits,
+            others: Vec::new(),
+        };
+        for (i, (number, name)) in frames.iter().enumerate() {
+            if files.named(*number) != *name {
+                files.others.push((i, name.clone()));
+            }
+        }
+        files
+    }
+
+    /// The name the pattern gives number `n`.
+    fn named(&self, n: i64) -> String {
+        let sign = if n < 0 { "-" } else { "" };
+        let (p, e, w) = (&self.prefix, &self.ext, self.digits);
+        format!("{p}{sign}{:0w$}.{e}", n.unsigned_abs())
+    }
+
+    /// The file of frame `index`, whose number is `number`.
+    pub fn path(&self, index: usize, number: i64) -> PathBuf {
+        match self.others.binary_search_by_key(&index, |o| o.0) {
+            Ok(k) => self.dir.join(&self.others[k].1),
+            Err(_) => self.dir.join(self.named(number)),
+        }
+    }
+
+    /// Bytes held on the heap.
+    pub fn heap_bytes(&self) -> usize {
+        let others: usize = self.others.iter().map(|o| o.1.capacity()).sum();
+        self.dir.capacity()
+            + self.prefix.capacity()
+            + self.ext.capacity()
+            + self.others.capacity() * std::mem::size_of::<(usize, String)>()
+            + others
+    }
+}
+
 /// A folder of numbered frames opened for random access.
 pub struct FolderSource {
     meta: SourceMeta,
     /// Shared by the copies of [`FrameSource::try_clone`].
-    files: std::sync::Arc<[PathBuf]>,
+    files: std::sync::Arc<FrameFiles>,
     kind: ImageKind,
     /// Bits per sample of the files (8 or 16).
     container_bits: u8,
@@ -106,7 +177,7 @@ impl std::fmt::Debug for FolderSource {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("FolderSource")
             .field("meta", &self.meta)
-            .field("files", &self.files.len())
+            .field("files", &self.files)
             .finish()
     }
 }
@@ -145,21 +216,24 @@ impl FolderSource {
         // Group numbered images by (prefix, kind); pick the largest group.
         let mut groups: std::collections::BTreeMap<(String, ImageKind), Vec<(i64, String)>> =
             Default::default();
-        let mut xmls = Vec::new();
+        // The names are moved, not copied (a long movie's are megabytes).
+        let xmls: Vec<String> = names
+            .iter()
+            .filter(|n| n.to_ascii_lowercase().ends_with(".xml"))
+            .cloned()
+            .collect();
+        let lone = lone_export(&names, &xmls);
         let mut others = Vec::new();
-        for name in &names {
-            if let Some((prefix, number, kind)) = parse_frame_name(name) {
+        for name in names {
+            if let Some((prefix, number, kind)) = parse_frame_name(&name) {
                 groups
                     .entry((prefix, kind))
                     .or_default()
-                    .push((number, name.clone()));
-            } else if name.to_ascii_lowercase().ends_with(".xml") {
-                xmls.push(name.clone());
-            } else {
-                others.push(name.clone());
+                    .push((number, name));
+            } else if !name.to_ascii_lowercase().ends_with(".xml") {
+                others.push(name);
             }
         }
-        let lone = lone_export(&names, &xmls);
         if let Some((name, stem, kind)) = &lone {
             // Its number comes from the XML below; the name is not parsed.
             groups.clear();
@@ -229,9 +303,10 @@ impl FolderSource {
                 format!("frame number {} also belongs to {}", w[0].0, w[0].1),
             ));
         }
-        let files: Vec<PathBuf> = frames.iter().map(|(_, n)| dir.join(n)).collect();
-        let mut frame_numbers: Vec<i64> = frames.iter().map(|(n, _)| *n).collect();
+        let files = FrameFiles::new(dir, &frames);
+        let mut frame_numbers: FrameNumbers = frames.iter().map(|(n, _)| *n).collect();
         let gaps = gaps_of(&frame_numbers);
+        let file = |i: usize| files.path(i, frames[i].0);
         if let ([(n, name)], None) = (frames.as_slice(), &lone) {
             warnings.push(format!(
                 "one frame file only, {name}: its image number {n} is read from its name \
@@ -242,7 +317,7 @@ impl FolderSource {
         // The first frame's header gives the sequence's size and depth; the
         // others are checked against it as each is read (the decoder reads
         // the header anyway), not here: opening must not touch every file.
-        let first = open_and_probe(&files[0], kind, &mut FrameDecoder::for_headers())?;
+        let first = open_and_probe(&file(0), kind, &mut FrameDecoder::for_headers())?;
         let mut xml_warnings = Vec::new();
         let xml = pick_xml(dir, &prefix, &xmls, &mut xml_warnings);
 
@@ -284,7 +359,7 @@ impl FolderSource {
                 (None, Some(m)) => (m, "the number in its name: the XML says none".into()),
                 (None, None) => (0, "0: neither its name nor the XML says which".into()),
             };
-            frame_numbers[0] = number;
+            frame_numbers = FrameNumbers::consecutive(number, 1);
             warnings.push(format!(
                 "{name} is a single-frame PCC export (named like its side file {stem}.xml, \
                  not numbered): read as image {number}, {why}"
@@ -298,11 +373,11 @@ impl FolderSource {
             .and_then(|x| per_frame(&x.exposures, &frame_numbers));
         if let Some(x) = &xml {
             if let Some(f0) = x.first_image_no {
-                if x.image_count == Some(frame_numbers.len() as u64) && f0 != frame_numbers[0] {
+                let n0 = frame_numbers.first().unwrap_or_default();
+                if x.image_count == Some(frame_numbers.len() as u64) && f0 != n0 {
                     warnings.push(format!(
-                        "XML FirstImageNo {f0} differs from the first file number {}; \
-                         file numbers are used",
-                        frame_numbers[0]
+                        "XML FirstImageNo {f0} differs from the first file number {n0}; \
+                         file numbers are used"
                     ));
                 }
             }
@@ -310,14 +385,14 @@ impl FolderSource {
         let meta = SourceMeta {
             path: dir.to_path_buf(),
             format: kind.name().into(),
-            frame_count: files.len(),
+            frame_count: frames.len(),
             width: first.width,
             height: first.height,
             bit_depth,
             fps,
             exposure_s: xml.as_ref().and_then(|x| x.exposure_s),
-            first_frame: frame_numbers[0],
-            frame_numbers: frame_numbers.into(),
+            first_frame: frame_numbers.first().unwrap_or_default(),
+            frame_numbers,
             gaps,
             timestamps_s: timestamps_s.map(Into::into),
             details: SourceDetails {
@@ -338,6 +413,7 @@ impl FolderSource {
                 warnings,
             },
         };
+        drop(frames);
         let mut src = FolderSource {
             meta,
             files: files.into(),
@@ -374,8 +450,13 @@ impl FolderSource {
         Ok(())
     }
 
-    /// The frame files in index order.
-    pub fn files(&self) -> &[PathBuf] {
+    /// The file of frame `index`.
+    pub fn file(&self, index: usize) -> PathBuf {
+        self.files.path(index, self.meta.frame_number(index))
+    }
+
+    /// The frame files.
+    pub fn files(&self) -> &FrameFiles {
         &self.files
     }
 }
@@ -404,16 +485,20 @@ fn lone_export(names: &[String], xmls: &[String]) -> Option<(String, String, Ima
 }
 
 /// Missing numbers between consecutive present ones, as inclusive ranges.
-fn gaps_of(numbers: &[i64]) -> Vec<(i64, i64)> {
-    numbers
-        .windows(2)
-        .filter(|w| w[1] > w[0] + 1)
-        .map(|w| (w[0] + 1, w[1] - 1))
-        .collect()
+fn gaps_of(numbers: &FrameNumbers) -> Vec<(i64, i64)> {
+    let mut gaps = Vec::new();
+    let mut prev: Option<i64> = None;
+    for n in numbers.iter() {
+        if let Some(p) = prev.filter(|&p| n > p + 1) {
+            gaps.push((p + 1, n - 1));
+        }
+        prev = Some(n);
+    }
+    gaps
 }
 
 /// Values for exactly the present frame numbers, or `None` if any is missing.
-fn per_frame(by_number: &[(i64, f64)], numbers: &[i64]) -> Option<Vec<f64>> {
+fn per_frame(by_number: &[(i64, f64)], numbers: &FrameNumbers) -> Option<Vec<f64>> {
     if by_number.is_empty() {
         return None;
     }
@@ -423,7 +508,7 @@ fn per_frame(by_number: &[(i64, f64)], numbers: &[i64]) -> Option<Vec<f64>> {
         .iter()
         .map(|n| {
             sorted
-                .binary_search_by_key(n, |t| t.0)
+                .binary_search_by_key(&n, |t| t.0)
                 .ok()
                 .map(|i| sorted[i].1)
         })
@@ -550,13 +635,14 @@ impl FolderSource {
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), SourceError> {
         check_band(&self.meta, index, row0, out)?;
-        let path = &self.files[index];
+        let path = &self.file(index);
         let (mut file, len) = crate::io_util::open_regular_len(path).map_err(io_err(path))?;
+        let first = self.file(0);
         let shape = Shape {
             width: self.meta.width,
             height: self.meta.height,
             bits: self.container_bits,
-            first: &self.files[0],
+            first: &first,
         };
         self.decoder.read_rows(
             path, index, &mut file, len, self.kind, shape, row0, cols, out,
@@ -584,7 +670,11 @@ mod tests {
 
     #[test]
     fn gaps_are_inclusive_ranges_of_missing_numbers() {
-        assert_eq!(gaps_of(&[-2, -1, 0, 3, 4, 6]), vec![(1, 2), (5, 5)]);
-        assert!(gaps_of(&[5]).is_empty());
+        let numbers = |v: &[i64]| v.iter().copied().collect::<FrameNumbers>();
+        assert_eq!(
+            gaps_of(&numbers(&[-2, -1, 0, 3, 4, 6])),
+            vec![(1, 2), (5, 5)]
+        );
+        assert!(gaps_of(&numbers(&[5])).is_empty());
     }
 }

@@ -139,7 +139,7 @@ mod tests {
             height: 3,
             bit_depth: 8,
             fps: 1000.0,
-            frame_numbers: vec![0, 1].into(),
+            frame_numbers: (0..2).collect(),
             ..SourceMeta::default()
         };
         let frames = (0..2)

@@ -9,13 +9,15 @@
 
 use ndarray::{Array2, ArrayViewMut1, ArrayViewMut2};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+
+pub use index::{FrameNumbers, FrameValues};
 
 pub mod cine;
 pub mod cine_write;
 pub mod cli;
 pub mod folder;
 pub mod frame_decode;
+pub mod index;
 pub mod memory;
 mod p10_lut;
 mod packing;
@@ -59,14 +61,15 @@ pub struct SourceMeta {
     /// Camera image number of frame index 0 (negative = before the trigger).
     pub first_frame: i64,
     /// The camera image number of every readable frame, ascending.
-    /// Consecutive unless the sequence has gaps. The per-frame tables are
-    /// shared, not copied, by the clones of a source and of its metadata (a
-    /// long movie's tables are megabytes).
-    pub frame_numbers: Arc<[i64]>,
+    /// Consecutive unless the sequence has gaps (held as runs: a few bytes
+    /// a gap, not a number a frame).
+    pub frame_numbers: FrameNumbers,
     /// Missing image numbers as inclusive ranges `(first, last)`.
     pub gaps: Vec<(i64, i64)>,
-    /// Per-frame time in seconds relative to the trigger, where the file has it.
-    pub timestamps_s: Option<Arc<[f64]>>,
+    /// Per-frame time in seconds relative to the trigger, where the file
+    /// has it (a `.cine`'s read from the file when looked up; shared, not
+    /// copied, by the clones of a source and of its metadata).
+    pub timestamps_s: Option<FrameValues>,
     /// Everything else the headers say (levels, flips, per-frame exposures, camera).
     pub details: SourceDetails,
 }
@@ -89,7 +92,7 @@ pub struct SourceDetails {
     /// ([`OpenOptions::apply_flips`]); false means storage order.
     pub flips_applied: bool,
     /// Per-frame exposure in seconds (cine tag 1003, PCC XML EXPOSUREBLOCK).
-    pub exposures_s: Option<Arc<[f64]>>,
+    pub exposures_s: Option<FrameValues>,
     /// Acquisition frame rate before save decimation (cine), frames per second.
     pub acquisition_fps: Option<f64>,
     /// Save decimation (cine SETUP.fDecimation); 1 when absent.
@@ -271,18 +274,42 @@ pub(crate) fn fill_row(
 
 impl SourceMeta {
     /// Time of frame `index` in seconds: the file's own time stamp where it has
-    /// one, else `frame_number / fps`.
-    pub fn time_s(&self, index: usize) -> f64 {
-        match &self.timestamps_s {
-            Some(t) if index < t.len() => t[index],
-            _ => {
-                self.frame_numbers
-                    .get(index)
-                    .copied()
-                    .unwrap_or(index as i64) as f64
-                    / self.fps
-            }
+    /// one, else `frame_number / fps`. Fails only when a time stamp kept in
+    /// the file cannot be read (the error names the file and the frame).
+    pub fn time_s(&self, index: usize) -> Result<f64, SourceError> {
+        if let Some(t) = self
+            .timestamps_s
+            .as_ref()
+            .map(|t| t.get(index))
+            .transpose()?
+            .flatten()
+        {
+            return Ok(t);
         }
+        Ok(self.frame_number(index) as f64 / self.fps)
+    }
+
+    /// Bytes the per-frame index holds on the heap: image numbers, gaps,
+    /// times and exposures (a `.cine`'s stay in the file; a thread that
+    /// looks them up keeps a few blocks of them besides, [`index`]).
+    pub fn index_heap_bytes(&self) -> usize {
+        self.frame_numbers.heap_bytes()
+            + self.gaps.capacity() * std::mem::size_of::<(i64, i64)>()
+            + self
+                .timestamps_s
+                .as_ref()
+                .map_or(0, FrameValues::heap_bytes)
+            + self
+                .details
+                .exposures_s
+                .as_ref()
+                .map_or(0, FrameValues::heap_bytes)
+    }
+
+    /// The camera image number of frame `index` (the index itself past the
+    /// end of the list).
+    pub fn frame_number(&self, index: usize) -> i64 {
+        self.frame_numbers.get(index).unwrap_or(index as i64)
     }
 }
 

@@ -5,7 +5,7 @@
 //! is an error naming it (and the frame); a small disagreement is a warning
 //! in [`SourceDetails::warnings`](super::SourceDetails::warnings).
 
-use super::{SourceError, SourceMeta};
+use super::{FrameValues, SourceError, SourceMeta};
 
 /// Frame rates outside this range (frames/s) are no camera's: the slowest
 /// sample here records at 24, the fastest Phantoms at under 2 000 000.
@@ -122,33 +122,49 @@ pub fn check_meta(meta: &mut SourceMeta) -> Result<(), SourceError> {
 }
 
 /// Frame times: finite, strictly increasing, on a regular grid of the
-/// frame numbers, and spaced as the frame rate says.
-fn check_times(meta: &mut SourceMeta, ts: &[f64]) -> Result<(), SourceError> {
-    let number = |i: usize| meta.frame_numbers.get(i).copied().unwrap_or(i as i64);
-    if let Some(i) = ts.iter().position(|t| !t.is_finite()) {
+/// frame numbers, and spaced as the frame rate says. The times are walked,
+/// not copied: a long `.cine`'s stay in the file.
+fn check_times(meta: &mut SourceMeta, ts: &FrameValues) -> Result<(), SourceError> {
+    let numbers = meta.frame_numbers.clone();
+    let number = |i: usize| numbers.get(i).unwrap_or(i as i64);
+    let n = ts.len();
+    let t = |i: usize| Ok(ts.get(i)?.unwrap_or(f64::NAN));
+    // The first time that is not a number, and the first not after the one
+    // before it.
+    let (mut not_finite, mut not_after) = (None, None);
+    let mut prev = f64::NAN;
+    ts.try_for_each(|i, x| {
+        if not_finite.is_none() && !x.is_finite() {
+            not_finite = Some((i, x));
+        }
+        if not_after.is_none() && i > 0 && x <= prev {
+            not_after = Some((i, x, prev));
+        }
+        prev = x;
+    })?;
+    if let Some((i, x)) = not_finite {
         return Err(bad(
             meta,
             format!(
-                "frame {}: time stamp {} is not a number: corrupt time block",
+                "frame {}: time stamp {x} is not a number: corrupt time block",
                 number(i),
-                ts[i]
             ),
         ));
     }
-    if let Some(i) = (1..ts.len()).find(|&i| ts[i] <= ts[i - 1]) {
+    if let Some((i, x, before)) = not_after {
         return Err(bad(
             meta,
             format!(
                 "frame {}: time stamp {} s is not after frame {}'s {} s: \
                  the frame times must increase (corrupt time block)",
                 number(i),
-                show(ts[i]),
+                show(x),
                 number(i - 1),
-                show(ts[i - 1])
+                show(before)
             ),
         ));
     }
-    if ts.len() < 3 {
+    if n < 3 {
         return Ok(());
     }
     // The grid: the median interval per frame number over pairs of frames
@@ -156,19 +172,20 @@ fn check_times(meta: &mut SourceMeta, ts: &[f64]) -> Result<(), SourceError> {
     // exact to 10 ns over thousands of intervals; neighbours' differences
     // would carry that rounding into every interval, 0.6 intervals over
     // 3 000 frames at 60 000 frames/s), through the median offset.
-    let lag = ts.len() / 2;
-    let mut steps: Vec<f64> = (lag..ts.len())
-        .map(|i| (ts[i] - ts[i - lag]) / (number(i) - number(i - lag)) as f64)
-        .collect();
-    let step = median(&mut steps);
-    let mut offsets: Vec<f64> = (0..ts.len())
-        .map(|i| ts[i] - (number(i) - number(0)) as f64 * step)
-        .collect();
-    let t0 = median(&mut offsets);
-    let (worst, off) = (0..ts.len())
-        .map(|i| (i, ts[i] - t0 - (number(i) - number(0)) as f64 * step))
-        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-        .unwrap_or((0, 0.0));
+    let lag = n / 2;
+    let step = median_of(n - lag, |k| {
+        let i = lag + k;
+        Ok((t(i)? - t(i - lag)?) / (number(i) - number(i - lag)) as f64)
+    })?;
+    let t0 = median_of(n, |i| Ok(t(i)? - (number(i) - number(0)) as f64 * step))?;
+    let (mut worst, mut off) = (0, 0.0f64);
+    ts.try_for_each(|i, x| {
+        let o = x - t0 - (number(i) - number(0)) as f64 * step;
+        // The last of equal largest, as `Iterator::max_by`.
+        if off.abs().total_cmp(&o.abs()) != std::cmp::Ordering::Greater {
+            (worst, off) = (i, o);
+        }
+    })?;
     let intervals = off.abs() / step;
     if intervals > TIME_ERROR_INTERVALS {
         return Err(bad(
@@ -177,7 +194,7 @@ fn check_times(meta: &mut SourceMeta, ts: &[f64]) -> Result<(), SourceError> {
                 "frame {}: time stamp {} s is {intervals:.2} frame intervals off the other \
                  frames' regular spacing of {step} s: corrupt time block",
                 number(worst),
-                show(ts[worst])
+                show(t(worst)?)
             ),
         ));
     }
@@ -197,6 +214,90 @@ fn check_times(meta: &mut SourceMeta, ts: &[f64]) -> Result<(), SourceError> {
         ));
     }
     Ok(())
+}
+
+/// Values a median is taken of in memory (2 MB); more are walked.
+const MEDIAN_IN_MEMORY_MAX: usize = 1 << 18;
+
+/// The median of `value(0..n)` (`n` ≥ 1): sorted in memory when there are
+/// at most [`MEDIAN_IN_MEMORY_MAX`], else found by walking them (four
+/// walks for the middle value, 16 bits of its order at a time, and one
+/// for its neighbour) — the same value either way.
+fn median_of(
+    n: usize,
+    mut value: impl FnMut(usize) -> Result<f64, SourceError>,
+) -> Result<f64, SourceError> {
+    if n <= MEDIAN_IN_MEMORY_MAX {
+        let mut v = (0..n).map(&mut value).collect::<Result<Vec<f64>, _>>()?;
+        return Ok(median(&mut v));
+    }
+    let k = n / 2;
+    let upper = nth_smallest(n, k, &mut value)?;
+    if n % 2 == 1 {
+        return Ok(upper);
+    }
+    // The (k − 1)-th: the largest of those below the k-th when there are k
+    // of them, else equal to it.
+    let (mut below, mut largest_below) = (0, None::<u64>);
+    for i in 0..n {
+        let key = order_key(value(i)?);
+        if key < order_key(upper) {
+            below += 1;
+            largest_below = largest_below.max(Some(key));
+        }
+    }
+    let lower = match largest_below {
+        Some(key) if below >= k => from_order_key(key),
+        _ => upper,
+    };
+    Ok(0.5 * (lower + upper))
+}
+
+/// A key whose unsigned order is [`f64::total_cmp`]'s order of the values.
+fn order_key(x: f64) -> u64 {
+    let b = x.to_bits();
+    if b >> 63 == 1 {
+        !b
+    } else {
+        b | 1 << 63
+    }
+}
+
+fn from_order_key(key: u64) -> f64 {
+    if key >> 63 == 1 {
+        f64::from_bits(key & !(1 << 63))
+    } else {
+        f64::from_bits(!key)
+    }
+}
+
+/// The `k`-th smallest (from 0) of `value(0..n)` in [`f64::total_cmp`]'s
+/// order, by a radix selection on the value's order key, 16 bits a walk.
+fn nth_smallest(
+    n: usize,
+    mut k: usize,
+    value: &mut impl FnMut(usize) -> Result<f64, SourceError>,
+) -> Result<f64, SourceError> {
+    let mut prefix = 0u64;
+    let mut counts = vec![0usize; 1 << 16];
+    for digit in (0..4).rev() {
+        let shift = 16 * digit;
+        let high = if digit == 3 { 0 } else { !0u64 << (shift + 16) };
+        counts.iter_mut().for_each(|c| *c = 0);
+        for i in 0..n {
+            let key = order_key(value(i)?);
+            if key & high == prefix {
+                counts[((key >> shift) & 0xFFFF) as usize] += 1;
+            }
+        }
+        let mut d = 0;
+        while d < 0xFFFF && k >= counts[d] {
+            k -= counts[d];
+            d += 1;
+        }
+        prefix |= (d as u64) << shift;
+    }
+    Ok(from_order_key(prefix))
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -315,6 +416,31 @@ mod tests {
         let mut m = meta(60_000.0, None, Some(t));
         check_meta(&mut m).unwrap();
         assert!(m.details.warnings.is_empty(), "{:?}", m.details.warnings);
+    }
+
+    #[test]
+    fn a_median_walked_is_the_median_sorted() {
+        // Values with ties, both signs and ±0, above the in-memory budget.
+        let n = MEDIAN_IN_MEMORY_MAX + 7;
+        let mut x = 12345u64;
+        let values: Vec<f64> = (0..n)
+            .map(|i| {
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                match i % 5 {
+                    0 => 0.0,
+                    1 => -0.0,
+                    _ => ((x >> 40) as f64 - 8e6) * 1e-9,
+                }
+            })
+            .collect();
+        for len in [n, n - 1] {
+            let v = &values[..len];
+            let walked = median_of(len, |i| Ok(v[i])).unwrap();
+            let sorted = median(&mut v.to_vec());
+            assert_eq!(walked.to_bits(), sorted.to_bits(), "{len} values");
+        }
     }
 
     #[test]

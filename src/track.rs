@@ -1487,20 +1487,28 @@ mod tests {
     /// row ~170), blur 1 px, noise σ 2 levels, ±3 % flicker; with the
     /// true centres.
     fn movie() -> (MemorySource, Vec<(f64, f64)>) {
-        let mut rng = ChaCha8Rng::seed_from_u64(41);
         let truth: Vec<(f64, f64)> = (0..20)
             .map(|k| (128.3 + 0.2 * k as f64, 50.17 + 3.1 * k as f64))
             .collect();
-        let frames = truth
+        let disks: Vec<_> = truth.iter().map(|&(x, z)| (x, z, 40.0)).collect();
+        (rendered(&disks, 41), truth)
+    }
+
+    /// One 256×192 px 8-bit frame a disc `(x, z, r)`, frame numbers from
+    /// 0 at 10 000 frames/s: above the pillar band at row ~170, blur 1 px,
+    /// noise σ 2 levels, ±3 % flicker drawn from `seed`.
+    fn rendered(disks: &[(f64, f64, f64)], seed: u64) -> MemorySource {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let frames = disks
             .iter()
-            .map(|&(x, z)| {
+            .map(|&disk| {
                 let img = Scene {
                     width: 256,
                     height: 192,
                     background: 200.0,
                     vignetting: 0.1,
                     sphere_transmission: 0.2,
-                    disk: Some((x, z, 40.0)),
+                    disk: Some(disk),
                     band: Some(PillarBand {
                         row0_px: 170.4,
                         slope: 0.003,
@@ -1526,61 +1534,28 @@ mod tests {
             height: 192,
             bit_depth: 8,
             fps: 10_000.0,
-            frame_numbers: (0..20).collect(),
+            frame_numbers: (0..disks.len() as i64).collect(),
             ..SourceMeta::default()
         };
-        (MemorySource::new(meta, frames).unwrap(), truth)
+        MemorySource::new(meta, frames).unwrap()
     }
 
     fn settings() -> TrackSettings {
         TrackSettings::from_config(&DetectConfig::default())
     }
 
-    /// 172 frames of 256×192 px, 8-bit: a sphere of R = 20 px rising from
+    /// 172 frames (see [`rendered`]): a sphere of R = 20 px rising from
     /// row 130 on the parabola z = 130 − 7k + 0.04k² (frame k), out through
     /// the top of the frame from frame ~25 to ~150 and back down to row
-    /// ~103; noise σ 2 levels, ±3 % flicker.
+    /// ~103.
     fn away_movie() -> MemorySource {
-        let mut rng = ChaCha8Rng::seed_from_u64(7);
-        let n = 172;
-        let frames = (0..n)
+        let disks: Vec<_> = (0..172)
             .map(|k| {
                 let k = k as f64;
-                let img = Scene {
-                    width: 256,
-                    height: 192,
-                    background: 200.0,
-                    vignetting: 0.1,
-                    sphere_transmission: 0.2,
-                    disk: Some((128.0 + 0.1 * k, 130.0 - 7.0 * k + 0.04 * k * k, 20.0)),
-                    band: Some(PillarBand {
-                        row0_px: 170.4,
-                        slope: 0.003,
-                        pillar_level: 60.0,
-                        channel_level: 90.0,
-                        period_px: 40.0,
-                        solid_fraction: 0.625,
-                    }),
-                    blur_px: 1.0,
-                }
-                .render();
-                let gain = 1.0 + 0.03 * (2.0 * rng.gen::<f64>() - 1.0);
-                synth::quantize(&img, gain, 255, || {
-                    let u1: f64 = rng.gen_range(f64::EPSILON..1.0);
-                    let u2: f64 = rng.gen();
-                    2.0 * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-                })
+                (128.0 + 0.1 * k, 130.0 - 7.0 * k + 0.04 * k * k, 20.0)
             })
             .collect();
-        let meta = SourceMeta {
-            width: 256,
-            height: 192,
-            bit_depth: 8,
-            fps: 10_000.0,
-            frame_numbers: (0..n as i64).collect(),
-            ..SourceMeta::default()
-        };
-        MemorySource::new(meta, frames).unwrap()
+        rendered(&disks, 7)
     }
 
     #[test]

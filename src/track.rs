@@ -866,26 +866,10 @@ impl Pass1State {
         if used < RISE_FITS_MIN {
             return None;
         }
-        // z = a + b·u + c·u², u = (t − t_last) / span: the normal equations.
-        let span = t_last - self.rise[n - used].0;
-        if span.is_nan() || span <= 0.0 {
-            return None;
-        }
-        let mut m = [[0.0f64; 3]; 3];
-        let mut v = [0.0f64; 3];
-        for &(t, z) in self.rise.iter().skip(n - used) {
-            let u = (t - t_last) / span;
-            let p = [1.0, u, u * u];
-            for r in 0..3 {
-                for c in 0..3 {
-                    m[r][c] += p[r] * p[c];
-                }
-                v[r] += p[r] * z;
-            }
-        }
-        let m = nalgebra::Matrix3::from_fn(|r, c| m[r][c]);
-        let abc = m.lu().solve(&nalgebra::Vector3::from(v))?;
-        let (b, c) = (abc[1], abc[2]);
+        // z = a + b·u + c·u², u = (t − t_last) / span.
+        let (t, z): (Vec<f64>, Vec<f64>) = self.rise.iter().skip(n - used).copied().unzip();
+        let fit = crate::lsq::PolyFit::fit(&t, &z, &vec![1.0; used], 2, t_last)?;
+        let (b, c, span) = (fit.coef()[1], fit.coef()[2], fit.x_scale);
         // Rising (z falls) at the last fit, and falling back (z″ > 0).
         if b >= 0.0 || c <= 0.0 || b.is_nan() || c.is_nan() {
             return None;

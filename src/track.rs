@@ -255,6 +255,10 @@ pub struct Track {
     /// Frames pass 1 did not look at: the sphere was away above the frame
     /// ([`TrackSettings::skip_away`]).
     pub away_frames: usize,
+    /// Frames of pass 1 searched whole on every thread at once, ahead of
+    /// the walk in order, and taken (see [`Walk::search_ahead`]); 0 on one
+    /// thread.
+    pub searched_ahead: usize,
 }
 
 /// Why a run could not be tracked.
@@ -295,15 +299,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
     let (bg, surface, surface_from_config) = background_and_surface(source, st)?;
 
     // 2. Pass 1, radius free.
-    let ctx = Pass1 {
-        bg: &bg,
-        surface: &surface,
-        st,
-        // The coarse search runs on frames binned 2×2 (a quarter of the
-        // pixels); the measurement's re-centring absorbs its ~1 px error.
-        binned: (w >= 128 && h >= 128).then(|| BinnedBackground::new(&bg)),
-        dark_grid: DarkGrid::new(&bg, &surface),
-    };
+    let ctx = Pass1::new(&bg, &surface, st);
     // Chunks of the movie measured ahead by other threads, while this one
     // walks the first of each round of `per_round` chunks (see
     // `speculate`); chunks of at most `chunk_frames_max` frames.
@@ -340,6 +336,8 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         scratch: LookScratch::new(h, w),
         measured_ahead: 0,
         away_frames: 0,
+        searched: std::collections::VecDeque::new(),
+        searched_ahead: 0,
     };
     let mut ahead_frames_max = 0;
     timings::time(Stage::Pass1, || -> Result<(), TrackError> {
@@ -357,18 +355,44 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
                 || {
                     copies.as_ref().map(|c| {
                         let b = &bounds[first..=first + 1 + ahead];
-                        speculate(c, b, &ctx, &meta, &pool)
+                        speculate(c, b, &ctx, &meta, &pool, PROBE_STRIDE_MAX)
                     })
                 },
             );
             head?;
             if let Some(memo) = memo {
-                ahead_frames_max = ahead_frames_max.max(memo.iter().map(Vec::len).sum());
-                for (k, ahead) in memo.into_iter().enumerate() {
+                let held = memo.iter().flatten().filter(|s| s.is_some()).count();
+                ahead_frames_max = ahead_frames_max.max(held);
+                // The copies are free again: the frames the walk searches
+                // whole that no chunk searched are searched on them too.
+                let mut copies = copies
+                    .as_ref()
+                    .map(|c| c.lock().unwrap_or_else(|e| e.into_inner()));
+                for (k, mut ahead) in memo.into_iter().enumerate() {
                     let (lo, hi) = (bounds[first + k + 1], bounds[first + k + 2]);
-                    let mut ahead = ahead.into_iter();
+                    // A chunk's search of a frame, and whether it fitted
+                    // a sphere (after a find without a fit the walk
+                    // searches on).
+                    let searched = |ahead: &[Option<Seen>], j: usize| match ahead.get(j - lo) {
+                        Some(Some(s)) if matches!(s.look, Look::Search) => Some(s.fit.is_some()),
+                        _ => None,
+                    };
                     for i in lo..hi {
-                        walk.frame(source, &ctx, &meta, i, ahead.next())?;
+                        if let Some(c) = copies.as_deref_mut() {
+                            if searched(&ahead, i).is_none() && walk.must_search(&meta, i) {
+                                let mut todo = Vec::new();
+                                for j in i..hi.min(i + SEARCH_AHEAD_MAX) {
+                                    match searched(&ahead, j) {
+                                        Some(true) => break,
+                                        Some(false) => {}
+                                        None => todo.push(j),
+                                    }
+                                }
+                                walk.search_ahead(source, c, &ctx, &pool, &todo);
+                            }
+                        }
+                        let a = ahead.get_mut(i - lo).and_then(Option::take);
+                        walk.frame(source, &ctx, &meta, i, a)?;
                     }
                 }
             }
@@ -384,6 +408,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         scratch,
         measured_ahead,
         away_frames,
+        searched_ahead,
         ..
     } = walk;
     frames.flush()?;
@@ -523,6 +548,7 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         remeasured_frames,
         ahead_frames_max,
         away_frames,
+        searched_ahead,
     })
 }
 
@@ -762,6 +788,16 @@ const PREDICTION_GRID_PX: f64 = 1.0 / 1024.0;
 /// frames when more than one thread is available.
 const MIN_CHUNK_FRAMES: usize = 256;
 
+/// Longest stride of a chunk's probes before its first find (see
+/// [`speculate`]): of a stretch without the sphere, one frame in this many
+/// is searched ahead.
+const PROBE_STRIDE_MAX: usize = 32;
+
+/// Most frames the walk searches at once on every thread (see
+/// [`Walk::search_ahead`]); it stops at the first find, so this bounds only
+/// what an error or the chunk's end leaves unused.
+const SEARCH_AHEAD_MAX: usize = 256;
+
 /// How pass 1 looks for the sphere in one frame.
 #[derive(Debug, Clone, Copy)]
 enum Look {
@@ -994,7 +1030,20 @@ impl ScratchPool {
     }
 }
 
-impl Pass1<'_> {
+impl<'a> Pass1<'a> {
+    fn new(bg: &'a Background, surface: &'a SurfaceLine, st: &'a TrackSettings) -> Self {
+        let (h, w) = (bg.height, bg.width);
+        Pass1 {
+            bg,
+            surface,
+            st,
+            // The coarse search runs on frames binned 2×2 (a quarter of the
+            // pixels); the measurement's re-centring absorbs its ~1 px error.
+            binned: (w >= 128 && h >= 128).then(|| BinnedBackground::new(bg)),
+            dark_grid: DarkGrid::new(bg, surface),
+        }
+    }
+
     /// Look at frame `i` as `look` says.
     fn look_at(
         &self,
@@ -1083,6 +1132,11 @@ struct Walk {
     measured_ahead: usize,
     /// Frames not looked at: the sphere was away ([`Look::Away`]).
     away_frames: usize,
+    /// Frames searched whole ahead of the walk on every thread
+    /// ([`Walk::search_ahead`]), in order, not yet taken.
+    searched: std::collections::VecDeque<(usize, Seen)>,
+    /// Frames taken from `searched`.
+    searched_ahead: usize,
 }
 
 impl Walk {
@@ -1099,12 +1153,25 @@ impl Walk {
     ) -> Result<(), TrackError> {
         let t = meta.time_s(i)?;
         let look = self.state.look(t);
+        while self.searched.front().is_some_and(|(j, _)| *j < i) {
+            self.searched.pop_front();
+        }
+        let searched = match self.searched.front() {
+            Some((j, _)) if *j == i => self.searched.pop_front().map(|(_, s)| s),
+            _ => None,
+        };
         let seen = match ahead.filter(|m| m.look.same(&look)) {
             Some(m) => {
                 self.measured_ahead += 1;
                 m
             }
-            None => ctx.look_at(source, i, look, &mut self.scratch)?,
+            None => match searched.filter(|m| m.look.same(&look)) {
+                Some(m) => {
+                    self.searched_ahead += 1;
+                    m
+                }
+                None => ctx.look_at(source, i, look, &mut self.scratch)?,
+            },
         };
         let (kept_points, max) = (&mut self.kept_points, self.kept_points_max);
         self.kept.push(seen.points.as_ref().map(|(c, sigma, pts)| {
@@ -1131,6 +1198,90 @@ impl Walk {
             .push(self.state.step(meta, i, t, &seen, w, skip_away))?;
         Ok(())
     }
+
+    /// Whether the walk searches frame `i` whole and holds no search of it
+    /// yet (false when its time cannot be read: [`Walk::frame`] says so).
+    fn must_search(&self, meta: &crate::source::SourceMeta, i: usize) -> bool {
+        let held = self.searched.iter().any(|(j, _)| *j == i);
+        !held
+            && meta
+                .time_s(i)
+                .is_ok_and(|t| matches!(self.state.look(t), Look::Search))
+    }
+
+    /// The frames `todo` (increasing; frames the walk is about to search
+    /// whole, each the same pure function of its frame alone) searched on
+    /// `source` and each of `copies` at once, each reader taking the next
+    /// frame in order when it is free, until one finds a sphere and fits
+    /// it: the walk follows it from there (its next looks are circles), so
+    /// the frames after it are left (after a find without a fit, the walk
+    /// searches on). Kept for [`Walk::frame`], which takes a frame's
+    /// search when it looks at the frame the same way. A frame that cannot
+    /// be read is left out, and the frames after it: the walk reads it
+    /// itself and reports the error.
+    fn search_ahead(
+        &mut self,
+        source: &mut dyn FrameSource,
+        copies: &mut [Box<dyn FrameSource>],
+        ctx: &Pass1,
+        pool: &ScratchPool,
+        todo: &[usize],
+    ) {
+        use rayon::prelude::*;
+        use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+        let (h, w) = self.scratch.buf.dim();
+        let mut scratch: Vec<LookScratch> = copies.iter().map(|_| pool.take(h, w)).collect();
+        let mut readers: Vec<(&mut dyn FrameSource, &mut LookScratch)> =
+            std::iter::once((source, &mut self.scratch))
+                .chain(
+                    copies
+                        .iter_mut()
+                        .map(|c| c.as_mut() as &mut dyn FrameSource)
+                        .zip(scratch.iter_mut()),
+                )
+                .collect();
+        // The next frame of `todo` to take, and the end: past the first
+        // find or failure.
+        let (next, end) = (AtomicUsize::new(0), AtomicUsize::new(todo.len()));
+        let done: Vec<Vec<(usize, Seen)>> = readers
+            .par_iter_mut()
+            .map(|(src, sc)| {
+                let _pass1 = timings::start(Stage::Pass1);
+                let mut out = Vec::new();
+                loop {
+                    let k = next.fetch_add(1, Relaxed);
+                    if k >= end.load(Relaxed) {
+                        break;
+                    }
+                    match ctx.look_at(&mut **src, todo[k], Look::Search, sc) {
+                        Ok(s) => {
+                            if s.fit.is_some() {
+                                end.fetch_min(k + 1, Relaxed);
+                            }
+                            out.push((todo[k], s));
+                        }
+                        Err(_) => {
+                            end.fetch_min(k, Relaxed);
+                            break;
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        drop(readers);
+        for sc in scratch {
+            pool.give(sc);
+        }
+        let end = todo.get(end.into_inner()).copied().unwrap_or(usize::MAX);
+        let mut done: Vec<(usize, Seen)> = done
+            .into_iter()
+            .flatten()
+            .filter(|(i, _)| *i < end)
+            .collect();
+        done.sort_by_key(|(i, _)| *i);
+        self.searched.extend(done);
+    }
 }
 
 /// Room in `buf` for `end` items (`end` ≤ `max`): grown by doubling as
@@ -1149,21 +1300,32 @@ fn reserve_within<T>(buf: &mut Vec<T>, end: usize, max: usize) {
 /// of the source (one a thread: a chunk finds none free only if a thread
 /// took up a second chunk while it waited inside the first, and is then
 /// left to the walk), from a search at its first frame, while the calling
-/// thread walks the first chunk. Per chunk, what was seen in each frame up
-/// to the end or an error. Pass 1 proper then walks on in order and takes a
-/// frame's result from here when it looks at the frame in the same way,
-/// measuring it itself otherwise (the first frames of a chunk, until the
-/// predictions from its own fits and from the other thread's meet on the
-/// [`PREDICTION_GRID_PX`] grid). So the track is the same bits for any
-/// number of threads, and the work ahead is lost only where the two
-/// disagree.
+/// thread walks the first chunk. Per chunk, what was seen in each frame
+/// looked at (`None` for the others), up to the end or an error. Pass 1
+/// proper then walks on in order and takes a frame's result from here when
+/// it looks at the frame in the same way, measuring it itself otherwise
+/// (the first frames of a chunk, until the predictions from its own fits
+/// and from the other thread's meet on the [`PREDICTION_GRID_PX`] grid).
+/// So the track is the same bits for any number of threads, and the work
+/// ahead is lost only where the two disagree.
+///
+/// Until a chunk first finds the sphere, it probes: frames searched whole
+/// with a stride doubled after each empty search up to `stride_max`
+/// ([`PROBE_STRIDE_MAX`]), the frames between left out. A chunk that starts
+/// while the sphere is away above the frame would otherwise search every
+/// frame of a stretch that the walk does not look at ([`Look::Away`]). On
+/// a find it goes back to the frame after the last empty probe and follows
+/// the state machine frame by frame from there: from a state without fits
+/// an empty search changes nothing that a look depends on, so from there
+/// on it sees what it would have seen searching every frame.
 fn speculate(
     copies: &std::sync::Mutex<Vec<Box<dyn FrameSource>>>,
     bounds: &[usize],
     ctx: &Pass1,
     meta: &crate::source::SourceMeta,
     pool: &ScratchPool,
-) -> Vec<Vec<Seen>> {
+    stride_max: usize,
+) -> Vec<Vec<Option<Seen>>> {
     use rayon::prelude::*;
     let lock = || copies.lock().unwrap_or_else(|e| e.into_inner());
     (0..bounds.len().saturating_sub(2))
@@ -1178,19 +1340,55 @@ fn speculate(
             let mut sc = pool.take(meta.height, meta.width);
             let mut state = Pass1State::default();
             let (first, last) = (bounds[k + 1], bounds[k + 2]);
-            let mut seen = Vec::with_capacity(last - first);
-            for i in first..last {
+            let mut seen: Vec<Option<Seen>> = Vec::new();
+            let mut put = |i: usize, s: Seen| {
+                let k = i - first;
+                if seen.len() <= k {
+                    seen.resize_with(k + 1, || None);
+                }
+                seen[k] = Some(s);
+            };
+            // Probing: the stride to the next probe, the frame after the
+            // last empty one, and a probe's find to go back from.
+            let (mut probing, mut stride, mut after_empty) = (true, 1, first);
+            let mut found: Option<(usize, Seen)> = None;
+            let mut i = first;
+            while i < last {
                 // A time or a frame that cannot be read: the walk in
                 // order meets it and says so.
                 let Ok(t) = meta.time_s(i) else {
                     break;
                 };
                 let look = state.look(t);
-                let Ok(s) = ctx.look_at(src.as_mut(), i, look, &mut sc) else {
-                    break;
+                let s = match found.take() {
+                    Some((j, s)) if j == i && s.look.same(&look) => s,
+                    other => {
+                        found = other;
+                        let Ok(s) = ctx.look_at(src.as_mut(), i, look, &mut sc) else {
+                            break;
+                        };
+                        s
+                    }
                 };
+                if probing && state.fits == 0 && matches!(look, Look::Search) {
+                    if !s.found {
+                        state.step(meta, i, t, &s, meta.width, ctx.st.skip_away);
+                        put(i, s);
+                        after_empty = i + 1;
+                        i += stride;
+                        stride = (2 * stride).min(stride_max.max(1));
+                        continue;
+                    }
+                    probing = false;
+                    if i > after_empty {
+                        found = Some((i, s));
+                        i = after_empty;
+                        continue;
+                    }
+                }
                 state.step(meta, i, t, &s, meta.width, ctx.st.skip_away);
-                seen.push(s);
+                put(i, s);
+                i += 1;
             }
             pool.give(sc);
             lock().push(src);
@@ -1582,6 +1780,158 @@ mod tests {
             "{} of {away}",
             skipped.away_frames
         );
+    }
+
+    /// `n` frames (see [`rendered`]) of a sphere of R = 20 px bouncing at
+    /// row 130 on [`away_movie`]'s parabola, 175 frames a bounce: out
+    /// through the top of the frame from ~25 to ~150 frames after each
+    /// bounce. It starts out of view, 60 frames into a rise (in view from
+    /// frame ~90).
+    fn bouncing_movie(n: usize) -> MemorySource {
+        let disks: Vec<_> = (0..n)
+            .map(|k| {
+                let u = ((k + 60) % 175) as f64;
+                (
+                    128.0 + 0.02 * k as f64,
+                    130.0 - 7.0 * u + 0.04 * u * u,
+                    20.0,
+                )
+            })
+            .collect();
+        rendered(&disks, 11)
+    }
+
+    /// A movie in memory that gives copies of itself as a file does, so
+    /// that pass 1 measures it ahead on other threads.
+    struct Shared(std::sync::Arc<MemorySource>);
+
+    impl FrameSource for Shared {
+        fn meta(&self) -> &SourceMeta {
+            self.0.meta()
+        }
+
+        fn read_rows_into(
+            &mut self,
+            index: usize,
+            row0: usize,
+            out: &mut ndarray::ArrayViewMut2<u16>,
+        ) -> Result<(), SourceError> {
+            let mut m: &MemorySource = &self.0;
+            m.read_rows_into(index, row0, out)
+        }
+
+        fn try_clone(&self) -> Option<Box<dyn FrameSource>> {
+            Some(Box::new(Shared(self.0.clone())))
+        }
+    }
+
+    fn pool(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+    }
+
+    /// The sphere away six times (the first before it enters): on 1, 2 and
+    /// 3 threads, in rounds of chunks measured ahead that start while it is
+    /// away (and probe) or in view, the same track, bit for bit; on more
+    /// than one, frames are measured ahead and searched ahead on every
+    /// thread, and the frames not looked at are the same.
+    #[test]
+    fn a_sphere_away_again_and_again_is_tracked_the_same_on_any_threads() {
+        let m = std::sync::Arc::new(bouncing_movie(1100));
+        let st = TrackSettings {
+            chunk_frames_max: 100,
+            ..settings()
+        };
+        let tracked =
+            |threads: usize| pool(threads).install(|| track(&mut Shared(m.clone()), &st).unwrap());
+        let one = tracked(1);
+        let frames = |t: &Track| -> Vec<FrameTrack> { t.frames.iter().collect() };
+        let fitted = frames(&one).iter().filter(|f| f.free.is_some()).count();
+        println!(
+            "1 thread: {fitted} of 1 100 frames fitted, {} away",
+            one.away_frames
+        );
+        // In view ~50 frames of each bounce's 175 and the first 90 out.
+        assert!((250..=400).contains(&fitted), "{fitted} fitted");
+        assert!(one.away_frames > 300, "{} away", one.away_frames);
+        assert_eq!((one.measured_ahead, one.searched_ahead), (0, 0));
+        for threads in [2, 3] {
+            let more = tracked(threads);
+            println!(
+                "{threads} threads: {} measured ahead, {} searched ahead",
+                more.measured_ahead, more.searched_ahead
+            );
+            assert_eq!(
+                format!("{:?}", frames(&more)),
+                format!("{:?}", frames(&one))
+            );
+            assert_eq!(more.radius_px.to_bits(), one.radius_px.to_bits());
+            assert_eq!(more.away_frames, one.away_frames);
+            // Most frames in view are taken from the chunks; the frames
+            // searched at the end of each time away, and before the
+            // sphere enters, mostly from the searches on every thread.
+            assert!(more.measured_ahead > fitted / 2, "{}", more.measured_ahead);
+            assert!(more.searched_ahead > 60, "{}", more.searched_ahead);
+        }
+    }
+
+    /// A chunk measured ahead that starts with the sphere out of view
+    /// probes until it finds it, then sees in every frame from there what
+    /// a chunk searching every frame sees; of the frames before, it holds
+    /// a few searches, each what that chunk saw there.
+    #[test]
+    fn a_chunk_probes_until_it_finds_the_sphere_then_sees_every_frame() {
+        let m = std::sync::Arc::new(bouncing_movie(300));
+        let st = settings();
+        let mut src = Shared(m.clone());
+        let (bg, surface, _) = background_and_surface(&mut src, &st).unwrap();
+        let ctx = Pass1::new(&bg, &surface, &st);
+        let meta = m.meta().clone();
+        // Chunks from frame 0 (out of view until ~90), 140 (away, back
+        // at ~265) and 100 (in view).
+        let bounds = [0, 0, 300, 140, 300, 100, 300];
+        for k in [0, 2, 4] {
+            let seen = |stride_max: usize| {
+                let copies = std::sync::Mutex::new(vec![src.try_clone().unwrap()]);
+                let pool = ScratchPool::default();
+                speculate(&copies, &bounds[k..k + 3], &ctx, &meta, &pool, stride_max).remove(0)
+            };
+            let (every, probed) = (seen(1), seen(PROBE_STRIDE_MAX));
+            let first = bounds[k + 1];
+            assert_eq!(every.len(), 300 - first);
+            assert!(every.iter().all(Option::is_some));
+            let found = every
+                .iter()
+                .position(|s| s.as_ref().is_some_and(|s| s.found))
+                .unwrap();
+            let held = probed.iter().filter(|s| s.is_some()).count();
+            println!(
+                "chunk from {first}: found at {}, {held} held",
+                first + found
+            );
+            assert_eq!(probed.len(), every.len());
+            for (i, (p, e)) in probed.iter().zip(&every).enumerate() {
+                match p {
+                    Some(p) => assert_eq!(
+                        format!("{p:?}"),
+                        format!("{:?}", e.as_ref().unwrap()),
+                        "frame {i}"
+                    ),
+                    None => assert!(i < found, "frame {} left out", first + i),
+                }
+            }
+            let before = probed[..found].iter().filter(|s| s.is_some()).count();
+            if found > 64 {
+                // A probe at most every PROBE_STRIDE_MAX frames, and the
+                // frames searched again after the last empty one.
+                let most = 6 + found / PROBE_STRIDE_MAX + PROBE_STRIDE_MAX;
+                assert!(before <= most, "{before} of {found} held");
+            } else {
+                assert!(found < 8, "found at {found}");
+            }
+        }
     }
 
     #[test]

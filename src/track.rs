@@ -388,6 +388,9 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
                                         None => todo.push(j),
                                     }
                                 }
+                                // One reader a thread.
+                                let readers = threads.saturating_sub(1).min(c.len());
+                                let c = &mut c[..readers];
                                 walk.search_ahead(source, c, &ctx, &pool, &todo);
                             }
                         }

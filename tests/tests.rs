@@ -6,6 +6,7 @@ mod collapse;
 mod detect;
 mod hostile;
 mod parallel;
+mod pcc_xml;
 mod process;
 mod process_job;
 mod render;

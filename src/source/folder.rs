@@ -324,7 +324,7 @@ impl FolderSource {
         // The PCC XML side file.
         warnings.extend(xml_warnings);
         let xml = xml?;
-        let (xml_path, xml) = match xml {
+        let (xml_path, mut xml) = match xml {
             Some((p, x)) => (Some(p), Some(x)),
             None => (None, None),
         };
@@ -371,6 +371,10 @@ impl FolderSource {
         let exposures_s = xml
             .as_ref()
             .and_then(|x| per_frame(&x.exposures, &frame_numbers));
+        if let Some(x) = &mut xml {
+            // Each frame's values are in the two tables now.
+            (x.times, x.exposures) = (Vec::new(), Vec::new());
+        }
         if let Some(x) = &xml {
             if let Some(f0) = x.first_image_no {
                 let n0 = frame_numbers.first().unwrap_or_default();
@@ -502,8 +506,15 @@ fn per_frame(by_number: &[(i64, f64)], numbers: &FrameNumbers) -> Option<Vec<f64
     if by_number.is_empty() {
         return None;
     }
-    let mut sorted: Vec<(i64, f64)> = by_number.to_vec();
-    sorted.sort_by_key(|t| t.0);
+    // PCC lists its frames in order: a copy to sort only when they are not
+    // (the stable sort leaves a sorted list as it is: the same lookups).
+    let sorted: std::borrow::Cow<[(i64, f64)]> = if by_number.is_sorted_by_key(|t| t.0) {
+        by_number.into()
+    } else {
+        let mut sorted = by_number.to_vec();
+        sorted.sort_by_key(|t| t.0);
+        sorted.into()
+    };
     numbers
         .iter()
         .map(|n| {
@@ -517,9 +528,10 @@ fn per_frame(by_number: &[(i64, f64)], numbers: &FrameNumbers) -> Option<Vec<f64
 
 /// The folder's PCC XML: the one named like the sequence prefix, else the
 /// only `<chd>` XML there. Several candidates without a name match → error.
-/// An XML that is not PCC's (no `<chd`, not UTF-8 text, larger than any
-/// side file) is ignored with a warning, unless it is named like the
-/// sequence: that one must be a readable side file.
+/// An XML that is not PCC's (no `<chd`, not UTF-8 text) is ignored with a
+/// warning, unless it is named like the sequence: that one must be a
+/// readable side file. Each is looked through once for those two, then
+/// read as a stream (`pcc_xml::read`), never held whole.
 fn pick_xml(
     dir: &Path,
     prefix: &str,
@@ -531,31 +543,22 @@ fn pick_xml(
     for name in xmls {
         let path = dir.join(name);
         let named_like_sequence = path.file_stem().and_then(|s| s.to_str()) == Some(trimmed);
-        let bytes = crate::io_util::read_bounded(&path, pcc_xml::MAX_XML_BYTES as u64)
-            .map_err(io_err(&path))?;
-        let problem = match &bytes {
-            None => Some(format!(
-                "larger than any PCC side file ({} MiB at most)",
-                pcc_xml::MAX_XML_BYTES >> 20
-            )),
-            Some(b) if std::str::from_utf8(b).is_err() => Some("not UTF-8 text".to_string()),
-            Some(b) if !named_like_sequence && !contains(b, b"<chd") => {
-                continue; // some other XML, not PCC's
-            }
-            Some(_) => None,
-        };
-        if let Some(p) = problem {
+        let look = look_through(&path).map_err(io_err(&path))?;
+        if !look.utf8 {
             if named_like_sequence {
-                return Err(format_err(&path, format!("the PCC side file is {p}")));
+                return Err(format_err(&path, "the PCC side file is not UTF-8 text"));
             }
-            warnings.push(format!("ignored {name}: {p}, not a PCC side file"));
+            warnings.push(format!(
+                "ignored {name}: not UTF-8 text, not a PCC side file"
+            ));
             continue;
         }
-        let text = String::from_utf8(bytes.unwrap_or_default()).unwrap_or_default();
-        if !text.contains("<chd") {
-            continue; // named like the sequence, but some other XML
+        if !look.chd {
+            continue; // some other XML, not PCC's
         }
-        let x = pcc_xml::parse(&text).map_err(|r| format_err(&path, r))?;
+        let file = crate::io_util::open_regular(&path).map_err(io_err(&path))?;
+        let x = pcc_xml::read(std::io::BufReader::with_capacity(1 << 16, file))
+            .map_err(|r| format_err(&path, r))?;
         parsed.push((path, x));
     }
     if parsed.len() <= 1 {
@@ -578,6 +581,54 @@ fn pick_xml(
 
 fn contains(hay: &[u8], needle: &[u8]) -> bool {
     hay.windows(needle.len()).any(|w| w == needle)
+}
+
+/// What a look through an XML file found.
+#[derive(Debug, PartialEq)]
+struct XmlLook {
+    /// The whole file is UTF-8.
+    utf8: bool,
+    /// It holds `<chd` (PCC's root element) somewhere.
+    chd: bool,
+}
+
+/// Read `path` through in blocks of 64 kB, keeping the last 3 bytes of
+/// each (the start of a `<chd` or of a character cut by the block's end).
+fn look_through(path: &Path) -> std::io::Result<XmlLook> {
+    use std::io::Read;
+    const KEPT: usize = 3;
+    let mut file = crate::io_util::open_regular(path)?;
+    let mut buf = vec![0u8; (1 << 16) + KEPT];
+    let mut look = XmlLook {
+        utf8: true,
+        chd: false,
+    };
+    // Bytes at buf's start from the block before, and how many of them
+    // are an unfinished character.
+    let (mut kept, mut unfinished) = (0, 0);
+    loop {
+        let n = match file.read(&mut buf[kept..]) {
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        let end = kept + n;
+        look.chd = look.chd || contains(&buf[..end], b"<chd");
+        if look.utf8 {
+            match std::str::from_utf8(&buf[kept - unfinished..end]) {
+                Ok(_) => unfinished = 0,
+                Err(e) if e.error_len().is_none() && n > 0 => {
+                    unfinished = end - (kept - unfinished) - e.valid_up_to();
+                }
+                Err(_) => look.utf8 = false,
+            }
+        }
+        if n == 0 {
+            return Ok(look);
+        }
+        kept = KEPT.min(end);
+        buf.copy_within(end - kept..end, 0);
+    }
 }
 
 /// Open a frame file and read its header.
@@ -676,5 +727,35 @@ mod tests {
             vec![(1, 2), (5, 5)]
         );
         assert!(gaps_of(&numbers(&[5])).is_empty());
+    }
+
+    /// The look through a side file finds `<chd` and checks UTF-8 across
+    /// its 64 kB blocks: a character or the tag cut by a block's end.
+    #[test]
+    fn a_look_through_sees_across_its_blocks() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.xml");
+        let look = |bytes: &[u8]| {
+            std::fs::write(&path, bytes).unwrap();
+            let l = look_through(&path).unwrap();
+            (l.utf8, l.chd)
+        };
+        let block = 1 << 16;
+        for cut in 1..4 {
+            // "<chd" and a 3-byte character ending `cut` bytes into the next block.
+            let mut chd = vec![b' '; block - 4 + cut];
+            chd.extend_from_slice(b"<chd");
+            assert_eq!(look(&chd), (true, true), "<chd cut at {cut}");
+            let mut euro = vec![b' '; block - 3 + cut];
+            euro.extend_from_slice("\u{20ac}<ch".as_bytes());
+            assert_eq!(look(&euro), (true, false), "a character cut at {cut}");
+            let mut broken = euro.clone();
+            broken[block - 3 + cut + 1] = b'x';
+            assert_eq!(look(&broken), (false, false));
+            // A character the file ends inside.
+            assert_eq!(look(&euro[..block - 3 + cut + 2]), (false, false));
+        }
+        assert_eq!(look(b""), (true, false));
+        assert_eq!(look(b"\xff<chd>"), (false, true));
     }
 }

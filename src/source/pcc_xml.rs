@@ -8,6 +8,16 @@
 //! event input). Per-frame times are taken from `TIMEBLOCK/Time[@frame]` only —
 //! `CineFileHeader/TriggerTime/Time` is the trigger, not a frame — and are
 //! returned relative to the trigger, so the local time zone cancels.
+//!
+//! The file is read as a stream ([`read`]): a long recording's TIMEBLOCK
+//! and EXPOSUREBLOCK (~120 bytes a frame) are never held whole, only the
+//! values taken from them.
+
+use std::collections::HashMap;
+use std::io::{self, BufRead, Read};
+
+use quick_xml::events::{BytesStart, Event};
+use quick_xml::{Reader, XmlVersion};
 
 /// What dropscope takes from a PCC XML. Fields are `None` when absent.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -35,230 +45,675 @@ pub struct PccXml {
     pub exposures: Vec<(i64, f64)>,
 }
 
-/// Largest side file read, in bytes: a TIMEBLOCK and an EXPOSUREBLOCK for
-/// about 500 000 frames (PCC writes ~120 bytes a frame).
-pub const MAX_XML_BYTES: usize = 64 << 20;
+/// Most frames a side file may list, in its TIMEBLOCK or its
+/// EXPOSUREBLOCK: what is kept of them is 16 bytes a frame each (so at
+/// most 64 MiB a block), whatever the file's length.
+pub const MAX_XML_FRAMES: usize = 4 << 20;
 
-/// Deepest element nesting accepted. PCC's files nest 4 deep; the parser
-/// builds its tree recursively, and 100 000 levels overflow a thread's stack.
+/// Deepest element nesting accepted. PCC's files nest 4 deep.
 pub const MAX_XML_DEPTH: usize = 64;
 
-/// Parse a PCC XML document. Errors say what is wrong (too large or too
-/// deeply nested, checked before parsing; not XML, wrong root, a value that
-/// is not a number or not a possible frame rate or exposure); missing
-/// optional elements are `None`.
+/// Longest single piece of the file — a tag, a text, a comment — in
+/// bytes: the reader holds one piece whole. PCC's longest is a few
+/// hundred bytes.
+pub const MAX_XML_PIECE_BYTES: u64 = 1 << 20;
+
+/// Most bytes of different TIMEBLOCK dates kept (PCC writes one date a
+/// day of recording, 15 bytes).
+const MAX_DATE_BYTES: usize = 16 << 20;
+
+/// Parse a PCC XML document held in memory: [`read`] of its bytes.
 pub fn parse(text: &str) -> Result<PccXml, String> {
-    if text.len() > MAX_XML_BYTES {
-        return Err(format!(
-            "{} bytes: larger than any PCC side file ({} MiB at most)",
-            text.len(),
-            MAX_XML_BYTES >> 20
-        ));
-    }
-    if let Some(line) = too_deep(text, MAX_XML_DEPTH) {
-        return Err(format!(
-            "elements nested more than {MAX_XML_DEPTH} deep (at line {line}): not a PCC side file"
-        ));
-    }
-    let doc = roxmltree::Document::parse(text).map_err(|e| format!("not valid XML: {e}"))?;
-    let root = doc.root_element();
-    if root.tag_name().name() != "chd" {
-        return Err(format!(
-            "root element is <{}>, not PCC's <chd>",
-            root.tag_name().name()
-        ));
-    }
-    let header = child(root, "CineFileHeader");
-    let bitmap = child(root, "BitmapInfoHeader");
-    let setup = child(root, "CameraSetup");
-    let text_of = |parent: Option<roxmltree::Node<'_, '_>>, name: &str| -> Option<String> {
-        parent
-            .and_then(|p| child(p, name))
-            .map(|n| n.text().unwrap_or("").trim().to_string())
-    };
-    fn num<T: std::str::FromStr>(v: Option<String>, name: &str) -> Result<Option<T>, String> {
-        match v {
-            None => Ok(None),
-            Some(s) if s.is_empty() => Ok(None),
-            Some(s) => s
-                .parse::<T>()
-                .map(Some)
-                .map_err(|_| format!("<{name}> holds {s:?}, not a number")),
-        }
-    }
-    let boolean = |v: Option<String>| {
-        v.and_then(|s| match s.as_str() {
-            "true" | "1" => Some(true),
-            "false" | "0" => Some(false),
-            _ => None,
-        })
-    };
-    // A frame rate or exposure that is there but impossible is an error,
-    // never replaced by another value.
-    let positive = |name: &str| -> Result<Option<f64>, String> {
-        match num::<f64>(text_of(setup, name), name)? {
-            Some(v) if !(v.is_finite() && v > 0.0) => Err(format!(
-                "<{name}> holds {v}: it must be a finite number above 0"
-            )),
-            v => Ok(v),
-        }
-    };
-    let fps = match positive("FrameRateDouble")? {
-        Some(f) => Some(f),
-        None => positive("FrameRate")?,
-    };
-    let exposure_s = match positive("ShutterNs")? {
-        Some(ns) => Some(ns * 1e-9),
-        None => positive("Shutter")?.map(|us| us * 1e-6),
-    };
-    let trigger = header.and_then(|h| child(h, "TriggerTime")).map(|t| {
-        let d = child(t, "Date").and_then(|n| n.text()).unwrap_or("");
-        let tm = child(t, "Time").and_then(|n| n.text()).unwrap_or("");
-        local_seconds(d, tm)
-            .ok_or_else(|| format!("TriggerTime {d:?} {tm:?} is not a PCC date/time"))
+    read(text.as_bytes())
+}
+
+/// Read a PCC XML document as a stream: one piece at a time, nothing of
+/// it held whole and no tree built, so memory does not grow with the file
+/// beyond the 16 bytes a frame of [`PccXml::times`] and
+/// [`PccXml::exposures`]. Errors say what is wrong (not XML — with the
+/// byte where — nested too deep, a piece too long, too many frames, wrong
+/// root, a value that is not a number or not a possible frame rate or
+/// exposure); missing optional elements are `None`. When a file holds
+/// several of these faults, the first in this order is the one told:
+/// the file's structure as far as it was read (XML, depth, lengths), then
+/// the root, the values in [`PccXml`]'s order with the trigger and the two
+/// blocks before the plain numbers.
+///
+/// It reads what a DOM reader would: an element's text is its first text
+/// (text, entities, CDATA) before any child element, comment or
+/// processing instruction; of several elements of one name, the first.
+pub fn read(input: impl BufRead) -> Result<PccXml, String> {
+    read_limited(input, MAX_XML_FRAMES)
+}
+
+fn read_limited(input: impl BufRead, max_frames: usize) -> Result<PccXml, String> {
+    let mut reader = Reader::from_reader(Pieces {
+        inner: input,
+        taken: 0,
+        too_long: false,
     });
-    let trigger = trigger.transpose()?;
-    let mut instants = Vec::new();
-    if let Some(block) = child(root, "TIMEBLOCK") {
-        // Date and Time elements come in pairs sharing a frame attribute.
-        let mut date_of_frame: Vec<(i64, &str)> = Vec::new();
-        for n in block.children().filter(|n| n.is_element()) {
-            let frame = frame_attr(n)?;
-            let value = n.text().unwrap_or("");
-            match n.tag_name().name() {
-                "Date" => date_of_frame.push((frame, value)),
-                "Time" => {
-                    let date = date_of_frame
-                        .iter()
-                        .rev()
-                        .find(|(f, _)| *f == frame)
-                        .map(|(_, d)| *d)
-                        .ok_or_else(|| format!("TIMEBLOCK Time frame={frame} has no Date"))?;
-                    let t = local_seconds(date, value).ok_or_else(|| {
-                        format!(
-                            "TIMEBLOCK frame={frame}: {date:?} {value:?} is not a PCC date/time"
-                        )
-                    })?;
-                    instants.push((frame, t));
-                }
-                _ => {}
+    reader.config_mut().check_comments = true;
+    let mut walk = Walk::new(max_frames);
+    let mut buf = Vec::new();
+    loop {
+        reader.get_mut().taken = 0;
+        let at = reader.buffer_position();
+        let event = match reader.read_event_into(&mut buf) {
+            Ok(event) => event,
+            Err(quick_xml::Error::Io(_)) if reader.get_ref().too_long => {
+                return Err(format!(
+                    "a tag, text or comment longer than {} MiB at byte {at}: not a PCC side file",
+                    MAX_XML_PIECE_BYTES >> 20
+                ))
             }
+            Err(quick_xml::Error::Io(e)) => return Err(format!("reading it: {e}")),
+            Err(e) => {
+                return Err(format!(
+                    "not valid XML at byte {}: {e}",
+                    reader.error_position()
+                ))
+            }
+        };
+        if matches!(event, Event::Eof) {
+            return walk.finish();
         }
+        walk.event(event, at)?;
+        buf.clear();
     }
-    // Relative to the trigger; without one, to the first listed frame.
-    let times = match trigger.or(instants.first().map(|t| t.1)) {
-        Some(origin) => instants
-            .iter()
-            .map(|(f, t)| (*f, t.since(origin)))
-            .collect(),
-        None => Vec::new(),
-    };
-    let mut exposures = Vec::new();
-    if let Some(block) = child(root, "EXPOSUREBLOCK") {
-        for n in block
-            .children()
-            .filter(|n| n.is_element() && n.tag_name().name() == "Exp")
-        {
-            let frame = frame_attr(n)?;
-            let us: f64 = n
-                .text()
-                .unwrap_or("")
-                .trim()
-                .parse()
-                .map_err(|_| format!("EXPOSUREBLOCK frame={frame} is not a number"))?;
-            exposures.push((frame, us * 1e-6));
-        }
-    }
-    Ok(PccXml {
-        first_image_no: num(text_of(header, "FirstImageNo"), "FirstImageNo")?,
-        image_count: num(text_of(header, "ImageCount"), "ImageCount")?,
-        width: num(text_of(bitmap, "biWidth"), "biWidth")?,
-        height: num(text_of(bitmap, "biHeight"), "biHeight")?,
-        bit_count: num(text_of(bitmap, "biBitCount"), "biBitCount")?,
-        fps,
-        exposure_s,
-        real_bpp: num(text_of(setup, "RealBPP"), "RealBPP")?,
-        black_level: num(text_of(setup, "BlackLevel"), "BlackLevel")?,
-        white_level: num(text_of(setup, "WhiteLevel"), "WhiteLevel")?,
-        flip_h: boolean(text_of(setup, "bFlipH")),
-        flip_v: boolean(text_of(setup, "bFlipV")),
-        times,
-        exposures,
-    })
 }
 
-/// The line where elements first nest deeper than `limit`, if they do. A
-/// scan over the text that knows tags, quoted attribute values, comments,
-/// CDATA, processing instructions and declarations; malformed text is left
-/// for the parser to reject, since the scan only has to bound what it
-/// would build.
-fn too_deep(text: &str, limit: usize) -> Option<usize> {
-    let b = text.as_bytes();
-    let line = |i: usize| 1 + b[..i].iter().filter(|&&c| c == b'\n').count();
-    let skip_past = |from: usize, end: &[u8]| -> usize {
-        b[from..]
-            .windows(end.len())
-            .position(|w| w == end)
-            .map_or(b.len(), |k| from + k + end.len())
-    };
-    let mut depth = 0usize;
-    let mut i = 0;
-    while i < b.len() {
-        if b[i] != b'<' {
-            i += 1;
-            continue;
-        }
-        let rest = &b[i..];
-        if rest.starts_with(b"<!--") {
-            i = skip_past(i + 4, b"-->");
-        } else if rest.starts_with(b"<![CDATA[") {
-            i = skip_past(i + 9, b"]]>");
-        } else if rest.starts_with(b"<?") {
-            i = skip_past(i + 2, b"?>");
-        } else if rest.starts_with(b"<!") {
-            i = skip_past(i + 2, b">");
-        } else {
-            // A tag: find its end outside quoted values.
-            let closing = rest.get(1) == Some(&b'/');
-            let mut j = i + 1;
-            let mut quote = None;
-            while j < b.len() {
-                match (quote, b[j]) {
-                    (None, b'"' | b'\'') => quote = Some(b[j]),
-                    (Some(q), c) if c == q => quote = None,
-                    (None, b'>') => break,
-                    _ => {}
-                }
-                j += 1;
-            }
-            let empty = j > i + 1 && b.get(j - 1) == Some(&b'/');
-            if closing {
-                depth = depth.saturating_sub(1);
-            } else if !empty {
-                depth += 1;
-                if depth > limit {
-                    return Some(line(i));
-                }
-            }
-            i = j + 1;
-        }
+/// The input, refusing a piece longer than [`MAX_XML_PIECE_BYTES`]: bytes
+/// taken since the reader's last event are counted.
+struct Pieces<R> {
+    inner: R,
+    taken: u64,
+    too_long: bool,
+}
+
+impl<R: BufRead> Read for Pieces<R> {
+    fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+        let n = {
+            let b = self.fill_buf()?;
+            let n = b.len().min(out.len());
+            out[..n].copy_from_slice(&b[..n]);
+            n
+        };
+        self.consume(n);
+        Ok(n)
     }
-    None
 }
 
-fn child<'a, 'i>(parent: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
-    parent
-        .children()
-        .find(|n| n.is_element() && n.tag_name().name() == name)
+impl<R: BufRead> BufRead for Pieces<R> {
+    fn fill_buf(&mut self) -> io::Result<&[u8]> {
+        if self.taken > MAX_XML_PIECE_BYTES {
+            self.too_long = true;
+            return Err(io::Error::other("a piece of the file is too long"));
+        }
+        // At most 64 kB at once, so that the count stops a long piece
+        // early whatever the input's own buffer.
+        let b = self.inner.fill_buf()?;
+        Ok(&b[..b.len().min(1 << 16)])
+    }
+
+    fn consume(&mut self, n: usize) {
+        self.taken += n as u64;
+        self.inner.consume(n);
+    }
 }
 
-fn frame_attr(n: roxmltree::Node<'_, '_>) -> Result<i64, String> {
-    let a = n.attribute("frame").ok_or_else(|| {
-        format!(
-            "<{}> in a block has no frame attribute",
-            n.tag_name().name()
+/// The elements dropscope reads values from: the first of each name
+/// under the root.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Block {
+    Header,
+    Bitmap,
+    Setup,
+    Times,
+    Exposures,
+}
+
+const BLOCKS: [(Block, &str); 5] = [
+    (Block::Header, "CineFileHeader"),
+    (Block::Bitmap, "BitmapInfoHeader"),
+    (Block::Setup, "CameraSetup"),
+    (Block::Times, "TIMEBLOCK"),
+    (Block::Exposures, "EXPOSUREBLOCK"),
+];
+
+/// The single values read, each the first element of its name in its block.
+const FIELDS: [(Block, &str); 14] = [
+    (Block::Header, "FirstImageNo"),
+    (Block::Header, "ImageCount"),
+    (Block::Bitmap, "biWidth"),
+    (Block::Bitmap, "biHeight"),
+    (Block::Bitmap, "biBitCount"),
+    (Block::Setup, "FrameRateDouble"),
+    (Block::Setup, "FrameRate"),
+    (Block::Setup, "ShutterNs"),
+    (Block::Setup, "Shutter"),
+    (Block::Setup, "RealBPP"),
+    (Block::Setup, "BlackLevel"),
+    (Block::Setup, "WhiteLevel"),
+    (Block::Setup, "bFlipH"),
+    (Block::Setup, "bFlipV"),
+];
+
+/// What an open element is to the walk.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Role {
+    Root,
+    Block(Block),
+    /// `FIELDS[i]`.
+    Field(usize),
+    /// `CineFileHeader/TriggerTime`, its `Date` and its `Time`.
+    Trigger,
+    TriggerDate,
+    TriggerClock,
+    /// A TIMEBLOCK `Date` or `Time`, an EXPOSUREBLOCK `Exp`, of a frame.
+    Date(i64),
+    Time(i64),
+    Exp(i64),
+    /// Nothing is read from it.
+    Other,
+}
+
+impl Role {
+    fn wants_text(self) -> bool {
+        !matches!(
+            self,
+            Role::Root | Role::Block(_) | Role::Trigger | Role::Other
         )
-    })?;
+    }
+}
+
+struct Level {
+    name: String,
+    role: Role,
+    /// Its first text so far, while no child has ended it.
+    text: String,
+    text_open: bool,
+}
+
+/// The TIMEBLOCK's dates listed so far, as runs: frames
+/// `first..first + len` listed in a row with one date text. A time takes
+/// the most recent date listed for its frame.
+#[derive(Default)]
+struct Dates {
+    runs: Vec<(i64, u64, u32)>,
+    texts: Vec<String>,
+    ids: HashMap<String, u32>,
+    text_bytes: usize,
+}
+
+impl Dates {
+    fn push(&mut self, frame: i64, text: String, max_runs: usize) -> Result<(), String> {
+        let same = |r: &(i64, u64, u32)| self.texts[r.2 as usize] == text;
+        if let Some(last) = self.runs.last() {
+            let next = i64::try_from(last.1)
+                .ok()
+                .and_then(|len| last.0.checked_add(len));
+            if next == Some(frame) && same(last) {
+                if let Some(last) = self.runs.last_mut() {
+                    last.1 += 1;
+                }
+                return Ok(());
+            }
+        }
+        if self.runs.len() >= max_runs {
+            return Err(too_many("TIMEBLOCK", max_runs));
+        }
+        let id = match self.ids.get(&text) {
+            Some(&id) => id,
+            None => {
+                self.text_bytes += text.len();
+                if self.text_bytes > MAX_DATE_BYTES {
+                    return Err(format!(
+                        "TIMEBLOCK dates: more than {} MiB of different ones, not a PCC side file",
+                        MAX_DATE_BYTES >> 20
+                    ));
+                }
+                let id = self.texts.len() as u32;
+                self.texts.push(text.clone());
+                self.ids.insert(text, id);
+                id
+            }
+        };
+        self.runs.push((frame, 1, id));
+        Ok(())
+    }
+
+    fn of(&self, frame: i64) -> Option<&str> {
+        self.runs
+            .iter()
+            .rev()
+            .find(|(first, len, _)| {
+                frame
+                    .checked_sub(*first)
+                    .is_some_and(|k| k >= 0 && (k as u64) < *len)
+            })
+            .map(|r| self.texts[r.2 as usize].as_str())
+    }
+}
+
+fn too_many(block: &str, max: usize) -> String {
+    format!("{block} lists more than {max} frames: more than dropscope reads from a side file")
+}
+
+/// The walk through the document's events, keeping only what
+/// [`PccXml`] needs.
+struct Walk {
+    max_frames: usize,
+    stack: Vec<Level>,
+    /// The root element's name, once seen.
+    root: Option<String>,
+    seen_decl_or_other: bool,
+    blocks_seen: [bool; 5],
+    /// The text of each of [`FIELDS`], trimmed; `Some` from its start.
+    fields: [Option<String>; 14],
+    trigger_seen: bool,
+    trigger_date: Option<String>,
+    trigger_clock: Option<String>,
+    trigger: Option<Result<LocalInstant, String>>,
+    header_done: bool,
+    dates: Dates,
+    /// Frame times relative to the origin, once it is known; before (no
+    /// CineFileHeader yet), the instants themselves.
+    times: Vec<(i64, f64)>,
+    instants: Vec<(i64, LocalInstant)>,
+    first_instant: Option<LocalInstant>,
+    times_error: Option<String>,
+    exposures: Vec<(i64, f64)>,
+    exposures_error: Option<String>,
+}
+
+impl Walk {
+    fn new(max_frames: usize) -> Self {
+        Walk {
+            max_frames,
+            stack: Vec::new(),
+            root: None,
+            seen_decl_or_other: false,
+            blocks_seen: [false; 5],
+            fields: Default::default(),
+            trigger_seen: false,
+            trigger_date: None,
+            trigger_clock: None,
+            trigger: None,
+            header_done: false,
+            dates: Dates::default(),
+            times: Vec::new(),
+            instants: Vec::new(),
+            first_instant: None,
+            times_error: None,
+            exposures: Vec::new(),
+            exposures_error: None,
+        }
+    }
+
+    fn event(&mut self, event: Event<'_>, at: u64) -> Result<(), String> {
+        let invalid = |what: &str| format!("not valid XML at byte {at}: {what}");
+        let first = !self.seen_decl_or_other;
+        self.seen_decl_or_other = true;
+        match event {
+            Event::Start(e) => self.start(&e, false, at)?,
+            Event::Empty(e) => {
+                self.start(&e, true, at)?;
+                self.end();
+            }
+            Event::End(_) => {
+                if self.stack.is_empty() {
+                    return Err(invalid("an end tag outside the root element"));
+                }
+                self.end();
+            }
+            Event::Text(t) => {
+                let t = t.xml10_content();
+                if self.stack.is_empty() {
+                    if !t.bytes().all(|b| matches!(b, b' ' | b'\t' | b'\r' | b'\n')) {
+                        return Err(invalid("text outside the root element"));
+                    }
+                } else {
+                    self.text(&t, at)?;
+                }
+            }
+            Event::CData(t) => {
+                if self.stack.is_empty() {
+                    return Err(invalid("CDATA outside the root element"));
+                }
+                self.text(&t.xml10_content(), at)?;
+            }
+            Event::GeneralRef(r) => {
+                if self.stack.is_empty() {
+                    return Err(invalid("a reference outside the root element"));
+                }
+                let name = r.xml10_content();
+                let c = r.resolve_char_ref().map_err(|e| invalid(&e.to_string()))?;
+                let mut one = [0u8; 4];
+                let s = match c {
+                    Some(c) => &*c.encode_utf8(&mut one),
+                    None => quick_xml::escape::resolve_xml_entity(&name)
+                        .ok_or_else(|| invalid(&format!("unknown entity &{name};")))?,
+                };
+                self.text(s, at)?;
+            }
+            Event::Comment(_) | Event::PI(_) => self.end_text(),
+            Event::Decl(_) if first => {}
+            Event::Decl(_) => return Err(invalid("an XML declaration not at the start")),
+            Event::DocType(_) => {
+                return Err(invalid(
+                    "a DTD (<!DOCTYPE>), which a PCC side file never has",
+                ))
+            }
+            Event::Eof => {}
+        }
+        Ok(())
+    }
+
+    /// A piece of the open element's text; a value read is at most
+    /// [`MAX_XML_PIECE_BYTES`] long, however many pieces make it.
+    fn text(&mut self, t: &str, at: u64) -> Result<(), String> {
+        if let Some(level) = self.stack.last_mut() {
+            if level.text_open && level.role.wants_text() {
+                if (level.text.len() + t.len()) as u64 > MAX_XML_PIECE_BYTES {
+                    return Err(format!(
+                        "<{}> holds more than {} MiB of text (at byte {at}): not a PCC side file",
+                        level.name,
+                        MAX_XML_PIECE_BYTES >> 20
+                    ));
+                }
+                level.text.push_str(t);
+            }
+        }
+        Ok(())
+    }
+
+    fn end_text(&mut self) {
+        if let Some(level) = self.stack.last_mut() {
+            level.text_open = false;
+        }
+    }
+
+    fn start(&mut self, e: &BytesStart<'_>, empty: bool, at: u64) -> Result<(), String> {
+        if self.stack.is_empty() && self.root.is_some() {
+            return Err(format!(
+                "not valid XML at byte {at}: a second root element <{}>",
+                e.name().as_ref()
+            ));
+        }
+        if !empty && self.stack.len() >= MAX_XML_DEPTH {
+            return Err(format!(
+                "elements nested more than {MAX_XML_DEPTH} deep (at byte {at}): not a PCC side file"
+            ));
+        }
+        // Every attribute is checked (quoted, not repeated, known
+        // references); `frame` is kept.
+        let mut frame = None;
+        for a in e.attributes() {
+            let a = a.map_err(|err| format!("not valid XML at byte {at}: {err}"))?;
+            let value = a
+                .normalized_value(XmlVersion::Implicit1_0)
+                .map_err(|err| format!("not valid XML at byte {at}: {err}"))?;
+            if a.key.as_ref() == "frame" {
+                frame = Some(value.into_owned());
+            }
+        }
+        self.end_text();
+        let name = e.local_name().as_ref().to_string();
+        let role = self.role_of(&name, frame);
+        self.stack.push(Level {
+            name,
+            role,
+            text: String::new(),
+            text_open: true,
+        });
+        Ok(())
+    }
+
+    /// The role of a new element named `name` under the open one.
+    fn role_of(&mut self, name: &str, frame: Option<String>) -> Role {
+        let parent = match self.stack.last() {
+            None => {
+                self.root = Some(name.to_string());
+                return if name == "chd" {
+                    Role::Root
+                } else {
+                    Role::Other
+                };
+            }
+            Some(p) => p.role,
+        };
+        let field = |fields: &mut [Option<String>; 14], block| {
+            let i = FIELDS.iter().position(|f| *f == (block, name))?;
+            if fields[i].is_some() {
+                return None;
+            }
+            fields[i] = Some(String::new());
+            Some(Role::Field(i))
+        };
+        match parent {
+            Role::Root => {
+                let Some(i) = BLOCKS.iter().position(|b| b.1 == name) else {
+                    return Role::Other;
+                };
+                if std::mem::replace(&mut self.blocks_seen[i], true) {
+                    return Role::Other;
+                }
+                Role::Block(BLOCKS[i].0)
+            }
+            Role::Block(Block::Header) if name == "TriggerTime" => {
+                if std::mem::replace(&mut self.trigger_seen, true) {
+                    Role::Other
+                } else {
+                    Role::Trigger
+                }
+            }
+            Role::Block(b @ (Block::Header | Block::Bitmap | Block::Setup)) => {
+                field(&mut self.fields, b).unwrap_or(Role::Other)
+            }
+            Role::Trigger if name == "Date" && self.trigger_date.is_none() => {
+                self.trigger_date = Some(String::new());
+                Role::TriggerDate
+            }
+            Role::Trigger if name == "Time" && self.trigger_clock.is_none() => {
+                self.trigger_clock = Some(String::new());
+                Role::TriggerClock
+            }
+            // Every element of the TIMEBLOCK has a frame attribute.
+            Role::Block(Block::Times) if self.times_error.is_none() => {
+                match frame_number(name, frame.as_deref()) {
+                    Err(e) => {
+                        self.times_error = Some(e);
+                        Role::Other
+                    }
+                    Ok(f) if name == "Date" => Role::Date(f),
+                    Ok(f) if name == "Time" => Role::Time(f),
+                    Ok(_) => Role::Other,
+                }
+            }
+            Role::Block(Block::Exposures) if name == "Exp" && self.exposures_error.is_none() => {
+                match frame_number(name, frame.as_deref()) {
+                    Err(e) => {
+                        self.exposures_error = Some(e);
+                        Role::Other
+                    }
+                    Ok(f) => Role::Exp(f),
+                }
+            }
+            _ => Role::Other,
+        }
+    }
+
+    /// The open element ends: what it held is kept.
+    fn end(&mut self) {
+        let Some(level) = self.stack.pop() else {
+            return;
+        };
+        let text = level.text;
+        match level.role {
+            Role::Block(Block::Header) => self.header_done = true,
+            Role::Field(i) => self.fields[i] = Some(text.trim().to_string()),
+            Role::TriggerDate => self.trigger_date = Some(text),
+            Role::TriggerClock => self.trigger_clock = Some(text),
+            Role::Trigger => {
+                let d = self.trigger_date.as_deref().unwrap_or("");
+                let tm = self.trigger_clock.as_deref().unwrap_or("");
+                self.trigger = Some(
+                    local_seconds(d, tm)
+                        .ok_or_else(|| format!("TriggerTime {d:?} {tm:?} is not a PCC date/time")),
+                );
+            }
+            Role::Date(frame) if self.times_error.is_none() => {
+                if let Err(e) = self.dates.push(frame, text, self.max_frames) {
+                    self.times_error = Some(e);
+                }
+            }
+            Role::Time(frame) if self.times_error.is_none() => {
+                if let Err(e) = self.time(frame, &text) {
+                    self.times_error = Some(e);
+                }
+            }
+            Role::Exp(frame) if self.exposures_error.is_none() => {
+                let us: Result<f64, _> = text.trim().parse();
+                match us {
+                    Err(_) => {
+                        self.exposures_error =
+                            Some(format!("EXPOSUREBLOCK frame={frame} is not a number"))
+                    }
+                    Ok(_) if self.exposures.len() >= self.max_frames => {
+                        self.exposures_error = Some(too_many("EXPOSUREBLOCK", self.max_frames))
+                    }
+                    Ok(us) => self.exposures.push((frame, us * 1e-6)),
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// A TIMEBLOCK `Time` of `frame`: its instant from the most recent date
+    /// of the frame, relative to the origin when it is known.
+    fn time(&mut self, frame: i64, value: &str) -> Result<(), String> {
+        let date = self
+            .dates
+            .of(frame)
+            .ok_or_else(|| format!("TIMEBLOCK Time frame={frame} has no Date"))?;
+        let t = local_seconds(date, value).ok_or_else(|| {
+            format!("TIMEBLOCK frame={frame}: {date:?} {value:?} is not a PCC date/time")
+        })?;
+        if self.times.len() + self.instants.len() >= self.max_frames {
+            return Err(too_many("TIMEBLOCK", self.max_frames));
+        }
+        let first = *self.first_instant.get_or_insert(t);
+        // The origin is the header's trigger, or without one the first
+        // listed frame: known once the header has ended (an erroneous
+        // trigger fails the parse, whatever the times).
+        let origin = match (&self.trigger, self.header_done) {
+            (_, false) => None,
+            (Some(Ok(trigger)), true) => Some(*trigger),
+            (Some(Err(_)) | None, true) => Some(first),
+        };
+        match origin {
+            Some(o) => self.times.push((frame, t.since(o))),
+            None => self.instants.push((frame, t)),
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> Result<PccXml, String> {
+        if let Some(open) = self.stack.last() {
+            return Err(format!(
+                "not valid XML: the file ends inside <{}> (cut short?)",
+                open.name
+            ));
+        }
+        let Some(root) = self.root.as_deref() else {
+            return Err("not valid XML: no root element".into());
+        };
+        if root != "chd" {
+            return Err(format!("root element is <{root}>, not PCC's <chd>"));
+        }
+        let text_of = |name: &str| -> Option<String> {
+            FIELDS
+                .iter()
+                .position(|f| f.1 == name)
+                .and_then(|i| self.fields[i].clone())
+        };
+        fn num<T: std::str::FromStr>(v: Option<String>, name: &str) -> Result<Option<T>, String> {
+            match v {
+                None => Ok(None),
+                Some(s) if s.is_empty() => Ok(None),
+                Some(s) => s
+                    .parse::<T>()
+                    .map(Some)
+                    .map_err(|_| format!("<{name}> holds {s:?}, not a number")),
+            }
+        }
+        let boolean = |v: Option<String>| {
+            v.and_then(|s| match s.as_str() {
+                "true" | "1" => Some(true),
+                "false" | "0" => Some(false),
+                _ => None,
+            })
+        };
+        // A frame rate or exposure that is there but impossible is an error,
+        // never replaced by another value.
+        let positive = |name: &str| -> Result<Option<f64>, String> {
+            match num::<f64>(text_of(name), name)? {
+                Some(v) if !(v.is_finite() && v > 0.0) => Err(format!(
+                    "<{name}> holds {v}: it must be a finite number above 0"
+                )),
+                v => Ok(v),
+            }
+        };
+        let fps = match positive("FrameRateDouble")? {
+            Some(f) => Some(f),
+            None => positive("FrameRate")?,
+        };
+        let exposure_s = match positive("ShutterNs")? {
+            Some(ns) => Some(ns * 1e-9),
+            None => positive("Shutter")?.map(|us| us * 1e-6),
+        };
+        let trigger = self.trigger.clone().transpose()?;
+        if let Some(e) = self.times_error {
+            return Err(e);
+        }
+        // Relative to the trigger; without one, to the first listed frame.
+        let times = match trigger.or(self.first_instant) {
+            Some(origin) if !self.instants.is_empty() => {
+                let mut times: Vec<(i64, f64)> = self
+                    .instants
+                    .iter()
+                    .map(|(f, t)| (*f, t.since(origin)))
+                    .collect();
+                times.extend_from_slice(&self.times);
+                times
+            }
+            _ => self.times,
+        };
+        if let Some(e) = self.exposures_error {
+            return Err(e);
+        }
+        Ok(PccXml {
+            first_image_no: num(text_of("FirstImageNo"), "FirstImageNo")?,
+            image_count: num(text_of("ImageCount"), "ImageCount")?,
+            width: num(text_of("biWidth"), "biWidth")?,
+            height: num(text_of("biHeight"), "biHeight")?,
+            bit_count: num(text_of("biBitCount"), "biBitCount")?,
+            fps,
+            exposure_s,
+            real_bpp: num(text_of("RealBPP"), "RealBPP")?,
+            black_level: num(text_of("BlackLevel"), "BlackLevel")?,
+            white_level: num(text_of("WhiteLevel"), "WhiteLevel")?,
+            flip_h: boolean(text_of("bFlipH")),
+            flip_v: boolean(text_of("bFlipV")),
+            times,
+            exposures: self.exposures,
+        })
+    }
+}
+
+/// The `frame` attribute of a block's element `name`.
+fn frame_number(name: &str, frame: Option<&str>) -> Result<i64, String> {
+    let a = frame.ok_or_else(|| format!("<{name}> in a block has no frame attribute"))?;
     a.trim()
         .parse()
         .map_err(|_| format!("frame attribute {a:?} is not an integer"))
@@ -383,28 +838,106 @@ mod tests {
     }
 
     #[test]
-    fn deep_nesting_is_refused_before_parsing() {
-        // 100 000 levels overflowed the stack in the parser (issue 14).
+    fn deep_nesting_is_refused_as_it_is_read() {
+        // 100 000 levels overflowed the stack of the tree parser once (issue 14).
         let deep = format!(
             "<chd>{}{}</chd>",
             "<a>".repeat(100_000),
             "</a>".repeat(100_000)
         );
         let e = parse(&deep).unwrap_err();
+        // The 65th element starts after `<chd>` and 63 `<a>`.
+        assert!(e.contains("nested more than 64 deep (at byte 194)"), "{e}");
+        // 64 levels are read; comments, CDATA, quoted `>` and empty
+        // elements do not nest.
+        let nested = |levels: usize| {
+            format!(
+                "<?xml version=\"1.0\"?><chd><!-- <a><a> -->{}<x a=\"b>\" b='>'/><![CDATA[<c><c>]]>\
+                 <CameraSetup><FrameRate>10</FrameRate>{}<e/>{}</CameraSetup></chd>",
+                "<e/>".repeat(100),
+                "<a>".repeat(levels - 2),
+                "</a>".repeat(levels - 2)
+            )
+        };
+        assert_eq!(parse(&nested(64)).unwrap().fps, Some(10.0));
+        let e = parse(&nested(65)).unwrap_err();
         assert!(e.contains("nested more than 64 deep"), "{e}");
-        // Comments, CDATA, quoted `>` and empty elements do not nest.
-        let flat = format!(
-            "<?xml version=\"1.0\"?><chd><!-- <a><a> -->{}<x a=\"b>\" b='>'/><![CDATA[<c><c>]]>\
-             <CameraSetup><FrameRate>10</FrameRate></CameraSetup></chd>",
-            "<e/>".repeat(100)
+    }
+
+    #[test]
+    fn frames_past_the_limit_and_long_pieces_are_refused() {
+        let exps = |n: usize| {
+            let e: String = (0..n)
+                .map(|k| format!("<Exp frame=\"{k}\">9.5</Exp>"))
+                .collect();
+            format!("<chd><EXPOSUREBLOCK>{e}</EXPOSUREBLOCK></chd>")
+        };
+        assert_eq!(
+            read_limited(exps(10).as_bytes(), 10)
+                .unwrap()
+                .exposures
+                .len(),
+            10
         );
-        assert_eq!(too_deep(&flat, 3), None);
-        assert_eq!(parse(&flat).unwrap().fps, Some(10.0));
-        assert_eq!(too_deep("<a>\n<b>\n<c>", 2), Some(3));
-        let big = format!("<chd>{}</chd>", " ".repeat(MAX_XML_BYTES));
-        assert!(parse(&big)
-            .unwrap_err()
-            .contains("larger than any PCC side file"));
+        let e = read_limited(exps(11).as_bytes(), 10).unwrap_err();
+        assert!(e.contains("EXPOSUREBLOCK lists more than 10 frames"), "{e}");
+        let times = |n: usize| {
+            let t: String = (0..n)
+                .map(|k| {
+                    format!(
+                        "<Date frame=\"{k}\">Thu Jan 01 1970</Date>\
+                         <Time frame=\"{k}\">00:00:00.{k:03} 000.00</Time>"
+                    )
+                })
+                .collect();
+            format!("<chd><TIMEBLOCK>{t}</TIMEBLOCK></chd>")
+        };
+        assert_eq!(
+            read_limited(times(10).as_bytes(), 10).unwrap().times.len(),
+            10
+        );
+        let e = read_limited(times(11).as_bytes(), 10).unwrap_err();
+        assert!(e.contains("TIMEBLOCK lists more than 10 frames"), "{e}");
+        // Consecutive frames with one date are one run of dates, whatever
+        // their count; a frame listed again or another date starts one.
+        let mut dates = Dates::default();
+        for k in 0..1000 {
+            dates.push(k, "Thu Jan 01 1970".into(), 2).unwrap();
+        }
+        dates.push(5, "Fri Jan 02 1970".into(), 2).unwrap();
+        assert_eq!(
+            (dates.of(5), dates.of(6)),
+            (Some("Fri Jan 02 1970"), Some("Thu Jan 01 1970"))
+        );
+        assert_eq!(dates.of(1000), None);
+        assert!(dates.push(7, "Thu Jan 01 1970".into(), 2).is_err());
+        // One text of 2 MiB: refused before it is read whole.
+        let long = format!(
+            "<chd><Description>{}</Description></chd>",
+            "x".repeat(2 << 20)
+        );
+        let e = parse(&long).unwrap_err();
+        assert!(e.contains("longer than 1 MiB at byte 18"), "{e}");
+        // A value made of many short pieces: refused past 1 MiB too.
+        let pieces = format!(
+            "<chd><CameraSetup><RealBPP>{}</RealBPP></CameraSetup></chd>",
+            "&#49;".repeat((1 << 20) + 1)
+        );
+        let e = parse(&pieces).unwrap_err();
+        assert!(
+            e.contains("<RealBPP> holds more than 1 MiB of text"),
+            "{}",
+            &e[..e.len().min(200)]
+        );
+        // A file that cannot be read names the failure.
+        struct Failing;
+        impl Read for Failing {
+            fn read(&mut self, _: &mut [u8]) -> io::Result<usize> {
+                Err(io::Error::other("disk gone"))
+            }
+        }
+        let e = read(io::BufReader::new(Failing)).unwrap_err();
+        assert_eq!(e, "reading it: disk gone");
     }
 
     #[test]
@@ -426,8 +959,28 @@ mod tests {
     }
 
     #[test]
-    fn wrong_root_and_bad_numbers_are_errors() {
+    fn wrong_root_bad_numbers_and_bad_xml_are_errors() {
         assert!(parse("<cine/>").unwrap_err().contains("<chd>"));
+        for (xml, says) in [
+            ("", "not valid XML: no root element"),
+            ("<chd><a></chd>", "not valid XML at byte 8"),
+            (
+                "<chd><a>",
+                "not valid XML: the file ends inside <a> (cut short?)",
+            ),
+            (
+                "<chd/><chd/>",
+                "not valid XML at byte 6: a second root element <chd>",
+            ),
+            (
+                "<chd>&nbsp;</chd>",
+                "not valid XML at byte 5: unknown entity &nbsp;",
+            ),
+            ("<!DOCTYPE chd><chd/>", "not valid XML at byte 0: a DTD"),
+        ] {
+            let e = parse(xml).unwrap_err();
+            assert!(e.contains(says), "{xml:?}: {e}");
+        }
         let e =
             parse("<chd><CameraSetup><RealBPP>twelve</RealBPP></CameraSetup></chd>").unwrap_err();
         assert!(e.contains("RealBPP"), "{e}");

@@ -325,6 +325,15 @@ fn int_cdf(u: f64) -> f64 {
 /// `None` when the fit does not end on a step inside the samples.
 pub fn step_edge_row(v: &[f64], first_row: f64, e0: f64) -> Option<f64> {
     let n = v.len();
+    let (p, _) = fit_one_step(v, first_row, e0)?;
+    let inside = p[0] > first_row && p[0] < first_row + n as f64 - 1.0;
+    (p[0].is_finite() && p[2] > p[3] && inside).then_some(p[0])
+}
+
+/// [`step_edge_row`]'s fit: `(e, σ, hi, lo)` where it ended, and its cost
+/// (the sum of squared residuals).
+fn fit_one_step(v: &[f64], first_row: f64, e0: f64) -> Option<([f64; 4], f64)> {
+    let n = v.len();
     if n < 5 {
         return None;
     }
@@ -406,8 +415,7 @@ pub fn step_edge_row(v: &[f64], first_row: f64, e0: f64) -> Option<f64> {
             break;
         }
     }
-    let inside = p[0] > first_row && p[0] < first_row + n as f64 - 1.0;
-    (p[0].is_finite() && p[2] > p[3] && inside).then_some(p[0])
+    Some((p, c))
 }
 
 /// The pixel-averaged blurred unit step `A(z; e, σ)` (module doc, step 2)
@@ -487,22 +495,52 @@ fn two_step_levels(
 /// them swapped: then the caller's one-step fit is used, as before the
 /// analytic Jacobian — taking the swapped fit's upper step instead moved
 /// one of 120 real-preset drops' δmax from 8e-4 to 7e-3 off by hiding its
-/// band top's disagreement). `first_row` is a row number (an integer).
+/// band top's disagreement). `None` too when the strip is not told from
+/// noise: the two-step model must explain the samples better than one
+/// step does on the same rows by more than its two further parameters
+/// would by chance ([`strip_is_resolved`]); else noise below the top makes
+/// the strip search try columns with none, and the two-step fit splits
+/// their one blurred step into two sharper ones and returns the upper, up
+/// to 0.4 px above the edge. `first_row` is a row number (an integer).
 pub fn two_step_edge_row(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<f64> {
     let n = v.len();
-    let (th, _) = fit_two_steps(v, first_row, e0)?;
+    let (th, cost_two, _) = fit_two_steps(v, first_row, e0)?;
     let inside = |e: f64| e > first_row && e < first_row + n as f64 - 1.0;
-    (th.iter().all(|x| x.is_finite()) && th[0] < th[1] && inside(th[0]) && inside(th[1]))
-        .then_some(th[0])
+    let ordered =
+        th.iter().all(|x| x.is_finite()) && th[0] < th[1] && inside(th[0]) && inside(th[1]);
+    if !ordered {
+        return None;
+    }
+    let cost_one = fit_one_step(v, first_row, e0[0]).map_or(f64::INFINITY, |(_, c)| c);
+    strip_is_resolved(cost_one, cost_two, n).then_some(th[0])
 }
 
-/// [`two_step_edge_row`]'s fit: `θ = (e₁, e₂, σ)` where it ended and the
-/// Levenberg–Marquardt iterations it took (at most 60).
+/// Chance, at most, that noise alone lets the two-step model's two further
+/// parameters (the second step's row and level) lower the cost as much as
+/// a strip taken for real: the F-test's level.
+const STRIP_TEST_LEVEL: f64 = 0.01;
+
+/// Whether two steps (6 parameters) fit `n` samples significantly better
+/// than one (4): the F statistic `((c₁ − c₂)/2) / (c₂/(n − 6))` above its
+/// `1 − STRIP_TEST_LEVEL` quantile, which for 2 degrees of freedom in the
+/// numerator is closed-form: `P(F > f) = (1 + 2f/d)^(−d/2)`, `d = n − 6`.
+fn strip_is_resolved(cost_one: f64, cost_two: f64, n: usize) -> bool {
+    if n <= 6 || !(cost_two <= cost_one) {
+        return false;
+    }
+    let d = (n - 6) as f64;
+    let f_crit = 0.5 * d * (STRIP_TEST_LEVEL.powf(-2.0 / d) - 1.0);
+    // `cost_two` = 0 (a noiseless profile the model fits exactly): resolved.
+    (cost_one - cost_two) * d > 2.0 * f_crit * cost_two
+}
+
+/// [`two_step_edge_row`]'s fit: `θ = (e₁, e₂, σ)` where it ended, its cost
+/// and the Levenberg–Marquardt iterations it took (at most 60).
 fn fit_two_steps(
     v: &[f64],
     first_row: f64,
     e0: [f64; 2],
-) -> Option<(nalgebra::Vector3<f64>, usize)> {
+) -> Option<(nalgebra::Vector3<f64>, f64, usize)> {
     use nalgebra::{Matrix3, Vector3};
     let n = v.len();
     if n < 8 {
@@ -563,7 +601,7 @@ fn fit_two_steps(
             break;
         }
     }
-    Some((th, iterations))
+    Some((th, c, iterations))
 }
 
 /// The Jacobian of the projected residual `r(θ) = A c(θ) − v`, `c(θ) =
@@ -857,6 +895,50 @@ mod tests {
     }
 
     #[test]
+    fn a_single_noisy_step_is_not_taken_for_a_strip() {
+        // One blurred step with noise, the two-step fit started as if a
+        // strip ended two rows below it (what the strip search finds in
+        // noise): the two-step model then splits the step in two and its
+        // upper row is up to 0.4 px off; the F-test sends it to the
+        // caller's one-step fit (`None`). A real strip under the same
+        // noise is kept, its top row within the noise's reach.
+        let first = 14usize;
+        let (mut single, mut strips) = (0, 0);
+        for seed in 0..40u64 {
+            let e1 = 20.0 + (seed % 5) as f64 / 5.0;
+            let sigma = 0.6 + 0.1 * (seed % 4) as f64;
+            let one = {
+                use rand::SeedableRng;
+                use rand_distr::Distribution;
+                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+                let normal = rand_distr::Normal::new(0.0, 1.5).unwrap();
+                blurred(&[-1e3, e1, 1e3], &[190.0, 60.0], sigma, 40)
+                    .into_iter()
+                    .map(|x| x + normal.sample(&mut rng))
+                    .collect::<Vec<f64>>()
+            };
+            let start = [e1.floor() + 0.5, e1.floor() + 2.5];
+            if two_step_edge_row(&one[first..e1 as usize + 6], first as f64, start).is_none() {
+                single += 1;
+            }
+            let strip = noisy_two_steps(e1, 3.0, sigma, 1.5, seed);
+            let start = [e1.floor() + 0.5, (e1 + 3.0).floor() + 0.5];
+            let window = &strip[first..e1 as usize + 7];
+            if let Some(row) = two_step_edge_row(window, first as f64, start) {
+                assert!((row - e1).abs() < 0.25, "seed {seed}: {row} for {e1}");
+                strips += 1;
+            }
+        }
+        // At the test's 1 % level, about 0.4 of 40 single steps pass.
+        assert!(
+            single >= 38,
+            "{} of 40 single steps taken for strips",
+            40 - single
+        );
+        assert_eq!(strips, 40, "strips kept");
+    }
+
+    #[test]
     fn noisy_two_step_profiles_are_fitted_to_their_minimum() {
         // From half a pixel off, the fit ends before its limit of 60
         // iterations (7–18 here) where no small move of either edge or of
@@ -872,7 +954,7 @@ mod tests {
             let v = noisy_two_steps(e1, width, sigma, 2.0, seed);
             let window = &v[first..(e1 + width) as usize + 4];
             let start = [e1.floor() + 0.5, (e1 + width).floor() + 0.5];
-            let (th, iterations) = fit_two_steps(window, first as f64, start).unwrap();
+            let (th, _, iterations) = fit_two_steps(window, first as f64, start).unwrap();
             most = most.max(iterations);
             let n = window.len();
             let cost = |th: [f64; 3]| {

@@ -850,8 +850,9 @@ struct Pass1State {
     fits: usize,
     misses: usize,
     following: bool,
-    /// `(t, z_px)` of the fits since the sphere last moved down (its rise
-    /// from the bottom of the contact), the newest [`RISE_KEPT`].
+    /// `(t, z + r)` (px) of the fits since the sphere's lowest point last
+    /// moved down (its rise from the bottom of the contact), the newest
+    /// [`RISE_KEPT`].
     rise: std::collections::VecDeque<(f64, f64)>,
     /// Frames before this time are not looked at ([`Look::Away`]).
     away_until_s: Option<f64>,
@@ -943,12 +944,19 @@ impl Pass1State {
         };
         match seen.fit {
             Some(f) => {
+                // The rise in the sphere's lowest point, z + r: on a cap
+                // leaving through the top of the frame the free fit's
+                // centre and radius wander together (r 72–79 px for a
+                // 75 px sphere), its lowest edge does not. Higher than the
+                // last fit also after a loss: a cap leaving slowly is lost
+                // and found again frame after frame.
+                let bottom = f.z_px + f.r_px;
                 match self.history.last() {
-                    Some(&(_, last)) if self.following && f.z_px < last.z_px => {
+                    Some(&(_, last)) if bottom < last.z_px + last.r_px => {
                         if self.rise.len() == RISE_KEPT {
                             self.rise.pop_front();
                         }
-                        self.rise.push_back((t, f.z_px));
+                        self.rise.push_back((t, bottom));
                     }
                     _ => self.rise.clear(),
                 }
@@ -1687,6 +1695,12 @@ mod tests {
     /// 0 at 10 000 frames/s: above the pillar band at row ~170, blur 1 px,
     /// noise σ 2 levels, ±3 % flicker drawn from `seed`.
     fn rendered(disks: &[(f64, f64, f64)], seed: u64) -> MemorySource {
+        let disks: Vec<_> = disks.iter().copied().map(Some).collect();
+        rendered_or_hidden(&disks, seed)
+    }
+
+    /// [`rendered`], with frames where the sphere is hidden (`None`).
+    fn rendered_or_hidden(disks: &[Option<(f64, f64, f64)>], seed: u64) -> MemorySource {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let frames = disks
             .iter()
@@ -1697,7 +1711,7 @@ mod tests {
                     background: 200.0,
                     vignetting: 0.1,
                     sphere_transmission: 0.2,
-                    disk: Some(disk),
+                    disk,
                     band: Some(PillarBand {
                         row0_px: 170.4,
                         slope: 0.003,
@@ -1781,6 +1795,45 @@ mod tests {
         assert!(
             skipped.away_frames >= away * 6 / 10 && skipped.away_frames <= away * 8 / 10,
             "{} of {away}",
+            skipped.away_frames
+        );
+    }
+
+    #[test]
+    fn a_rise_lost_and_found_on_its_way_out_still_predicts_the_return() {
+        // `away_movie` with the sphere hidden in frames 12–13 and 17–18 of
+        // its rise (each loss ends the following, each return is a search):
+        // the heights before and after each loss are one rise, and the
+        // frames while it is out of view are still not looked at.
+        let disks: Vec<_> = (0..172)
+            .map(|k| {
+                let hidden = matches!(k, 12 | 13 | 17 | 18);
+                let k = k as f64;
+                (!hidden).then_some((128.0 + 0.1 * k, 130.0 - 7.0 * k + 0.04 * k * k, 20.0))
+            })
+            .collect();
+        let mut m = rendered_or_hidden(&disks, 7);
+        let st = settings();
+        let skipped = track(&mut m, &st).unwrap();
+        let every = track(
+            &mut m,
+            &TrackSettings {
+                skip_away: false,
+                ..st.clone()
+            },
+        )
+        .unwrap();
+        let all = |t: &Track| -> Vec<FrameTrack> { t.frames.iter().collect() };
+        assert_eq!(all(&skipped), all(&every));
+        let recovered = all(&skipped)
+            .iter()
+            .filter(|f| f.frame < 25 && f.flags.contains(Flag::Recovered))
+            .count();
+        assert_eq!(recovered, 2, "the two returns are searches");
+        // Out of view from ~frame 25 to ~150, as in `away_movie`.
+        assert!(
+            (75..=100).contains(&skipped.away_frames),
+            "{} frames away",
             skipped.away_frames
         );
     }

@@ -1752,32 +1752,39 @@ mod tests {
     /// the top of the frame from frame ~25 to ~150 and back down to row
     /// ~103.
     fn away_movie() -> MemorySource {
-        let disks: Vec<_> = (0..172)
-            .map(|k| {
-                let k = k as f64;
-                (128.0 + 0.1 * k, 130.0 - 7.0 * k + 0.04 * k * k, 20.0)
-            })
-            .collect();
+        let disks: Vec<_> = (0..172).map(away_disk).collect();
         rendered(&disks, 7)
     }
 
-    #[test]
-    fn frames_are_not_looked_at_while_the_sphere_is_away_above_the_frame() {
-        let mut m = away_movie();
+    /// [`away_movie`]'s sphere in frame `k`: (x, z, r) px.
+    fn away_disk(k: usize) -> (f64, f64, f64) {
+        let k = k as f64;
+        (128.0 + 0.1 * k, 130.0 - 7.0 * k + 0.04 * k * k, 20.0)
+    }
+
+    /// `m` tracked with the frames while the sphere is away skipped and
+    /// with every frame looked at: the same track, bit for bit (the frames
+    /// not looked at hold no sphere, and a search of them finds none).
+    fn skipped_and_every(m: &mut MemorySource) -> (Track, Track) {
         let st = settings();
-        let skipped = track(&mut m, &st).unwrap();
+        let skipped = track(m, &st).unwrap();
         let every = track(
-            &mut m,
+            m,
             &TrackSettings {
                 skip_away: false,
                 ..st.clone()
             },
         )
         .unwrap();
-        // The same track, bit for bit: the frames not looked at hold no
-        // sphere, and a search of them finds none.
         let all = |t: &Track| -> Vec<FrameTrack> { t.frames.iter().collect() };
         assert_eq!(all(&skipped), all(&every));
+        (skipped, every)
+    }
+
+    #[test]
+    fn frames_are_not_looked_at_while_the_sphere_is_away_above_the_frame() {
+        let (skipped, every) = skipped_and_every(&mut away_movie());
+        let all = |t: &Track| -> Vec<FrameTrack> { t.frames.iter().collect() };
         assert_eq!(every.away_frames, 0);
         // Out of view (its circle wholly above row 0) from frame 25 to 150:
         // the return predicted from the rise's parabola, less its last
@@ -1806,25 +1813,10 @@ mod tests {
         // the heights before and after each loss are one rise, and the
         // frames while it is out of view are still not looked at.
         let disks: Vec<_> = (0..172)
-            .map(|k| {
-                let hidden = matches!(k, 12 | 13 | 17 | 18);
-                let k = k as f64;
-                (!hidden).then_some((128.0 + 0.1 * k, 130.0 - 7.0 * k + 0.04 * k * k, 20.0))
-            })
+            .map(|k| (!matches!(k, 12 | 13 | 17 | 18)).then(|| away_disk(k)))
             .collect();
-        let mut m = rendered_or_hidden(&disks, 7);
-        let st = settings();
-        let skipped = track(&mut m, &st).unwrap();
-        let every = track(
-            &mut m,
-            &TrackSettings {
-                skip_away: false,
-                ..st.clone()
-            },
-        )
-        .unwrap();
+        let (skipped, _) = skipped_and_every(&mut rendered_or_hidden(&disks, 7));
         let all = |t: &Track| -> Vec<FrameTrack> { t.frames.iter().collect() };
-        assert_eq!(all(&skipped), all(&every));
         let recovered = all(&skipped)
             .iter()
             .filter(|f| f.frame < 25 && f.flags.contains(Flag::Recovered))

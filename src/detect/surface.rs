@@ -854,6 +854,28 @@ mod tests {
         .collect()
     }
 
+    /// The two-step model of `window` (rows from `first`) at `θ = (e₁, e₂,
+    /// σ)`: its steps, the levels' Cholesky, the levels and the residuals.
+    fn two_steps_at(
+        window: &[f64],
+        first: usize,
+        th: [f64; 3],
+    ) -> (
+        UnitStep,
+        UnitStep,
+        nalgebra::Cholesky<f64, nalgebra::U3>,
+        nalgebra::Vector3<f64>,
+        Vec<f64>,
+    ) {
+        let n = window.len();
+        let (mut s1, mut s2) = (UnitStep::default(), UnitStep::default());
+        s1.set(n, first as f64, th[0], th[2]);
+        s2.set(n, first as f64, th[1], th[2]);
+        let mut r = Vec::new();
+        let (chol, levels) = two_step_levels(&s1.a, &s2.a, window, &mut r).unwrap();
+        (s1, s2, chol, levels, r)
+    }
+
     #[test]
     fn the_two_step_jacobian_is_the_derivative_of_the_projected_residual() {
         // Central differences of r(θ) = A c(θ) − v against the analytic
@@ -864,14 +886,7 @@ mod tests {
         let v = noisy_two_steps(20.3, 2.5, 0.8, 3.0, 7);
         let window = &v[first..28];
         let n = window.len();
-        let residual = |th: [f64; 3]| {
-            let (mut s1, mut s2) = (UnitStep::default(), UnitStep::default());
-            s1.set(n, first as f64, th[0], th[2]);
-            s2.set(n, first as f64, th[1], th[2]);
-            let mut r = Vec::new();
-            let (chol, levels) = two_step_levels(&s1.a, &s2.a, window, &mut r).unwrap();
-            (s1, s2, chol, levels, r)
-        };
+        let residual = |th: [f64; 3]| two_steps_at(window, first, th);
         let th = [20.6, 22.5, 1.1];
         let (s1, s2, chol, levels, r) = residual(th);
         let mut jac = Vec::new();
@@ -956,14 +971,12 @@ mod tests {
             let start = [e1.floor() + 0.5, (e1 + width).floor() + 0.5];
             let (th, _, iterations) = fit_two_steps(window, first as f64, start).unwrap();
             most = most.max(iterations);
-            let n = window.len();
             let cost = |th: [f64; 3]| {
-                let (mut s1, mut s2) = (UnitStep::default(), UnitStep::default());
-                s1.set(n, first as f64, th[0], th[2]);
-                s2.set(n, first as f64, th[1], th[2]);
-                let mut r = Vec::new();
-                two_step_levels(&s1.a, &s2.a, window, &mut r).unwrap();
-                r.iter().map(|x| x * x).sum::<f64>()
+                two_steps_at(window, first, th)
+                    .4
+                    .iter()
+                    .map(|x| x * x)
+                    .sum::<f64>()
             };
             let at = [th[0], th[1], th[2]];
             let c = cost(at);

@@ -110,14 +110,7 @@ fn background(rng: &mut ChaCha8Rng) -> Background {
 }
 
 fn surface() -> SurfaceLine {
-    SurfaceLine {
-        row0_px: band().row0_px,
-        slope: band().slope,
-        cov: [[0.0; 2]; 2],
-        residual_px: 0.0,
-        n_used: 0,
-        model_err_px: 0.0,
-    }
+    SurfaceLine::given(band().row0_px, band().slope)
 }
 
 /// Rates over `rounds` passes through `cases` on `threads` threads:

@@ -112,14 +112,7 @@ fn overlay_comparison() {
         z_px: 180.7,
         r_px: 70.2,
     };
-    let s = SurfaceLine {
-        row0_px: 300.2,
-        slope: 0.013,
-        cov: [[0.0; 2]; 2],
-        residual_px: 0.0,
-        n_used: 0,
-        model_err_px: 0.0,
-    };
+    let s = SurfaceLine::given(300.2, 0.013);
     let frame = Array2::from_shape_fn((H, W), |(i, j)| {
         let (x, z) = (j as f64, i as f64);
         if (x - c.x_px).hypot(z - c.z_px) < c.r_px {

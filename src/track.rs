@@ -2114,14 +2114,7 @@ mod tests {
             (-5.0, 0.0),
             (200.0, 0.0),
         ] {
-            let surface = SurfaceLine {
-                row0_px,
-                slope,
-                cov: [[0.0; 2]; 2],
-                residual_px: 0.0,
-                n_used: 0,
-                model_err_px: 0.0,
-            };
+            let surface = SurfaceLine::given(row0_px, slope);
             let grid = DarkGrid::new(&bg, &surface);
             for _ in 0..200 {
                 let dark_share = [0.0, 0.0005, 0.002, 0.01, 0.3][rng.gen_range(0..5)];
@@ -2146,14 +2139,7 @@ mod tests {
         }
         assert!(yes > 100 && no > 100, "{yes} dark, {no} not");
         // A frame of another size is looked at the plain way.
-        let surface = SurfaceLine {
-            row0_px: 50.0,
-            slope: 0.0,
-            cov: [[0.0; 2]; 2],
-            residual_px: 0.0,
-            n_used: 0,
-            model_err_px: 0.0,
-        };
+        let surface = SurfaceLine::given(50.0, 0.0);
         let other = Frame::zeros((h - 1, w));
         let grid = DarkGrid::new(&bg, &surface);
         assert!(grid.any_dark(&other, &bg, 1.0, &surface));

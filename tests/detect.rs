@@ -156,14 +156,7 @@ fn trial(
             }
         }
     }
-    let surface = band.map(|b| SurfaceLine {
-        row0_px: b.row0_px,
-        slope: b.slope,
-        cov: [[0.0; 2]; 2],
-        residual_px: 0.0,
-        n_used: 0,
-        model_err_px: 0.0,
-    });
+    let surface = band.map(|b| SurfaceLine::given(b.row0_px, b.slope));
     let predicted = Circle {
         x_px: truth.0 + rng.gen_range(-1.5..1.5),
         z_px: truth.1 + rng.gen_range(-1.5..1.5),

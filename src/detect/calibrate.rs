@@ -148,14 +148,7 @@ mod tests {
     #[test]
     fn only_full_circles_count_and_the_median_wins() {
         let p = EdgeParams::default();
-        let line = SurfaceLine {
-            row0_px: 300.0,
-            slope: 0.0,
-            cov: [[0.0; 2]; 2],
-            residual_px: 0.0,
-            n_used: 0,
-            model_err_px: 0.0,
-        };
+        let line = SurfaceLine::given(300.0, 0.0);
         let fits = [
             fit(256.0, 100.0, 80.01),
             fit(256.0, 110.0, 79.99),

@@ -339,14 +339,7 @@ mod tests {
             z_px: 25.0,
             r_px: 10.0,
         };
-        let line = SurfaceLine {
-            row0_px: 50.0,
-            slope: 0.0,
-            cov: [[0.0; 2]; 2],
-            residual_px: 0.0,
-            n_used: 0,
-            model_err_px: 0.0,
-        };
+        let line = SurfaceLine::given(50.0, 0.0);
         let p = [EdgePoint {
             x_px: 30.0,
             z_px: 25.0,

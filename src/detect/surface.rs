@@ -75,17 +75,24 @@ impl SurfaceLine {
             .sqrt()
     }
 
-    /// The line fixed by the configuration (`detect.surface_row_px`,
-    /// `detect.surface_slope`), if it sets one.
-    pub fn from_config(cfg: &DetectConfig) -> Option<Self> {
-        cfg.surface_row_px.map(|row0_px| SurfaceLine {
+    /// A line given, not fitted: row `row0_px` at column 0 and `slope`, with
+    /// no covariance, residual or edge-model error.
+    pub fn given(row0_px: f64, slope: f64) -> Self {
+        SurfaceLine {
             row0_px,
-            slope: cfg.surface_slope,
+            slope,
             cov: [[0.0; 2]; 2],
             residual_px: 0.0,
             n_used: 0,
             model_err_px: 0.0,
-        })
+        }
+    }
+
+    /// The line fixed by the configuration (`detect.surface_row_px`,
+    /// `detect.surface_slope`), if it sets one.
+    pub fn from_config(cfg: &DetectConfig) -> Option<Self> {
+        cfg.surface_row_px
+            .map(|row0_px| SurfaceLine::given(row0_px, cfg.surface_slope))
     }
 }
 

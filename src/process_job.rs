@@ -104,22 +104,26 @@ pub fn run(
     let id = crate::dataset_id::of_bytes(&drops);
     // The per-drop figures are drawn from the tracks while the runs' files
     // are synced and drops.csv and provenance.json written; they are
-    // written after, as before.
-    let (written, drawn) = rayon::join(
-        || {
+    // written after, as before. The syncs wait on the disk on a thread of
+    // their own: on one of the pool's they held it, and a single drop's
+    // figures (their SVG and PNG drawn at once) had one thread.
+    let (written, drawn) = std::thread::scope(|scope| {
+        let writer = scope.spawn(|| {
             crate::process::sync_outputs(out)?;
             time(Stage::Writes, || -> Result<(), BatchError> {
                 write_file(out, "drops.csv", &drops)?;
                 remove_other_collapse(out, &id, events)?;
                 replace_provenance(out, cfg, config_name, &entries, events)
             })
-        },
-        || {
-            time(Stage::Figures, || {
-                crate::collapse::per_drop::draw(&out.join("drops.csv"), &records, cfg, &id)
-            })
-        },
-    );
+        });
+        let drawn = time(Stage::Figures, || {
+            crate::collapse::per_drop::draw(&out.join("drops.csv"), &records, cfg, &id)
+        });
+        let written = writer
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (written, drawn)
+    });
     written?;
     let (drawn, warnings) = drawn?;
     time(Stage::Figures, || {

@@ -575,14 +575,20 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         tr = undistort_track(tr, &Lens::new(k1, meta.width, meta.height))
             .map_err(|e| format!("{}: {e}", run.path.display()))?;
     }
-    let curvature = time(Stage::Events, || {
-        free_fall_curvature(
-            || held_points(&tr, |_| (None, None)),
-            |x| tr.surface.row_at(x),
-            tr.radius_px,
-        )
-    });
-    let bounded = bounded_of(&tr, &meta, cfg);
+    // The free falls' curvature, and the track through the lens at the
+    // distortion bound with its own: each on a thread.
+    let (curvature, bounded) = rayon::join(
+        || {
+            time(Stage::Events, || {
+                free_fall_curvature(
+                    || held_points(&tr, |_| (None, None)),
+                    |x| tr.surface.row_at(x),
+                    tr.radius_px,
+                )
+            })
+        },
+        || bounded_of(&tr, &meta, cfg),
+    );
     tr.frames
         .check()
         .map_err(|e| format!("{}: {e}", run.path.display()))?;

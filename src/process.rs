@@ -810,43 +810,50 @@ fn measure_run(
     }
 
     // The overlay at the frame nearest the maximum penetration, those asked
-    // for, and the animated impact.
-    let mut pictures = crate::pictures::Pictures {
-        source: source.as_mut(),
-        meta: &meta,
-        track: &tr,
-        settings: &settings,
-        delta_mm: &|f| row_of(f).delta_mm,
-        mm_per_px: sc.mm_per_px,
-    };
-    let overlay = record.t_max_s.and_then(|t_max| {
-        let ft = tr
-            .frames
+    // for, and the animated impact; beside them, the track CSV.
+    let pictures = || {
+        let mut pictures = crate::pictures::Pictures {
+            source: source.as_mut(),
+            meta: &meta,
+            track: &tr,
+            settings: &settings,
+            delta_mm: &|f| row_of(f).delta_mm,
+            mm_per_px: sc.mm_per_px,
+        };
+        let overlay = record.t_max_s.and_then(|t_max| {
+            let ft = tr
+                .frames
+                .iter()
+                .filter(|f| f.held.is_some())
+                .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
+            pictures.still(&ft)
+        });
+        let frame_overlays: Vec<(i64, Vec<u8>)> = overlay_frames
             .iter()
-            .filter(|f| f.held.is_some())
-            .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
-        pictures.still(&ft)
-    });
-    let frame_overlays = overlay_frames
-        .iter()
-        .filter_map(|&n| {
-            let ft = tr.frames.iter().find(|f| f.frame == n)?;
-            pictures.still(&ft).map(|png| (n, png))
-        })
-        .collect();
-    let impact = record
-        .t_contact_s
-        .filter(|_| cfg.output.animation)
-        .and_then(|t| pictures.impact(t, record.t_rebound_s));
-    let mut track_csv = Spool::new(TRACK_CSV_IN_MEMORY_MAX);
-    crate::dataset::write_csv_rows(&mut track_csv, tr.frames.iter().map(|f| row_of(&f))).map_err(
-        |e| {
-            format!(
-                "{}: cannot hold its track CSV in a temporary file: {e}",
-                run.path.display()
-            )
-        },
-    )?;
+            .filter_map(|&n| {
+                let ft = tr.frames.iter().find(|f| f.frame == n)?;
+                pictures.still(&ft).map(|png| (n, png))
+            })
+            .collect();
+        let impact = record
+            .t_contact_s
+            .filter(|_| cfg.output.animation)
+            .and_then(|t| pictures.impact(t, record.t_rebound_s));
+        (overlay, frame_overlays, impact)
+    };
+    let track_csv = || {
+        let mut track_csv = Spool::new(TRACK_CSV_IN_MEMORY_MAX);
+        crate::dataset::write_csv_rows(&mut track_csv, tr.frames.iter().map(|f| row_of(&f)))
+            .map(|()| track_csv)
+            .map_err(|e| {
+                format!(
+                    "{}: cannot hold its track CSV in a temporary file: {e}",
+                    run.path.display()
+                )
+            })
+    };
+    let ((overlay, frame_overlays, impact), track_csv) = rayon::join(pictures, track_csv);
+    let track_csv = track_csv?;
     // Everything above walked the track's records: none failed to be read.
     tr.frames
         .check()

@@ -97,8 +97,21 @@ impl Record for TrackSample {
     }
 }
 
+/// The columns of a track file's row ([`TrackRow`]) that a sample takes,
+/// read by name; the others are not parsed (a long movie's figures read
+/// its whole track back).
+#[derive(serde::Deserialize)]
+struct SampleColumns {
+    t_s: f64,
+    z_px: Option<f64>,
+    in_contact: bool,
+    delta_mm: Option<f64>,
+    #[serde(default)]
+    force_n: Option<f64>,
+}
+
 impl TrackSample {
-    fn of(r: &TrackRow) -> TrackSample {
+    fn of(r: &SampleColumns) -> TrackSample {
         TrackSample {
             t_s: r.t_s,
             z_px: r.z_px,
@@ -145,7 +158,7 @@ pub fn read_track_samples_within(path: &Path, memory_max: usize) -> Result<Track
     };
     let mut samples = Records::new(memory_max);
     let mut all_t_ms = [f64::INFINITY, f64::NEG_INFINITY];
-    for (i, r) in rdr.deserialize::<TrackRow>().enumerate() {
+    for (i, r) in rdr.deserialize::<SampleColumns>().enumerate() {
         let r = r.map_err(|e| format!("{}: row {}: {e}", path.display(), i + 2))?;
         let t_ms = r.t_s * 1e3;
         all_t_ms = [all_t_ms[0].min(t_ms), all_t_ms[1].max(t_ms)];
@@ -343,20 +356,14 @@ pub fn diagnose(
 mod tests {
     use super::*;
 
-    fn row(t: f64, delta_mm: f64, force: Option<f64>) -> TrackRow {
-        TrackRow {
-            frame: 0,
+    /// A sample in contact at penetration `delta_mm`.
+    fn sample(t: f64, delta_mm: f64, force: Option<f64>) -> TrackSample {
+        TrackSample {
             t_s: t,
-            x_px: Some(100.0),
             z_px: Some(200.0 + delta_mm * 20.0),
-            r_px: Some(90.0),
-            residual_px: Some(0.05),
-            edge_points: 300,
-            in_contact: delta_mm > 0.0,
             delta_mm: Some(delta_mm),
-            sigma_z_px: None,
             force_n: force,
-            flags: String::new(),
+            in_contact: delta_mm > 0.0,
         }
     }
 
@@ -404,7 +411,7 @@ mod tests {
         let rows: Vec<TrackSample> = (1..20)
             .map(|i| {
                 let d = 0.05 * i as f64;
-                TrackSample::of(&row(i as f64 * 1e-4, d, Some(3.5 * d * d)))
+                sample(i as f64 * 1e-4, d, Some(3.5 * d * d))
             })
             .collect();
         let f = force_law("r", rows.into_iter(), 1.0).unwrap();

@@ -924,7 +924,6 @@ const RISE_FITS_MIN: usize = 8;
 const AWAY_SEARCHED_SHARE: f64 = 0.25;
 
 impl Pass1State {
-    /// How to look at the frame of time `t`.
     /// Whether a sphere that a search could find is out of view: none
     /// fitted yet, or the last fit was leaving through the top of the
     /// frame (its circle past row 0). It then comes into view and stays
@@ -937,6 +936,7 @@ impl Pass1State {
             .is_none_or(|(_, c)| c.z_px - c.r_px < 0.0)
     }
 
+    /// How to look at the frame of time `t`.
     fn look(&self, t: f64) -> Look {
         if !self.following && self.away_until_s.is_some_and(|u| t < u) {
             return Look::Away;
@@ -1250,45 +1250,42 @@ impl Walk {
         while self.searched.front().is_some_and(|(j, _)| *j < i) {
             self.searched.pop_front();
         }
-        if matches!(look, Look::Search)
-            && self.state.out_of_view()
-            && self.empty_stride(source, ctx, meta, i, search_of)?
-        {
-            let seen = Seen {
-                look,
-                found: false,
-                fit: None,
-                points: None,
-            };
-            self.unsearched_frames += 1;
-            self.kept.push(None)?;
-            let skip_away = ctx.st.skip_away;
-            self.frames
-                .push(self.state.step(meta, i, t, &seen, meta.width, skip_away))?;
-            return Ok(());
-        }
         let searched = match self.searched.front() {
             Some((j, _)) if *j == i => self.searched.pop_front().map(|(_, s)| s),
             _ => None,
         };
-        // The search made at the end of a stride ([`Walk::empty_stride`]),
-        // else another thread's look, else this thread's.
-        let probed = self.probed.take_if(|(j, _)| *j == i).map(|(_, s)| s);
-        let seen = match probed.filter(|m| m.look.same(&look)) {
-            Some(m) => m,
-            None => match ahead.filter(|m| m.look.same(&look)) {
-                Some(m) => {
-                    self.measured_ahead += 1;
-                    m
-                }
-                None => match searched.filter(|m| m.look.same(&look)) {
+        // Out of view, an empty stride's frame is the search it would have
+        // been; else the search made at the end of a stride
+        // ([`Walk::empty_stride`]), another thread's look, or this thread's.
+        let seen = if matches!(look, Look::Search)
+            && self.state.out_of_view()
+            && self.empty_stride(source, ctx, meta, i, search_of)?
+        {
+            self.unsearched_frames += 1;
+            Seen {
+                look,
+                found: false,
+                fit: None,
+                points: None,
+            }
+        } else {
+            let probed = self.probed.take_if(|(j, _)| *j == i).map(|(_, s)| s);
+            match probed.filter(|m| m.look.same(&look)) {
+                Some(m) => m,
+                None => match ahead.filter(|m| m.look.same(&look)) {
                     Some(m) => {
-                        self.searched_ahead += 1;
+                        self.measured_ahead += 1;
                         m
                     }
-                    None => ctx.look_at(source, i, look, &mut self.scratch)?,
+                    None => match searched.filter(|m| m.look.same(&look)) {
+                        Some(m) => {
+                            self.searched_ahead += 1;
+                            m
+                        }
+                        None => ctx.look_at(source, i, look, &mut self.scratch)?,
+                    },
                 },
-            },
+            }
         };
         let (kept_points, max) = (&mut self.kept_points, self.kept_points_max);
         self.kept.push(seen.points.as_ref().map(|(c, sigma, pts)| {

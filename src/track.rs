@@ -423,7 +423,11 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
                     for i in lo..hi {
                         if let Some(c) = copies.as_deref_mut() {
                             let next = walk.searches_from(&meta, i, hi.min(i + SEARCH_AHEAD_MAX));
-                            if next.first().is_some_and(|&j| searched(&ahead, j).is_none()) {
+                            if next
+                                .clone()
+                                .next()
+                                .is_some_and(|j| searched(&ahead, j).is_none())
+                            {
                                 let mut todo = Vec::new();
                                 for j in next {
                                     match searched(&ahead, j) {
@@ -1366,23 +1370,29 @@ impl Walk {
     /// the last of each stride; none when it does not search frame `i` (or
     /// cannot read its time: [`Walk::frame`] says so) or holds the first
     /// one's search already.
-    fn searches_from(&self, meta: &crate::source::SourceMeta, i: usize, end: usize) -> Vec<usize> {
+    fn searches_from(
+        &self,
+        meta: &crate::source::SourceMeta,
+        i: usize,
+        end: usize,
+    ) -> std::iter::StepBy<std::ops::Range<usize>> {
+        let none = (0..0).step_by(1);
         let searching = meta
             .time_s(i)
             .is_ok_and(|t| matches!(self.state.look(t), Look::Search));
         if !searching {
-            return Vec::new();
+            return none;
         }
-        let frames: Vec<usize> = match self.probe {
-            _ if !self.state.out_of_view() => (i..end).collect(),
-            Some((probe, true)) if i < probe => (i..probe.min(end)).collect(),
-            Some((probe, _)) if i <= probe => Vec::new(),
-            _ => (i + self.stride - 1..end).step_by(self.stride).collect(),
+        let frames = match self.probe {
+            _ if !self.state.out_of_view() => (i..end).step_by(1),
+            Some((probe, true)) if i < probe => (i..probe.min(end)).step_by(1),
+            Some((probe, _)) if i <= probe => return none,
+            _ => (i + self.stride - 1..end).step_by(self.stride),
         };
         let held = |j: usize| self.searched.iter().any(|(k, _)| *k == j);
-        match frames.first() {
-            Some(&j) if !held(j) => frames,
-            _ => Vec::new(),
+        match frames.clone().next() {
+            Some(j) if !held(j) => frames,
+            _ => none,
         }
     }
 

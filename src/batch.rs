@@ -544,22 +544,38 @@ pub fn process_runs_unsynced(
                 (done, threads)
             })
     };
-    let (done, threads) = match options.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
+    let (done, threads) = on_threads(options.threads, out, work)?;
+    Ok(Processed {
+        done,
+        seconds: start.elapsed().as_secs_f64(),
+        threads,
+    })
+}
+
+/// `work` on a pool of `threads` worker threads, or on the calling one's
+/// (rayon's global pool, one thread per core, unless inside another) when
+/// `None` or when it has that many already: a job runs all of its work
+/// there (its runs, figures, collapse and report), so that `--threads`
+/// bounds all of it. `out` is the job's folder, named if the pool cannot
+/// be made.
+pub fn on_threads<R: Send>(
+    threads: Option<usize>,
+    out: &Path,
+    work: impl FnOnce() -> Result<R, BatchError> + Send,
+) -> Result<R, BatchError> {
+    let in_pool =
+        |n: usize| rayon::current_thread_index().is_some() && rayon::current_num_threads() == n;
+    match threads {
+        Some(n) if !in_pool(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build()
             .map_err(|e| BatchError::Io {
                 path: out.to_path_buf(),
                 source: std::io::Error::other(e),
             })?
-            .install(work)?,
-        None => work()?,
-    };
-    Ok(Processed {
-        done,
-        seconds: start.elapsed().as_secs_f64(),
-        threads,
-    })
+            .install(work),
+        _ => work(),
+    }
 }
 
 /// Process every configured run (reusing valid cached results), then the
@@ -591,11 +607,30 @@ pub fn run_job(
         Some(shard) => crate::shard::select(&runs, shard, cfg.camera.infer_setups),
         None => runs,
     };
+    on_threads(options.threads, out, || {
+        job_on_pool(&runs, cfg, config_name, out, options, events)
+    })
+}
+
+/// [`run_job`] once the folder is held and the runs chosen, on the job's
+/// pool.
+fn job_on_pool(
+    runs: &[RunSpec],
+    cfg: &PipelineConfig,
+    config_name: &str,
+    out: &Path,
+    options: &JobOptions,
+    events: &(dyn Fn(RunEvent) + Sync),
+) -> Result<JobSummary, BatchError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| BatchError::Io { path, source }
+    };
     let Processed {
         done,
         seconds: process_s,
         threads,
-    } = process_runs(&runs, cfg, out, options, &[], events)?;
+    } = process_runs(runs, cfg, out, options, &[], events)?;
     let cached = done.iter().filter(|(_, hit)| *hit).count();
     let frames = done
         .iter()

@@ -7,7 +7,8 @@
 use std::path::Path;
 
 use crate::batch::{
-    process_runs_unsynced, replace_provenance, BatchError, JobOptions, Processed, RunEvent,
+    on_threads, process_runs_unsynced, replace_provenance, BatchError, JobOptions, Processed,
+    RunEvent,
 };
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
@@ -71,8 +72,24 @@ fn remove_other_collapse(
     Ok(())
 }
 
-/// Process `runs` into `out`, which the caller holds ([`crate::lock`]).
+/// Process `runs` into `out`, which the caller holds ([`crate::lock`]), all
+/// of it on `options.threads` ([`on_threads`]).
 pub fn run(
+    runs: &[RunSpec],
+    cfg: &PipelineConfig,
+    config_name: &str,
+    out: &Path,
+    options: &JobOptions,
+    overlay_frames: &[i64],
+    events: &(dyn Fn(RunEvent) + Sync),
+) -> Result<ProcessSummary, BatchError> {
+    on_threads(options.threads, out, || {
+        run_on_pool(runs, cfg, config_name, out, options, overlay_frames, events)
+    })
+}
+
+/// [`run`] on the job's pool.
+fn run_on_pool(
     runs: &[RunSpec],
     cfg: &PipelineConfig,
     config_name: &str,

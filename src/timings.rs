@@ -148,7 +148,13 @@ struct Open {
 
 thread_local! {
     static OPEN: RefCell<Vec<Open>> = const { RefCell::new(Vec::new()) };
+    /// Whether this thread is counted in [`WORKERS`] yet.
+    static COUNTED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
+
+/// Worker threads (of any rayon pool) that timed a stage: what `--threads`
+/// bounds, shown by [`table`].
+static WORKERS: AtomicU64 = AtomicU64::new(0);
 
 /// A stage open on this thread ([`start`]): closed when dropped, also
 /// when the work panics.
@@ -180,6 +186,9 @@ impl Drop for Timed {
 pub fn start(stage: Stage) -> Option<Timed> {
     if !ENABLED.load(Ordering::Relaxed) {
         return None;
+    }
+    if rayon::current_thread_index().is_some() && !COUNTED.replace(true) {
+        WORKERS.fetch_add(1, Ordering::Relaxed);
     }
     OPEN.with(|open| {
         open.borrow_mut().push(Open {
@@ -220,7 +229,9 @@ pub fn sums() -> Vec<(Stage, f64, f64)> {
 /// The table printed after a job: per stage its wall and CPU seconds summed
 /// over runs and threads, its share of the stages' sum, and its mean per
 /// drop over the `drops` this job measured (cached runs cost none of this);
-/// then the job's own wall time on its `threads`.
+/// then the job's own wall time on its `threads`, and how many worker
+/// threads did the stages' work (more than `threads` would be work outside
+/// the job's pool).
 pub fn table(drops: usize, job_wall_s: f64, threads: usize) -> String {
     use std::fmt::Write;
     let rows = sums();
@@ -261,9 +272,10 @@ pub fn table(drops: usize, job_wall_s: f64, threads: usize) -> String {
     line("sum of the stages", wall_sum, cpu_sum);
     let _ = write!(
         t,
-        "job: {job_wall_s:.3} s wall on {} ({:.3} thread-seconds)",
+        "job: {job_wall_s:.3} s wall on {} ({:.3} thread-seconds); its stages ran on {}",
         crate::plural(threads, "thread"),
-        job_wall_s * threads as f64
+        job_wall_s * threads as f64,
+        crate::plural(WORKERS.load(Ordering::Relaxed) as usize, "worker thread")
     );
     t
 }
@@ -334,7 +346,9 @@ mod tests {
             assert!(t.contains(s.name()), "{} missing:\n{t}", s.name());
         }
         assert!(
-            t.contains("3 drops measured") && t.ends_with("on 2 threads (0.400 thread-seconds)")
+            t.contains("3 drops measured")
+                && t.contains("on 2 threads (0.400 thread-seconds); its stages ran on "),
+            "{t}"
         );
     }
 }

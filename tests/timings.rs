@@ -92,3 +92,37 @@ fn timings_change_no_output_and_name_every_stage() {
     let err = stderr(&again);
     assert!(err.contains("(0 drops measured)"), "{err}");
 }
+
+/// `--threads 1` bounds every stage, the per-drop figures and the collapse
+/// with the runs: `--timings` counts the worker threads that did a stage's
+/// work (the figures and the collapse were drawn on rayon's global pool, one
+/// thread per core, beside the runs' one).
+#[test]
+fn one_thread_asked_is_one_thread_for_every_stage() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/runs.csv");
+    let timed = Command::new(env!("CARGO_BIN_EXE_dropscope"))
+        .arg("process")
+        .arg("--manifest")
+        .arg(&manifest)
+        .args(["--threads", "1", "--timings", "--out"])
+        .arg(d.join("p"))
+        .output()
+        .unwrap();
+    let err = stderr(&timed);
+    assert_eq!(timed.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("on 1 thread (") && err.contains("its stages ran on 1 worker thread"),
+        "{err}"
+    );
+    let job = d.join("job");
+    std::fs::create_dir_all(&job).unwrap();
+    fixture_manifest(&job);
+    let config = write_config(&job, "");
+    let timed = run(&config, &["--threads", "1", "--timings"]);
+    let err = stderr(&timed);
+    assert_eq!(timed.status.code(), Some(0), "{err}");
+    assert!(err.contains("collapse done"), "{err}");
+    assert!(err.contains("its stages ran on 1 worker thread"), "{err}");
+}

@@ -1,14 +1,16 @@
 //! An overlay picture of one frame's detection — the frame, the edge points,
 //! the fitted circle and the surface line — so a person can check it by eye.
 //!
-//! Pure: returns an RGB image (and PNG bytes with [`encode_png`]); the
-//! caller writes it (`io_util::write_atomic`). A crop can be enlarged by an
-//! integer `zoom` so that sub-pixel placement is visible: frame point
+//! Pure: returns an RGB image (and PNG bytes with [`encode_png`]), or the
+//! same drawing in the animated impact's palette ([`overlay_indexed`],
+//! [`encode_indexed_apng`]); the caller writes it (`io_util::write_atomic`).
+//! A crop can be enlarged by an integer `zoom` so that sub-pixel placement
+//! is visible: frame point
 //! `(x, z)` lands at overlay pixel `((x − x0 + ½)·zoom, (z − z0 + ½)·zoom)`,
 //! i.e. frame pixel `(i, j)` becomes the `zoom × zoom` block whose centre is
 //! the pixel's centre.
 
-use image::{Rgb, RgbImage};
+use image::RgbImage;
 
 use super::circle::Circle;
 use super::edges::EdgePoint;
@@ -72,8 +74,36 @@ pub fn point_radius_px(zoom: u32) -> f64 {
     (0.8 * zoom as f64).max(2.0)
 }
 
+/// What the detection draws over a frame. Each has its colour and, after
+/// the greys, its index in the animation's palette.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mark {
+    Circle,
+    Point,
+    Surface,
+}
+
+impl Mark {
+    /// Every mark, in the palette's order.
+    pub const ALL: [Mark; 3] = [Mark::Circle, Mark::Point, Mark::Surface];
+
+    /// Its colour in an RGB overlay.
+    pub const fn rgb(self) -> [u8; 3] {
+        match self {
+            Mark::Circle => CIRCLE_RGB,
+            Mark::Point => POINT_RGB,
+            Mark::Surface => SURFACE_RGB,
+        }
+    }
+
+    /// Its index in the animation's palette (after the [`GREYS`] greys).
+    pub const fn index(self) -> u8 {
+        GREYS as u8 + self as u8
+    }
+}
+
 /// Draw the crop of `band` (grey, `bit_depth` significant bits scaled to 8)
-/// with the detection on top.
+/// with the detection on top ([`Scene::rgb`]).
 pub fn overlay(
     band: &Band,
     bit_depth: u8,
@@ -82,93 +112,176 @@ pub fn overlay(
     circle: Option<&Circle>,
     surface: Option<&SurfaceLine>,
 ) -> RgbImage {
-    let zoom = view.zoom.max(1);
-    let (w, h) = (view.width as u32 * zoom, view.height as u32 * zoom);
-    let shift = bit_depth.saturating_sub(8);
-    // Row by row: the crop's columns of a frame row, each repeated `zoom`
-    // times across and the row `zoom` times down (black outside the band).
-    let mut pixels = vec![0u8; (w * h * 3) as usize];
-    let row_bytes = (w * 3) as usize;
-    let z = zoom as usize;
-    for (k, out) in pixels.chunks_exact_mut(row_bytes * z).enumerate() {
-        let i = view.z0 + k;
-        if i < band.row0 || i >= band.row0 + band.nrows {
-            continue;
+    Scene {
+        band,
+        bit_depth,
+        view,
+        points,
+        circle,
+        surface,
+    }
+    .rgb()
+}
+
+impl OverlayView {
+    /// The overlay's width and height, pixels.
+    pub fn size_px(&self) -> (usize, usize) {
+        let zoom = self.zoom.max(1) as usize;
+        (self.width * zoom, self.height * zoom)
+    }
+}
+
+/// What an overlay shows: the crop `view` of `band` (grey, `bit_depth`
+/// significant bits scaled to 8) with the detection on top.
+#[derive(Debug, Clone, Copy)]
+pub struct Scene<'a> {
+    pub band: &'a Band<'a>,
+    pub bit_depth: u8,
+    pub view: &'a OverlayView,
+    pub points: &'a [EdgePoint],
+    pub circle: Option<&'a Circle>,
+    pub surface: Option<&'a SurfaceLine>,
+}
+
+impl Scene<'_> {
+    /// The overlay in RGB: the frame's greys, the marks' colours.
+    pub fn rgb(&self) -> RgbImage {
+        let (w, h) = self.view.size_px();
+        let mut pixels = vec![0u8; w * h * 3];
+        self.draw(&mut pixels, |grey| grey, Mark::rgb);
+        RgbImage::from_raw(w as u32, h as u32, pixels).expect("w × h × 3 bytes")
+    }
+
+    /// The overlay drawn straight in the animation's palette, with rows of
+    /// grey levels `below` it (the caption band, as wide as the overlay):
+    /// the indices the RGB overlay with those rows under it has in the
+    /// palette (a test), from a third of the bytes and no pixel converted.
+    /// A partial last row of `below` is left out.
+    pub fn indexed(&self, below: &[u8]) -> IndexedFrame {
+        let (w, h) = self.view.size_px();
+        let below = &below[..below.len() / w.max(1) * w];
+        // Black, where the band has no row, is index 0.
+        let mut data = vec![GREY_INDEX[0]; w * h + below.len()];
+        let (picture, caption) = data.split_at_mut(w * h);
+        self.draw(
+            picture,
+            |grey| GREY_INDEX[usize::from(grey)],
+            |m| [m.index()],
+        );
+        for (o, &grey) in caption.iter_mut().zip(below) {
+            *o = GREY_INDEX[usize::from(grey)];
         }
-        let cols = view.width.min(band.width.saturating_sub(view.x0));
-        let row = &band.data[(i - band.row0) * band.width..][..band.width];
-        let (first, rest) = out.split_at_mut(row_bytes);
-        let grey = |v: u16| (v >> shift).min(255) as u8;
-        let row = row[view.x0.min(band.width)..][..cols].iter();
-        // A pixel's `zoom` copies across are its grey in every channel.
-        if z == 1 {
-            for (&v, px) in row.zip(first.chunks_exact_mut(3)) {
-                px.fill(grey(v));
+        IndexedFrame {
+            width: w as u32,
+            height: (h + below.len() / w.max(1)) as u32,
+            data,
+        }
+    }
+
+    /// The overlay drawn into `pixels` (`N` bytes a pixel, row by row, the
+    /// view's size, black): a frame pixel of grey level `g` (0 to 255) is
+    /// `level(g)` in each of its bytes, a mark `mark(m)`. The one drawing
+    /// of both the RGB overlay and the palette's.
+    fn draw<const N: usize>(
+        &self,
+        pixels: &mut [u8],
+        level: impl Fn(u8) -> u8,
+        mark: impl Fn(Mark) -> [u8; N],
+    ) {
+        let Scene {
+            band,
+            view,
+            points,
+            circle,
+            surface,
+            ..
+        } = *self;
+        let zoom = view.zoom.max(1);
+        let (w, h) = view.size_px();
+        let shift = self.bit_depth.saturating_sub(8);
+        // Row by row: the crop's columns of a frame row, each repeated `zoom`
+        // times across and the row `zoom` times down (black outside the band).
+        let row_bytes = w * N;
+        let z = zoom as usize;
+        for (k, out) in pixels.chunks_exact_mut(row_bytes * z).enumerate() {
+            let i = view.z0 + k;
+            if i < band.row0 || i >= band.row0 + band.nrows {
+                continue;
             }
-        } else {
-            for (&v, block) in row.zip(first.chunks_exact_mut(3 * z)) {
-                block.fill(grey(v));
+            let cols = view.width.min(band.width.saturating_sub(view.x0));
+            let row = &band.data[(i - band.row0) * band.width..][..band.width];
+            let (first, rest) = out.split_at_mut(row_bytes);
+            let grey = |v: u16| level((v >> shift).min(255) as u8);
+            let row = row[view.x0.min(band.width)..][..cols].iter();
+            // A pixel's `zoom` copies across are its level in every byte.
+            if N * z == 1 {
+                for (&v, px) in row.zip(first.iter_mut()) {
+                    *px = grey(v);
+                }
+            } else {
+                for (&v, block) in row.zip(first.chunks_exact_mut(N * z)) {
+                    block.fill(grey(v));
+                }
+            }
+            for copy in rest.chunks_exact_mut(row_bytes) {
+                copy.copy_from_slice(first);
             }
         }
-        for copy in rest.chunks_exact_mut(row_bytes) {
-            copy.copy_from_slice(first);
+        let to_img = |x: f64, z: f64| -> (f64, f64) {
+            (
+                (x - view.x0 as f64 + 0.5) * zoom as f64,
+                (z - view.z0 as f64 + 0.5) * zoom as f64,
+            )
+        };
+        let put = |pixels: &mut [u8], u: f64, v: f64, m: Mark| {
+            if u >= 0.0 && v >= 0.0 && (u as usize) < w && (v as usize) < h {
+                let at = (v as usize * w + u as usize) * N;
+                pixels[at..at + N].copy_from_slice(&mark(m));
+            }
+        };
+        if let Some(s) = surface {
+            let steps = w * 2;
+            for k in 0..=steps {
+                let x = view.x0 as f64 - 0.5 + view.width as f64 * k as f64 / steps as f64;
+                let (u, v) = to_img(x, s.row_at(x));
+                put(pixels, u, v, Mark::Surface);
+            }
         }
-    }
-    let mut img = RgbImage::from_raw(w, h, pixels).expect("w × h × 3 bytes");
-    let to_img = |x: f64, z: f64| -> (f64, f64) {
-        (
-            (x - view.x0 as f64 + 0.5) * zoom as f64,
-            (z - view.z0 as f64 + 0.5) * zoom as f64,
-        )
-    };
-    let put = |img: &mut RgbImage, u: f64, v: f64, rgb: [u8; 3]| {
-        if u >= 0.0 && v >= 0.0 && (u as u32) < w && (v as u32) < h {
-            img.put_pixel(u as u32, v as u32, Rgb(rgb));
+        if let Some(c) = circle {
+            let steps = ((std::f64::consts::TAU * c.r_px * zoom as f64) * 2.0).ceil() as usize + 8;
+            for k in 0..steps {
+                let t = std::f64::consts::TAU * k as f64 / steps as f64;
+                let (u, v) = to_img(c.x_px + c.r_px * t.cos(), c.z_px + c.r_px * t.sin());
+                put(pixels, u, v, Mark::Circle);
+            }
         }
-    };
-    if let Some(s) = surface {
-        let steps = (w as usize) * 2;
-        for k in 0..=steps {
-            let x = view.x0 as f64 - 0.5 + view.width as f64 * k as f64 / steps as f64;
-            let (u, v) = to_img(x, s.row_at(x));
-            put(&mut img, u, v, SURFACE_RGB);
-        }
-    }
-    if let Some(c) = circle {
-        let steps = ((std::f64::consts::TAU * c.r_px * zoom as f64) * 2.0).ceil() as usize + 8;
-        for k in 0..steps {
-            let t = std::f64::consts::TAU * k as f64 / steps as f64;
-            let (u, v) = to_img(c.x_px + c.r_px * t.cos(), c.z_px + c.r_px * t.sin());
-            put(&mut img, u, v, CIRCLE_RGB);
-        }
-    }
-    // Each edge point a disc, large enough to see at any zoom, with the
-    // circle showing between them.
-    let r = point_radius_px(zoom);
-    let reach = r.ceil() as i64;
-    let mut shown: Vec<(f64, f64)> = Vec::with_capacity(points.len());
-    for p in points {
-        let (u, v) = to_img(p.x_px, p.z_px);
-        // Points closer than 3 radii to one drawn would merge into a band
-        // that hides the circle (at zoom 1 they are ~3 px apart): skipped.
-        let apart = 3.0 * r;
-        if shown
-            .iter()
-            .any(|&(su, sv)| (su - u).powi(2) + (sv - v).powi(2) < apart * apart)
-        {
-            continue;
-        }
-        shown.push((u, v));
-        for dv in -reach..=reach {
-            for du in -reach..=reach {
-                let (pu, pv) = (u.floor() + du as f64, v.floor() + dv as f64);
-                if (pu + 0.5 - u).powi(2) + (pv + 0.5 - v).powi(2) <= r * r {
-                    put(&mut img, pu, pv, POINT_RGB);
+        // Each edge point a disc, large enough to see at any zoom, with the
+        // circle showing between them.
+        let r = point_radius_px(zoom);
+        let reach = r.ceil() as i64;
+        let mut shown: Vec<(f64, f64)> = Vec::with_capacity(points.len());
+        for p in points {
+            let (u, v) = to_img(p.x_px, p.z_px);
+            // Points closer than 3 radii to one drawn would merge into a band
+            // that hides the circle (at zoom 1 they are ~3 px apart): skipped.
+            let apart = 3.0 * r;
+            if shown
+                .iter()
+                .any(|&(su, sv)| (su - u).powi(2) + (sv - v).powi(2) < apart * apart)
+            {
+                continue;
+            }
+            shown.push((u, v));
+            for dv in -reach..=reach {
+                for du in -reach..=reach {
+                    let (pu, pv) = (u.floor() + du as f64, v.floor() + dv as f64);
+                    if (pu + 0.5 - u).powi(2) + (pv + 0.5 - v).powi(2) <= r * r {
+                        put(pixels, pu, pv, Mark::Point);
+                    }
                 }
             }
         }
     }
-    img
 }
 
 /// PNG bytes of an overlay ([`rgb_png`]).
@@ -198,13 +311,13 @@ pub fn rgb_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>, image::Im
 const GREYS: usize = 32;
 
 /// The animation's palette: [`GREYS`] greys from black to white, then the
-/// circle's, the points' and the surface line's colours.
+/// marks' colours ([`Mark::index`]).
 fn palette() -> Vec<u8> {
     let mut p: Vec<u8> = (0..GREYS)
         .flat_map(|i| [((i * 255 + (GREYS - 1) / 2) / (GREYS - 1)) as u8; 3])
         .collect();
-    for c in [CIRCLE_RGB, POINT_RGB, SURFACE_RGB] {
-        p.extend_from_slice(&c);
+    for m in Mark::ALL {
+        p.extend_from_slice(&m.rgb());
     }
     p
 }
@@ -215,72 +328,48 @@ const fn grey_index(sum: u32) -> u8 {
     ((2 * sum * (GREYS as u32 - 1) + 765) / 1530) as u8
 }
 
-/// [`grey_index`] of every channel sum, 0 to 3 · 255.
-const GREY_OF_SUM: [u8; 766] = {
-    let mut t = [0u8; 766];
-    let mut s = 0;
-    while s < 766 {
-        t[s] = grey_index(s as u32);
-        s += 1;
+/// The palette index of each grey level, 0 to 255 ([`grey_index`] of three
+/// equal channels): the animation's frame pixels and its caption band.
+const GREY_INDEX: [u8; 256] = {
+    let mut t = [0u8; 256];
+    let mut g = 0;
+    while g < 256 {
+        t[g] = grey_index(3 * g as u32);
+        g += 1;
     }
     t
 };
 
-/// The palette index of an overlay pixel: a drawing colour's own, else the
-/// nearest grey (of the channels' mean: the frame, the caption and its
-/// anti-aliased text are grey).
-fn palette_index(px: [u8; 3]) -> u8 {
-    let sum = u32::from(px[0]) + u32::from(px[1]) + u32::from(px[2]);
-    if px[0] == px[1] && px[1] == px[2] {
-        // No drawing colour is grey.
-        return GREY_OF_SUM[sum as usize];
-    }
-    match [CIRCLE_RGB, POINT_RGB, SURFACE_RGB]
-        .iter()
-        .position(|c| *c == px)
-    {
-        Some(k) => (GREYS + k) as u8,
-        None => GREY_OF_SUM[sum as usize],
-    }
-}
-
 /// One frame of an animation in the animation's palette (see
-/// [`to_indexed`]): `width × height` indices, row by row.
+/// [`overlay_indexed`]): `width × height` indices, row by row.
 pub struct IndexedFrame {
     pub width: u32,
     pub height: u32,
     pub data: Vec<u8>,
 }
 
-/// An overlay in the animation's palette: greys within 0.5 % of the
-/// frame's level, the drawing's colours exact.
+/// An RGB overlay in the animation's palette, pixel by pixel: a mark's
+/// colour its own index, any other pixel the grey nearest to its channels'
+/// mean. [`overlay_indexed`] is held to it.
+#[cfg(test)]
 pub fn to_indexed(img: &RgbImage) -> IndexedFrame {
-    let mut data = vec![0u8; img.as_raw().len() / 3];
-    for (o, p) in data.iter_mut().zip(img.as_raw().chunks_exact(3)) {
-        *o = if p[0] == p[1] && p[1] == p[2] {
-            GREY_OF_SUM[3 * usize::from(p[0])]
-        } else {
-            palette_index([p[0], p[1], p[2]])
-        };
-    }
+    let index = |p: &[u8]| {
+        Mark::ALL.into_iter().find(|m| m.rgb() == p).map_or_else(
+            || grey_index(p.iter().map(|&c| u32::from(c)).sum()),
+            Mark::index,
+        )
+    };
     IndexedFrame {
         width: img.width(),
         height: img.height(),
-        data,
+        data: img.as_raw().chunks_exact(3).map(index).collect(),
     }
 }
 
-/// Animated-PNG bytes of `frames` (shown `frame_ms` each, looping), as
-/// 8-bit indexed colour ([`to_indexed`]), a third of RGB's bytes. Frames of
-/// different sizes are padded at the right and bottom with the first
-/// frame's last pixel's colour.
-pub fn encode_apng(frames: &[RgbImage], frame_ms: u16) -> Result<Vec<u8>, png::EncodingError> {
-    let indexed: Vec<IndexedFrame> = frames.iter().map(to_indexed).collect();
-    encode_indexed_apng(&indexed, frame_ms)
-}
-
-/// [`encode_apng`] of frames already in the palette. Rows are filtered by
-/// their left neighbour ("Sub"): with the fast deflate it is 0.67× the CPU
+/// Animated-PNG bytes of `frames` (shown `frame_ms` each, looping), in
+/// the animation's palette (8-bit indices, a third of RGB's bytes). Frames
+/// of different sizes are padded at the right and bottom with the first
+/// frame's last pixel's colour. Rows are filtered by their left neighbour ("Sub"): with the fast deflate it is 0.67× the CPU
 /// time of the adaptive choice for 3 % more bytes (`cargo run --release
 /// --example apng_encode`).
 ///
@@ -481,12 +570,23 @@ mod tests {
         for sum in 0..=765u32 {
             let mean = f64::from(sum) / 3.0;
             let nearest = (mean * (GREYS - 1) as f64 / 255.0).round() as u8;
-            assert_eq!(GREY_OF_SUM[sum as usize], nearest, "sum {sum}");
+            assert_eq!(grey_index(sum), nearest, "sum {sum}");
         }
-        assert_eq!(palette_index([90, 90, 90]), 11);
+        for g in 0..=255u8 {
+            assert_eq!(GREY_INDEX[usize::from(g)], grey_index(3 * u32::from(g)));
+        }
+        let index = |rgb: [u8; 3]| to_indexed(&RgbImage::from_pixel(1, 1, image::Rgb(rgb))).data[0];
+        assert_eq!(index([90, 90, 90]), 11);
         // Not a drawing colour: the grey of its mean, 85 → 10.
-        assert_eq!(palette_index([255, 0, 0]), 10);
-        assert_eq!(palette_index(SURFACE_RGB), GREYS as u8 + 2);
+        assert_eq!(index([255, 0, 0]), 10);
+        assert_eq!(index(SURFACE_RGB), GREYS as u8 + 2);
+        // The palette holds each mark's colour at its index.
+        let p = palette();
+        for m in Mark::ALL {
+            let i = 3 * usize::from(m.index());
+            assert_eq!(p[i..i + 3], m.rgb());
+        }
+        assert_eq!(p.len(), 3 * (GREYS + 3));
     }
 
     #[test]
@@ -576,9 +676,9 @@ mod tests {
                     0 => {
                         let (x, z) = ((i % w) as f64 - 20.0, (i / w) as f64 - 15.0);
                         if x.hypot(z) < 9.0 {
-                            palette_index(CIRCLE_RGB)
+                            Mark::Circle.index()
                         } else {
-                            GREY_OF_SUM[3 * rng.gen_range(120..128usize)]
+                            GREY_INDEX[rng.gen_range(120..128usize)]
                         }
                     }
                     1 => rng.gen(),
@@ -618,11 +718,13 @@ mod tests {
 
     #[test]
     fn the_animation_has_every_frame_and_the_drawing_colours_exact() {
+        use image::Rgb;
         let mut a = RgbImage::from_pixel(20, 10, Rgb([128, 128, 128]));
         a.put_pixel(3, 4, Rgb(CIRCLE_RGB));
         let mut b = RgbImage::from_pixel(20, 12, Rgb([250, 250, 250]));
         b.put_pixel(5, 6, Rgb(POINT_RGB));
-        let bytes = encode_apng(&[a, b.clone(), b], 80).unwrap();
+        let frames = [&a, &b, &b].map(to_indexed);
+        let bytes = encode_indexed_apng(&frames, 80).unwrap();
         let mut reader = png::Decoder::new(std::io::Cursor::new(bytes))
             .read_info()
             .unwrap();

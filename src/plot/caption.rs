@@ -23,9 +23,11 @@ pub struct Caption {
 /// Text height and line pitch in the band, pixels.
 pub const FONT_PX: u32 = 18;
 const LINE_PX: u32 = 24;
-/// Band colour (the text and the bar are white on it).
-pub const BAND_RGB: [u8; 3] = [32, 32, 32];
-pub const BAR_RGB: [u8; 3] = [255, 255, 255];
+/// Band grey level and colour (the text and the bar are white on it).
+pub const BAND_GREY: u8 = 32;
+pub const BAND_RGB: [u8; 3] = [BAND_GREY; 3];
+pub const BAR_GREY: u8 = 255;
+pub const BAR_RGB: [u8; 3] = [BAR_GREY; 3];
 /// Thickness of the scale bar, pixels.
 pub const BAR_THICK_PX: u32 = 4;
 
@@ -61,32 +63,49 @@ pub fn texts(c: &Caption) -> Vec<String> {
     t
 }
 
-/// `img` with the caption band under it: the texts on one line when they
-/// fit, else one per line, then the scale bar (at most 40 % of the width)
-/// right-aligned on a line of its own.
+/// `img` with the caption band under it ([`caption_band`]).
 pub fn with_caption(img: &RgbImage, c: &Caption) -> Result<RgbImage, String> {
-    super::register_fonts();
     let (w, h) = img.dimensions();
-    let font = ("sans-serif", FONT_PX).into_font().color(&WHITE);
+    let band = caption_band(w, c)?;
+    let mut buf = Vec::with_capacity(img.as_raw().len() + 3 * band.grey.len());
+    buf.extend_from_slice(img.as_raw());
+    buf.resize(img.as_raw().len() + 3 * band.grey.len(), 0);
+    for (px, &g) in buf[img.as_raw().len()..].chunks_exact_mut(3).zip(&band.grey) {
+        px.copy_from_slice(&[g; 3]);
+    }
+    RgbImage::from_raw(w, h + band.height, buf).ok_or_else(|| "caption buffer size".to_string())
+}
+
+/// A caption band: `height` rows of the picture's width, in grey levels
+/// (everything in it is grey: the band, the white bar and the white text's
+/// anti-aliasing over them), row by row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaptionBand {
+    pub height: u32,
+    pub grey: Vec<u8>,
+}
+
+/// The caption band of a picture `w` pixels wide: the texts on one line
+/// when they fit, else one per line, then the scale bar (at most 40 % of
+/// the width) right-aligned on a line of its own. Every text's ink lies
+/// within the band (a test), so the band is drawn on its own.
+pub fn caption_band(w: u32, c: &Caption) -> Result<CaptionBand, String> {
+    super::register_fonts();
+    let font = ("sans-serif", FONT_PX).into_font();
     let items = texts(c);
     let one_line = items.join("  ·  ");
     // Plotters measures text without a backend through its font loader.
-    let width = |s: &str| font.font.box_size(s).map_or(u32::MAX, |(w, _)| w);
+    let width = |s: &str| font.box_size(s).map_or(u32::MAX, |(w, _)| w);
     let lines = if width(&one_line) + 12 <= w {
         vec![one_line]
     } else {
         items
     };
     let bar = scale_bar(c.mm_per_px, c.zoom, 0.4 * f64::from(w));
-    let band = 6 + LINE_PX * (lines.len() as u32 + u32::from(bar.is_some())) + 4;
-    let mut buf = Vec::with_capacity((w * (h + band) * 3) as usize);
-    buf.extend_from_slice(img.as_raw());
-    buf.resize(buf.len() + (w * band * 3) as usize, 0);
-    for px in buf[img.as_raw().len()..].chunks_exact_mut(3) {
-        px.copy_from_slice(&BAND_RGB);
-    }
+    let height = 6 + LINE_PX * (lines.len() as u32 + u32::from(bar.is_some())) + 4;
+    let mut grey = vec![BAND_GREY; (w * height) as usize];
     // Each text with the point plotters would draw it at.
-    let mut y = h as i32 + 6;
+    let mut y = 6;
     let mut placed = Vec::with_capacity(lines.len() + 1);
     for line in lines {
         placed.push((line, (6, y)));
@@ -96,24 +115,23 @@ pub fn with_caption(img: &RgbImage, c: &Caption) -> Result<RgbImage, String> {
         let x1 = w as i32 - 8;
         let x0 = x1 - px.round() as i32;
         let yb = y + (LINE_PX as i32 - BAR_THICK_PX as i32) / 2;
-        let white = RGBColor(BAR_RGB[0], BAR_RGB[1], BAR_RGB[2]);
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h + band)).into_drawing_area();
-        let err = |e: DrawingAreaErrorKind<_>| e.to_string();
-        root.draw(&Rectangle::new(
-            [(x0, yb), (x1, yb + BAR_THICK_PX as i32 - 1)],
-            white.filled(),
-        ))
-        .map_err(err)?;
-        root.present().map_err(err)?;
+        // The rectangle from (x0, yb) to (x1, yb + BAR_THICK_PX − 1) as
+        // plotters' bitmap backend fills it: its right column and bottom
+        // row left out (a test).
+        let cols = x0.clamp(0, w as i32) as usize..x1.clamp(0, w as i32) as usize;
+        for row in yb.max(0)..(yb + BAR_THICK_PX as i32 - 1).min(height as i32) {
+            let at = row as usize * w as usize;
+            grey[at + cols.start..at + cols.end.max(cols.start)].fill(BAR_GREY);
+        }
         let label = mm_text(mm);
         let lx = x0 - width(&label) as i32 - 8;
         placed.push((label, (lx.max(6), y)));
     }
     let glyphs = glyphs()?;
     for (text, at) in &placed {
-        glyphs.draw_white(&mut buf, (w, h + band), text, at);
+        glyphs.draw_white(&mut grey, (w, height), text, at);
     }
-    RgbImage::from_raw(w, h + band, buf).ok_or_else(|| "caption buffer size".to_string())
+    Ok(CaptionBand { height, grey })
 }
 
 /// One glyph of the caption's font as plotters' ab_glyph font draws it:
@@ -180,9 +198,9 @@ fn ink_of(font: &ab_glyph::PxScaleFont<ab_glyph::FontRef<'static>>, c: char) -> 
 }
 
 impl Glyphs {
-    /// Draw `text` in white into `buf` (`size` RGB pixels) with its top
-    /// left at `at`, as plotters' `draw_text` would.
-    fn draw_white(&self, buf: &mut [u8], size: (u32, u32), text: &str, at: &(i32, i32)) {
+    /// Draw `text` in white into `grey` (`size` pixels of grey levels)
+    /// with its top left at `at`, as plotters' `draw_text` would in RGB.
+    fn draw_white(&self, grey: &mut [u8], size: (u32, u32), text: &str, at: &(i32, i32)) {
         use ab_glyph::ScaleFont;
         let (w, h) = (size.0 as i32, size.1 as i32);
         let mut advance = 0f32;
@@ -205,8 +223,8 @@ impl Glyphs {
             for &(x, y, a) in &ink.coverage {
                 let (x, y) = (x + dx, y + dy);
                 if (0..w).contains(&x) && (0..h).contains(&y) {
-                    let i = 3 * (y as usize * size.0 as usize + x as usize);
-                    blend_white(&mut buf[i..i + 3], f64::from(a));
+                    let i = y as usize * size.0 as usize + x as usize;
+                    blend_white(&mut grey[i], f64::from(a));
                 }
             }
             advance += self.font.h_advance(id);
@@ -214,16 +232,15 @@ impl Glyphs {
     }
 }
 
-/// White drawn over `px` at coverage `alpha`, in the integers of plotters'
-/// bitmap backend: opaque from 255/256, else `alpha` in 256ths.
-fn blend_white(px: &mut [u8], alpha: f64) {
+/// White drawn over grey level `v` at coverage `alpha`, in the integers of
+/// plotters' bitmap backend (each channel alike): opaque from 255/256, else
+/// `alpha` in 256ths.
+fn blend_white(v: &mut u8, alpha: f64) {
     if alpha >= 1.0 - 1.0 / 256.0 {
-        px.fill(255);
+        *v = 255;
     } else if alpha > 0.0 {
         let a = (alpha * 256.0).floor() as u64;
-        for v in px {
-            *v += (u64::from(255 - *v) * a / 256) as u8;
-        }
+        *v += (u64::from(255 - *v) * a / 256) as u8;
     }
 }
 
@@ -235,17 +252,16 @@ mod tests {
     fn the_kept_glyphs_draw_the_pixels_plotters_draws() {
         super::super::register_fonts();
         let (w, h) = (420u32, 60u32);
-        // A background of every grey and some colour, for the blending.
-        let background: Vec<u8> = (0..w * h * 3)
-            .map(|i| ((i / 3) % 256) as u8 ^ (i % 3 * 40) as u8)
-            .collect();
+        // A background of every grey, for the blending.
+        let background: Vec<u8> = (0..w * h).map(|i| (i % 256) as u8).collect();
+        let rgb = |grey: &[u8]| grey.iter().flat_map(|&g| [g; 3]).collect::<Vec<u8>>();
         let font = ("sans-serif", FONT_PX).into_font().color(&WHITE);
         for (text, at) in [
             ("frame -12  ·  t = -1.200 ms  ·  δ = -0.750 mm", (6, 10)),
             ("AVWa fi Ty 0.5 mm ×−", (-3, 40)),
             ("Ωжé€ outside the kept set", (100, 5)),
         ] {
-            let mut by_plotters = background.clone();
+            let mut by_plotters = rgb(&background);
             {
                 let root = BitMapBackend::with_buffer(&mut by_plotters, (w, h)).into_drawing_area();
                 root.draw_text(text, &font, at).unwrap();
@@ -254,7 +270,100 @@ mod tests {
             let mut kept = background.clone();
             glyphs().unwrap().draw_white(&mut kept, (w, h), text, &at);
             assert!(kept != background, "{text}: nothing drawn");
-            assert!(kept == by_plotters, "{text}: pixels differ");
+            assert!(rgb(&kept) == by_plotters, "{text}: pixels differ");
+        }
+    }
+
+    #[test]
+    fn every_kept_glyph_inks_below_the_band_top() {
+        // A text line starts 6 rows into the band: its ink may rise at most
+        // 6 rows above it, or it would fall on the picture.
+        let glyphs = glyphs().unwrap();
+        for (c, ink) in &glyphs.ink {
+            let top = ink.coverage.iter().map(|&(_, y, _)| y).min().unwrap_or(0);
+            assert!(ink.rows_down + top >= -6, "{c:?}: {}", ink.rows_down + top);
+        }
+    }
+
+    /// `img` with its caption band as plotters drew it before the band was
+    /// drawn on its own in grey: the band filled, the bar a plotters
+    /// rectangle, the texts plotters' (on the picture, had they reached it).
+    fn with_caption_by_plotters(img: &RgbImage, c: &Caption) -> RgbImage {
+        super::super::register_fonts();
+        let (w, h) = img.dimensions();
+        let font = ("sans-serif", FONT_PX).into_font().color(&WHITE);
+        let items = texts(c);
+        let one_line = items.join("  ·  ");
+        let width = |s: &str| font.font.box_size(s).map_or(u32::MAX, |(w, _)| w);
+        let lines = if width(&one_line) + 12 <= w {
+            vec![one_line]
+        } else {
+            items
+        };
+        let bar = scale_bar(c.mm_per_px, c.zoom, 0.4 * f64::from(w));
+        let band = 6 + LINE_PX * (lines.len() as u32 + u32::from(bar.is_some())) + 4;
+        let mut buf = img.as_raw().clone();
+        buf.extend(std::iter::repeat_n(BAND_RGB, (w * band) as usize).flatten());
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h + band)).into_drawing_area();
+        let mut y = h as i32 + 6;
+        for line in lines {
+            root.draw_text(&line, &font, (6, y)).unwrap();
+            y += LINE_PX as i32;
+        }
+        if let Some((mm, px)) = bar {
+            let x1 = w as i32 - 8;
+            let x0 = x1 - px.round() as i32;
+            let yb = y + (LINE_PX as i32 - BAR_THICK_PX as i32) / 2;
+            let white = RGBColor(BAR_RGB[0], BAR_RGB[1], BAR_RGB[2]);
+            root.draw(&Rectangle::new(
+                [(x0, yb), (x1, yb + BAR_THICK_PX as i32 - 1)],
+                white.filled(),
+            ))
+            .unwrap();
+            let label = mm_text(mm);
+            let lx = x0 - width(&label) as i32 - 8;
+            root.draw_text(&label, &font, (lx.max(6), y)).unwrap();
+        }
+        root.present().unwrap();
+        drop(root);
+        RgbImage::from_raw(w, h + band, buf).unwrap()
+    }
+
+    #[test]
+    fn the_band_drawn_in_grey_is_the_pixels_plotters_draws() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(18);
+        let caption = |frame, t_s, delta_mm, mm_per_px, zoom| Caption {
+            frame,
+            t_s,
+            delta_mm,
+            mm_per_px,
+            zoom,
+        };
+        let cases = [
+            caption(-12, -0.0012, Some(-0.75), 0.04, 3),
+            caption(4187, 0.41876, Some(1.234), 0.0437, 1),
+            caption(0, 0.0, None, 0.02, 1),
+            caption(-3, f64::INFINITY, Some(f64::NAN), f64::NAN, 1),
+            caption(1_000_000, -1e6, Some(-12345.678), 0.5, 2),
+        ];
+        for (w, h) in [
+            (500, 40),
+            (175, 199),
+            (150, 30),
+            (60, 12),
+            (9, 3),
+            (1000, 2),
+        ] {
+            // A picture of coloured noise, on which any text would show.
+            let img = RgbImage::from_fn(w, h, |_, _| image::Rgb(rng.gen()));
+            for c in &cases {
+                let want = with_caption_by_plotters(&img, c);
+                let got = with_caption(&img, c).unwrap();
+                assert!(got == want, "{w} × {h}, {c:?}");
+                let band = caption_band(w, c).unwrap();
+                assert_eq!(band.height, want.height() - h);
+            }
         }
     }
 

@@ -20,7 +20,7 @@ mod drop;
 mod layout;
 mod marker;
 
-pub use caption::{scale_bar, with_caption, Caption, BAND_RGB, BAR_RGB};
+pub use caption::{caption_band, scale_bar, with_caption, Caption, CaptionBand, BAND_RGB, BAR_RGB};
 pub use collapse::{collapse_figures, FIGURE_STEMS};
 pub use drop::drop_figures;
 pub use marker::{radius_style, Marker, MarkerKind};

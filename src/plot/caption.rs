@@ -67,10 +67,11 @@ pub fn texts(c: &Caption) -> Vec<String> {
 pub fn with_caption(img: &RgbImage, c: &Caption) -> Result<RgbImage, String> {
     let (w, h) = img.dimensions();
     let band = caption_band(w, c)?;
-    let mut buf = Vec::with_capacity(img.as_raw().len() + 3 * band.grey.len());
-    buf.extend_from_slice(img.as_raw());
-    buf.resize(img.as_raw().len() + 3 * band.grey.len(), 0);
-    for (px, &g) in buf[img.as_raw().len()..].chunks_exact_mut(3).zip(&band.grey) {
+    let picture = img.as_raw();
+    let mut buf = vec![0u8; picture.len() + 3 * band.grey.len()];
+    let (top, bottom) = buf.split_at_mut(picture.len());
+    top.copy_from_slice(picture);
+    for (px, &g) in bottom.chunks_exact_mut(3).zip(&band.grey) {
         px.copy_from_slice(&[g; 3]);
     }
     RgbImage::from_raw(w, h + band.height, buf).ok_or_else(|| "caption buffer size".to_string())

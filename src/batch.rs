@@ -578,6 +578,12 @@ pub fn on_threads<R: Send>(
     }
 }
 
+/// An I/O error on `path` as the job's error.
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> BatchError {
+    let path = path.to_path_buf();
+    move |source| BatchError::Io { path, source }
+}
+
 /// Process every configured run (reusing valid cached results), then the
 /// collapse of the measured ones. With `options.shard`, only that share of
 /// the runs, and nothing assembled.
@@ -592,10 +598,6 @@ pub fn run_job(
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<JobSummary, BatchError> {
     let runs = configured_runs(cfg)?;
-    let io = |path: &Path| {
-        let path = path.to_path_buf();
-        move |source| BatchError::Io { path, source }
-    };
     std::fs::create_dir_all(out).map_err(io(out))?;
     let me = crate::lock::Holder::this_process(
         &cache::job_id("run", cfg, &runs),
@@ -622,10 +624,6 @@ fn job_on_pool(
     options: &JobOptions,
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<JobSummary, BatchError> {
-    let io = |path: &Path| {
-        let path = path.to_path_buf();
-        move |source| BatchError::Io { path, source }
-    };
     let Processed {
         done,
         seconds: process_s,

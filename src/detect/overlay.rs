@@ -2,7 +2,7 @@
 //! the fitted circle and the surface line — so a person can check it by eye.
 //!
 //! Pure: returns an RGB image (and PNG bytes with [`encode_png`]), or the
-//! same drawing in the animated impact's palette ([`overlay_indexed`],
+//! same drawing in the animated impact's palette ([`Scene::indexed`],
 //! [`encode_indexed_apng`]); the caller writes it (`io_util::write_atomic`).
 //! A crop can be enlarged by an integer `zoom` so that sub-pixel placement
 //! is visible: frame point
@@ -341,7 +341,7 @@ const GREY_INDEX: [u8; 256] = {
 };
 
 /// One frame of an animation in the animation's palette (see
-/// [`overlay_indexed`]): `width × height` indices, row by row.
+/// [`Scene::indexed`]): `width × height` indices, row by row.
 pub struct IndexedFrame {
     pub width: u32,
     pub height: u32,
@@ -350,7 +350,7 @@ pub struct IndexedFrame {
 
 /// An RGB overlay in the animation's palette, pixel by pixel: a mark's
 /// colour its own index, any other pixel the grey nearest to its channels'
-/// mean. [`overlay_indexed`] is held to it.
+/// mean. [`Scene::indexed`] is held to it.
 #[cfg(test)]
 pub fn to_indexed(img: &RgbImage) -> IndexedFrame {
     let index = |p: &[u8]| {

@@ -915,17 +915,62 @@ struct Pass1State {
     away_until_s: Option<f64>,
 }
 
+/// The return of a sphere that left rising through the top of the frame
+/// ([`Pass1State::return_s`]).
+#[derive(Debug, Clone, Copy)]
+struct Return {
+    /// The time of its last fit.
+    t_last_s: f64,
+    /// The time from there until its lowest point is back in the frame.
+    away_s: f64,
+    /// The standard error of `away_s`.
+    away_err_s: f64,
+    /// The rise's heights the parabola was fitted to.
+    heights: usize,
+}
+
+/// The row where a sphere coming back down through the top of the frame
+/// comes into view: the top edge of row 0 (pixel centres at whole rows).
+const ENTRY_ROW_PX: f64 = -0.5;
+
+/// A systematic error of the rise's heights (the lowest points of caps
+/// leaving through the top of the frame), px, as a bend over the fitted
+/// span ([`Pass1State::return_s`]). Measured on the bench's movies (the
+/// first fit after each time away against the predicted return): on the
+/// 60 000 frames/s `.cine`, whose 128 kept heights span 2.1 ms, 8–11 % of
+/// the time away off, 1.3–2.0 times the scatter's standard error alone,
+/// and within 0.9 σ with this bend (σ 13–15 % of the time away); on the
+/// 10 000 frames/s one within 0.3 % (σ 1.3 %).
+const RISE_SYSTEMATIC_PX: f64 = 0.005;
+
 /// Heights of the rise kept for [`Pass1State::back_in_view_s`].
 const RISE_KEPT: usize = 128;
 
 /// Least fits of the rise that [`Pass1State::back_in_view_s`] takes.
 const RISE_FITS_MIN: usize = 8;
 
-/// Share of the time away, at its end, in which frames are searched again.
-/// The return is predicted from the rise's parabola; a quarter covers an
-/// error of a quarter in its curvature (a parabola fitted to 8 partial
-/// circles near the top of the frame is good to a few per cent).
-const AWAY_SEARCHED_SHARE: f64 = 0.25;
+/// Standard errors of the predicted return ([`Pass1State::return_s`])
+/// searched before it.
+const AWAY_SEARCHED_SIGMAS: f64 = 4.0;
+
+/// Least share of the time away, at its end, searched again whatever the
+/// parabola's scatter: what its error leaves out. A barrel lens bends the
+/// rise's heights towards the centre harder near the top, so the apparent
+/// curvature is larger and the return predicted early (searched longer);
+/// air drag on a steel sphere of R ≥ 3 mm is below 1 % of its weight at
+/// up to 3 m/s.
+const AWAY_SEARCHED_MIN_SHARE: f64 = 0.05;
+
+/// Least heights of the rise whose scatter is trusted for the margin
+/// (the standard deviation of 21 degrees of freedom is under 0.65 of the
+/// true one in 1 % of rises); a shorter rise searches the last
+/// [`AWAY_SEARCHED_SHORT_SHARE`] of the time away, or more.
+const AWAY_SCATTER_FITS_MIN: usize = 24;
+
+/// Share of the time away searched after a rise of fewer than
+/// [`AWAY_SCATTER_FITS_MIN`] heights: a quarter covers an error of a
+/// quarter in its curvature.
+const AWAY_SEARCHED_SHORT_SHARE: f64 = 0.25;
 
 impl Pass1State {
     /// Whether a sphere that a search could find is out of view: none
@@ -959,13 +1004,37 @@ impl Pass1State {
     }
 
     /// When the sphere that was just lost is back in view, if it left
-    /// through the top of the frame while rising: the parabola of its rise
-    /// (least squares over the newer half of the rise's heights, at least
-    /// [`RISE_FITS_MIN`]) brings it back to the height of its last fit
-    /// after `−b/c`, the start of the last [`AWAY_SEARCHED_SHARE`] of which
-    /// is returned. `None` (search every frame) when it left any other way,
-    /// or the rise is short or not a parabola that falls back.
+    /// through the top of the frame while rising: the return predicted by
+    /// [`Pass1State::return_s`] less a margin of [`AWAY_SEARCHED_SIGMAS`]
+    /// standard errors, at least [`AWAY_SEARCHED_MIN_SHARE`] of the time
+    /// away ([`AWAY_SEARCHED_SHORT_SHARE`] after a rise of fewer than
+    /// [`AWAY_SCATTER_FITS_MIN`] heights), at most all of it. `None`
+    /// (search every frame) when it left any other way, or the rise is
+    /// short or not a parabola that falls back.
     fn back_in_view_s(&self) -> Option<f64> {
+        let back = self.return_s()?;
+        let least = if back.heights < AWAY_SCATTER_FITS_MIN {
+            AWAY_SEARCHED_SHORT_SHARE
+        } else {
+            AWAY_SEARCHED_MIN_SHARE
+        };
+        let margin_s = (AWAY_SEARCHED_SIGMAS * back.away_err_s)
+            .max(least * back.away_s)
+            .min(back.away_s);
+        let t = back.t_last_s + back.away_s - margin_s;
+        t.is_finite().then_some(t)
+    }
+
+    /// The parabola of the sphere's rise (least squares over the newer half
+    /// of the rise's heights of its lowest point, at least
+    /// [`RISE_FITS_MIN`]) brings that point back into the frame (to the top
+    /// edge of row 0, [`ENTRY_ROW_PX`]) at its later root, with the
+    /// standard error of that time: from the heights' scatter about the
+    /// parabola and [`RISE_SYSTEMATIC_PX`] in quadrature. `None` when the last fit is not near the top of the frame
+    /// (its top within a radius of row 0), the rise is short or not a
+    /// parabola that falls back, or its lowest point never leaves the
+    /// frame (a cap stays in view: it is searched for).
+    fn return_s(&self) -> Option<Return> {
         let &(t_last, last) = self.history.last()?;
         if last.z_px - last.r_px >= last.r_px {
             return None;
@@ -975,18 +1044,44 @@ impl Pass1State {
         if used < RISE_FITS_MIN {
             return None;
         }
-        // z = a + b·u + c·u², u = (t − t_last) / span.
-        let (t, z): (Vec<f64>, Vec<f64>) = self.rise.iter().skip(n - used).copied().unzip();
-        let fit = crate::lsq::PolyFit::fit(&t, &z, &vec![1.0; used], 2, t_last)?;
-        let (b, c, span) = (fit.coef()[1], fit.coef()[2], fit.x_scale);
-        // Rising (z falls) at the last fit, and falling back (z″ > 0).
+        // h = a + b·u + c·u² (the lowest point's row less the entry row),
+        // u = (t − t_last) / span.
+        let (t, h): (Vec<f64>, Vec<f64>) = self
+            .rise
+            .iter()
+            .skip(n - used)
+            .map(|&(t, bottom)| (t, bottom - ENTRY_ROW_PX))
+            .unzip();
+        let fit = crate::lsq::PolyFit::fit(&t, &h, &vec![1.0; used], 2, t_last)?;
+        let (a, b, c, span) = (fit.coef()[0], fit.coef()[1], fit.coef()[2], fit.x_scale);
+        // Rising (h falls) at the last fit, and falling back (h″ > 0).
         if b >= 0.0 || c <= 0.0 || b.is_nan() || c.is_nan() {
             return None;
         }
-        let away_s = -b / c * span;
-        away_s
-            .is_finite()
-            .then_some(t_last + (1.0 - AWAY_SEARCHED_SHARE) * away_s)
+        // Out of the frame only if the parabola's lowest h is below 0.
+        let disc = b * b - 4.0 * a * c;
+        if disc.is_nan() || disc <= 0.0 {
+            return None;
+        }
+        let root = disc.sqrt();
+        let u = (-b + root) / (2.0 * c);
+        // The root's gradient in (a, b, c) is −(1, u, u²)/h′(u), h′(u) =
+        // √disc; the coefficients' covariance scaled to the heights'
+        // scatter (their stated σ of 1 px is no measurement).
+        let cov = &fit.fit.cov * fit.fit.chi2_red();
+        let g = [1.0 / root, u / root, u * u / root];
+        let var_u = crate::lsq::quad_form(&g, &cov);
+        // A systematic bend of the heights the fit cannot take up in a and
+        // b: RISE_SYSTEMATIC_PX times the shifted Legendre P₂(2u + 1) =
+        // 6u² + 6u + 1 over the fitted span (u from −1 to 0).
+        let sys_u = RISE_SYSTEMATIC_PX * (g[0] + 6.0 * g[1] + 6.0 * g[2]);
+        let (away_s, away_err_s) = (u * span, (var_u.max(0.0) + sys_u * sys_u).sqrt() * span);
+        (away_s.is_finite() && away_s > 0.0 && away_err_s.is_finite()).then_some(Return {
+            t_last_s: t_last,
+            away_s,
+            away_err_s,
+            heights: used,
+        })
     }
 
     /// Take frame `i`'s result: its track entry, the state moved on.
@@ -1983,6 +2078,58 @@ mod tests {
     }
 
     #[test]
+    fn after_a_long_rise_only_the_end_of_the_time_away_is_searched() {
+        // A slow rise, z = 130 − 1.5k + 0.003k² (R = 20 px), fitted until
+        // frame ~126 (a cap of 9 px); its lowest point leaves at frame 138.9
+        // and is back at row −0.5 at frame 361.1. The parabola, from the
+        // newer half of ~126 heights, predicts that return to well under
+        // 1 %, so only the last 5 % of the time from the last fit is
+        // searched (a quarter after `away_movie`'s rise of 12 heights); the
+        // track is the same bits as with every frame looked at.
+        let disks: Vec<_> = (0..480)
+            .map(|k| {
+                let k = k as f64;
+                (128.0 + 0.05 * k, 130.0 - 1.5 * k + 0.003 * k * k, 20.0)
+            })
+            .collect();
+        let (skipped, _) = skipped_and_every(&mut rendered(&disks, 11));
+        let fitted: Vec<i64> = skipped
+            .frames
+            .iter()
+            .filter(|f| f.free.is_some())
+            .map(|f| f.frame)
+            .collect();
+        let last_before = fitted.iter().copied().filter(|&k| k < 250).max().unwrap();
+        let first_after = fitted.iter().copied().find(|&k| k > 250).unwrap();
+        assert!((115..=135).contains(&last_before), "{last_before}");
+        assert!((361..=380).contains(&first_after), "{first_after}");
+        let away = (361 - last_before) as usize;
+        assert!(
+            skipped.away_frames >= away * 90 / 100 && skipped.away_frames <= away,
+            "{} of {away}",
+            skipped.away_frames
+        );
+    }
+
+    #[test]
+    fn a_cap_that_never_leaves_the_frame_is_looked_for_in_every_frame() {
+        // A rise whose lowest point turns at row 4 (z = 130 − 1.5k +
+        // 0.00386k², R = 20 px): the sphere is never wholly out of view, so
+        // pass 1 skips none of its frames, whatever it finds of the cap.
+        // (Before the return was the lowest point's root, the lost cap was
+        // taken to be away until back at its last fit's height, and frames
+        // where a search finds it were not looked at: another track.)
+        let disks: Vec<_> = (0..400)
+            .map(|k| {
+                let k = k as f64;
+                (128.0 + 0.05 * k, 130.0 - 1.5 * k + 0.00386 * k * k, 20.0)
+            })
+            .collect();
+        let (skipped, _) = skipped_and_every(&mut rendered(&disks, 13));
+        assert_eq!(skipped.away_frames, 0);
+    }
+
+    #[test]
     fn a_rise_lost_and_found_on_its_way_out_still_predicts_the_return() {
         // `away_movie` with the sphere hidden in frames 12–13 and 17–18 of
         // its rise (each loss ends the following, each return is a search):
@@ -2206,41 +2353,182 @@ mod tests {
 
     #[test]
     fn the_return_is_where_the_rise_s_parabola_comes_back() {
-        // Heights of an exact parabola z = 40 − 3u + 0.01u² (u in frames
-        // of 0.1 ms): back at the last height after −b/c from there.
-        let z = |k: f64| 40.0 - 3.0 * k + 0.01 * k * k;
-        let circle = |k: f64| Circle {
-            x_px: 100.0,
-            z_px: z(k),
-            r_px: 20.0,
+        // Lowest points of an exact parabola h = 70 − 3k + 0.01k² (frames k
+        // of 0.1 ms, R = 20 px), the last fit at frame 20 (h = 14): it
+        // leaves the frame at k = 25.7 and is back at row −0.5 (the top
+        // edge of row 0) at k = 274.3; after a rise of 21 heights (10
+        // fitted) the last quarter of that time is searched.
+        let state_of = |h: &dyn Fn(f64) -> f64| {
+            let mut state = Pass1State {
+                following: true,
+                ..Pass1State::default()
+            };
+            for k in 0..=20 {
+                let t = k as f64 * 1e-4;
+                let bottom = h(k as f64);
+                state.rise.push_back((t, bottom));
+                let circle = Circle {
+                    x_px: 100.0,
+                    z_px: bottom - 20.0,
+                    r_px: 20.0,
+                };
+                state.history = vec![(t, circle)];
+            }
+            state
         };
-        let mut state = Pass1State {
-            following: true,
-            ..Pass1State::default()
-        };
-        for k in 0..30 {
-            let (t, c) = (k as f64 * 1e-4, circle(k as f64));
-            state.rise.push_back((t, c.z_px));
-            state.history = vec![(t, c)];
-        }
-        // The last fit (frame 29, z = −38.6) is near the top: back at
-        // frame 300 − 29 = 271; searched from three quarters of the way.
+        let mut state = state_of(&|k| 70.0 - 3.0 * k + 0.01 * k * k);
+        let entry = (3.0 + (9.0f64 - 4.0 * 0.01 * 70.5).sqrt()) / (2.0 * 0.01);
+        assert!((entry - 274.3).abs() < 0.01, "{entry}");
         let back = state.back_in_view_s().unwrap();
-        let expected = 29e-4 + 0.75 * (271.0 - 29.0) * 1e-4;
-        assert!((back - expected).abs() < 1e-12, "{back} vs {expected}");
+        let expected = (20.0 + 0.75 * (entry - 20.0)) * 1e-4;
+        assert!((back - expected).abs() < 1e-9, "{back} vs {expected}");
+        // A rise whose lowest point stays in the frame (h = 70 − 3k +
+        // 0.04k² turns at h = 13.75): a cap stays in view, none.
+        assert_eq!(
+            state_of(&|k| 70.0 - 3.0 * k + 0.04 * k * k).back_in_view_s(),
+            None
+        );
         // Lost in mid-frame (its top a radius or more below row 0): none.
+        let last = state.history[0];
         state.history = vec![(
-            29e-4,
+            last.0,
             Circle {
                 z_px: 45.0,
-                ..circle(29.0)
+                ..last.1
             },
         )];
         assert_eq!(state.back_in_view_s(), None);
         // Too short a rise: none.
-        state.history = vec![(29e-4, circle(29.0))];
+        state.history = vec![last];
         state.rise.drain(..state.rise.len() - 15);
         assert_eq!(state.back_in_view_s(), None);
+    }
+
+    /// A state that has followed a rise of `n` lowest-edge heights
+    /// `h(k) = 326.5 − 3k + 0.004k²` (px, frame k of 0.1 ms) plus Gaussian
+    /// noise of `noise_px`, the last of them near the top of the frame
+    /// (h = 10.5 at k = 127), and the true time from the last one until
+    /// that point is back at row −0.5 (k = 617.6).
+    fn noisy_rise(n: usize, noise_px: f64, seed: u64) -> (Pass1State, f64) {
+        use rand_distr::{Distribution, Normal};
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let normal = Normal::new(0.0, noise_px).unwrap();
+        let h = |k: f64| 326.5 - 3.0 * k + 0.004 * k * k;
+        let k0 = 128 - n;
+        let mut state = Pass1State {
+            following: true,
+            ..Pass1State::default()
+        };
+        for k in k0..128 {
+            let t = k as f64 * 1e-4;
+            let z = h(k as f64) + normal.sample(&mut rng);
+            state.rise.push_back((t, z));
+            state.history = vec![(
+                t,
+                Circle {
+                    x_px: 100.0,
+                    z_px: z - 20.0,
+                    r_px: 20.0,
+                },
+            )];
+        }
+        // Back at row −0.5: the later root of h(k) + 0.5 = 0.
+        let entry = (3.0 + (9.0f64 - 4.0 * 0.004 * 327.0).sqrt()) / (2.0 * 0.004);
+        (state, (entry - 127.0) * 1e-4)
+    }
+
+    #[test]
+    fn the_return_s_standard_error_is_the_spread_of_noisy_rises() {
+        // 400 rises of 128 heights with 0.3 px of noise (the newest 128
+        // are fitted; the standard error is ~0.6 % of the time away): the
+        // stated standard error of the time away against the spread of its
+        // values (a standard error for heights of the fit's nominal 1 px
+        // would be 3.3 times too large), and the truth within 5 of them.
+        let (mut within_1, mut sum_err, mut sum_sq) = (0, 0.0, 0.0);
+        let trials = 400;
+        for seed in 0..trials {
+            let (state, truth_s) = noisy_rise(128, 0.3, seed);
+            let back = state.return_s().unwrap();
+            assert_eq!(back.heights, 128);
+            let off = back.away_s - truth_s;
+            assert!(
+                off.abs() < 5.0 * back.away_err_s,
+                "seed {seed}: {off} vs {back:?}"
+            );
+            within_1 += usize::from(off.abs() < back.away_err_s);
+            sum_err += back.away_err_s;
+            sum_sq += off * off;
+        }
+        let stated = sum_err / trials as f64;
+        let spread = (sum_sq / trials as f64).sqrt();
+        assert!(
+            (0.85..1.15).contains(&(stated / spread)),
+            "stated {stated:.3e} s, spread {spread:.3e} s"
+        );
+        // 68 % within one standard error (±4.7 % at 2σ for 400 trials).
+        assert!((240..306).contains(&within_1), "{within_1} of {trials}");
+    }
+
+    #[test]
+    fn a_bend_of_the_heights_by_their_systematic_error_moves_the_return_one_sigma() {
+        // A 60 000 frames/s rise (frames of 1/60 ms): 128 exact heights h =
+        // 10 + 0.5j + 0.00002j² (j = 127 − k) of the lowest point over 2.1
+        // ms, bent by 0.3 px there and away for 0.4 s. Its stated
+        // error is the systematic bend's alone; bending the heights by
+        // RISE_SYSTEMATIC_PX·P₂ over the span moves the return by that.
+        let state_of = |bend_px: f64| {
+            let mut state = Pass1State {
+                following: true,
+                ..Pass1State::default()
+            };
+            for k in 0..128 {
+                let (t, j) = (k as f64 / 60_000.0, 127.0 - k as f64);
+                let u = -j / 127.0;
+                let h = 10.0 + 0.5 * j + 0.00002 * j * j + bend_px * (6.0 * u * u + 6.0 * u + 1.0);
+                state.rise.push_back((t, h));
+                let circle = Circle {
+                    x_px: 100.0,
+                    z_px: h - 20.0,
+                    r_px: 20.0,
+                };
+                state.history = vec![(t, circle)];
+            }
+            state.return_s().unwrap()
+        };
+        let (exact, bent) = (state_of(0.0), state_of(RISE_SYSTEMATIC_PX));
+        let moved = (bent.away_s - exact.away_s).abs();
+        assert!(
+            (0.9..1.1).contains(&(moved / exact.away_err_s)),
+            "moved {moved:.3e} s, stated {:.3e} s",
+            exact.away_err_s
+        );
+        // Here the bend is 5 % of the time away and more.
+        assert!(exact.away_err_s > 0.05 * exact.away_s, "{exact:?}");
+    }
+
+    #[test]
+    fn the_search_starts_four_standard_errors_before_the_return_or_a_twentieth() {
+        // Noisy enough that four standard errors are more than a twentieth
+        // of the time away: the search starts 4σ early, before the truth
+        // in every rise; exact heights: a twentieth early; a rise of fewer
+        // than 24 heights (the newer half of 40): a quarter early.
+        for seed in 0..100 {
+            let (state, truth_s) = noisy_rise(128, 2.0, seed);
+            let back = state.return_s().unwrap();
+            assert!(AWAY_SEARCHED_SIGMAS * back.away_err_s > 0.05 * back.away_s);
+            let start = state.back_in_view_s().unwrap();
+            let expected = back.t_last_s + back.away_s - 4.0 * back.away_err_s;
+            assert!((start - expected).abs() < 1e-12, "{start} vs {expected}");
+            assert!(start < back.t_last_s + truth_s, "seed {seed}");
+        }
+        let (exact, truth_s) = noisy_rise(128, 1e-9, 0);
+        let t_last = exact.return_s().unwrap().t_last_s;
+        let start = exact.back_in_view_s().unwrap();
+        assert!((start - (t_last + 0.95 * truth_s)).abs() < 1e-9, "{start}");
+        let (short, truth_s) = noisy_rise(40, 1e-9, 0);
+        assert_eq!(short.return_s().unwrap().heights, 20);
+        let start = short.back_in_view_s().unwrap();
+        assert!((start - (t_last + 0.75 * truth_s)).abs() < 1e-9, "{start}");
     }
 
     #[test]

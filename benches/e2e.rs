@@ -10,14 +10,22 @@
 //! The data are rendered once into `DROPSCOPE_E2E_DATA` (default
 //! `target/e2e-data`, ≈ 7.5 GB) by the `render` commands printed (and listed
 //! in docs/performance.md); a later run reuses them. Each figure is from
-//! the page cache (every file is read once before timing).
+//! the page cache: every input file is read whole again right before each
+//! timed run: this virtual machine's kernel pages out what has not been
+//! touched for about a minute (a DAMON `pageout` scheme, `kdamond`: age
+//! ≥ 12 intervals of 5 s, in `/sys/kernel/mm/damon/admin`), so a set read
+//! a minute before is mostly gone (`wide`: 1 126 of its 2 218 MB resident,
+//! 322 a minute later), and the disk's reads then show in the child's
+//! wall and CPU time.
 //!
 //! - decode: every frame read whole (`FrameSource::read_into`, 16-bit out)
 //!   on 2 threads, each with its own sources, frames split evenly;
 //! - end to end: `dropscope process --manifest runs.csv --out TMP` as a
 //!   child process with `RAYON_NUM_THREADS` = 2 (and 1 for the single
-//!   movies), `REPEATS` times (default 3): wall time best and range, the
+//!   movies, the two interleaved so that the machine's drift falls on
+//!   both), `REPEATS` times (default 3): wall time best and range, the
 //!   child's CPU time (user + system) and peak memory (`wait4`'s rusage);
+//!   the 1 → 2 ratio of the best runs and of the medians;
 //! - the outputs of 1 and 2 threads compared byte for byte.
 //!
 //! The machine is shared: the CPU figures are what the work costs, the wall
@@ -278,23 +286,41 @@ fn decode(inputs: &[PathBuf], threads: usize) -> (f64, f64, usize) {
     (total as f64 / (t1 - t0).as_secs_f64(), cpu, total)
 }
 
-/// `process` of `manifest` into `out` on `threads` threads, `repeats` times.
-fn end_to_end(manifest: &Path, out: &Path, threads: usize, repeats: usize) -> Vec<Run> {
-    (0..repeats)
-        .map(|_| {
-            let _ = std::fs::remove_dir_all(out);
-            timed(
-                Command::new(BIN)
-                    .args(["process", "--manifest"])
-                    .arg(manifest)
-                    .arg("--out")
-                    .arg(out)
-                    .env("RAYON_NUM_THREADS", threads.to_string())
-                    .stdout(std::process::Stdio::null())
-                    .stderr(std::process::Stdio::null()),
-            )
-        })
-        .collect()
+/// Every input file read whole, untimed, into the page cache.
+fn warm(inputs: &[PathBuf]) {
+    use std::io::Read;
+    let mut buf = vec![0u8; 1 << 20];
+    let mut read = |p: &Path| {
+        if let Ok(mut f) = std::fs::File::open(p) {
+            while f.read(&mut buf).is_ok_and(|n| n > 0) {}
+        }
+    };
+    for input in inputs {
+        if input.is_dir() {
+            for e in std::fs::read_dir(input).unwrap().flatten() {
+                read(&e.path());
+            }
+        } else {
+            read(input);
+        }
+    }
+}
+
+/// `process` of `manifest` into `out` on `threads` threads, once, its
+/// inputs warmed first.
+fn end_to_end(manifest: &Path, inputs: &[PathBuf], out: &Path, threads: usize) -> Run {
+    let _ = std::fs::remove_dir_all(out);
+    warm(inputs);
+    timed(
+        Command::new(BIN)
+            .args(["process", "--manifest"])
+            .arg(manifest)
+            .arg("--out")
+            .arg(out)
+            .env("RAYON_NUM_THREADS", threads.to_string())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null()),
+    )
 }
 
 /// Every file under `dir`, relative, with its bytes.
@@ -348,6 +374,7 @@ struct Summary {
     frames: usize,
     best: Run,
     worst_wall_s: f64,
+    median_wall_s: f64,
 }
 
 fn summarize(frames: usize, runs: &[Run]) -> Summary {
@@ -355,11 +382,19 @@ fn summarize(frames: usize, runs: &[Run]) -> Summary {
         .iter()
         .min_by(|a, b| a.wall_s.total_cmp(&b.wall_s))
         .unwrap();
-    let worst_wall_s = runs.iter().map(|r| r.wall_s).fold(0.0, f64::max);
+    let mut walls: Vec<f64> = runs.iter().map(|r| r.wall_s).collect();
+    walls.sort_by(f64::total_cmp);
+    let m = walls.len() / 2;
+    let median_wall_s = if walls.len() % 2 == 1 {
+        walls[m]
+    } else {
+        0.5 * (walls[m - 1] + walls[m])
+    };
     Summary {
         frames,
         best,
-        worst_wall_s,
+        worst_wall_s: walls[walls.len() - 1],
+        median_wall_s,
     }
 }
 
@@ -404,15 +439,19 @@ fn main() {
         // Into the page cache, untimed.
         let _ = decode(&inputs, 2);
         let (decode_fps, _, frames) = decode(&inputs, 2);
+        let out1 = work.path().join(format!("{}-1", set.name));
         let out2 = work.path().join(format!("{}-2", set.name));
-        let two = summarize(frames, &end_to_end(&manifest, &out2, 2, repeats));
         let single = runs.len() == 1;
-        let one = single.then(|| {
-            let out1 = work.path().join(format!("{}-1", set.name));
-            let s = summarize(frames, &end_to_end(&manifest, &out1, 1, repeats));
-            let same = tree(&out1) == tree(&out2);
-            (s, same)
-        });
+        // 2 threads, then (for a single movie) 1, `repeats` times.
+        let (mut runs2, mut runs1) = (Vec::new(), Vec::new());
+        for _ in 0..repeats {
+            runs2.push(end_to_end(&manifest, &inputs, &out2, 2));
+            if single {
+                runs1.push(end_to_end(&manifest, &inputs, &out1, 1));
+            }
+        }
+        let two = summarize(frames, &runs2);
+        let one = single.then(|| (summarize(frames, &runs1), tree(&out1) == tree(&out2)));
         let fps = |s: &Summary| s.frames as f64 / s.best.wall_s;
         println!(
             "{:<9} {:>6} {:>12.0} {:>9.0} [{:>5.0}–{:>5.0}] {:>8.2} {:>8.1} {:>14} {:>6}",
@@ -427,8 +466,9 @@ fn main() {
             one.as_ref()
                 .map_or("—".into(), |(s, _)| format!("{:.0}", fps(s))),
             one.as_ref().map_or("—".into(), |(s, _)| format!(
-                "{:.2}×",
-                s.best.wall_s / two.best.wall_s
+                "{:.2}× (medians {:.2}×)",
+                s.best.wall_s / two.best.wall_s,
+                s.median_wall_s / two.median_wall_s
             )),
         );
         if let Some((_, same)) = &one {

@@ -279,6 +279,25 @@ fn config_for_key(cfg: &PipelineConfig) -> PipelineConfig {
     c
 }
 
+/// A path as the file system names the thing it reaches: canonical (from
+/// the root, links followed; a missing file by its folder's canonical
+/// path), else absolute from the working folder. The
+/// manifest and its runs' paths are relative to the working folder when
+/// given so (`--config ux/a.toml` from `/tmp` names `ux/runs.csv`, the same
+/// file as `runs.csv` from `/tmp/ux`): keyed as given, one job reprocessed
+/// every run that another had cached for being started from elsewhere.
+fn where_it_is(path: &Path) -> PathBuf {
+    let in_its_folder = || {
+        let folder = std::fs::canonicalize(path.parent()?).ok()?;
+        Some(folder.join(path.file_name()?))
+    };
+    std::fs::canonicalize(path)
+        .ok()
+        .or_else(in_its_folder)
+        .or_else(|| std::path::absolute(path).ok())
+        .unwrap_or_else(|| path.to_path_buf())
+}
+
 /// The cache key of `run` under `cfg` with input `fp`, computed by this
 /// build of dropscope.
 pub fn key(cfg: &PipelineConfig, run: &RunSpec, fp: &Fingerprint) -> String {
@@ -308,13 +327,25 @@ fn key_for_source(source: &str, cfg: &PipelineConfig, run: &RunSpec, fp: &Finger
         run: &'a RunSpec,
         input: &'a Fingerprint,
     }
+    // Its paths as the file system names what they reach.
+    let mut config = config_for_key(cfg);
+    config.input.manifest = config.input.manifest.as_deref().map(where_it_is);
+    config.input.paths = config.input.paths.iter().map(|p| where_it_is(p)).collect();
+    let run = RunSpec {
+        path: where_it_is(&run.path),
+        ..run.clone()
+    };
+    let input = Fingerprint {
+        path: where_it_is(&fp.path),
+        ..fp.clone()
+    };
     let parts = KeyParts {
         schema: CACHE_SCHEMA,
         version: env!("CARGO_PKG_VERSION"),
         source,
-        config: config_for_key(cfg),
-        run,
-        input: fp,
+        config,
+        run: &run,
+        input: &input,
     };
     // Serialising plain structs to JSON cannot fail.
     let json = serde_json::to_vec(&parts).unwrap_or_default();
@@ -522,6 +553,40 @@ mod tests {
         assert!(SOURCE_SHA256.len() == 64 && SOURCE_SHA256.bytes().all(|b| b.is_ascii_hexdigit()));
         assert_eq!(k, key_for_source(SOURCE_SHA256, &c, &r, &fp));
         assert_ne!(k, key_for_source(&"0".repeat(64), &c, &r, &fp));
+    }
+
+    #[test]
+    fn key_is_the_same_for_one_input_named_from_two_folders() {
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("ux");
+        std::fs::create_dir(&sub).unwrap();
+        let p = sub.join("m.cine");
+        std::fs::write(&p, b"CI").unwrap();
+        let fp = fingerprint(&p).unwrap();
+        let mut c = cfg();
+        c.input.manifest = Some(sub.join("runs.csv"));
+        let k = key(&c, &run(&p), &fp);
+        // The same file by a path with a detour, and by a link to its folder.
+        let detour = sub.join("..").join("ux").join("m.cine");
+        let link = dir.path().join("link");
+        std::os::unix::fs::symlink(&sub, &link).unwrap();
+        for other in [detour, link.join("m.cine")] {
+            let mut c2 = c.clone();
+            c2.input.manifest = Some(other.with_file_name("runs.csv"));
+            let fp2 = Fingerprint {
+                path: other.clone(),
+                ..fp.clone()
+            };
+            assert_eq!(k, key(&c2, &run(&other), &fp2), "{}", other.display());
+        }
+        // Another file is another key.
+        let q = sub.join("n.cine");
+        std::fs::write(&q, b"CI").unwrap();
+        let fq = Fingerprint {
+            path: q.clone(),
+            ..fp.clone()
+        };
+        assert_ne!(k, key(&c, &run(&q), &fq));
     }
 
     #[test]

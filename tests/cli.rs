@@ -81,6 +81,64 @@ fn no_argument_runs_the_main_job_on_the_local_pipeline_toml() {
     }
 }
 
+/// A job started from another folder on the same configuration reuses the
+/// first one's results: the cache key names the manifest and the runs as
+/// the file system does, not as relative to where the job was started
+/// (`--config a.toml` from `ux/` and `--config ux/a.toml` from its parent
+/// reprocessed every run, each time).
+#[test]
+fn a_job_started_from_another_folder_reuses_the_cached_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let ux = dir.path().join("ux");
+    std::fs::create_dir(&ux).unwrap();
+    let fixtures = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures");
+    let text = std::fs::read_to_string(fixtures.join("runs.csv")).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    // One run, its path relative to the manifest (and so to the folder the
+    // job is started from).
+    let row = lines.next().unwrap();
+    let run = row.split(',').nth(1).unwrap();
+    let from = fixtures.join(run);
+    std::fs::create_dir(ux.join(run)).unwrap();
+    for f in std::fs::read_dir(&from).unwrap().flatten() {
+        std::fs::copy(f.path(), ux.join(run).join(f.file_name())).unwrap();
+    }
+    std::fs::write(ux.join("runs.csv"), format!("{header}\n{row}\n")).unwrap();
+    std::fs::write(
+        ux.join("a.toml"),
+        "[input]\nmanifest = \"runs.csv\"\n[output]\ndir = \"out\"\n",
+    )
+    .unwrap();
+    let job = |cwd: &std::path::Path, config: &str| {
+        let out = dropscope()
+            .args([
+                "run",
+                "--threads",
+                "1",
+                "--no-animation",
+                "--config",
+                config,
+            ])
+            .current_dir(cwd)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(out.status.code(), Some(0), "{err}");
+        err
+    };
+    let first = job(&ux, "a.toml");
+    assert!(first.contains("0 reused from the cache"), "{first}");
+    for (cwd, config) in [(dir.path(), "ux/a.toml"), (ux.as_path(), "a.toml")] {
+        let again = job(cwd, config);
+        assert!(
+            again.contains("1 reused from the cache"),
+            "from {}: {again}",
+            cwd.display()
+        );
+    }
+}
+
 /// `dropscope` alone takes `run`'s options, as the README shows them
 /// (issue 17 item 3: `dropscope --force` said "unexpected argument").
 #[test]

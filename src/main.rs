@@ -42,12 +42,20 @@ enum Command {
     /// Validate a pipeline.toml and print the resolved configuration.
     CheckConfig {
         /// The configuration file (default: ./pipeline.toml, else the embedded default).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "default")]
         config: Option<PathBuf>,
+        /// Print the built-in default configuration as written, every key
+        /// commented: a pipeline.toml to start from
+        /// (`dropscope check-config --default > pipeline.toml`).
+        #[arg(long)]
+        default: bool,
     },
     /// What a folder of frames or a .cine holds (frames, size, fps, bit depth, gaps…).
     Inspect(dropscope::source::cli::InspectArgs),
-    /// Write frames A..B−1 exactly as read, as 16-bit PNG named by frame number.
+    /// Write frames exactly as read, as 16-bit PNG `<input>_<index>.png`.
+    ///
+    /// The index counts from 0, zero-padded to the movie's last;
+    /// `<input>_frames.csv` gives each file's camera number and time.
     Export(dropscope::source::cli::ExportArgs),
     /// Render synthetic drops with exact truth, as PCC-style frame folders.
     Render(Box<dropscope::render::RenderArgs>),
@@ -141,8 +149,8 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
                 "no pipeline.toml in this folder and no --config: the built-in default \
                  configuration processes the sample drops of the dropscope repository \
                  ({}), which are not here. Run `dropscope` inside the repository, or save \
-                 `dropscope check-config > pipeline.toml` here and set [input] manifest to \
-                 your runs.csv (or paths to your run folders), or pass --config FILE",
+                 `dropscope check-config --default > pipeline.toml` here and set [input] \
+                 manifest to your runs.csv (or paths to your run folders), or pass --config FILE",
                 m.display()
             );
         }
@@ -448,7 +456,17 @@ fn main() -> ExitCode {
     let command = cli.command.unwrap_or(Command::Run(cli.run));
     let result: anyhow::Result<ExitCode> = match command {
         Command::Run(args) => run_main_job(&args),
-        Command::CheckConfig { config } => load_config(config.as_deref()).map(|(c, name)| {
+        Command::CheckConfig {
+            default: true,
+            config: _,
+        } => {
+            print!("{}", dropscope::config::EMBEDDED_DEFAULT);
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::CheckConfig {
+            config,
+            default: false,
+        } => load_config(config.as_deref()).map(|(c, name)| {
             println!("# {name}: valid; resolved (paths as dropscope will use them):");
             print!("{}", c.to_toml());
             ExitCode::SUCCESS

@@ -293,6 +293,49 @@ fn inspect_takes_a_folders_missing_fps_from_the_flag_or_the_configuration() {
     assert!(out.contains("fps 777 from --fps"), "{out}");
 }
 
+/// `export --help` names the files as `export` writes them: by index from
+/// 0, zero-padded to the movie's last (it said "named by frame number",
+/// and a PCC folder's frames are numbered from its trigger, -30 here).
+#[test]
+fn export_names_its_files_as_its_help_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/R3mm_H1.5cm_01");
+    let help = dropscope().args(["export", "--help"]).output().unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(help.contains("`<input>_<index>.png`"), "{help}");
+    let out = dropscope()
+        .arg("export")
+        .arg(&run)
+        .args(["--frames", "0:2", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    // 90 frames: indices 00 to 89.
+    assert_eq!(
+        names,
+        [
+            "R3mm_H1.5cm_01_00.png",
+            "R3mm_H1.5cm_01_01.png",
+            "R3mm_H1.5cm_01_frames.csv"
+        ]
+    );
+    let side = std::fs::read_to_string(dir.path().join("R3mm_H1.5cm_01_frames.csv")).unwrap();
+    let first = side.lines().nth(1).unwrap();
+    assert!(first.starts_with("R3mm_H1.5cm_01_00.png,0,-30,"), "{side}");
+}
+
 /// A configuration without camera.fps and no `--fps`: exit 2, and the
 /// message names the folder and both places to set a frame rate.
 #[test]
@@ -382,6 +425,64 @@ fn outside_the_checkout_the_errors_say_what_to_do_once() {
         !text.contains("radius_m ") && !text.contains("surfaces"),
         "{text}"
     );
+}
+
+/// The advice of the error above, followed to the letter in a shell: the
+/// shell makes an empty ./pipeline.toml before dropscope runs, so the
+/// plain `check-config > pipeline.toml` it gave saved the resolved empty
+/// file (no manifest line to set, no comments) and the next `dropscope`
+/// said "the configuration names no input".
+#[test]
+fn the_advice_outside_the_checkout_saves_a_configuration_to_start_from() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dropscope().current_dir(dir.path()).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    let advice = "dropscope check-config --default > pipeline.toml";
+    assert!(err.contains(&format!("`{advice}`")), "{err}");
+    let bin = env!("CARGO_BIN_EXE_dropscope");
+    let saved = Command::new("sh")
+        .arg("-c")
+        .arg(advice.replacen("dropscope", &format!("'{bin}'"), 1))
+        .current_dir(dir.path())
+        .status()
+        .unwrap();
+    assert!(saved.success());
+    let text = std::fs::read_to_string(dir.path().join("pipeline.toml")).unwrap();
+    assert_eq!(text, dropscope::config::EMBEDDED_DEFAULT);
+    assert!(
+        text.contains("\nmanifest = ") && text.contains("# The run manifest"),
+        "{text}"
+    );
+    // With its manifest set to a runs.csv here, it is the main job's.
+    let fixtures = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures");
+    let runs = std::fs::read_to_string(fixtures.join("runs.csv")).unwrap();
+    let (header, rest) = runs.split_once('\n').unwrap();
+    let row = rest.lines().next().unwrap();
+    let (run, tail) = row.split_once(',').unwrap();
+    let (path, tail) = tail.split_once(',').unwrap();
+    let row = format!("{run},{},{tail}", fixtures.join(path).display());
+    std::fs::write(dir.path().join("my_runs.csv"), format!("{header}\n{row}\n")).unwrap();
+    let edited = text.replace(
+        "manifest = \"fixtures/runs.csv\"",
+        "manifest = \"my_runs.csv\"",
+    );
+    assert_ne!(edited, text);
+    std::fs::write(dir.path().join("pipeline.toml"), edited).unwrap();
+    let out = dropscope()
+        .args(["--no-animation", "--threads", "1"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(err.contains("1 run: 1 measured"), "{err}");
+    // --default and --config are one or the other.
+    let out = dropscope()
+        .args(["check-config", "--default", "--config", "pipeline.toml"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
 }
 
 /// `--radii-mm 3 5 7` as `render --help` shows its default (issue 17 item 8).

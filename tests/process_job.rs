@@ -488,3 +488,82 @@ fn the_animation_can_be_turned_off() {
         "the report links an animation"
     );
 }
+
+/// Every file under `dir` (recursively), by its path relative to `dir`,
+/// with its bytes; a folder as `None`.
+fn snapshot(dir: &Path) -> std::collections::BTreeMap<PathBuf, Option<Vec<u8>>> {
+    let mut all = std::collections::BTreeMap::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            let rel = p.strip_prefix(dir).unwrap().to_path_buf();
+            if p.is_dir() {
+                all.insert(rel, None);
+                todo.push(p);
+            } else {
+                all.insert(rel, Some(std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    all
+}
+
+/// The audit's typo: `process d1/R4.5mm_H12cm_01_typo --out wipe` into a
+/// folder holding a finished process and collapse removed those results
+/// and wrote a drops.csv of one failed row (exit 1). An INPUT that does not
+/// exist, or cannot be a run, is now refused before the output folder is
+/// touched: exit 2, the path named, every file of the folder as it was —
+/// also beside a good INPUT, and into a folder not yet there (not made).
+#[test]
+fn a_mistyped_input_stops_before_the_output_folder_is_touched() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("wipe");
+    let (o, err) = process(&out, &[]);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    succeeded(dropscope().arg("collapse").arg(out.join("drops.csv")));
+    let before = snapshot(&out);
+    for f in ["drops.csv", "collapse.csv", "fits.json", "provenance.json"] {
+        assert!(before.contains_key(Path::new(f)), "no {f} to keep");
+    }
+    std::fs::create_dir(dir.path().join("d1")).unwrap();
+    let typo = dir.path().join("d1/R4.5mm_H12cm_01_typo");
+    let notes = dir.path().join("runs.txt");
+    std::fs::write(&notes, b"not a run").unwrap();
+    let good = fixtures().join("R4.5mm_H12cm_01");
+    for (inputs, named, says) in [
+        (vec![&typo], &typo, "does not exist"),
+        (vec![&good, &typo], &typo, "does not exist"),
+        (vec![&notes], &notes, "not a folder of frames"),
+    ] {
+        let o = dropscope()
+            .arg("process")
+            .args(&inputs)
+            .args(["--radius-mm", "4.5", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{inputs:?}: {err}");
+        assert!(
+            err.starts_with(&format!("error: {}: {says}", named.display())),
+            "{inputs:?}: {err}"
+        );
+        assert_eq!(err.lines().count(), 1, "{inputs:?}: {err}");
+        assert!(
+            snapshot(&out) == before,
+            "{inputs:?} changed {}",
+            out.display()
+        );
+    }
+    let fresh = dir.path().join("fresh");
+    let o = dropscope()
+        .arg("process")
+        .arg(&typo)
+        .args(["--radius-mm", "4.5", "--out"])
+        .arg(&fresh)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!fresh.exists(), "the refused job made {}", fresh.display());
+}

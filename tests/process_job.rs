@@ -567,3 +567,43 @@ fn a_mistyped_input_stops_before_the_output_folder_is_touched() {
     assert_eq!(o.status.code(), Some(2));
     assert!(!fresh.exists(), "the refused job made {}", fresh.display());
 }
+
+/// A run is named after its folder, dots and all, or its `.cine` file less
+/// `.cine`: a cine saved without that extension (found by its magic) was
+/// cut at its first dot, `R4.5mm_H12cm_02` named `R4`, as was a path that
+/// is not there (`R4.5mm_H12cm_01_typo` was `R4`; now refused).
+#[test]
+fn runs_are_named_after_their_whole_folder_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let dotted = dir.path().join("R4.5mm_H12cm_01.take2");
+    std::fs::create_dir(&dotted).unwrap();
+    for e in std::fs::read_dir(fixtures().join("R4.5mm_H12cm_01")).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, dotted.join(p.file_name().unwrap())).unwrap();
+    }
+    // Not a real cine: its row fails, under its whole name.
+    let bare = dir.path().join("R4.5mm_H12cm_02");
+    std::fs::write(&bare, b"CI and nothing more").unwrap();
+    let o = dropscope()
+        .arg("process")
+        .args([&dotted, &bare])
+        .args(["--radius-mm", "4.5", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let drops = dropscope::dataset::read_csv(&out.join("drops.csv")).unwrap();
+    let runs: Vec<(&str, _)> = drops.iter().map(|r| (r.run.as_str(), r.status)).collect();
+    use dropscope::dataset::DropStatus;
+    assert_eq!(
+        runs,
+        [
+            ("R4.5mm_H12cm_01.take2", DropStatus::Ok),
+            ("R4.5mm_H12cm_02", DropStatus::Failed)
+        ],
+        "{err}"
+    );
+    assert!(out.join("tracks/R4.5mm_H12cm_01.take2.csv").is_file());
+}

@@ -25,14 +25,16 @@ pub mod pcc_xml;
 pub mod validate;
 mod widen;
 
-/// The name of an input, for run names and file names: a folder's whole name
+/// The name of an input, for run names and file names: its whole name
 /// (run folders such as `R4.5mm_H12cm_01` hold dots that are no extension),
-/// a file's name without its extension (`drop_07.cine` → `drop_07`).
+/// less the extension of a `.cine` file (`drop_07.cine` → `drop_07`), the
+/// one extension a file that is a run has. A path that is not there is
+/// named the same way, as a folder unless it ends in `.cine`.
 pub fn input_name(path: &Path) -> String {
-    let name = if path.is_dir() {
-        path.file_name()
-    } else {
+    let name = if is_cine_name(path) && !path.is_dir() {
         path.file_stem()
+    } else {
+        path.file_name()
     };
     name.map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| path.display().to_string())

@@ -217,8 +217,9 @@ pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
 
 /// `dropscope process`'s inputs with every folder that holds no frames of
 /// its own replaced by the runs found under it ([`discover_runs`]); any
-/// other input (a run, a path that does not exist) is kept, so that it gets
-/// its own row and reason.
+/// other input (a run, a folder with nothing found under it) is kept, so
+/// that it gets its own row and reason, and a path that is not there is
+/// kept for [`crate::process::runs_from_inputs`] to refuse.
 pub fn expand_inputs(inputs: &[PathBuf]) -> Vec<PathBuf> {
     let mut out = Vec::new();
     for p in inputs {

@@ -104,10 +104,21 @@ pub enum ProcessError {
     },
     #[error("{0}")]
     Usage(String),
+    /// An INPUT named on the command line cannot be a run: it is not
+    /// there, or is neither a folder nor a `.cine` file. Found before the
+    /// output folder is created or touched, so a mistyped path never
+    /// replaces the results already in it.
+    #[error("{path}: {why}; nothing was written")]
+    Input { path: PathBuf, why: String },
 }
 
 /// The runs named on the command line: each INPUT one run named after its
-/// folder or file stem, with the radius from `--radius-mm` or the configuration.
+/// folder or `.cine` file ([`crate::run_name::from_input`]), with the radius
+/// from `--radius-mm` or the configuration. An INPUT that is not there, or
+/// is neither a folder nor a cine ([`crate::source::input_kind`]), is an
+/// error ([`ProcessError::Input`]), not a run: what is inside an input is
+/// the run's to find (a bad one gets a `failed` row), but a path on the
+/// command line that names nothing is a mistake in the command.
 pub fn runs_from_inputs(
     inputs: &[PathBuf],
     radius_mm: Option<f64>,
@@ -130,6 +141,7 @@ pub fn runs_from_inputs(
     // name from another parent gets `_2`, `_3`, ….
     let mut runs: Vec<RunSpec> = Vec::with_capacity(inputs.len());
     for p in inputs {
+        check_input(p)?;
         let base = crate::run_name::from_input(p);
         let mut run = base.clone();
         let mut k = 1;
@@ -150,6 +162,26 @@ pub fn runs_from_inputs(
         });
     }
     Ok(runs)
+}
+
+/// `Ok` when `path` can be a run by its kind ([`crate::source::input_kind`]),
+/// else why not ([`ProcessError::Input`]).
+fn check_input(path: &Path) -> Result<(), ProcessError> {
+    use crate::source::SourceError;
+    let why = match crate::source::input_kind(path) {
+        Ok(_) => return Ok(()),
+        Err(SourceError::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
+            "does not exist (each INPUT is a run folder, a .cine file or a folder of runs)"
+                .to_string()
+        }
+        Err(SourceError::Io { source, .. }) => source.to_string(),
+        Err(SourceError::Unsupported { reason, .. }) => reason,
+        Err(e) => e.to_string(),
+    };
+    Err(ProcessError::Input {
+        path: path.to_path_buf(),
+        why,
+    })
 }
 
 /// Process one run; never fails: problems become a `failed` record, and so
@@ -1246,7 +1278,10 @@ mod tests {
             Path::new(""),
         )
         .unwrap();
-        let runs = runs_from_inputs(&[PathBuf::from("x/drop.cine")], Some(3.0), &cfg).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let cine = dir.path().join("drop.cine");
+        std::fs::write(&cine, b"").unwrap();
+        let runs = runs_from_inputs(std::slice::from_ref(&cine), Some(3.0), &cfg).unwrap();
         let o = caught(&runs[0], || -> Result<RunOutcome, String> {
             let lo = 2.0_f64;
             Ok(RunOutcome {
@@ -1264,7 +1299,9 @@ mod tests {
         assert_eq!(o.record.status, crate::dataset::DropStatus::Failed);
         assert_eq!(o.record.run, "drop");
         assert!(
-            o.record.reason.starts_with("x/drop.cine: internal error")
+            o.record
+                .reason
+                .starts_with(&format!("{}: internal error", cine.display()))
                 && o.record.reason.contains("min > max"),
             "{}",
             o.record.reason
@@ -1358,7 +1395,13 @@ mod tests {
             Path::new(""),
         )
         .unwrap();
-        let inputs = [PathBuf::from("a/drop.cine"), PathBuf::from("b/drop.cine")];
+        let dir = tempfile::tempdir().unwrap();
+        let inputs = ["a", "b"].map(|d| {
+            std::fs::create_dir(dir.path().join(d)).unwrap();
+            let cine = dir.path().join(d).join("drop.cine");
+            std::fs::write(&cine, b"").unwrap();
+            cine
+        });
         let runs = runs_from_inputs(&inputs, Some(3.0), &cfg).unwrap();
         assert_eq!(runs[0].run, "drop");
         assert_eq!(runs[1].run, "drop_2");
@@ -1368,6 +1411,42 @@ mod tests {
         assert!(
             e.contains("--radius-mm") && e.contains("sphere.radius_mm"),
             "{e}"
+        );
+    }
+
+    /// An INPUT that names nothing, or nothing that can be a run, is an
+    /// error naming it; what is inside an input is left to its run.
+    #[test]
+    fn inputs_that_are_not_there_or_cannot_be_runs_are_refused() {
+        let cfg = PipelineConfig::from_toml_str(
+            crate::config::EMBEDDED_DEFAULT,
+            Path::new("pipeline.toml"),
+            Path::new(""),
+        )
+        .unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let good = dir.path().join("R4.5mm_H12cm_01");
+        std::fs::create_dir(&good).unwrap();
+        let notes = dir.path().join("runs.csv");
+        std::fs::write(&notes, b"run,path\n").unwrap();
+        for (bad, says) in [
+            (dir.path().join("R4.5mm_H12cm_01_typo"), "does not exist"),
+            (dir.path().join("nowhere/drop.cine"), "does not exist"),
+            (notes, "not a folder of frames"),
+        ] {
+            let e = runs_from_inputs(&[good.clone(), bad.clone()], Some(4.5), &cfg).unwrap_err();
+            assert!(matches!(e, ProcessError::Input { .. }), "{e:?}");
+            let e = e.to_string();
+            assert!(e.starts_with(&format!("{}: {says}", bad.display())), "{e}");
+        }
+        // An empty folder or a cine that is not one is a run, to fail on its own.
+        let broken = dir.path().join("broken.cine");
+        std::fs::write(&broken, b"CI not a cine").unwrap();
+        assert_eq!(
+            runs_from_inputs(&[good, broken], Some(4.5), &cfg)
+                .unwrap()
+                .len(),
+            2
         );
     }
 }

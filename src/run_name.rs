@@ -29,8 +29,9 @@ pub fn check(name: &str) -> Result<(), String> {
     Err(format!("run name {name:?} {why}"))
 }
 
-/// The run name of an input given without a manifest: its folder's name or
-/// its file's stem ([`crate::source::input_name`]), made into a valid name:
+/// The run name of an input given without a manifest: its folder's whole
+/// name, dots and all, or its `.cine` file's name without `.cine`
+/// ([`crate::source::input_name`]), made into a valid name:
 /// separators and control characters become `_`, a leading `.` gets a `_`
 /// before it, and an over-long name is cut at a character boundary.
 pub fn from_input(path: &Path) -> String {
@@ -102,5 +103,35 @@ mod tests {
         for n in [from_input(Path::new("/")), from_input(&run), n] {
             assert_eq!(check(&n), Ok(()), "{n:?}");
         }
+    }
+
+    /// Only a `.cine` file loses its extension: the text after a dot of a
+    /// folder's name, of a path that is not there, or of a cine saved
+    /// without `.cine`, is part of the name (`R4.5mm_H12cm_01_typo` was
+    /// named `R4`).
+    #[test]
+    fn only_a_cine_loses_its_extension() {
+        let dir = tempfile::tempdir().unwrap();
+        let at = |name: &str| dir.path().join(name);
+        std::fs::create_dir(at("R4.5mm_H12cm_01.v2")).unwrap();
+        std::fs::create_dir(at("odd.cine")).unwrap();
+        std::fs::write(at("R7mm_H50cm_01.cine"), b"").unwrap();
+        std::fs::write(at("R3mm_H1.5cm_01.CINE"), b"").unwrap();
+        std::fs::write(at("R4.5mm_H12cm_02"), b"CI").unwrap();
+        for (input, name) in [
+            ("R4.5mm_H12cm_01.v2", "R4.5mm_H12cm_01.v2"),
+            ("odd.cine", "odd.cine"),
+            ("R7mm_H50cm_01.cine", "R7mm_H50cm_01"),
+            ("R3mm_H1.5cm_01.CINE", "R3mm_H1.5cm_01"),
+            ("R4.5mm_H12cm_02", "R4.5mm_H12cm_02"),
+            ("R4.5mm_H12cm_01_typo", "R4.5mm_H12cm_01_typo"),
+            ("gone/R4.5mm_H12cm_03.cine", "R4.5mm_H12cm_03"),
+        ] {
+            assert_eq!(from_input(&at(input)), name, "{input}");
+        }
+        assert_eq!(
+            from_input(Path::new("d1/R4.5mm_H12cm_01_typo")),
+            "R4.5mm_H12cm_01_typo"
+        );
     }
 }

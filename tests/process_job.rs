@@ -488,3 +488,122 @@ fn the_animation_can_be_turned_off() {
         "the report links an animation"
     );
 }
+
+/// Every file under `dir` (recursively), by its path relative to `dir`,
+/// with its bytes; a folder as `None`.
+fn snapshot(dir: &Path) -> std::collections::BTreeMap<PathBuf, Option<Vec<u8>>> {
+    let mut all = std::collections::BTreeMap::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            let rel = p.strip_prefix(dir).unwrap().to_path_buf();
+            if p.is_dir() {
+                all.insert(rel, None);
+                todo.push(p);
+            } else {
+                all.insert(rel, Some(std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    all
+}
+
+/// The audit's typo: `process d1/R4.5mm_H12cm_01_typo --out wipe` into a
+/// folder holding a finished process and collapse removed those results
+/// and wrote a drops.csv of one failed row (exit 1). An INPUT that does not
+/// exist, or cannot be a run, is now refused before the output folder is
+/// touched: exit 2, the path named, every file of the folder as it was —
+/// also beside a good INPUT, and into a folder not yet there (not made).
+#[test]
+fn a_mistyped_input_stops_before_the_output_folder_is_touched() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("wipe");
+    let (o, err) = process(&out, &[]);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    succeeded(dropscope().arg("collapse").arg(out.join("drops.csv")));
+    let before = snapshot(&out);
+    for f in ["drops.csv", "collapse.csv", "fits.json", "provenance.json"] {
+        assert!(before.contains_key(Path::new(f)), "no {f} to keep");
+    }
+    std::fs::create_dir(dir.path().join("d1")).unwrap();
+    let typo = dir.path().join("d1/R4.5mm_H12cm_01_typo");
+    let notes = dir.path().join("runs.txt");
+    std::fs::write(&notes, b"not a run").unwrap();
+    let good = fixtures().join("R4.5mm_H12cm_01");
+    for (inputs, named, says) in [
+        (vec![&typo], &typo, "does not exist"),
+        (vec![&good, &typo], &typo, "does not exist"),
+        (vec![&notes], &notes, "not a folder of frames"),
+    ] {
+        let o = dropscope()
+            .arg("process")
+            .args(&inputs)
+            .args(["--radius-mm", "4.5", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{inputs:?}: {err}");
+        assert!(
+            err.starts_with(&format!("error: {}: {says}", named.display())),
+            "{inputs:?}: {err}"
+        );
+        assert_eq!(err.lines().count(), 1, "{inputs:?}: {err}");
+        assert!(
+            snapshot(&out) == before,
+            "{inputs:?} changed {}",
+            out.display()
+        );
+    }
+    let fresh = dir.path().join("fresh");
+    let o = dropscope()
+        .arg("process")
+        .arg(&typo)
+        .args(["--radius-mm", "4.5", "--out"])
+        .arg(&fresh)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!fresh.exists(), "the refused job made {}", fresh.display());
+}
+
+/// A run is named after its folder, dots and all, or its `.cine` file less
+/// `.cine`: a cine saved without that extension (found by its magic) was
+/// cut at its first dot, `R4.5mm_H12cm_02` named `R4`, as was a path that
+/// is not there (`R4.5mm_H12cm_01_typo` was `R4`; now refused).
+#[test]
+fn runs_are_named_after_their_whole_folder_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let dotted = dir.path().join("R4.5mm_H12cm_01.take2");
+    std::fs::create_dir(&dotted).unwrap();
+    for e in std::fs::read_dir(fixtures().join("R4.5mm_H12cm_01")).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, dotted.join(p.file_name().unwrap())).unwrap();
+    }
+    // Not a real cine: its row fails, under its whole name.
+    let bare = dir.path().join("R4.5mm_H12cm_02");
+    std::fs::write(&bare, b"CI and nothing more").unwrap();
+    let o = dropscope()
+        .arg("process")
+        .args([&dotted, &bare])
+        .args(["--radius-mm", "4.5", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let drops = dropscope::dataset::read_csv(&out.join("drops.csv")).unwrap();
+    let runs: Vec<(&str, _)> = drops.iter().map(|r| (r.run.as_str(), r.status)).collect();
+    use dropscope::dataset::DropStatus;
+    assert_eq!(
+        runs,
+        [
+            ("R4.5mm_H12cm_01.take2", DropStatus::Ok),
+            ("R4.5mm_H12cm_02", DropStatus::Failed)
+        ],
+        "{err}"
+    );
+    assert!(out.join("tracks/R4.5mm_H12cm_01.take2.csv").is_file());
+}

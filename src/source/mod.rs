@@ -25,17 +25,26 @@ pub mod pcc_xml;
 pub mod validate;
 mod widen;
 
-/// The name of an input, for run names and file names: a folder's whole name
+/// The name of an input, for run names and file names: its whole name
 /// (run folders such as `R4.5mm_H12cm_01` hold dots that are no extension),
-/// a file's name without its extension (`drop_07.cine` → `drop_07`).
+/// less the extension of a `.cine` file (`drop_07.cine` → `drop_07`), the
+/// one extension a file that is a run has. A path that is not there is
+/// named the same way, as a folder unless it ends in `.cine`.
 pub fn input_name(path: &Path) -> String {
-    let name = if path.is_dir() {
-        path.file_name()
-    } else {
+    let name = if is_cine_name(path) && !path.is_dir() {
         path.file_stem()
+    } else {
+        path.file_name()
     };
     name.map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| path.display().to_string())
+}
+
+/// Whether `path`'s name ends in `.cine` (any case).
+fn is_cine_name(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("cine"))
 }
 
 /// One grey frame, shape `(height, width)`, rows top-down, values as stored.
@@ -133,18 +142,26 @@ pub struct OpenOptions {
     pub p10: P10Mode,
 }
 
-/// Open a folder of frames or a `.cine` file.
-///
-/// A directory is read as one PCC-style image sequence ([`folder::FolderSource`]);
-/// a file whose name ends in `.cine` (any case) or that starts with the cine
-/// magic `"CI"` is read by [`cine::CineSource`].
-pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn FrameSource>, SourceError> {
+/// What kind of input a path is ([`input_kind`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InputKind {
+    /// A directory: one PCC-style image sequence.
+    Folder,
+    /// A regular file named `.cine` (any case) or starting with the cine magic.
+    Cine,
+}
+
+/// What kind of input `path` is, from its metadata and, for a file not
+/// named `.cine`, its first bytes; no frame is read. An error when it is
+/// not there (the `Io` error of `NotFound`), cannot be looked at, or is
+/// neither a folder nor a cine: what [`open`] refuses before reading.
+pub fn input_kind(path: &Path) -> Result<InputKind, SourceError> {
     let md = std::fs::metadata(path).map_err(|source| SourceError::Io {
         path: path.to_path_buf(),
         source,
     })?;
     if md.is_dir() {
-        return Ok(Box::new(folder::FolderSource::open(path, options)?));
+        return Ok(InputKind::Folder);
     }
     if !md.is_file() {
         return Err(SourceError::Unsupported {
@@ -153,16 +170,24 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn FrameSource>, 
                 .into(),
         });
     }
-    let is_cine_name = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("cine"));
-    if is_cine_name || cine::has_cine_magic(path) {
-        return Ok(Box::new(cine::CineSource::open(path, options)?));
+    if is_cine_name(path) || cine::has_cine_magic(path) {
+        return Ok(InputKind::Cine);
     }
     Err(SourceError::Unsupported {
         path: path.to_path_buf(),
         reason: "not a folder of frames nor a .cine file (give a folder or a .cine)".into(),
+    })
+}
+
+/// Open a folder of frames or a `.cine` file.
+///
+/// A directory is read as one PCC-style image sequence ([`folder::FolderSource`]);
+/// a file whose name ends in `.cine` (any case) or that starts with the cine
+/// magic `"CI"` is read by [`cine::CineSource`] ([`input_kind`]).
+pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn FrameSource>, SourceError> {
+    Ok(match input_kind(path)? {
+        InputKind::Folder => Box::new(folder::FolderSource::open(path, options)?),
+        InputKind::Cine => Box::new(cine::CineSource::open(path, options)?),
     })
 }
 

@@ -3,11 +3,27 @@
 //! Required columns `run, path, sphere_radius_mm`; optional `drop_height_cm,
 //! fps, mm_per_px, surface, sphere_density_kg_m3, setup` (runs sharing one
 //! camera set-up: the same zoom and position). Paths are relative to the
-//! manifest's folder. Every value is checked; an error names the file, the
-//! row (as a spreadsheet shows it, header = row 1) and the column.
+//! manifest's folder. The header is checked first (every required column,
+//! no unknown or repeated one), then every value; an error names the file,
+//! the row (its line, as a spreadsheet shows it: header = row 1), the column
+//! and the text found there.
 
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+/// The columns of a manifest: name, required, and what a value is (for
+/// messages). The same names, in the same order, as [`ManifestRow`]'s fields.
+pub const COLUMNS: [(&str, bool, &str); 9] = [
+    ("run", true, "the run's name"),
+    ("path", true, "the run's folder of frames or .cine file"),
+    ("sphere_radius_mm", true, "mm"),
+    ("drop_height_cm", false, "cm"),
+    ("fps", false, "frames/s"),
+    ("mm_per_px", false, "mm/px"),
+    ("surface", false, "a [surface.<name>] of the configuration"),
+    ("sphere_density_kg_m3", false, "kg/m³"),
+    ("setup", false, "the camera set-up's name"),
+];
 
 /// One row as written in the file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -56,6 +72,12 @@ pub enum ManifestError {
         #[source]
         source: std::io::Error,
     },
+    #[error("{path}: row {row} (the header): {message}")]
+    Header {
+        path: PathBuf,
+        row: u64,
+        message: String,
+    },
     #[error("{path}: row {row}: {message}")]
     Row {
         path: PathBuf,
@@ -86,10 +108,26 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_reader(bytes);
+    // As csv's own `deserialize` does: a header that cannot be read (not
+    // UTF-8) leaves the fields to be taken in order.
+    let headers = rdr.headers().ok().cloned();
+    if let Some(h) = headers.as_ref().filter(|h| !h.is_empty()) {
+        header_problems(h).map_err(|message| ManifestError::Header {
+            path: path.to_path_buf(),
+            row: h.position().map_or(1, |p| p.line()),
+            message,
+        })?;
+    }
     let mut runs: Vec<RunSpec> = Vec::new();
-    for (i, rec) in rdr.deserialize::<ManifestRow>().enumerate() {
-        let row = i as u64 + 2;
-        let r = rec.map_err(|e| row_err(row, csv_message(&e)))?;
+    for (i, rec) in rdr.records().enumerate() {
+        let rec = rec.map_err(|e| {
+            let row = e.position().map_or(i as u64 + 2, |p| p.line());
+            row_err(row, read_message(&e))
+        })?;
+        let row = rec.position().map_or(i as u64 + 2, |p| p.line());
+        let r: ManifestRow = rec
+            .deserialize(headers.as_ref())
+            .map_err(|e| row_err(row, value_message(&e, &rec, headers.as_ref())))?;
         crate::run_name::check(&r.run).map_err(|e| row_err(row, format!("column `run`: {e}")))?;
         if runs.iter().any(|x| x.run == r.run) {
             return Err(row_err(row, format!("run `{}` is listed twice", r.run)));
@@ -133,14 +171,109 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
     Ok(runs)
 }
 
-/// csv's messages carry their own position; keep the part a user needs.
-fn csv_message(e: &csv::Error) -> String {
+/// What is wrong with a header, if anything: required columns missing,
+/// columns no manifest has, a column given twice. Exactly what would make
+/// every row fail to read, said once, before any row.
+fn header_problems(header: &csv::StringRecord) -> Result<(), String> {
+    let known = |c: &str| COLUMNS.iter().any(|(name, ..)| *name == c);
+    let quoted = |names: &[&str]| {
+        names
+            .iter()
+            .map(|n| match *n {
+                "" => "`` (a column without a name: a comma too many?)".to_string(),
+                n => format!("`{n}`"),
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let missing: Vec<&str> = COLUMNS
+        .iter()
+        .filter(|(name, required, _)| *required && !header.iter().any(|h| h == *name))
+        .map(|(name, ..)| *name)
+        .collect();
+    let unknown: Vec<&str> = header.iter().filter(|h| !known(h)).collect();
+    // Each repeated name once, where it first stands.
+    let twice: Vec<&str> = header
+        .iter()
+        .enumerate()
+        .filter(|&(i, h)| {
+            header.iter().position(|o| o == h) == Some(i)
+                && header.iter().filter(|o| *o == h).count() > 1
+        })
+        .map(|(_, h)| h)
+        .collect();
+    let mut problems = Vec::new();
+    if !missing.is_empty() {
+        problems.push(format!("no column {} (required)", quoted(&missing)));
+    }
+    if !unknown.is_empty() {
+        problems.push(format!("unknown column {}", quoted(&unknown)));
+    }
+    if !twice.is_empty() {
+        problems.push(format!("column {} given twice", quoted(&twice)));
+    }
+    if problems.is_empty() {
+        return Ok(());
+    }
+    let names = |required: bool| {
+        COLUMNS
+            .iter()
+            .filter(|c| c.1 == required)
+            .map(|c| c.0)
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    Err(format!(
+        "{}; a manifest's first row names its columns: required {}; optional {}",
+        problems.join("; "),
+        names(true),
+        names(false)
+    ))
+}
+
+/// A row that could not be read as CSV (csv's message carries its own
+/// position, which the error already gives).
+fn read_message(e: &csv::Error) -> String {
     match e.kind() {
-        csv::ErrorKind::Deserialize { err, .. } => match err.field() {
-            Some(_) => format!("{}", err.kind()),
-            None => err.to_string(),
-        },
+        csv::ErrorKind::UnequalLengths {
+            expected_len, len, ..
+        } => format!(
+            "{len} cells where the rows above have {expected_len}: give every column a \
+             cell (empty for an optional value)"
+        ),
         _ => e.to_string(),
+    }
+}
+
+/// A value that could not be read, with its column and its text: "column
+/// `fps` = \"abc\": not a number (frames/s)", "column `sphere_radius_mm` is
+/// empty: it is required (mm)".
+fn value_message(
+    e: &csv::Error,
+    rec: &csv::StringRecord,
+    headers: Option<&csv::StringRecord>,
+) -> String {
+    let csv::ErrorKind::Deserialize { err, .. } = e.kind() else {
+        return e.to_string();
+    };
+    let Some(i) = err.field().map(|i| i as usize) else {
+        return err.to_string();
+    };
+    let column = match headers {
+        Some(h) => h.get(i),
+        None => COLUMNS.get(i).map(|c| c.0),
+    }
+    .unwrap_or("?");
+    let text = rec.get(i).unwrap_or("");
+    let what = COLUMNS.iter().find(|c| c.0 == column).map_or("", |c| c.2);
+    match err.kind() {
+        csv::DeserializeErrorKind::ParseFloat(_) if text.is_empty() => {
+            format!("column `{column}` is empty: it is required ({what})")
+        }
+        csv::DeserializeErrorKind::ParseFloat(_) => {
+            format!("column `{column}` = {text:?}: not a number ({what})")
+        }
+        kind => format!("column `{column}` = {text:?}: {kind}"),
     }
 }
 
@@ -208,6 +341,123 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("no run"), "{e}");
+    }
+
+    /// The new-user audit's cases: each message names the file, the row,
+    /// the column and the text found (it said "row 2: invalid float
+    /// literal", the same for every column).
+    #[test]
+    fn bad_values_name_the_column_and_the_text() {
+        for (text, want) in [
+            (
+                "run,path,sphere_radius_mm\na,a,3mm\n",
+                "/data/runs.csv: row 2: column `sphere_radius_mm` = \"3mm\": not a number (mm)",
+            ),
+            (
+                "run,path,sphere_radius_mm,fps\na,a,3,1e4\nb,b,3,abc\n",
+                "/data/runs.csv: row 3: column `fps` = \"abc\": not a number (frames/s)",
+            ),
+            (
+                "run,path,sphere_radius_mm,mm_per_px\na,a,3,0.04 mm\n",
+                "row 2: column `mm_per_px` = \"0.04 mm\": not a number (mm/px)",
+            ),
+            (
+                "run,path,sphere_radius_mm\na,a,\n",
+                "row 2: column `sphere_radius_mm` is empty: it is required (mm)",
+            ),
+            (
+                "run,path,sphere_radius_mm\na,a, \n",
+                "row 2: column `sphere_radius_mm` is empty: it is required (mm)",
+            ),
+            (
+                "run,path,sphere_radius_mm\na,a,3\nb,b\n",
+                "row 3: 2 cells where the rows above have 3",
+            ),
+            (
+                "run,path,sphere_radius_mm\na,a,-3\n",
+                "row 2: column `sphere_radius_mm` = -3: must be a number greater than 0",
+            ),
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(e.contains(want), "{text:?}\n → {e}\n wanted {want}");
+        }
+    }
+
+    /// A header lacking a required column (or with one unknown or
+    /// repeated) is the header's fault, said before any row.
+    #[test]
+    fn header_problems_are_the_headers() {
+        for (text, want) in [
+            (
+                "run,path,fps\na,a,100\n",
+                "no column `sphere_radius_mm` (required)",
+            ),
+            (
+                "run,fps\na,100\n",
+                "no column `path`, `sphere_radius_mm` (required)",
+            ),
+            (
+                "run,path,sphere_radius\na,a,3\n",
+                "no column `sphere_radius_mm` (required); unknown column `sphere_radius`",
+            ),
+            (
+                "run,path,sphere_radius_mm,fps,fps\na,a,3,1,2\n",
+                "column `fps` given twice",
+            ),
+            (
+                "run,path,sphere_radius_mm,\na,a,3,\n",
+                "a column without a name",
+            ),
+            // No row at all: still the header's fault.
+            ("run,path\n", "no column `sphere_radius_mm`"),
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(
+                e.starts_with("/data/runs.csv: row 1 (the header): ") && e.contains(want),
+                "{text:?}\n → {e}\n wanted {want}"
+            );
+            assert!(
+                e.contains("required run, path, sphere_radius_mm; optional drop_height_cm, fps"),
+                "{e}"
+            );
+        }
+    }
+
+    /// What the messages' checks let through is what was read before
+    /// them: numbers as Rust reads them, cells trimmed, optional cells
+    /// empty, columns in any order.
+    #[test]
+    fn accepted_values_are_unchanged() {
+        let runs = parse(
+            "fps , sphere_radius_mm,run,path,mm_per_px\n\
+             ,+3,a,a,\n\
+             1e4, 4.5 ,b,b, .04\n",
+        )
+        .unwrap();
+        assert_eq!(runs[0].sphere_radius_mm, 3.0);
+        assert_eq!((runs[0].fps, runs[0].mm_per_px), (None, None));
+        assert_eq!(runs[1].sphere_radius_mm, 4.5);
+        assert_eq!((runs[1].fps, runs[1].mm_per_px), (Some(1e4), Some(0.04)));
+    }
+
+    /// [`COLUMNS`] is [`ManifestRow`]'s fields, in order.
+    #[test]
+    fn the_column_table_is_the_row_struct() {
+        let row = ManifestRow {
+            run: "a".into(),
+            path: "a".into(),
+            sphere_radius_mm: 3.0,
+            drop_height_cm: None,
+            fps: None,
+            mm_per_px: None,
+            surface: None,
+            sphere_density_kg_m3: None,
+            setup: Some("s".into()),
+        };
+        let bytes = to_csv_bytes(&[row]);
+        let header = String::from_utf8(bytes).unwrap();
+        let names: Vec<&str> = COLUMNS.iter().map(|c| c.0).collect();
+        assert_eq!(header.lines().next().unwrap(), names.join(","));
     }
 
     #[test]

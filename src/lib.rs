@@ -5,6 +5,7 @@
 //! | module | stage |
 //! | --- | --- |
 //! | [`config`] | `pipeline.toml` → validated [`config::PipelineConfig`] in SI units |
+//! | [`cli_values`] | command-line flag values checked as they are parsed (`--fps`, `--radius-mm`, …) |
 //! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
 //! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
@@ -43,6 +44,7 @@
 
 pub mod batch;
 pub mod cache;
+pub mod cli_values;
 pub mod collapse;
 pub mod config;
 pub mod config_toml;

@@ -40,7 +40,7 @@ pub struct ProcessArgs {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Sphere radius for INPUTs (default: the configuration's sphere.radius_mm).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub radius_mm: Option<f64>,
     /// Also draw the overlay of these camera image numbers (comma-separated,
     /// e.g. `-5,0,12`) for every run: `plots/overlays/<run>_<number>.png`.

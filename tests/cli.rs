@@ -574,3 +574,92 @@ fn process_finds_the_runs_in_a_folder_of_run_folders() {
     let runs: Vec<&str> = drops.iter().map(|r| r.run.as_str()).collect();
     assert_eq!(runs, ["R3mm_H1.5cm_01", "R4.5mm_H12cm_01", "R7mm_H50cm_01"]);
 }
+
+/// A nonsense number for a flag (≤ 0, NaN, infinite) is refused by the
+/// command line itself, naming the flag and the value, exit 2; a negative
+/// number is taken as the flag's value, not as another flag. `inspect
+/// --fps=-1` said "no frame rate … (or --fps)" although --fps was given;
+/// `process --radius-mm -3` said "unexpected argument '-3'" with a tip that
+/// made -3 an input path.
+#[test]
+fn numeric_flags_refuse_nonsense_naming_the_flag_and_the_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = folder_without_xml(dir.path());
+    let run_arg = run.to_str().unwrap();
+    let out_dir = dir.path().join("out");
+    let out_arg = out_dir.to_str().unwrap();
+    let cases: &[(&[&str], &str, &str)] = &[
+        (&["inspect", run_arg, "--fps=-1"], "--fps", "-1"),
+        (&["inspect", run_arg, "--fps", "-1"], "--fps", "-1"),
+        (&["inspect", run_arg, "--fps", "0"], "--fps", "0"),
+        (&["inspect", run_arg, "--fps", "NaN"], "--fps", "NaN"),
+        (&["inspect", run_arg, "--fps", "inf"], "--fps", "inf"),
+        (
+            &[
+                "export", run_arg, "--frames", "0:1", "--out", out_arg, "--fps", "-5",
+            ],
+            "--fps",
+            "-5",
+        ),
+        (
+            &["process", run_arg, "--radius-mm", "-3", "--out", out_arg],
+            "--radius-mm",
+            "-3",
+        ),
+        (
+            &["process", run_arg, "--radius-mm", "0", "--out", out_arg],
+            "--radius-mm",
+            "0",
+        ),
+        (&["render", "--fps", "-1", "--out", out_arg], "--fps", "-1"),
+        (
+            &["render", "--radius-mm", "-3", "--out", out_arg],
+            "--radius-mm",
+            "-3",
+        ),
+        (
+            &["render", "--mm-per-px", "-0.04", "--out", out_arg],
+            "--mm-per-px",
+            "-0.04",
+        ),
+        (
+            &[
+                "render",
+                "--campaign",
+                "--radii-mm",
+                "3",
+                "-5",
+                "--out",
+                out_arg,
+            ],
+            "--radii-mm",
+            "-5",
+        ),
+    ];
+    for (args, flag, value) in cases {
+        let out = dropscope()
+            .current_dir(dir.path())
+            .args(*args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("invalid value '{value}' for '{flag} "))
+                && err.contains("must be a number greater than 0"),
+            "{args:?}: {err}"
+        );
+        assert!(!out_dir.exists(), "{args:?} wrote {}", out_dir.display());
+    }
+    // A flag whose range the command checks gets its negative value there.
+    let out = dropscope()
+        .args(["render", "--blur-px", "-1", "--out", out_arg])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("`--blur-px` = -1: must lie in [0, 20]"),
+        "{err}"
+    );
+}

@@ -120,10 +120,10 @@ pub struct RenderArgs {
     #[arg(long)]
     pub campaign: bool,
     /// Radii of the campaign grid, mm (with --campaign).
-    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_RADII_MM, requires = "campaign")]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_RADII_MM, requires = "campaign", value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub radii_mm: Vec<f64>,
     /// Drop heights of the campaign grid, cm (with --campaign).
-    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_HEIGHTS_CM, requires = "campaign")]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_HEIGHTS_CM, requires = "campaign", value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub heights_cm: Vec<f64>,
     /// Repeats of every grid point (each a new contact phase, column and noise; with --campaign).
     #[arg(long, default_value_t = 1, requires = "campaign")]
@@ -132,10 +132,10 @@ pub struct RenderArgs {
     #[arg(long = "drop", value_delimiter = ',', conflicts_with = "campaign")]
     pub drops: Vec<String>,
     /// Sphere radius of a single drop, mm.
-    #[arg(long, default_value_t = 4.5, conflicts_with_all = ["campaign", "drops"])]
+    #[arg(long, default_value_t = 4.5, conflicts_with_all = ["campaign", "drops"], value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub radius_mm: f64,
     /// Drop height of a single drop (lowest point of the sphere to the surface), cm.
-    #[arg(long, default_value_t = 12.0, conflicts_with_all = ["campaign", "drops"])]
+    #[arg(long, default_value_t = 12.0, conflicts_with_all = ["campaign", "drops"], value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub height_cm: f64,
     /// Seed of every random choice; the same seed gives byte-identical files.
     #[arg(long, default_value_t = 1)]
@@ -149,25 +149,25 @@ pub struct RenderArgs {
 
     // ---- physics
     /// Sphere density, kg/m³.
-    #[arg(long, default_value_t = 7800.0)]
+    #[arg(long, default_value_t = 7800.0, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub density_kg_m3: f64,
     /// Young's modulus of the pillars, Pa.
-    #[arg(long, default_value_t = 1.6e6)]
+    #[arg(long, default_value_t = 1.6e6, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub modulus_pa: f64,
     /// Pillar height h, mm.
-    #[arg(long, default_value_t = 3.5)]
+    #[arg(long, default_value_t = 3.5, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub pillar_height_mm: f64,
     /// Pillar width b, mm.
-    #[arg(long, default_value_t = 2.5)]
+    #[arg(long, default_value_t = 2.5, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub pillar_width_mm: f64,
     /// Channel width c, mm (φ = b / (b + c)).
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, default_value_t = 1.5, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub channel_width_mm: f64,
     /// Coefficient of restitution; below 1 adds linear damping solved to give it.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub restitution: f64,
     /// Gravity, m/s².
-    #[arg(long, default_value_t = physics::STANDARD_GRAVITY_M_S2)]
+    #[arg(long, default_value_t = physics::STANDARD_GRAVITY_M_S2, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub gravity_m_s2: f64,
     /// Name of the surface written to runs.csv (a `[surface.<name>]` of pipeline.toml).
     #[arg(long, default_value = "pdms")]
@@ -181,13 +181,13 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 384)]
     pub height_px: usize,
     /// Frames per second.
-    #[arg(long, default_value_t = 10_000.0)]
+    #[arg(long, default_value_t = 10_000.0, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub fps: f64,
     /// Exposure time, µs.
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, default_value_t = 50.0, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub exposure_us: f64,
     /// Scale, mm/px [default: 0.04 + 0.01 per mm of R above 3 mm: R_px 75‥87.5].
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub mm_per_px: Option<f64>,
     /// Bits per sample, 8 or 12 [default: the preset's].
     #[arg(long)]
@@ -199,95 +199,95 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 30)]
     pub frames_after: usize,
     /// Undeformed surface row at column 0, px [default: 0.72·height plus a random fraction].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub surface_row_px: Option<f64>,
     /// Surface tilt, rows per column [default: the preset's].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub tilt: Option<f64>,
 
     // ---- look (0 switches an effect off)
     /// Illumination gradient amplitude (relative).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub gradient: Option<f64>,
     /// Gaussian optical blur σ, px.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub blur_px: Option<f64>,
     /// Motion blur over the exposure (true/false).
     #[arg(long)]
     pub motion_blur: Option<bool>,
     /// Gaussian read noise, DN.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub read_noise_dn: Option<f64>,
     /// Full-well electrons at white for Poisson shot noise.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub full_well_e: Option<f64>,
     /// Relative r.m.s. frame-to-frame flicker.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub flicker: Option<f64>,
     /// Number of dust specks.
     #[arg(long)]
     pub dust: Option<usize>,
     /// Strength of the mirror reflection below the surface line.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub reflection: Option<f64>,
     /// Background brightness at the centre, fraction of white.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub background_level: Option<f64>,
     /// Light through the silhouette, fraction of the background.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub sphere_transmission: Option<f64>,
 
     // ---- a real camera (off unless given, drawn per drop with --preset real)
     /// Steel ball's light rim just inside the outline, fraction of the backlight [real: 0–0.2].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub rim: Option<f64>,
     /// Width over which the rim fades, px [real: 1–4; else 2].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub rim_width_px: Option<f64>,
     /// Faint bright halo just outside the outline, fraction of the backlight [real: 0–0.08].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub halo: Option<f64>,
     /// Width over which the halo fades, px [real: 1–4; else 2].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub halo_width_px: Option<f64>,
     /// Soft highlight near the sphere's middle (Gaussian, σ 0.2–0.35 R), fraction of the backlight [real: 0–0.15].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub highlight: Option<f64>,
     /// Glossy band top: bright strip just below the band's top edge, fraction of the backlight [real: 0–0.3].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub gloss: Option<f64>,
     /// Depth of the glossy strip, px [real: 1–4; else 2].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub gloss_width_px: Option<f64>,
     /// Pillar tops seen edge-on: the band's top rows times (1 + this) [real: −0.25…0.25].
     #[arg(long, allow_hyphen_values = true)]
     pub top_row: Option<f64>,
     /// Depth of the top row, px [real: 1–2; else 1].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub top_row_width_px: Option<f64>,
     /// Band top dipping under the sphere in contact, fraction of the sphere's local depth (≤ δ) [real: 0–0.3].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub dip: Option<f64>,
     /// Defocus: blur σ grows by this many px per row away from --focus-row-px (σ at the focus: --blur-px) [real: up to σ 2.5 px].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub defocus_px_per_row: Option<f64>,
     /// The row in best focus, px [real: anywhere in the frame; else 0].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub focus_row_px: Option<f64>,
     /// Barrel distortion: inward displacement of the image corners, px [real: 0–0.5].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub distortion_px: Option<f64>,
     /// Camera roll about the image centre, degrees [real: −0.5…0.5].
     #[arg(long, allow_hyphen_values = true)]
     pub roll_deg: Option<f64>,
     /// Column fixed-pattern noise: r.m.s. per-column gain and offset (fraction) [real: 0–0.015].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub column_noise: Option<f64>,
     /// Number of stuck-bright hot pixels [real: 0–50].
     #[arg(long)]
     pub hot_pixels: Option<usize>,
     /// Slow illumination drift over the movie, amplitude on each side (fraction) [real: 0–0.05].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub drift: Option<f64>,
     /// Frame files in flight left unwritten per drop [real: 1].
     #[arg(long)]

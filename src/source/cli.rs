@@ -13,8 +13,8 @@ use crate::config::PipelineConfig;
 #[derive(Debug, Clone, clap::Args)]
 pub struct SourceArgs {
     /// Frame rate to assume when the input carries none (a folder without a
-    /// PCC XML). Default: camera.fps of the configuration.
-    #[arg(long)]
+    /// PCC XML), a number > 0. Default: camera.fps of the configuration.
+    #[arg(long, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub fps: Option<f64>,
     /// The configuration whose camera.fps is the fallback frame rate
     /// (default: ./pipeline.toml, else the embedded default).

@@ -26,9 +26,9 @@ use std::sync::Arc;
 
 /// The command line of `dropscope process`.
 #[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("runs").required(true).args(["inputs", "manifest"])))]
 pub struct ProcessArgs {
     /// Run folders (PCC exports) or `.cine` files, one drop each.
-    #[arg(required_unless_present = "manifest", conflicts_with = "manifest")]
     pub inputs: Vec<PathBuf>,
     /// A runs.csv manifest (columns: docs/outputs.md) instead of INPUTs.
     #[arg(long)]

@@ -663,3 +663,64 @@ fn numeric_flags_refuse_nonsense_naming_the_flag_and_the_value() {
         "{err}"
     );
 }
+
+/// A command missing what it needs names every way to give it: `process`
+/// without inputs said `<INPUTS>` was required, not `--manifest`; `export`
+/// without a range said `--frames`, not `--numbers`. Giving both is
+/// refused too.
+#[test]
+fn a_missing_requirement_names_its_alternatives() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = folder_without_xml(dir.path());
+    let run_arg = run.to_str().unwrap();
+    let manifest = dir.path().join("runs.csv");
+    std::fs::write(
+        &manifest,
+        format!("run,path,sphere_radius_mm\nrun,{run_arg},3\n"),
+    )
+    .unwrap();
+    let m_arg = manifest.to_str().unwrap();
+    for (args, needles) in [
+        (
+            &["process", "--out", "o"][..],
+            &["INPUTS", "--manifest"][..],
+        ),
+        (
+            &["export", run_arg, "--out", "d"],
+            &["--frames", "--numbers"],
+        ),
+        (
+            &["process", run_arg, "--manifest", m_arg, "--out", "o"],
+            &["--manifest", "cannot be used with"],
+        ),
+        (
+            &[
+                "export",
+                run_arg,
+                "--frames",
+                "0:1",
+                "--numbers",
+                "0:1",
+                "--out",
+                "d",
+            ],
+            &["--frames", "--numbers", "cannot be used with"],
+        ),
+    ] {
+        let out = dropscope()
+            .current_dir(dir.path())
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        let first = err.split("Usage:").next().unwrap();
+        for n in needles {
+            assert!(
+                first.contains(n),
+                "{args:?}: {n:?} missing from the message: {err}"
+            );
+        }
+        assert!(!dir.path().join("o").exists() && !dir.path().join("d").exists());
+    }
+}

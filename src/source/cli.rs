@@ -107,17 +107,13 @@ pub struct InspectArgs {
 
 /// `dropscope export INPUT --frames A:B --out DIR`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(group(clap::ArgGroup::new("range").required(true).args(["frames", "numbers"])))]
 pub struct ExportArgs {
     /// A folder of frames or a `.cine` file.
     pub input: PathBuf,
     /// Frame indices A..B−1, counted from 0 (e.g. `0:10`; `A:` = to the
     /// end; `A` alone = that one frame).
-    #[arg(
-        long,
-        required_unless_present = "numbers",
-        conflicts_with = "numbers",
-        allow_hyphen_values = true
-    )]
+    #[arg(long, allow_hyphen_values = true)]
     pub frames: Option<String>,
     /// Camera image numbers A..B−1, as in the file names and `--overlay-frames`
     /// (e.g. `-100:-90`; `A` alone = that one frame).

@@ -63,6 +63,8 @@ pub struct RunArgs {
 #[derive(Debug, thiserror::Error)]
 pub enum BatchError {
     #[error(transparent)]
+    Config(#[from] crate::config::ConfigError),
+    #[error(transparent)]
     Manifest(#[from] crate::manifest::ManifestError),
     #[error(transparent)]
     Process(#[from] crate::process::ProcessError),
@@ -234,9 +236,14 @@ pub fn expand_inputs(inputs: &[PathBuf]) -> Vec<PathBuf> {
     out
 }
 
-/// The runs the configuration names.
-pub fn configured_runs(cfg: &PipelineConfig) -> Result<Vec<RunSpec>, BatchError> {
+/// The runs the configuration names; `config_name` names the configuration
+/// in messages (a manifest that is not there is its `input.manifest`).
+pub fn configured_runs(
+    cfg: &PipelineConfig,
+    config_name: &str,
+) -> Result<Vec<RunSpec>, BatchError> {
     if let Some(m) = &cfg.input.manifest {
+        cfg.check_manifest(config_name)?;
         return Ok(read_manifest(m)?);
     }
     if cfg.input.paths.is_empty() {
@@ -598,7 +605,7 @@ pub fn run_job(
     options: &JobOptions,
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<JobSummary, BatchError> {
-    let runs = configured_runs(cfg)?;
+    let runs = configured_runs(cfg, config_name)?;
     std::fs::create_dir_all(out).map_err(io(out))?;
     let me = crate::lock::Holder::this_process(
         &cache::job_id("run", cfg, &runs),

@@ -305,6 +305,37 @@ impl PipelineConfig {
     }
 }
 
+impl PipelineConfig {
+    /// `input.manifest`, when set, names a file; else an error naming the
+    /// key, the path as resolved (made absolute) and `name`, the
+    /// configuration it comes from. Not part of [`RawConfig::validate`]:
+    /// the commands that read no runs (`render`, `inspect`, `collapse`, …)
+    /// take a configuration whose manifest is elsewhere.
+    pub fn check_manifest(&self, name: &str) -> Result<(), ConfigError> {
+        let Some(m) = &self.input.manifest else {
+            return Ok(());
+        };
+        if m.is_file() {
+            return Ok(());
+        }
+        let allowed = if m.exists() {
+            "is not a file: name the runs.csv manifest itself"
+        } else {
+            "no such file (a relative path is taken from the configuration file's folder): \
+             correct the path, or write the manifest there"
+        };
+        Err(ConfigError::Invalid {
+            path: PathBuf::from(name),
+            key: "input.manifest".into(),
+            value: std::path::absolute(m)
+                .unwrap_or_else(|_| m.clone())
+                .display()
+                .to_string(),
+            allowed: allowed.into(),
+        })
+    }
+}
+
 struct Checker<'a> {
     path: &'a Path,
 }

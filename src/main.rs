@@ -376,12 +376,35 @@ fn run_report(
     Ok(ExitCode::SUCCESS)
 }
 
+/// `dropscope check-config`: validate, check that the manifest it names is
+/// there, and print the configuration resolved. The built-in default's
+/// manifest (the repository's sample drops) is missing wherever dropscope
+/// runs outside its checkout, where printing it is still what the command
+/// is asked for: for it, a warning on stderr (the main job has its own
+/// advice for that case).
+fn run_check_config(config: Option<&std::path::Path>) -> anyhow::Result<ExitCode> {
+    let (cfg, name) = load_config(config)?;
+    if let Err(e) = cfg.check_manifest(&name) {
+        if name != dropscope::config::EMBEDDED_NAME {
+            return Err(e.into());
+        }
+        eprintln!(
+            "warning: {e}; this built-in default names the sample drops of the dropscope \
+             repository: to start your own, `dropscope check-config --default > pipeline.toml` \
+             and set [input] manifest to your runs.csv"
+        );
+    }
+    println!("# {name}: valid; resolved (paths as dropscope will use them):");
+    print!("{}", cfg.to_toml());
+    Ok(ExitCode::SUCCESS)
+}
+
 /// `dropscope slurm`: write the scripts, and with --submit submit them.
 fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
     use dropscope::slurm;
-    let (cfg, _) = load_config(args.config.as_deref())?;
+    let (cfg, name) = load_config(args.config.as_deref())?;
     // The jobs would fail on a configuration naming no runs: say it now.
-    let runs = dropscope::batch::configured_runs(&cfg)?;
+    let runs = dropscope::batch::configured_runs(&cfg, &name)?;
     let local = std::path::Path::new("pipeline.toml");
     let plan = slurm::Plan::new(
         args,
@@ -466,11 +489,7 @@ fn main() -> ExitCode {
         Command::CheckConfig {
             config,
             default: false,
-        } => load_config(config.as_deref()).map(|(c, name)| {
-            println!("# {name}: valid; resolved (paths as dropscope will use them):");
-            print!("{}", c.to_toml());
-            ExitCode::SUCCESS
-        }),
+        } => run_check_config(config.as_deref()),
         Command::Inspect(args) => {
             dropscope::source::cli::run_inspect(&args).map(|()| ExitCode::SUCCESS)
         }

@@ -724,3 +724,80 @@ fn a_missing_requirement_names_its_alternatives() {
         assert!(!dir.path().join("o").exists() && !dir.path().join("d").exists());
     }
 }
+
+/// A configuration whose `input.manifest` is not there: `check-config`
+/// said "valid", and the main job then said only
+/// "fixtures/runs.csv: No such file or directory". Both now name the key,
+/// the path as resolved and the configuration file, exit 2. The built-in
+/// default outside the checkout gets a warning saying how to start a
+/// configuration, and is still printed.
+#[test]
+fn a_missing_manifest_is_named_by_its_key_and_configuration() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("ux.toml");
+    std::fs::write(&cfg, "[input]\nmanifest = \"fixtures/runs.csv\"\n").unwrap();
+    let cfg_arg = cfg.to_str().unwrap();
+    let resolved = dir.path().join("fixtures/runs.csv");
+    let resolved = resolved.to_str().unwrap();
+    let work = dir.path().join("work");
+    std::fs::create_dir(&work).unwrap();
+    for args in [
+        &["check-config", "--config", cfg_arg][..],
+        &["run", "--config", cfg_arg, "--out", "o"],
+        &["--config", cfg_arg, "--out", "o"],
+    ] {
+        let out = dropscope().current_dir(&work).args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(
+            err.trim(),
+            format!(
+                "error: {cfg_arg}: key `input.manifest` = {resolved}: no such file (a relative \
+                 path is taken from the configuration file's folder): correct the path, or \
+                 write the manifest there"
+            ),
+            "{args:?}"
+        );
+        assert!(!String::from_utf8_lossy(&out.stdout).contains("valid"));
+    }
+    // ./pipeline.toml: the same, named so.
+    std::fs::copy(&cfg, work.join("pipeline.toml")).unwrap();
+    let out = dropscope()
+        .current_dir(&work)
+        .arg("check-config")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("./pipeline.toml: key `input.manifest` = ")
+            && err.contains(&work.join("fixtures/runs.csv").display().to_string()),
+        "{err}"
+    );
+    // Once the manifest is there, valid.
+    std::fs::create_dir(dir.path().join("fixtures")).unwrap();
+    std::fs::write(resolved, "run,path,sphere_radius_mm\na,a,3\n").unwrap();
+    let out = dropscope()
+        .args(["check-config", "--config", cfg_arg])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&out.stdout).contains(": valid;"));
+    // The built-in default outside the checkout: a warning, and the template.
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let out = dropscope()
+        .current_dir(&empty)
+        .arg("check-config")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.starts_with("warning: (embedded pipeline.toml): key `input.manifest` = ")
+            && err.contains("`dropscope check-config --default > pipeline.toml`")
+            && err.contains("set [input] manifest to your runs.csv"),
+        "{err}"
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("[surface.pdms]"));
+}

@@ -28,7 +28,8 @@ use std::sync::Arc;
 #[derive(Debug, clap::Args)]
 #[command(group(clap::ArgGroup::new("runs").required(true).args(["inputs", "manifest"])))]
 pub struct ProcessArgs {
-    /// Run folders (PCC exports) or `.cine` files, one drop each.
+    /// Run folders (PCC exports) or `.cine` files, one drop each, or
+    /// folders holding them (searched at any depth; each run found is a drop).
     pub inputs: Vec<PathBuf>,
     /// A runs.csv manifest (columns: docs/outputs.md) instead of INPUTs.
     #[arg(long)]

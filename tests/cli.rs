@@ -551,6 +551,18 @@ fn render_refuses_options_it_would_ignore() {
     assert!(err.contains("rendered 1 drop, "), "{err}");
 }
 
+/// `process --help` says what INPUTS may be: it said "one drop each",
+/// though a folder of run folders works too (the test below).
+#[test]
+fn process_help_says_a_folder_of_runs_is_an_input() {
+    let out = dropscope().args(["process", "--help"]).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("or folders holding them (searched at any depth; each run found is a drop)"),
+        "{text}"
+    );
+}
+
 /// `process` on a folder of run folders finds the runs (issue 17 item 7:
 /// it said "no numbered frames"), and counts "with warnings" apart.
 #[test]

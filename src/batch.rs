@@ -15,7 +15,7 @@ use crate::collapse::groups::ContactRadius;
 use crate::collapse::CollapseArgs;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
-use crate::manifest::{read_manifest, RunSpec};
+use crate::manifest::{read_job_manifest, RunSpec};
 use crate::process::{process_setup, write_file, write_run_outputs};
 use crate::source::folder::ImageKind;
 use crate::timings::{self, Stage};
@@ -244,7 +244,7 @@ pub fn configured_runs(
 ) -> Result<Vec<RunSpec>, BatchError> {
     if let Some(m) = &cfg.input.manifest {
         cfg.check_manifest(config_name)?;
-        return Ok(read_manifest(m)?);
+        return Ok(read_job_manifest(m)?);
     }
     if cfg.input.paths.is_empty() {
         return Err(BatchError::NoInput);

@@ -231,7 +231,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
     let runs = match &args.manifest {
-        Some(m) => dropscope::manifest::read_manifest(m)?,
+        Some(m) => dropscope::manifest::read_job_manifest(m)?,
         None => dropscope::process::runs_from_inputs(
             &dropscope::batch::expand_inputs(&args.inputs),
             args.radius_mm,

@@ -86,6 +86,34 @@ pub enum ManifestError {
     },
     #[error("{path}: the manifest lists no run")]
     Empty { path: PathBuf },
+    #[error(
+        "{path}: none of its {runs} runs' inputs is there (the first, {}, does not exist): \
+         nothing was written; is their drive mounted, or was the manifest moved without \
+         them? (a run's path is taken from the manifest's folder)",
+        first.display()
+    )]
+    NoneThere {
+        path: PathBuf,
+        runs: usize,
+        first: PathBuf,
+    },
+}
+
+/// The runs of manifest `path` for a job to process: [`read_manifest`]'s,
+/// refused when none of their inputs is there. One missing input is that
+/// run's failed row; all of them missing is a drive not mounted or a
+/// manifest moved without its runs, and a job that measured nothing would
+/// replace the output folder's earlier results with rows of failures.
+pub fn read_job_manifest(path: &Path) -> Result<Vec<RunSpec>, ManifestError> {
+    let runs = read_manifest(path)?;
+    match runs.first() {
+        Some(first) if !runs.iter().any(|r| r.path.exists()) => Err(ManifestError::NoneThere {
+            path: path.to_path_buf(),
+            runs: runs.len(),
+            first: first.path.clone(),
+        }),
+        _ => Ok(runs),
+    }
 }
 
 /// Read and validate a manifest.

@@ -568,6 +568,82 @@ fn a_mistyped_input_stops_before_the_output_folder_is_touched() {
     assert!(!fresh.exists(), "the refused job made {}", fresh.display());
 }
 
+/// A manifest none of whose inputs is there (its drive not mounted, or it
+/// was moved without its runs) stops `process` and the main job with exit
+/// 2 before the output folder is touched: a job that measured nothing
+/// replaced the earlier results with rows of failures and removed their
+/// collapse. One input missing among others is still that run's failed row.
+#[test]
+fn a_manifest_whose_inputs_are_all_missing_touches_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("kept");
+    let (o, err) = process(&out, &[]);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    succeeded(dropscope().arg("collapse").arg(out.join("drops.csv")));
+    let before = snapshot(&out);
+    // The fixtures' manifest copied alone: its relative paths reach nothing.
+    let moved = dir.path().join("moved.csv");
+    std::fs::copy(fixtures().join("runs.csv"), &moved).unwrap();
+    let o = dropscope()
+        .args(["process", "--manifest"])
+        .arg(&moved)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.starts_with(&format!(
+            "error: {}: none of its 3 runs' inputs is there (the first, {}, does not exist)",
+            moved.display(),
+            dir.path().join("R3mm_H1.5cm_01").display()
+        )),
+        "{err}"
+    );
+    assert!(snapshot(&out) == before, "changed {}", out.display());
+    // The main job on a configuration naming it: the same.
+    let cfg = dir.path().join("moved.toml");
+    std::fs::write(
+        &cfg,
+        "[input]\nmanifest = \"moved.csv\"\n[output]\ndir = \"kept\"\n",
+    )
+    .unwrap();
+    let o = dropscope().arg("--config").arg(&cfg).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("none of its 3 runs' inputs is there"), "{err}");
+    assert!(
+        snapshot(&out) == before,
+        "the main job changed {}",
+        out.display()
+    );
+    // One input there of three: the two others are failed rows, exit 1.
+    let text = std::fs::read_to_string(&moved).unwrap();
+    let good = fixtures().join("R7mm_H50cm_01");
+    std::fs::write(
+        &moved,
+        text.replacen(
+            "R7mm_H50cm_01,R7mm_H50cm_01,",
+            &format!("R7mm_H50cm_01,{},", good.display()),
+            1,
+        ),
+    )
+    .unwrap();
+    let some = dir.path().join("some");
+    let o = dropscope()
+        .args(["process", "--no-animation", "--manifest"])
+        .arg(&moved)
+        .arg("--out")
+        .arg(&some)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let drops = dropscope::dataset::read_csv(&some.join("drops.csv")).unwrap();
+    assert_eq!(drops.len(), 3);
+}
+
 /// A run is named after its folder, dots and all, or its `.cine` file less
 /// `.cine`: a cine saved without that extension (found by its magic) was
 /// cut at its first dot, `R4.5mm_H12cm_02` named `R4`, as was a path that

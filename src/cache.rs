@@ -442,12 +442,7 @@ mod tests {
     use super::*;
 
     fn cfg() -> PipelineConfig {
-        PipelineConfig::from_toml_str(
-            crate::config::EMBEDDED_DEFAULT,
-            Path::new("pipeline.toml"),
-            Path::new(""),
-        )
-        .unwrap()
+        crate::test_support::default_config()
     }
 
     fn run(path: &Path) -> RunSpec {

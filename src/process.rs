@@ -1273,12 +1273,7 @@ mod tests {
 
     #[test]
     fn a_panic_in_a_run_becomes_its_failed_row() {
-        let cfg = PipelineConfig::from_toml_str(
-            crate::config::EMBEDDED_DEFAULT,
-            Path::new("pipeline.toml"),
-            Path::new(""),
-        )
-        .unwrap();
+        let cfg = crate::test_support::default_config();
         let dir = tempfile::tempdir().unwrap();
         let cine = dir.path().join("drop.cine");
         std::fs::write(&cine, b"").unwrap();
@@ -1325,12 +1320,7 @@ mod tests {
 
     #[test]
     fn a_track_kept_from_reading_the_scenes_is_the_track_made_again() {
-        let cfg = PipelineConfig::from_toml_str(
-            crate::config::EMBEDDED_DEFAULT,
-            Path::new("pipeline.toml"),
-            Path::new(""),
-        )
-        .unwrap();
+        let cfg = crate::test_support::default_config();
         let mut runs = crate::manifest::read_manifest(Path::new("fixtures/runs.csv")).unwrap();
         let mut missing = runs[0].clone();
         missing.run = "missing".into();
@@ -1390,12 +1380,7 @@ mod tests {
 
     #[test]
     fn input_runs_get_unique_names_and_need_a_radius() {
-        let cfg = PipelineConfig::from_toml_str(
-            crate::config::EMBEDDED_DEFAULT,
-            Path::new("pipeline.toml"),
-            Path::new(""),
-        )
-        .unwrap();
+        let cfg = crate::test_support::default_config();
         let dir = tempfile::tempdir().unwrap();
         let inputs = ["a", "b"].map(|d| {
             std::fs::create_dir(dir.path().join(d)).unwrap();
@@ -1419,12 +1404,7 @@ mod tests {
     /// error naming it; what is inside an input is left to its run.
     #[test]
     fn inputs_that_are_not_there_or_cannot_be_runs_are_refused() {
-        let cfg = PipelineConfig::from_toml_str(
-            crate::config::EMBEDDED_DEFAULT,
-            Path::new("pipeline.toml"),
-            Path::new(""),
-        )
-        .unwrap();
+        let cfg = crate::test_support::default_config();
         let dir = tempfile::tempdir().unwrap();
         let good = dir.path().join("R4.5mm_H12cm_01");
         std::fs::create_dir(&good).unwrap();

@@ -173,3 +173,14 @@ pub fn run_spec(name: &str, setup: Option<&str>) -> crate::manifest::RunSpec {
         setup: setup.map(String::from),
     }
 }
+
+/// The embedded default configuration (`pipeline.toml`), its relative
+/// paths taken from the working folder.
+pub fn default_config() -> crate::config::PipelineConfig {
+    crate::config::PipelineConfig::from_toml_str(
+        crate::config::EMBEDDED_DEFAULT,
+        std::path::Path::new("pipeline.toml"),
+        std::path::Path::new(""),
+    )
+    .expect("the embedded pipeline.toml is valid")
+}

@@ -10,6 +10,7 @@ mod pcc_xml;
 mod process;
 mod process_job;
 mod render;
+mod render_contact;
 mod render_real;
 mod report;
 mod run;

@@ -7,9 +7,10 @@ use std::path::PathBuf;
 use serde::Serialize;
 
 use super::campaign::{self, DropSpec};
+use super::contact::{ContactMode, ContactSpec, DampingArg};
 use super::export::FrameFormat;
 use super::optics::{OpticsSpec, Strength};
-use super::physics;
+use super::physics::{self, Damping};
 use super::raster::Look;
 use super::RenderError;
 use crate::config::Surface;
@@ -163,9 +164,21 @@ pub struct RenderArgs {
     /// Channel width c, mm (φ = b / (b + c)).
     #[arg(long, default_value_t = 1.5, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub channel_width_mm: f64,
-    /// Coefficient of restitution; below 1 adds linear damping solved to give it.
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
-    pub restitution: f64,
+    /// Coefficient of restitution (speeds where δ crosses 0); below 1 adds damping solved to give it (linear unless --damping says otherwise) [default: 1; with --contact wide: drawn in 0.3‥0.98].
+    #[arg(long, allow_negative_numbers = true)]
+    pub restitution: Option<f64>,
+    /// The contact law: `model` (π E φ R δ²/h, the measurement's) or `wide` (per drop: n 1.4‥2.6, damping none / linear / Hunt–Crossley, adhesion or not, restitution 0.3‥0.98; truth.json records each); the three options below fix one value.
+    #[arg(long, value_enum, default_value_t = ContactMode::Model)]
+    pub contact: ContactMode,
+    /// Elastic exponent n of the force K_n·δ^n, 1‥4, with K_n = K·δ_ref^(2−n) (δ_ref: the model's δmax for the drop) [default: 2; wide: drawn].
+    #[arg(long, allow_negative_numbers = true)]
+    pub force_exponent: Option<f64>,
+    /// Damping solved for the restitution: none (restitution 1), linear (c·dδ/dt) or hunt-crossley (α·K_n·δ^n·dδ/dt) [default: linear when --restitution < 1; wide: drawn].
+    #[arg(long, value_enum)]
+    pub damping: Option<DampingArg>,
+    /// A force that cannot pull: clamped at F ≥ 0, so the sphere leaves the surface where the force reaches 0, before δ returns to 0 [default: the force may pull; wide: drawn].
+    #[arg(long)]
+    pub no_adhesion: bool,
     /// Gravity, m/s².
     #[arg(long, default_value_t = physics::STANDARD_GRAVITY_M_S2, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub gravity_m_s2: f64,
@@ -305,6 +318,9 @@ pub struct RenderArgs {
     /// Write mm_per_px into runs.csv (by default the pipeline must measure it).
     #[arg(long)]
     pub manifest_scale: bool,
+    /// Also write runs_scaled.csv: runs.csv's rows with the true mm_per_px, as from a calibration target.
+    #[arg(long)]
+    pub scaled_manifest: bool,
 }
 
 /// Validated settings shared by every drop of a render.
@@ -329,7 +345,10 @@ pub struct RenderSettings {
     pub surface_slope: f64,
     pub density_kg_m3: f64,
     pub surface: Surface,
+    /// The model's restitution (linear damping solved for it).
     pub restitution: f64,
+    /// The contact law's options ([`ContactSpec::is_model`]: the model).
+    pub contact: ContactSpec,
     pub gravity_m_s2: f64,
 }
 
@@ -440,13 +459,11 @@ impl RenderArgs {
             channel_width_m: c * 1e-3,
             solid_fraction: b / (b + c),
         };
-        if !(self.restitution.is_finite() && self.restitution >= 0.05 && self.restitution <= 1.0) {
-            return Err(invalid(
-                "restitution",
-                self.restitution,
-                "must lie in [0.05, 1]",
-            ));
+        let restitution = self.restitution.unwrap_or(1.0);
+        if !(restitution.is_finite() && (0.05..=1.0).contains(&restitution)) {
+            return Err(invalid("restitution", restitution, "must lie in [0.05, 1]"));
         }
+        let contact = self.contact_spec()?;
         positive("gravity-m-s2", self.gravity_m_s2)?;
         if self.repeats == 0 || self.repeats > 1000 {
             return Err(invalid("repeats", self.repeats, "must lie in 1‥1000"));
@@ -485,8 +502,46 @@ impl RenderArgs {
             surface_slope: slope,
             density_kg_m3: positive("density-kg-m3", self.density_kg_m3)?,
             surface,
-            restitution: self.restitution,
+            restitution,
+            contact,
             gravity_m_s2: self.gravity_m_s2,
+        })
+    }
+
+    /// The contact options, checked against each other.
+    fn contact_spec(&self) -> Result<ContactSpec, RenderError> {
+        if let Some(n) = self.force_exponent {
+            if !(n.is_finite() && (1.0..=4.0).contains(&n)) {
+                return Err(invalid("force-exponent", n, "must lie in [1, 4]"));
+            }
+        }
+        let damping = self.damping.map(Damping::from);
+        let e = self.restitution;
+        match (damping, e) {
+            (Some(Damping::None), Some(e)) if e < 1.0 => {
+                return Err(invalid(
+                    "restitution",
+                    e,
+                    "must be 1 with --damping none (no damping: nothing is lost)",
+                ))
+            }
+            (Some(kind @ (Damping::Linear | Damping::HuntCrossley)), e)
+                if self.contact == ContactMode::Model && e.unwrap_or(1.0) >= 1.0 =>
+            {
+                return Err(invalid(
+                    "damping",
+                    kind.name(),
+                    "damps nothing at restitution 1: add --restitution below 1 (or --contact wide to draw it)",
+                ))
+            }
+            _ => {}
+        }
+        Ok(ContactSpec {
+            mode: self.contact,
+            exponent: self.force_exponent,
+            damping,
+            no_adhesion: self.no_adhesion,
+            restitution: e,
         })
     }
 

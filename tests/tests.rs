@@ -12,6 +12,7 @@ mod process_job;
 mod render;
 mod render_contact;
 mod render_real;
+mod render_saturated;
 mod report;
 mod run;
 mod setup_infer;

@@ -179,7 +179,7 @@ fn write_manifest(
     settings: &RenderSettings,
     with_scale: bool,
 ) -> Result<(), RenderError> {
-    let bytes = if settings.preset == Preset::Real {
+    let bytes = if settings.preset.is_real() {
         let rows: Vec<campaign::SetupManifestRow> = report
             .drops
             .iter()

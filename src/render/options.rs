@@ -41,6 +41,11 @@ pub enum Preset {
     /// one frame file in flight. Scale ±8 % and surface row ±10 px per set-up
     /// (one set-up per radius and repeat).
     Real,
+    /// `real` with a saturated backlight and a glinting ball, as in many real
+    /// rigs: the background clipped at white (the light 10–50 % above full
+    /// scale, so the background has no noise), and a central glint of
+    /// 0.5–3 times the backlight with σ 0.08–0.2 R, clipped at white.
+    RealSaturated,
 }
 
 impl Preset {
@@ -50,7 +55,14 @@ impl Preset {
             Preset::Realistic => "realistic",
             Preset::Harsh => "harsh",
             Preset::Real => "real",
+            Preset::RealSaturated => "real-saturated",
         }
+    }
+
+    /// A real camera's presets: every camera effect drawn per drop, one
+    /// camera set-up per radius and repeat, `runs.csv` without the scale.
+    pub fn is_real(self) -> bool {
+        matches!(self, Preset::Real | Preset::RealSaturated)
     }
 
     /// The preset's look.
@@ -77,7 +89,7 @@ impl Preset {
                 bit_depth: 12,
                 ..base
             },
-            Preset::Realistic | Preset::Real => Look {
+            Preset::Realistic | Preset::Real | Preset::RealSaturated => Look {
                 gradient: 0.12,
                 blur_sigma_px: 0.7,
                 motion_blur: true,
@@ -311,6 +323,15 @@ pub struct RenderArgs {
     /// JPEG quality 1‥100 with --format jpeg [real: drawn per drop in 85‥98; else 95].
     #[arg(long)]
     pub jpeg_quality: Option<u8>,
+    /// Saturated backlight: the dimmest background pixel reads 1 + this times white before the sensor clips [real-saturated: 0.1–0.5].
+    #[arg(long, allow_negative_numbers = true)]
+    pub saturation: Option<f64>,
+    /// Central glint on the ball (Gaussian), fraction of the backlight; above 1 it clips at white [real-saturated: 0.5–3].
+    #[arg(long, allow_negative_numbers = true)]
+    pub glint: Option<f64>,
+    /// σ of the glint, fraction of the sphere's radius [real-saturated: 0.08–0.2; else 0.15].
+    #[arg(long, allow_negative_numbers = true)]
+    pub glint_sigma: Option<f64>,
     /// Go on through a second contact when the flight to it takes at most this many frames; 0: never [real: 1500].
     #[arg(long)]
     pub second_bounce_frames: Option<usize>,
@@ -481,7 +502,7 @@ impl RenderArgs {
                 return Err(invalid("jpeg-quality", q, "must lie in 1‥100"))
             }
             (Some(q), _) => (q, q),
-            (None, Preset::Real) => (85, 98),
+            (None, p) if p.is_real() => (85, 98),
             (None, _) => (95, 95),
         };
         Ok(RenderSettings {
@@ -548,12 +569,12 @@ impl RenderArgs {
     /// The real-camera effects: the preset's ranges, each replaced by its
     /// option when given.
     fn optics(&self, look: &Look) -> Result<OpticsSpec, RenderError> {
-        let mut o = if self.preset == Preset::Real {
-            OpticsSpec::real()
-        } else {
-            OpticsSpec::off()
+        let mut o = match self.preset {
+            Preset::Real => OpticsSpec::real(),
+            Preset::RealSaturated => OpticsSpec::real_saturated(),
+            _ => OpticsSpec::off(),
         };
-        if self.preset == Preset::Real {
+        if self.preset.is_real() {
             if let Some(b) = self.blur_px {
                 o.blur_sigma0_px = Strength::Fixed(b);
             }
@@ -635,6 +656,14 @@ impl RenderArgs {
             (0.0, 10_000.0),
         )?;
         fix(&mut o.drift, self.drift, "drift", (0.0, 0.5))?;
+        fix(&mut o.saturation, self.saturation, "saturation", (0.0, 2.0))?;
+        fix(&mut o.glint, self.glint, "glint", (0.0, 10.0))?;
+        fix(
+            &mut o.glint_sigma,
+            self.glint_sigma,
+            "glint-sigma",
+            (0.01, 1.0),
+        )?;
         if let Some(n) = self.missing_frames {
             if n > 100 {
                 return Err(invalid("missing-frames", n, "must be ≤ 100"));

@@ -261,6 +261,21 @@ pub struct CameraTruth {
     pub drift_phase_left: f64,
     pub drift_phase_right: f64,
     pub drift_cycles: f64,
+    /// Saturated backlight: the light is multiplied by `saturation_gain =
+    /// (1 + saturation) / B_min` (`B_min` the dimmest background pixel of
+    /// the look) before the sensor, which clips at white: the background
+    /// reads white with no noise, and an edge's half level lies inside the
+    /// true outline. 0 and 1: off.
+    pub saturation: f64,
+    pub saturation_gain: f64,
+    /// Central glint (the backlight's specular image on the ball):
+    /// `glint · exp(−|p − c_k − offset|² / (2 σ²))` inside the disk for each
+    /// sphere centre `c_k` over the exposure (so it smears with the motion),
+    /// a fraction of the backlight that may exceed 1 (clipped at white).
+    pub glint: f64,
+    pub glint_sigma_px: f64,
+    /// Offset of the glint from the centre (column, row), px.
+    pub glint_offset_px: [f64; 2],
     /// Image numbers whose frame file was not written.
     pub missing_frames: Vec<i64>,
     /// The movie starts as the sphere enters at the top edge (or at its

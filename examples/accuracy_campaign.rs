@@ -18,7 +18,8 @@
 //! and the median of |error|/σ (0.67 for an honest Gaussian error bar;
 //! smaller: bars too wide, larger: too narrow); for the force law,
 //! |n − n_true| (n_true = `force_n`, 2 for renders without a contact
-//! section) with the same statistics.
+//! section) with the same statistics; on drops under the model's law, K
+//! fitted with n held at 2 against π E φ R / h.
 
 use dropscope::dataset::{read_csv, DropRecord, DropStatus};
 use dropscope::manifest::read_manifest;
@@ -224,6 +225,28 @@ fn table(title: &str, drops: &[&Scored]) {
                 .fold(f64::MIN, f64::max),
         );
     }
+    // K with n held at 2 against π E φ R / h, on drops under the model's law.
+    let (mut dk, mut k_covered) = (Vec::new(), 0);
+    for d in drops.iter().filter(|d| d.truth.get("force_n").is_none()) {
+        let s = &d.truth["surface"];
+        let k_model = std::f64::consts::PI
+            * s["modulus_pa"].as_f64().unwrap_or(f64::NAN)
+            * s["solid_fraction"].as_f64().unwrap_or(f64::NAN)
+            * d.truth["sphere_radius_mm"].as_f64().unwrap_or(f64::NAN)
+            / s["pillar_height_mm"].as_f64().unwrap_or(f64::NAN);
+        if let Some(k) = d.record.force_k2_n_m2 {
+            dk.push((k / k_model - 1.0).abs());
+            let e = d.record.force_k2_n_m2_err;
+            k_covered += usize::from(e.is_some_and(|e| (k - k_model).abs() <= 2.0 * e));
+        }
+    }
+    if !dk.is_empty() {
+        println!(
+            "K at n = 2 against π E φ R / h: |K/K_model − 1| {} (median | p95 | max), 2σ covers {k_covered}/{}",
+            spread(&dk),
+            dk.len()
+        );
+    }
     let mut sources: Vec<(String, usize)> = Vec::new();
     for d in drops {
         let s = &d.record.surface_source;
@@ -239,7 +262,7 @@ fn table(title: &str, drops: &[&Scored]) {
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<PathBuf> = std::env::args().skip(1).map(PathBuf::from).collect();
-    if args.is_empty() || args.len() % 2 != 0 {
+    if args.is_empty() || !args.len().is_multiple_of(2) {
         anyhow::bail!("usage: accuracy_campaign MANIFEST_OR_DIR PROCESS_OUT_DIR [MANIFEST_OR_DIR PROCESS_OUT_DIR ...]");
     }
     let mut scored = Vec::new();
@@ -285,14 +308,25 @@ fn main() -> anyhow::Result<()> {
         scored.len()
     );
     let all: Vec<&Scored> = scored.iter().collect();
+    let count = |f: &dyn Fn(&Contact) -> bool| all.iter().filter(|d| f(&d.contact)).count();
+    println!(
+        "damping none / linear / hunt_crossley: {} / {} / {}; adhesion / none: {} / {}",
+        count(&|c| c.damping == "none"),
+        count(&|c| c.damping == "linear"),
+        count(&|c| c.damping == "hunt_crossley"),
+        count(&|c| c.adhesion),
+        count(&|c| !c.adhesion),
+    );
     table("all drops", &all);
+    // each group that is not the whole set
+    let shown = |g: &[&Scored]| !g.is_empty() && g.len() < all.len();
     for kind in ["none", "linear", "hunt_crossley"] {
         let group: Vec<&Scored> = all
             .iter()
             .copied()
             .filter(|d| d.contact.damping == kind)
             .collect();
-        if !group.is_empty() {
+        if shown(&group) {
             table(&format!("damping {kind}"), &group);
         }
     }
@@ -305,7 +339,7 @@ fn main() -> anyhow::Result<()> {
             .copied()
             .filter(|d| d.contact.adhesion == adhesion)
             .collect();
-        if !group.is_empty() {
+        if shown(&group) {
             table(name, &group);
         }
     }
@@ -315,7 +349,7 @@ fn main() -> anyhow::Result<()> {
             .copied()
             .filter(|d| d.contact.n_true >= lo && d.contact.n_true < hi)
             .collect();
-        if !group.is_empty() && group.len() < all.len() {
+        if shown(&group) {
             table(&format!("true n in [{lo}, {hi})"), &group);
         }
     }

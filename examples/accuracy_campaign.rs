@@ -173,17 +173,16 @@ fn table(title: &str, drops: &[&Scored]) {
         if rel.is_empty() {
             continue;
         }
-        let z_med = if z.is_empty() {
-            "–".to_string()
+        // coverage over the drops with an error bar (none: a given value)
+        let (cover, z_med) = if z.is_empty() {
+            ("–".to_string(), "–".to_string())
         } else {
-            format!("{:.2}", pct(&z, 0.5))
+            (
+                format!("{covered}/{}", z.len()),
+                format!("{:.2}", pct(&z, 0.5)),
+            )
         };
-        println!(
-            "| {} | {} | {covered}/{} | {z_med} |",
-            q.name,
-            spread(&rel),
-            rel.len()
-        );
+        println!("| {} | {} | {cover} | {z_med} |", q.name, spread(&rel));
     }
     let (mut dn, mut z) = (Vec::new(), Vec::new());
     let mut covered = 0;

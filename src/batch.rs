@@ -86,6 +86,8 @@ pub enum BatchError {
     NothingFound(String),
     #[error(transparent)]
     Lock(#[from] crate::lock::LockError),
+    #[error(transparent)]
+    Review(#[from] crate::review::decisions::ReviewError),
 }
 
 /// How the job runs (not what it computes: outputs do not depend on these).
@@ -402,6 +404,7 @@ pub(crate) fn provenance_json(
     cfg: &PipelineConfig,
     config_name: &str,
     entries: &[Entry],
+    review: &Review,
 ) -> Vec<u8> {
     #[derive(serde::Serialize)]
     struct RunProvenance<'a> {
@@ -421,6 +424,14 @@ pub(crate) fn provenance_json(
         /// as check-config prints it.
         configuration: toml::Value,
         runs: Vec<RunProvenance<'a>>,
+        /// The decisions of `dropscope review` the job applied, when any.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        review: Option<ReviewProvenance<'a>>,
+    }
+    #[derive(serde::Serialize)]
+    struct ReviewProvenance<'a> {
+        file: String,
+        decisions: &'a [crate::review::decisions::Decision],
     }
     let p = Provenance {
         dropscope_version: env!("CARGO_PKG_VERSION"),
@@ -436,6 +447,10 @@ pub(crate) fn provenance_json(
                 outputs: &e.outputs,
             })
             .collect(),
+        review: (!review.decisions.rows.is_empty()).then(|| ReviewProvenance {
+            file: review.path.display().to_string(),
+            decisions: &review.decisions.rows,
+        }),
     };
     let mut bytes = serde_json::to_vec_pretty(&p).unwrap_or_default();
     bytes.push(b'\n');
@@ -449,6 +464,7 @@ pub(crate) fn replace_provenance(
     cfg: &PipelineConfig,
     config_name: &str,
     entries: &[Entry],
+    review: &Review,
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<(), BatchError> {
     let removed = crate::leftovers::remove(out, entries).map_err(|source| BatchError::Io {
@@ -461,7 +477,7 @@ pub(crate) fn replace_provenance(
     write_file(
         out,
         "provenance.json",
-        &provenance_json(cfg, config_name, entries),
+        &provenance_json(cfg, config_name, entries, review),
     )?;
     Ok(())
 }
@@ -476,6 +492,51 @@ pub struct Processed {
     pub seconds: f64,
     /// Worker threads the runs were processed on.
     pub threads: usize,
+    /// The review decisions applied.
+    pub review: Review,
+}
+
+/// The decisions of `dropscope review` a job applies, and where they are.
+#[derive(Debug, Clone, Default)]
+pub struct Review {
+    /// The configuration's `input.review`, else `review.csv` in the output
+    /// folder (which need not exist).
+    pub path: PathBuf,
+    pub decisions: crate::review::decisions::Decisions,
+}
+
+impl Review {
+    /// The decisions for a job into `out` ([`crate::review::decisions::review_path`]).
+    pub fn load(cfg: &PipelineConfig, out: &Path) -> Result<Review, BatchError> {
+        let path = crate::review::decisions::review_path(cfg.input.review.as_deref(), out);
+        let decisions = crate::review::decisions::Decisions::read(&path)?;
+        Ok(Review { path, decisions })
+    }
+
+    /// `runs`, each with its decisions; a notice names the runs decided on
+    /// that are not among them (their decisions wait, unused).
+    pub fn apply(&self, runs: &[RunSpec], notice: &dyn Fn(&str)) -> Vec<RunSpec> {
+        let others: Vec<&str> = self
+            .decisions
+            .runs()
+            .into_iter()
+            .filter(|d| !runs.iter().any(|r| r.run == *d))
+            .collect();
+        if !others.is_empty() {
+            notice(&format!(
+                "{}: decisions about {} not in this job ({}) are not used",
+                self.path.display(),
+                crate::plural(others.len(), "run"),
+                others.join(", ")
+            ));
+        }
+        runs.iter()
+            .map(|r| RunSpec {
+                review: self.decisions.for_run(&r.run),
+                ..r.clone()
+            })
+            .collect()
+    }
 }
 
 /// Process `runs` into `out` (which the caller holds), a camera set-up at a
@@ -513,6 +574,8 @@ pub fn process_runs_unsynced(
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<Processed, BatchError> {
     let start = std::time::Instant::now();
+    let review = Review::load(cfg, out)?;
+    let runs = &review.apply(runs, &|m| events(RunEvent::Notice(m)));
     events(RunEvent::Planned { runs: runs.len() });
     let scene_of = |r: &RunSpec| {
         (!options.force)
@@ -557,6 +620,7 @@ pub fn process_runs_unsynced(
         done,
         seconds: start.elapsed().as_secs_f64(),
         threads,
+        review,
     })
 }
 
@@ -636,6 +700,7 @@ fn job_on_pool(
         done,
         seconds: process_s,
         threads,
+        review,
     } = process_runs(runs, cfg, out, options, &[], events)?;
     let cached = done.iter().filter(|(_, hit)| *hit).count();
     let frames = done
@@ -660,13 +725,10 @@ fn job_on_pool(
     }
     timings::time(Stage::Writes, || -> Result<(), BatchError> {
         write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
-        replace_provenance(out, cfg, config_name, &entries, events)
+        replace_provenance(out, cfg, config_name, &entries, &review, events)
     })?;
     let collapse = timings::start(Stage::Collapse);
-    let measured = records
-        .iter()
-        .filter(|r| r.status != DropStatus::Failed)
-        .count();
+    let measured = records.iter().filter(|r| r.status.collapses()).count();
     // The collapse is redone from drops.csv every time: first remove what an
     // earlier job's collapse wrote, so that no figure of a run that has
     // since failed or left the manifest survives (nor all of it when no
@@ -718,7 +780,8 @@ mod tests {
         let text = crate::config::EMBEDDED_DEFAULT.replace("# radius_mm = 4.5", "radius_mm = 4.5");
         let cfg = PipelineConfig::from_toml_str(&text, Path::new("p.toml"), Path::new("")).unwrap();
         let doc: serde_json::Value =
-            serde_json::from_slice(&provenance_json(&cfg, "p.toml", &[])).unwrap();
+            serde_json::from_slice(&provenance_json(&cfg, "p.toml", &[], &Review::default()))
+                .unwrap();
         let c = &doc["configuration"];
         assert_eq!(c["sphere"]["radius_mm"], serde_json::json!(4.5), "{c}");
         assert_eq!(

@@ -272,10 +272,13 @@ pub fn fingerprint(path: &Path) -> std::io::Result<Fingerprint> {
     })
 }
 
-/// The configuration a run's result depends on: all of it but the output folder.
+/// The configuration a run's result depends on: all of it but the output
+/// folder and where the review's decisions are (a run's own decisions are
+/// in its key, through its [`RunSpec`]).
 fn config_for_key(cfg: &PipelineConfig) -> PipelineConfig {
     let mut c = cfg.clone();
     c.output.dir = PathBuf::new();
+    c.input.review = None;
     c
 }
 
@@ -456,6 +459,7 @@ mod tests {
             surface: None,
             sphere_density_kg_m3: None,
             setup: None,
+            review: Default::default(),
         }
     }
 

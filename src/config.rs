@@ -66,6 +66,9 @@ pub struct RawInput {
     pub paths: Vec<PathBuf>,
     /// The `[surface.<name>]` used by runs whose manifest row names none.
     pub surface: Option<String>,
+    /// The decisions of `dropscope review` to apply, relative to the
+    /// configuration file; default `review.csv` in the output folder.
+    pub review: Option<PathBuf>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -158,6 +161,10 @@ pub struct InputConfig {
     pub paths: Vec<PathBuf>,
     /// Name of the default surface; always a key of [`PipelineConfig::surfaces`].
     pub surface: String,
+    /// The decisions file of `dropscope review` (`review.csv`); `None`:
+    /// `review.csv` in the output folder.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub review: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -537,6 +544,7 @@ impl RawConfig {
                 manifest: self.input.manifest.map(resolve),
                 paths: self.input.paths.into_iter().map(resolve).collect(),
                 surface,
+                review: self.input.review.map(resolve),
             },
             camera: CameraConfig {
                 fps,

@@ -16,6 +16,32 @@ pub enum DropStatus {
     Warning,
     /// Nothing measured; `reason` says why.
     Failed,
+    /// Left out by a person in `dropscope review` (`review.csv`): measured
+    /// as any other, its reason first, and left out of the collapse.
+    Rejected,
+    /// Flagged (a `warning`), and accepted by a person in `dropscope
+    /// review`: its flags and their sentences kept, the acceptance's
+    /// reason first.
+    Accepted,
+}
+
+impl DropStatus {
+    /// Its word in drops.csv.
+    pub fn word(self) -> &'static str {
+        match self {
+            DropStatus::Ok => "ok",
+            DropStatus::Warning => "warning",
+            DropStatus::Failed => "failed",
+            DropStatus::Rejected => "rejected",
+            DropStatus::Accepted => "accepted",
+        }
+    }
+
+    /// Whether the drop's numbers enter the collapse: measured, and not
+    /// rejected.
+    pub fn collapses(self) -> bool {
+        !matches!(self, DropStatus::Failed | DropStatus::Rejected)
+    }
 }
 
 /// One drop: what was measured, with one-sigma uncertainties in the `_err`
@@ -164,6 +190,12 @@ pub struct DropRecord {
     /// Why the run failed, or its warnings; empty (written `-`) when all is well.
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub reason: String,
+    /// What `dropscope review` decided about the drop (`review.csv`), in a
+    /// few words: rejected, accepted, frames excluded, surface set by hand
+    /// ([`crate::review::decisions::RunReview::summary`]); empty (written
+    /// `-`) when nothing.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub review: String,
 }
 
 fn default_density() -> f64 {
@@ -233,6 +265,7 @@ impl DropRecord {
             status: DropStatus::Failed,
             flags: String::new(),
             reason: reason.into(),
+            review: String::new(),
         }
     }
 }
@@ -398,7 +431,7 @@ mod tests {
         assert_eq!(back, vec![ok, bad]);
         let text = std::fs::read_to_string(&p).unwrap();
         assert!(text.starts_with("run,sphere_radius_mm,"));
-        assert!(text.contains(",ok,gap_at_peak saturated,-\n"), "{text}");
+        assert!(text.contains(",ok,gap_at_peak saturated,-,-\n"), "{text}");
         assert!(text.contains(",failed,-,no sphere found in 40 frames"));
     }
 

@@ -32,6 +32,7 @@
 //! | [`shard`] | `run --shard K/N`: the K-th of N frame-balanced shares of the runs |
 //! | [`slurm`] | `dropscope slurm`: the shards as a Slurm array, then a finishing job |
 //! | [`report`] | `report.html`: counts, collapse plots, fits and every drop on one self-contained page |
+//! | [`review`] | `dropscope review`: every frame of a drop in a local web page, and `review.csv`, the decisions `process` and `run` apply |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | SVG + PNG figures (collapse plots, per-drop diagnostics), embedded font |
 //! | [`run_name`] | run names that are file names, never paths |
@@ -70,6 +71,7 @@ pub mod quality;
 pub mod records;
 pub mod render;
 pub mod report;
+pub mod review;
 pub mod run_name;
 pub mod scale;
 pub mod setup_infer;

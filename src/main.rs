@@ -129,14 +129,26 @@ fn hold_folder(
 fn job_counts(job: &dropscope::batch::JobSummary) -> String {
     use dropscope::dataset::DropStatus;
     format!(
-        "{}: {} measured, {} with warnings, {} failed, {} reused from the cache; {}",
+        "{}: {} measured, {} with warnings, {} failed{}, {} reused from the cache; {}",
         dropscope::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
         job.failed(),
+        reviewed(
+            job.count(DropStatus::Accepted),
+            job.count(DropStatus::Rejected)
+        ),
         job.cached,
         speed(job.frames, job.process_s, job.threads),
     )
+}
+
+/// ", A accepted, R rejected in review" when a review decided any, else nothing.
+fn reviewed(accepted: usize, rejected: usize) -> String {
+    if accepted + rejected == 0 {
+        return String::new();
+    }
+    format!(", {accepted} accepted and {rejected} rejected in review")
 }
 
 /// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
@@ -263,12 +275,16 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     }
     let failed = job.count(DropStatus::Failed);
     eprintln!(
-        "{}: {} measured, {} with warnings, {} failed, {} reused from the cache; {}; \
+        "{}: {} measured, {} with warnings, {} failed{}, {} reused from the cache; {}; \
          results in {}",
         dropscope::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
         failed,
+        reviewed(
+            job.count(DropStatus::Accepted),
+            job.count(DropStatus::Rejected)
+        ),
         job.cached,
         speed(job.frames, job.process_s, job.threads),
         out.display()
@@ -313,9 +329,14 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
         eprintln!("warning: {w}");
     }
     println!(
-        "collapse: {} used, {} skipped; {} files in {}",
+        "collapse: {} used, {} skipped{}; {} files in {}",
         dropscope::plural(s.n_used, "drop"),
         s.n_skipped,
+        if s.n_rejected > 0 {
+            format!(", {} rejected in review", s.n_rejected)
+        } else {
+            String::new()
+        },
         s.files.len(),
         s.out_dir.display()
     );

@@ -8,6 +8,7 @@
 //! the row (its line, as a spreadsheet shows it: header = row 1), the column
 //! and the text found there.
 
+use crate::review::decisions::RunReview;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -61,6 +62,11 @@ pub struct RunSpec {
     /// Camera set-up shared with other runs (same zoom and position); `None`: not given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub setup: Option<String>,
+    /// What `dropscope review` decided about the run (`review.csv`; not a
+    /// manifest column): none from a manifest, filled in by the job. In
+    /// the run's cache key, but only when there is something.
+    #[serde(skip_serializing_if = "RunReview::is_empty")]
+    pub review: RunReview,
 }
 
 /// Why a manifest could not be read.
@@ -189,6 +195,7 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
             surface: r.surface.filter(|s| !s.is_empty()),
             sphere_density_kg_m3: density,
             setup: r.setup.filter(|s| !s.is_empty()),
+            review: Default::default(),
         });
     }
     if runs.is_empty() {

@@ -594,7 +594,10 @@ mod tests {
         assert!(m.forces.len() + 2 * FORCE_TABLE_HALF_WINDOW >= m.in_contact.len());
         let bytes = crate::dataset::to_csv_bytes(std::slice::from_ref(r));
         let text = String::from_utf8(bytes).unwrap();
-        assert!(text.lines().nth(1).unwrap().ends_with(",ok,-,-"), "{text}");
+        assert!(
+            text.lines().nth(1).unwrap().ends_with(",ok,-,-,-"),
+            "{text}"
+        );
 
         // The configured work limit reaches the contact-law fit: these fits
         // need 113–259 trajectories, 20 stop them, and the record says why

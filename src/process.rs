@@ -160,6 +160,7 @@ pub fn runs_from_inputs(
             surface: None,
             sphere_density_kg_m3: None,
             setup: None,
+            review: Default::default(),
         });
     }
     Ok(runs)
@@ -221,9 +222,13 @@ pub fn process_setup(
             (t, start.elapsed().as_secs_f64())
         })
         .unzip();
+    // A drop a person rejected is left out of its set-up's scale too.
+    let pooled_in = |r: &&RunSpec| r.review.rejected.is_none();
     let curvatures: Vec<Curvature> = tracked
         .iter()
-        .filter_map(|t| t.as_ref().ok()?.curvature)
+        .zip(runs)
+        .filter(|(_, r)| pooled_in(r))
+        .filter_map(|(t, _)| t.as_ref().ok()?.curvature)
         .collect();
     let pool = |curvatures: Vec<Curvature>| {
         (curvatures.len() >= 2)
@@ -233,7 +238,9 @@ pub fn process_setup(
     let pooled_at_bound = pool(
         tracked
             .iter()
-            .filter_map(|t| t.as_ref().ok()?.bounded.as_ref()?.curvature)
+            .zip(runs)
+            .filter(|(_, r)| pooled_in(r))
+            .filter_map(|(t, _)| t.as_ref().ok()?.bounded.as_ref()?.curvature)
             .collect(),
     );
     let pooled = pool(curvatures);
@@ -247,6 +254,7 @@ pub fn process_setup(
                 measure_run(t?, run, cfg, [pooled, pooled_at_bound], overlay_frames)
             })
             .unwrap_or_else(|reason| failed_outcome(run, cfg, reason));
+            run.review.apply(&mut o.record);
             o.seconds = track_s + start.elapsed().as_secs_f64();
             o
         })
@@ -608,6 +616,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         tr = undistort_track(tr, &Lens::new(k1, meta.width, meta.height))
             .map_err(|e| format!("{}: {e}", run.path.display()))?;
     }
+    exclude_frames(&mut tr, &run.review).map_err(|e| format!("{}: {e}", run.path.display()))?;
     // The free falls' curvature, and the track through the lens at the
     // distortion bound with its own: each on a thread.
     let (curvature, bounded) = rayon::join(
@@ -729,7 +738,20 @@ fn measure_run(
     );
     let mut geom = geom;
     let mut surface_source = "image";
-    if let (Some((offset_px, err_px, source)), false) = (by_law, tr.surface_from_config) {
+    // A surface row set by hand in `dropscope review` replaces the line
+    // found, wherever it came from: through the row given at the impact
+    // column, with the image's tilt.
+    let by_hand = run.review.surface_row_px.as_ref().map(|(row, _)| *row);
+    let mut hand_offset_px = 0.0;
+    if let Some(row_px) = by_hand {
+        let at_impact = m.record.surface_row_px.unwrap_or(geom.surface_row_px);
+        hand_offset_px = row_px - at_impact;
+        geom.surface_row_px += hand_offset_px;
+        geom.surface_row_err_px = crate::review::decisions::HAND_SURFACE_ERR_PX;
+        surface_source = "review";
+        let points = window(&geom, &geom).map_err(failed)?;
+        m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
+    } else if let (Some((offset_px, err_px, source)), false) = (by_law, tr.surface_from_config) {
         geom.surface_row_px += offset_px;
         geom.surface_row_err_px = err_px;
         surface_source = source;
@@ -746,7 +768,8 @@ fn measure_run(
     };
     let law_offset = m.law.as_ref().ok().and_then(|l| l.surface_offset_px);
     let mut record = m.record.clone();
-    if let (Ok(law), Some(off), true) = (&m.law, law_offset, surface_source != "image") {
+    let moved_by_law = !matches!(surface_source, "image" | "review");
+    if let (Ok(law), Some(off), true) = (&m.law, law_offset, moved_by_law) {
         // n and K (n free) were fitted on the image's line: the two
         // surfaces' disagreement is an uncertainty of that line they carry.
         // K at n = 2 is the law's own, on its surface.
@@ -799,6 +822,9 @@ fn measure_run(
         }
     }
     crate::measure::flag_restitution_above_one(&mut record);
+    // The overlays draw the line used.
+    let mut tr = tr;
+    tr.surface.row0_px += hand_offset_px;
     record.setup = run.setup.clone().unwrap_or_default();
     record.drop_height_cm = run.drop_height_cm;
     record.path = run.path.display().to_string();
@@ -857,7 +883,7 @@ fn measure_run(
             let ft = tr
                 .frames
                 .iter()
-                .filter(|f| f.held.is_some())
+                .filter(|f| f.held.is_some() && !f.flags.contains(crate::track::Flag::Excluded))
                 .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
             pictures.still(&ft)
         });
@@ -935,6 +961,24 @@ fn saturated_share(tr: &Track, bit_depth: u8) -> Option<f64> {
     (any && share > quality::SATURATED_SHARE).then_some(share)
 }
 
+/// Mark the frames a person excluded (`review.csv`) in `tr`: their fits
+/// stay in the track (and its CSV, flagged `excluded`) but no fit uses
+/// them ([`points_of`] leaves them out).
+fn exclude_frames(
+    tr: &mut Track,
+    review: &crate::review::decisions::RunReview,
+) -> std::io::Result<()> {
+    if review.excluded.is_empty() {
+        return Ok(());
+    }
+    tr.frames.update(|_, block: &mut [FrameTrack]| {
+        for f in block.iter_mut().filter(|f| review.excludes(f.frame)) {
+            f.flags.insert(crate::track::Flag::Excluded);
+        }
+        Ok::<(), std::io::Error>(())
+    })
+}
+
 /// The held-radius fits as event-stage points, with the contact
 /// half-width that `half_width` gives from the free-radius fit, made as
 /// they are walked: none held.
@@ -967,7 +1011,8 @@ fn points_of(
     held: impl Iterator<Item = (FrameTrack, crate::detect::CircleFit)>,
     half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
 ) -> impl Iterator<Item = TrackPoint> {
-    held.filter(|(f, _)| !f.flags.contains(crate::track::Flag::Partial))
+    use crate::track::Flag;
+    held.filter(|(f, _)| !f.flags.contains(Flag::Partial) && !f.flags.contains(Flag::Excluded))
         .map(move |(f, h)| {
             let (hw, hw_err) = f.free.as_ref().map_or((None, None), &half_width);
             TrackPoint {

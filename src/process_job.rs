@@ -108,6 +108,7 @@ fn run_on_pool(
         done,
         seconds,
         threads,
+        review,
     } = process_runs_unsynced(runs, cfg, out, options, overlay_frames, events)?;
     let cached = done.iter().filter(|(_, hit)| *hit).count();
     let frames = done
@@ -130,7 +131,7 @@ fn run_on_pool(
             time(Stage::Writes, || -> Result<(), BatchError> {
                 write_file(out, "drops.csv", &drops)?;
                 remove_other_collapse(out, &id, events)?;
-                replace_provenance(out, cfg, config_name, &entries, events)
+                replace_provenance(out, cfg, config_name, &entries, &review, events)
             })
         });
         let drawn = time(Stage::Figures, || {

@@ -46,6 +46,9 @@ pub fn run_line(record: &DropRecord, frames: usize, seconds: Option<f64>) -> Str
             record.run, record.reason
         ),
         DropStatus::Ok => format!("{}: measured{from}", record.run),
+        DropStatus::Rejected | DropStatus::Accepted => {
+            format!("{}: measured{from}, {}", record.run, record.reason)
+        }
     }
 }
 

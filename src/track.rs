@@ -191,7 +191,8 @@ pub struct FrameTrack {
     pub free: Option<CircleFit>,
     /// Pass 2: radius held at the calibrated R_px.
     pub held: Option<CircleFit>,
-    /// `recovered`, `partial` (the circle leaves the frame), `missing`.
+    /// `recovered`, `partial` (the circle leaves the frame), `missing`,
+    /// `excluded` (by a person).
     pub flags: FrameFlags,
 }
 
@@ -204,10 +205,18 @@ pub enum Flag {
     Partial,
     /// Looked for and not found (or its held fit failed).
     Missing,
+    /// Left out of every fit by a person (`dropscope review`): its fits
+    /// are kept and shown, never used.
+    Excluded,
 }
 
 impl Flag {
-    const ALL: [Flag; 3] = [Flag::Recovered, Flag::Partial, Flag::Missing];
+    const ALL: [Flag; 4] = [
+        Flag::Recovered,
+        Flag::Partial,
+        Flag::Missing,
+        Flag::Excluded,
+    ];
 
     /// The flag's word in the track CSV.
     pub fn name(self) -> &'static str {
@@ -215,6 +224,7 @@ impl Flag {
             Flag::Recovered => "recovered",
             Flag::Partial => "partial",
             Flag::Missing => "missing",
+            Flag::Excluded => "excluded",
         }
     }
 }
@@ -1846,7 +1856,7 @@ fn detect_err(frame: i64, source: DetectError) -> TrackError {
 /// The next circle from the last three fits: constant acceleration through
 /// them (Newton's divided differences), or constant velocity / position
 /// with fewer.
-fn predict(history: &[(f64, Circle)], t: f64) -> Circle {
+pub fn predict(history: &[(f64, Circle)], t: f64) -> Circle {
     let m = history.len();
     let (t2, c2) = history[m - 1];
     if m < 2 {

@@ -113,6 +113,7 @@ fn spec(run: &str, path: &Path) -> RunSpec {
         surface: None,
         sphere_density_kg_m3: None,
         setup: None,
+        review: Default::default(),
     }
 }
 
@@ -522,7 +523,7 @@ fn weakened_measurements_are_flagged_warnings() {
         .lines()
         .next()
         .unwrap()
-        .ends_with(",status,flags,reason"));
+        .ends_with(",status,flags,reason,review"));
     assert!(
         text.contains(",warning,gap_in_contact gap_at_peak,"),
         "{text}"

@@ -180,6 +180,9 @@ pub fn compute(
         };
         return Err(SkipReason(format!("status failed ({why})")));
     }
+    if rec.status == DropStatus::Rejected {
+        return Err(SkipReason(format!("status rejected ({})", rec.reason)));
+    }
     let r_mm = positive("sphere_radius_mm", Some(rec.sphere_radius_mm))?;
     let rho = positive("sphere_density_kg_m3", Some(rec.sphere_density_kg_m3))?;
     let v = positive("v_impact_m_s", rec.v_impact_m_s)?;

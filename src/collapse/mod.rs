@@ -97,7 +97,10 @@ pub struct DropOutcome {
 pub struct CollapseSummary {
     pub out_dir: PathBuf,
     pub n_used: usize,
+    /// Rows skipped for a problem (failed, or lacking a quantity).
     pub n_skipped: usize,
+    /// Rows a person rejected (`dropscope review`): left out, no problem.
+    pub n_rejected: usize,
     pub fits: fit::Fits,
     /// Every warning, also in fits.json.
     pub warnings: Vec<String>,
@@ -256,11 +259,21 @@ pub fn run(
             runs.join(", ")
         ));
     }
-    let n_skipped = outcomes.len() - used.len();
+    let n_rejected = records
+        .iter()
+        .filter(|r| r.status == dataset::DropStatus::Rejected)
+        .count();
+    let n_skipped = outcomes.len() - used.len() - n_rejected;
     if n_skipped > 0 {
         warnings.push(format!(
             "{n_skipped} of {} rows skipped (listed under `skipped`)",
             outcomes.len()
+        ));
+    }
+    if n_rejected > 0 {
+        warnings.push(format!(
+            "{} rejected in review left out (listed under `skipped`)",
+            crate::plural(n_rejected, "drop")
         ));
     }
     warnings.extend(fits.warnings.iter().cloned());
@@ -340,6 +353,7 @@ pub fn run(
         out_dir,
         n_used: used.len(),
         n_skipped,
+        n_rejected,
         fits,
         warnings,
         files,

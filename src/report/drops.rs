@@ -78,6 +78,8 @@ fn status(rec: &DropRecord) -> (&'static str, &'static str) {
         DropStatus::Ok => ("ok", "ok"),
         DropStatus::Warning => ("warning", "warning"),
         DropStatus::Failed => ("failed", "FAILED"),
+        DropStatus::Rejected => ("rejected", "rejected"),
+        DropStatus::Accepted => ("accepted", "accepted"),
     }
 }
 
@@ -101,13 +103,25 @@ fn key(name: &str, v: Option<f64>) -> String {
         .map_or_else(String::new, |v| format!(" data-{name}=\"{v}\""))
 }
 
+/// What the filter box searches in a row: its run, reason and review, in
+/// lower case.
+fn search_text(rec: &DropRecord) -> String {
+    [rec.run.as_str(), &rec.reason, &rec.review]
+        .iter()
+        .filter(|t| !t.is_empty())
+        .copied()
+        .collect::<Vec<_>>()
+        .join(" ")
+        .to_lowercase()
+}
+
 /// The filter controls above the table.
 fn controls(n: usize) -> String {
     format!(
         "<div class=\"filter\"><label>filter <input id=\"drop-filter\" type=\"search\" \
          placeholder=\"run name or reason\"></label> <label>status <select id=\"drop-status\">\
          <option value=\"\">all</option><option>ok</option><option>warning</option>\
-         <option>failed</option></select></label> <span id=\"drop-count\">{n} of {n} drops\
+         <option>failed</option><option>accepted</option><option>rejected</option></select></label> <span id=\"drop-count\">{n} of {n} drops\
          </span> · click a column head to sort</div>"
     )
 }
@@ -158,10 +172,22 @@ pub fn drops_table(out_dir: &Path, records: &[DropRecord]) -> String {
             num(rec.sphere_radius_mm),
             n = i + 1,
             r = key("r", Some(rec.sphere_radius_mm)),
-            text = escape(&format!("{} {}", rec.run, rec.reason).to_lowercase()),
+            text = escape(&search_text(rec)),
         );
-        if rec.status == DropStatus::Warning && !rec.reason.is_empty() {
+        let noted = matches!(
+            rec.status,
+            DropStatus::Warning | DropStatus::Accepted | DropStatus::Rejected
+        );
+        if noted && !rec.reason.is_empty() {
             let _ = write!(out, "<div class=\"reason\">{}</div>", escape(&rec.reason));
+        }
+        if !rec.review.is_empty() {
+            let _ = write!(
+                out,
+                "<div class=\"review\" title=\"decided in dropscope review (review.csv)\">\
+                 review: {}</div>",
+                escape(&rec.review)
+            );
         }
         out.push_str("</td>");
         if !measured {

@@ -249,20 +249,61 @@ fn collapse_matches(rows: &[(String, bool)], records: &[DropRecord]) -> bool {
         && rows
             .iter()
             .zip(records)
-            .all(|((run, used), r)| *run == r.run && !(*used && r.status == DropStatus::Failed))
+            .all(|((run, used), r)| *run == r.run && (!*used || r.status.collapses()))
 }
 
-fn counts(records: &[DropRecord]) -> [usize; 3] {
+fn counts(records: &[DropRecord]) -> [usize; 5] {
     let n = |s: DropStatus| records.iter().filter(|r| r.status == s).count();
     [
         n(DropStatus::Ok),
         n(DropStatus::Warning),
         n(DropStatus::Failed),
+        n(DropStatus::Accepted),
+        n(DropStatus::Rejected),
     ]
 }
 
+/// The counts of the review's outcomes, when a review decided any.
+fn review_counts(accepted: usize, rejected: usize) -> String {
+    if accepted + rejected == 0 {
+        return String::new();
+    }
+    format!(
+        " <span class=\"count accepted\">{accepted} accepted in review</span> \
+         <span class=\"count rejected\">{rejected} rejected in review</span>"
+    )
+}
+
+/// Every decision of `dropscope review` the records carry (drops.csv's
+/// `review` column), a line a drop; nothing when there is none.
+fn review_section(out: &mut String, records: &[DropRecord]) {
+    let reviewed: Vec<&DropRecord> = records.iter().filter(|r| !r.review.is_empty()).collect();
+    if reviewed.is_empty() {
+        return;
+    }
+    let _ = write!(
+        out,
+        "<section id=\"review\"><h2>Review decisions</h2><p>Decided by a person in \
+         <code>dropscope review</code> (<code>review.csv</code>) and applied by the job that \
+         wrote this folder: {} of {} drops.</p><ul class=\"review\">",
+        reviewed.len(),
+        records.len()
+    );
+    for r in reviewed {
+        let _ = write!(
+            out,
+            "<li><b>{}</b> <span class=\"badge {}\">{}</span> {}</li>",
+            escape(&r.run),
+            r.status.word(),
+            r.status.word(),
+            escape(&r.review)
+        );
+    }
+    out.push_str("</ul></section>");
+}
+
 fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRecord]) {
-    let [ok, warning, failed] = counts(records);
+    let [ok, warning, failed, accepted, rejected] = counts(records);
     let dataset = crate::dataset_id::of_file(&out_dir.join("drops.csv"))
         .map(|id| format!(" · dataset <code title=\"SHA-256 of drops.csv\">{id}</code>"))
         .unwrap_or_default();
@@ -271,10 +312,11 @@ fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRe
         "<header><h1>dropscope report</h1><p class=\"meta\">dropscope {version} · configuration \
          <code>{config}</code>{dataset}</p><p class=\"counts\"><span class=\"count\">{total} runs</span> \
          <span class=\"count ok\">{ok} measured</span> <span class=\"count warning\">{warning} \
-         measured with warnings</span> <span class=\"count failed\">{failed} failed</span></p></header>",
+         measured with warnings</span> <span class=\"count failed\">{failed} failed</span>{review}</p></header>",
         version = env!("CARGO_PKG_VERSION"),
         config = escape(config_name),
         total = records.len(),
+        review = review_counts(accepted, rejected),
     );
     out.push_str(
         "<section id=\"how\"><h2>How to read this page</h2><ul>\
@@ -284,7 +326,11 @@ fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRe
          <span class=\"badge warning\">warning</span> measured, but read the note (e.g. the \
          fitted gravity off by more than 2 %: check the frame rate and scale); \
          <span class=\"badge failed\">FAILED</span> nothing measured, the reason says which \
-         file or frame and why. Failed rows are left out of the collapse.</li>\
+         file or frame and why. Failed rows are left out of the collapse. After \
+         <code>dropscope review</code>: <span class=\"badge accepted\">accepted</span> a \
+         warning a person checked and accepted; <span class=\"badge rejected\">rejected</span> \
+         measured, but left out of the collapse by a person, who says why; the \
+         <i>review</i> line under a status lists every decision about the drop.</li>\
          <li><b>Overlay</b>: the frame nearest the maximum penetration, enlarged, with the edge \
          points, the fitted circle and the surface line. The circle should hug the sphere's \
          edge and the line sit on the pillar tops. Click to enlarge.</li>\
@@ -308,10 +354,7 @@ fn collapse_section(out: &mut String, out_dir: &Path, records: &[DropRecord]) {
     let fits_path = out_dir.join("fits.json");
     let fits_bytes = std::fs::read(&fits_path).ok();
     if fits_bytes.is_none() {
-        let measured = records
-            .iter()
-            .filter(|r| r.status != DropStatus::Failed)
-            .count();
+        let measured = records.iter().filter(|r| r.status.collapses()).count();
         let _ = write!(
             out,
             "<p class=\"missing\">The collapse did not run: no fits.json in the output folder{}.</p>",
@@ -389,6 +432,7 @@ pub fn render_report(out_dir: &Path, config_name: &str, records: &[DropRecord]) 
     );
     header(&mut out, out_dir, config_name, records);
     collapse_section(&mut out, out_dir, records);
+    review_section(&mut out, records);
     out.push_str("<section id=\"drops\"><h2>Drops</h2>");
     if records.is_empty() {
         out.push_str("<p class=\"missing\">No runs.</p>");

@@ -292,7 +292,21 @@ pub fn acquire(
     wait: bool,
     notify: &dyn Fn(&str),
 ) -> Result<FolderLock, LockError> {
-    let dir = out.join(LOCK_DIR);
+    acquire_in(out, LOCK_DIR, me, wait, notify)
+}
+
+/// [`acquire`] with the tickets in `out/<lock_dir>`: a lock of its own
+/// beside the jobs' (`dropscope review` holds `.dropscope.review.lock`, so
+/// that a second review of the folder is told it is open, while jobs
+/// still write into it).
+pub fn acquire_in(
+    out: &Path,
+    lock_dir: &str,
+    me: &Holder,
+    wait: bool,
+    notify: &dyn Fn(&str),
+) -> Result<FolderLock, LockError> {
+    let dir = out.join(lock_dir);
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| LockError::Io { path, source }

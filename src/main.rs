@@ -75,6 +75,26 @@ enum Command {
         #[arg(long)]
         wait: bool,
     },
+    /// Look at every frame of the drops of an output folder in a web page on
+    /// this machine, and decide: reject a drop, exclude frames from every
+    /// fit, set a run's surface row by hand, accept a flagged drop.
+    ///
+    /// Serves http://127.0.0.1:PORT/?token=… (printed; only this machine,
+    /// only with the token) until Ctrl-C. Each decision is saved at once in
+    /// OUT/review.csv (or the configuration's input.review); the next
+    /// `dropscope run` or `process` into OUT applies them, measuring again
+    /// only the runs they touch.
+    Review {
+        /// The output folder (default: the configuration's output.dir).
+        #[arg(value_name = "OUT")]
+        dir: Option<PathBuf>,
+        /// The configuration file (default: ./pipeline.toml, else the embedded default).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// The port to listen on, on 127.0.0.1 (default: a free one).
+        #[arg(long, default_value_t = 0)]
+        port: u16,
+    },
     /// The main job on a Slurm cluster: an sbatch array whose tasks each run a
     /// shard (`run --shard slurm`), and a finishing job (`run`) that starts
     /// once every task succeeded and assembles drops.csv, the collapse and
@@ -397,6 +417,73 @@ fn run_report(
     Ok(ExitCode::SUCCESS)
 }
 
+/// `dropscope review`: serve the review page of an output folder until Ctrl-C.
+fn run_review(
+    dir: Option<PathBuf>,
+    config: Option<&std::path::Path>,
+    port: u16,
+) -> anyhow::Result<ExitCode> {
+    use dropscope::review::{decisions, server};
+    let (cfg, _name) = load_config(config)?;
+    let out = dir.unwrap_or_else(|| cfg.output.dir.clone());
+    let drops = out.join("drops.csv");
+    if !drops.is_file() {
+        anyhow::bail!(
+            "{}: no drops.csv there: `dropscope review` looks at the output folder of \
+             `dropscope run` or `dropscope process`; run one of them first",
+            out.display()
+        );
+    }
+    let review_file = decisions::review_path(cfg.input.review.as_deref(), &out);
+    // Read now: a decisions file that cannot be read is said before the page opens.
+    decisions::Decisions::read(&review_file)?;
+    let me = dropscope::lock::Holder::this_process("dropscope review", None);
+    let _held =
+        match dropscope::lock::acquire_in(&out, REVIEW_LOCK, &me, false, &|m| eprintln!("{m}")) {
+            Ok(l) => l,
+            Err(dropscope::lock::LockError::Busy { holder, ticket, .. }) => anyhow::bail!(
+                "{} is already open for review (pid {} on host {}: `{}`): use the address it \
+             printed, or stop it with Ctrl-C first. If that process is gone (another \
+             machine), remove {} and try again",
+                out.display(),
+                holder.pid,
+                holder.host,
+                holder.command,
+                ticket.display()
+            ),
+            Err(e) => return Err(e.into()),
+        };
+    let srv = server::Server::bind(server::ServeOptions {
+        out: out.clone(),
+        review_file: review_file.clone(),
+        cfg,
+        port,
+    })?;
+    let stop = server::stop_on_signals();
+    {
+        use std::io::Write;
+        let mut so = std::io::stdout().lock();
+        writeln!(so, "review of {}: open {}", out.display(), srv.url())?;
+        writeln!(
+            so,
+            "(this machine only; decisions are saved at once in {}; Ctrl-C stops)",
+            review_file.display()
+        )?;
+        so.flush()?;
+    }
+    srv.serve(stop)?;
+    eprintln!(
+        "review stopped; the decisions are in {}: `dropscope run` (or `process`) into {} \
+         applies them",
+        review_file.display(),
+        out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The lock `dropscope review` holds in its output folder (see [`dropscope::lock::acquire_in`]).
+const REVIEW_LOCK: &str = ".dropscope.review.lock";
+
 /// `dropscope check-config`: validate, check that the manifest it names is
 /// there, and print the configuration resolved. The built-in default's
 /// manifest (the repository's sample drops) is missing wherever dropscope
@@ -528,6 +615,7 @@ fn main() -> ExitCode {
             wait,
         } => run_report(dir.or(out), config, wait),
         Command::Slurm(args) => run_slurm(&args),
+        Command::Review { dir, config, port } => run_review(dir, config.as_deref(), port),
     };
     match result {
         Ok(code) => code,

@@ -464,13 +464,14 @@ fn run_review(
         use std::io::Write;
         let mut so = std::io::stdout().lock();
         writeln!(so, "review of {}: open {}", out.display(), srv.url())?;
-        writeln!(
-            so,
-            "(this machine only; decisions are saved at once in {}; Ctrl-C stops)",
-            review_file.display()
-        )?;
         so.flush()?;
     }
+    // The rest on stderr: stdout is the address alone, for a script that
+    // reads one line and closes the pipe.
+    eprintln!(
+        "(this machine only; decisions are saved at once in {}; Ctrl-C stops)",
+        review_file.display()
+    );
     srv.serve(stop)?;
     eprintln!(
         "review stopped; the decisions are in {}: `dropscope run` (or `process`) into {} \

@@ -14,6 +14,7 @@ mod render_contact;
 mod render_real;
 mod render_saturated;
 mod report;
+mod review;
 mod run;
 mod setup_infer;
 mod shards;
@@ -21,6 +22,7 @@ mod slurm;
 mod source;
 mod source_tiff;
 mod timings;
+mod webdriver;
 mod wide_frames;
 
 /// `../shared/data/phantom-samples/` beside the checkout, with `rel` joined:

@@ -358,3 +358,25 @@ impl Drop for Driver {
         let _ = self.child.wait();
     }
 }
+
+/// A test whose program is missing is skipped, saying so, unless every
+/// test is required to run: then it fails naming the program.
+#[test]
+fn a_missing_program_skips_a_test_unless_all_are_required() {
+    let missing = "/nonexistent/chromedriver";
+    let asked = std::panic::catch_unwind(|| have("webdriver::example", &[missing]));
+    if std::env::var("DROPSCOPE_REQUIRE_ALL").as_deref() == Ok("1") {
+        let e = asked.unwrap_err();
+        let message = e.downcast_ref::<String>().cloned().unwrap_or_default();
+        assert!(
+            message.contains(missing) && message.contains("DROPSCOPE_REQUIRE_ALL=1"),
+            "{message}"
+        );
+    } else {
+        assert!(!asked.unwrap());
+    }
+    assert!(have(
+        "webdriver::example",
+        &[env!("CARGO_BIN_EXE_dropscope")]
+    ));
+}

@@ -153,12 +153,14 @@
       say(e.message, true);
     }
   }
+  // Back to the list, read again first (it shows the decisions just made),
+  // so that the rows shown are never replaced under the pointer.
   $('back').addEventListener('click', async () => {
+    try { await loadList(); } catch (e) { say(e.message, true); }
     drop = null;
     history.replaceState(null, '', location.pathname + location.search);
     $('drop').hidden = true;
     $('list').hidden = false;
-    try { await loadList(); } catch (e) { say(e.message, true); }
   });
 
   function currentFrame() { return drop.frames[drop.at]; }

@@ -535,6 +535,16 @@ fn the_page_in_chromium_rejects_excludes_and_sets_a_surface_and_the_job_honours_
         s.surface_row_px_err,
         Some(dropscope::review::decisions::HAND_SURFACE_ERR_PX)
     );
+    // …and shown: the page draws the row the job used, and says where it
+    // came from.
+    let shown = Review::start(d, &out, &cfg);
+    let (status, body) = shown.get(&format!("/api/run?token={}&run={surfaced}", shown.token));
+    assert_eq!(status, 200, "{}", text(&body));
+    let j: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(j["surface"]["source"], "review");
+    assert_eq!(j["surface"]["row_at_impact_px"].as_f64(), Some(row));
+    let (status, said) = shown.interrupt();
+    assert!(status.success(), "{status}: {said}");
     // The untouched drop is the same row.
     assert_eq!(by(&after, untouched), by(&clean, untouched));
     // The report and provenance.json show every decision.
@@ -585,6 +595,18 @@ fn bad_requests_are_refused_and_change_nothing_and_ctrl_c_stops_the_review() {
     let (s, page) = review.get(&format!("/?token={t}"));
     assert_eq!(s, 200);
     assert!(text(&page).contains(&format!("/page.js?token={t}")));
+    // Nothing from the network: the page, its script and its style name no
+    // other server (the one `http` in the script is SVG's namespace, a
+    // name, not a request).
+    for part in ["/", "/page.js", "/page.css"] {
+        let (s, body) = review.get(&format!("{part}?token={t}"));
+        assert_eq!(s, 200);
+        let body = text(&body).replace("'http://www.w3.org/2000/svg'", "");
+        assert!(
+            !body.contains("http:") && !body.contains("https:") && !body.contains("//cdn"),
+            "{part} names another server"
+        );
+    }
     let (s, body) = review.get(&format!(
         "/api/frame?token={t}&run={run}&frame=-30&view=contact"
     ));

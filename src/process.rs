@@ -962,12 +962,14 @@ fn bounded_points<'a>(
 
 /// [`held_points`] of frames given with their held fits (the track's, or
 /// moved by a lens: [`crate::lens::undistort_held`]); a circle leaving the
-/// frame is no point.
+/// frame is no point, nor a frame the tracker found off its neighbours'
+/// flight ([`crate::track::Flag::Outlier`]).
 fn points_of(
     held: impl Iterator<Item = (FrameTrack, crate::detect::CircleFit)>,
     half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
 ) -> impl Iterator<Item = TrackPoint> {
-    held.filter(|(f, _)| !f.flags.contains(crate::track::Flag::Partial))
+    use crate::track::Flag;
+    held.filter(|(f, _)| !(f.flags.contains(Flag::Partial) || f.flags.contains(Flag::Outlier)))
         .map(move |(f, h)| {
             let (hw, hw_err) = f.free.as_ref().map_or((None, None), &half_width);
             TrackPoint {

@@ -45,6 +45,11 @@
 //!    normals were centred on (centre and radius). Otherwise (a free radius
 //!    far off on a short arc, or a failed fit) the frame's band is read
 //!    again and measured around the held circle ([`Track::reread_frames`]).
+//! 5. The frames in free flight far off the path of their neighbours are
+//!    flagged [`Flag::Outlier`] ([`outliers`]); the measurement leaves them
+//!    out.
+
+pub mod outliers;
 
 use crate::detect::background::GainRegion;
 use crate::detect::background_rows::{from_sample_rows, SampleRows};
@@ -191,7 +196,8 @@ pub struct FrameTrack {
     pub free: Option<CircleFit>,
     /// Pass 2: radius held at the calibrated R_px.
     pub held: Option<CircleFit>,
-    /// `recovered`, `partial` (the circle leaves the frame), `missing`.
+    /// `recovered`, `partial` (the circle leaves the frame), `missing`,
+    /// `outlier` (off its neighbours in flight: [`outliers`]).
     pub flags: FrameFlags,
 }
 
@@ -204,10 +210,14 @@ pub enum Flag {
     Partial,
     /// Looked for and not found (or its held fit failed).
     Missing,
+    /// In free flight, off the path of the frames around it far beyond
+    /// the errors ([`outliers`]): mismeasured. The measurement leaves it
+    /// out of its fits.
+    Outlier,
 }
 
 impl Flag {
-    const ALL: [Flag; 3] = [Flag::Recovered, Flag::Partial, Flag::Missing];
+    const ALL: [Flag; 4] = [Flag::Recovered, Flag::Partial, Flag::Missing, Flag::Outlier];
 
     /// The flag's word in the track CSV.
     pub fn name(self) -> &'static str {
@@ -215,6 +225,7 @@ impl Flag {
             Flag::Recovered => "recovered",
             Flag::Partial => "partial",
             Flag::Missing => "missing",
+            Flag::Outlier => "outlier",
         }
     }
 }
@@ -294,6 +305,8 @@ pub struct Track {
     /// Frames pass 1 did not search: a search further on, within a
     /// [`search_stride`], found nothing ([`TrackSettings::probe_searches`]).
     pub unsearched_frames: usize,
+    /// Frames flagged [`Flag::Outlier`].
+    pub outlier_frames: usize,
 }
 
 /// Why a run could not be tracked.
@@ -593,6 +606,14 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         }
         frames.set(i, ft)?;
     }
+    // 5. The frames in flight far off their neighbours.
+    let outliers = flight_outliers(&frames, radius_px, &surface, st.edge.surface_margin_px);
+    frames.check()?;
+    for &i in &outliers {
+        let mut ft = frames.get(i)?;
+        ft.flags.insert(Flag::Outlier);
+        frames.set(i, ft)?;
+    }
     Ok(Track {
         surface,
         surface_from_config,
@@ -609,7 +630,49 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
         away_frames,
         searched_ahead,
         unsearched_frames,
+        outlier_frames: outliers.len(),
     })
+}
+
+/// Step 5 of [`track`]: the indices of the frames in free flight far off
+/// their neighbours ([`outliers`]). A frame is in flight when it has a held
+/// fit, its circle stays in the frame (not [`Flag::Partial`]) and its
+/// bottom is above the surface line by more than `margin_px`; it is
+/// checked on its held centre and, where its free fit has one, its free
+/// radius with their reported errors.
+fn flight_outliers(
+    frames: &Records<FrameTrack>,
+    radius_px: f64,
+    surface: &SurfaceLine,
+    margin_px: f64,
+) -> Vec<usize> {
+    use outliers::{Outliers, Sample, Seen};
+    let mut check = Outliers::default();
+    // The records' positions (the frames' indices: a record a frame, in order).
+    for (k, f) in frames.iter().enumerate() {
+        let seen = match f.held {
+            None => Seen::Skip,
+            Some(_) if f.flags.contains(Flag::Partial) => Seen::Skip,
+            Some(h) if h.z_px + radius_px >= surface.row_at(h.x_px) - margin_px => Seen::Break,
+            Some(h) => {
+                let r = f
+                    .free
+                    .and_then(|c| c.cov.sigma_r_px().map(|s| (c.r_px, s)))
+                    .unwrap_or((f64::NAN, f64::NAN));
+                Seen::Flight(Sample {
+                    index: k,
+                    t_s: f.t_s,
+                    values: [
+                        (h.x_px, h.cov.sigma_x_px()),
+                        (h.z_px, h.cov.sigma_z_px()),
+                        r,
+                    ],
+                })
+            }
+        };
+        check.push(seen);
+    }
+    check.finish()
 }
 
 /// Pass 2's result `h` put into the frame's record (a fit that failed flags

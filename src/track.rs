@@ -2618,27 +2618,39 @@ mod tests {
         };
         let (a, b) = (held(&kept), held(&fresh));
         assert_eq!(fresh.reread_frames, b.len());
-        let mut worst: (f64, f64, f64) = (0.0, 0.0, 0.0);
-        for ((p, q), &(x, z)) in a.iter().zip(&b).zip(&truth) {
+        let mut worst: (f64, f64, f64, f64) = (0.0, 0.0, 0.0, 0.0);
+        let mut sigma_z = (f64::INFINITY, 0.0_f64);
+        for (k, ((p, q), &(x, z))) in a.iter().zip(&b).zip(&truth).enumerate() {
             worst.0 = worst.0.max((p.z_px - z).abs()).max((p.x_px - x).abs());
             worst.1 = worst.1.max((q.z_px - z).abs()).max((q.x_px - x).abs());
-            worst.2 = worst.2.max((p.z_px - q.z_px).abs());
+            let dz = (p.z_px - q.z_px).abs();
+            if k == 0 {
+                worst.3 = dz;
+            } else {
+                worst.2 = worst.2.max(dz);
+            }
             // σ_z: from the same kind of points, so close (within 30 %).
             let (sp, sq) = (p.cov.sigma_z_px(), q.cov.sigma_z_px());
             assert!((sp / sq - 1.0).abs() < 0.3, "σ_z {sp} vs {sq}");
+            sigma_z = (sigma_z.0.min(sp), sigma_z.1.max(sp));
         }
         println!(
-            "max |error| kept {:.4}, fresh {:.4}; max |Δz| {:.4} px",
-            worst.0, worst.1, worst.2
+            "max |error| kept {:.4}, fresh {:.4}; max |Δz| {:.5} px, in the first frame {:.5} px; \
+             σ_z {:.5}..{:.5} px",
+            worst.0, worst.1, worst.2, worst.3, sigma_z.0, sigma_z.1
         );
         // Both well within the issue's free-flight 95th percentile (0.06
         // px; measured max 0.015 px for either, x or z), and alike: the
         // schemes sample the same frame, with windows placed up to ~0.5 px
         // apart along the normals, which the estimator does not see, so
         // they differ by far less than the frame's noise moves a centre
-        // (σ_z ≈ 0.004 px here; measured max |Δz| 0.0018 px).
+        // (σ_z 0.005–0.009 px here; measured max |Δz| 0.0009 px). The
+        // first frame's free circle, from the coarse start, is the farthest
+        // from the held one, and its fresh windows the farthest from the
+        // kept: there they differ by up to the frame's σ_z (measured |Δz|
+        // 0.0050 px).
         assert!(worst.0 < 0.03 && worst.1 < 0.03, "{worst:?}");
-        assert!(worst.2 < 0.005, "{worst:?}");
+        assert!(worst.2 < 0.002 && worst.3 < 0.0075, "{worst:?}");
     }
 
     #[test]

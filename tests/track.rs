@@ -21,31 +21,37 @@ use std::path::{Path, PathBuf};
 /// beside them says 30 000).
 const PHOTRON_FPS: f64 = 30_000.0;
 
-/// `../shared/data/real-footage/photron-ball-30kfps/` beside the checkout;
-/// without it the test stops saying where it looked.
-fn photron() -> PathBuf {
+/// `../shared/data/real-footage/photron-ball-30kfps/` beside the checkout,
+/// or `None` (after printing a SKIPPED notice that says where it looked)
+/// when the project's shared/ folder is not there.
+fn photron() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/data/real-footage/photron-ball-30kfps");
-    assert!(
-        dir.join("frames16").is_dir(),
-        "the real Photron recording is missing: looked for {}. These tests need the \
-         project's shared/ folder beside the checkout (shared/data/real-footage/)",
-        dir.display()
-    );
-    dir
+    if dir.join("frames16").is_dir() {
+        Some(dir)
+    } else {
+        println!(
+            "SKIPPED: the real Photron recording is missing: looked for {}. These tests \
+             need the project's shared/ folder beside the checkout (shared/data/real-footage/)",
+            dir.join("frames16").display()
+        );
+        None
+    }
 }
 
-/// The Photron frames in memory.
-fn photron_movie() -> MemorySource {
+/// The Photron frames in memory and the folder they came from, or `None`
+/// (SKIPPED) without the folder.
+fn photron_movie() -> Option<(MemorySource, PathBuf)> {
+    let dir = photron()?;
     let options = OpenOptions {
         fps_fallback: Some(PHOTRON_FPS),
         ..OpenOptions::default()
     };
-    let mut source = open(&photron().join("frames16"), &options).unwrap();
+    let mut source = open(&dir.join("frames16"), &options).unwrap();
     let meta = source.meta();
     assert_eq!((meta.frame_count, meta.width, meta.height), (15, 384, 384));
     assert_eq!(meta.fps, PHOTRON_FPS);
-    MemorySource::load(source.as_mut()).unwrap()
+    Some((MemorySource::load(source.as_mut()).unwrap(), dir))
 }
 
 fn tracked(movie: &MemorySource, background_frames: usize) -> Track {
@@ -73,6 +79,10 @@ fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|a| a * a).sum::<f64>() / v.len() as f64).sqrt()
 }
 
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0, |m: f64, a| m.max(a.abs()))
+}
+
 /// The slope of `y`'s straight line in `t` times the span of `t`: how much
 /// the line changes over the points.
 fn line_change(t: &[f64], y: &[f64]) -> f64 {
@@ -83,8 +93,8 @@ fn line_change(t: &[f64], y: &[f64]) -> f64 {
 
 /// The helper's crude half-level crossings (quicklook.csv): per frame the
 /// centre row and the radius, half the mean of height and width.
-fn quicklook() -> Vec<(i64, f64, f64)> {
-    std::fs::read_to_string(photron().join("quicklook.csv"))
+fn quicklook(dir: &Path) -> Vec<(i64, f64, f64)> {
+    std::fs::read_to_string(dir.join("quicklook.csv"))
         .unwrap()
         .lines()
         .filter(|l| !l.starts_with('#') && !l.starts_with("frame"))
@@ -97,7 +107,9 @@ fn quicklook() -> Vec<(i64, f64, f64)> {
 
 #[test]
 fn the_photron_ball_is_tracked_to_its_noise() {
-    let movie = photron_movie();
+    let Some((movie, dir)) = photron_movie() else {
+        return;
+    };
     let tr = tracked(&movie, DetectConfig::default().background_frames);
     let frames: Vec<FrameTrack> = tr.frames.iter().collect();
     assert_eq!(frames.len(), 15);
@@ -108,7 +120,7 @@ fn the_photron_ball_is_tracked_to_its_noise() {
     }
     assert_eq!(tr.outlier_frames, 0);
     let t: Vec<f64> = frames.iter().map(|f| f.t_s).collect();
-    let look = quicklook();
+    let look = quicklook(&dir);
     let look_t: Vec<f64> = look.iter().map(|q| q.0 as f64 / PHOTRON_FPS).collect();
     let look_z: Vec<f64> = look.iter().map(|q| q.1).collect();
     let look_rms = rms(&line_residuals(&look_t, &look_z));
@@ -126,17 +138,22 @@ fn the_photron_ball_is_tracked_to_its_noise() {
         let z: Vec<f64> = fit.iter().map(|c| c.z_px).collect();
         let (rx, rz) = (line_residuals(&t, &x), line_residuals(&t, &z));
         println!(
-            "{what}: straight-line rms x {:.4} z {:.4} px (half-level crossing z {look_rms:.4})",
+            "{what}: straight-line rms x {:.4} z {:.4} px, max |offset| x {:.4} z {:.4} px \
+             (half-level crossing: rms z {look_rms:.4})",
             rms(&rx),
-            rms(&rz)
+            rms(&rz),
+            max_abs(&rx),
+            max_abs(&rz)
         );
         // The centre on its straight line to 0.05 px r.m.s. and at most as
-        // far off as the half-level crossing (measured: 0.004 / 0.006 px).
+        // far off as the half-level crossing, no frame further off than
+        // 0.1 px (measured: rms 0.004 / 0.006 px, max 0.011 / 0.014 px).
         for (axis, r) in [("x", &rx), ("z", &rz)] {
             assert!(
-                rms(r) <= 0.05 && rms(r) <= look_rms,
-                "{what} {axis}: rms {:.4} px",
-                rms(r)
+                rms(r) <= 0.05 && rms(r) <= look_rms && max_abs(r) <= 0.1,
+                "{what} {axis}: rms {:.4} px, max |offset| {:.4} px",
+                rms(r),
+                max_abs(r)
             );
         }
         // No frame beyond 3σ of its own reported error (measured: 0.7σ).
@@ -183,11 +200,15 @@ fn the_photron_track_does_not_depend_on_the_background_frames() {
     // With the ball in view in every frame, no sample frame shows the
     // light behind it; the background must still leave every frame's
     // centre where it is, whichever frames it is built from.
-    let movie = photron_movie();
+    let Some((movie, _)) = photron_movie() else {
+        return;
+    };
     let default = tracked(&movie, DetectConfig::default().background_frames);
     let reference: Vec<FrameTrack> = default.frames.iter().collect();
     for k in 2..=15 {
         let tr = tracked(&movie, k);
+        let frames: Vec<FrameTrack> = tr.frames.iter().collect();
+        assert_eq!(frames.len(), 15, "{k} frames");
         // Within their errors: R_px within its error, each centre within
         // half its σ (measured: R within 0.002 px, centres within 0.1σ).
         assert!(
@@ -197,7 +218,7 @@ fn the_photron_track_does_not_depend_on_the_background_frames() {
             default.radius_px,
             default.radius_err_px
         );
-        for (f, g) in tr.frames.iter().zip(&reference) {
+        for (f, g) in frames.iter().zip(&reference) {
             let (a, b) = (f.held.unwrap(), g.held.unwrap());
             let (dx, dz) = (a.x_px - b.x_px, a.z_px - b.z_px);
             assert!(
@@ -206,6 +227,35 @@ fn the_photron_track_does_not_depend_on_the_background_frames() {
                 f.frame
             );
             assert_eq!(f.flags.text(), "", "{k} frames, frame {}", f.frame);
+        }
+        // And on its straight line with every count of frames: 0.05 px
+        // r.m.s., no frame 0.1 px off (measured for 2..15 frames: rms
+        // ≤ 0.006 px, max ≤ 0.015 px, either axis; with the background
+        // that kept the sphere's edges, 4 frames gave 2.55 px r.m.s.).
+        let t: Vec<f64> = frames.iter().map(|f| f.t_s).collect();
+        let x: Vec<f64> = frames.iter().map(|f| f.held.unwrap().x_px).collect();
+        let z: Vec<f64> = frames.iter().map(|f| f.held.unwrap().z_px).collect();
+        let (rx, rz) = (line_residuals(&t, &x), line_residuals(&t, &z));
+        let r: Vec<f64> = frames.iter().map(|f| f.free.unwrap().r_px).collect();
+        println!(
+            "background_frames {k:2}: held straight-line rms x {:.4} z {:.4} px, max |offset| \
+             x {:.4} z {:.4} px; free radius {:.3}..{:.3} px, R {:.4} ± {:.4} px",
+            rms(&rx),
+            rms(&rz),
+            max_abs(&rx),
+            max_abs(&rz),
+            r.iter().cloned().fold(f64::INFINITY, f64::min),
+            r.iter().cloned().fold(f64::NEG_INFINITY, f64::max),
+            tr.radius_px,
+            tr.radius_err_px
+        );
+        for (axis, e) in [("x", &rx), ("z", &rz)] {
+            assert!(
+                rms(e) <= 0.05 && max_abs(e) <= 0.1,
+                "{k} frames, {axis}: rms {:.4} px, max |offset| {:.4} px",
+                rms(e),
+                max_abs(e)
+            );
         }
     }
 }
@@ -226,7 +276,9 @@ fn shadowed(frame: &Frame, (x, z, r): (f64, f64, f64)) -> Frame {
 
 #[test]
 fn a_photron_frame_off_its_flight_is_flagged_outlier() {
-    let movie = photron_movie();
+    let Some((movie, _)) = photron_movie() else {
+        return;
+    };
     let clean = tracked(&movie, DetectConfig::default().background_frames);
     let reference: Vec<FrameTrack> = clean.frames.iter().collect();
     // Camera image 58 (the 7th frame) shadowed.

@@ -57,6 +57,8 @@ pub struct RunArgs {
     /// drop. Changes no output.
     #[arg(long)]
     pub timings: bool,
+    #[command(flatten)]
+    pub recording: crate::cli_values::RecordingArgs,
 }
 
 /// Why the job could not run (a bad run is a row, not this).
@@ -420,6 +422,9 @@ pub(crate) fn provenance_json(
         /// With the keys of pipeline.toml (`radius_mm`, `[surface.<name>]`),
         /// as check-config prints it.
         configuration: toml::Value,
+        /// `--fps`, `--mm-per-px`, `--surface-row-px` when given.
+        #[serde(skip_serializing_if = "crate::config::CommandLineValues::is_empty")]
+        command_line: crate::config::CommandLineValues,
         runs: Vec<RunProvenance<'a>>,
     }
     let p = Provenance {
@@ -427,6 +432,7 @@ pub(crate) fn provenance_json(
         dropscope_source_sha256: cache::SOURCE_SHA256,
         configuration_file: config_name,
         configuration: cfg.to_file_value(),
+        command_line: cfg.command_line,
         runs: entries
             .iter()
             .map(|e| RunProvenance {

@@ -38,6 +38,17 @@ pub struct DropRecord {
     /// resolved it.
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub path: String,
+    /// The frame rate the run was measured at (frames/s): the recording's
+    /// own, else the fallback `fps_source` names.
+    #[serde(default)]
+    pub fps: Option<f64>,
+    /// Where `fps` came from: `xml` (the PCC XML side file), `cine` (the
+    /// cine header), or another reader's format: the recording's own; else
+    /// `manifest`, `flag` (`--fps`), `config` (`camera.fps`) or `default`
+    /// ([`crate::config::DEFAULT_FPS`], nothing gave one). The last two are
+    /// flagged `fps_assumed`.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub fps_source: String,
     pub v_impact_m_s: Option<f64>,
     #[serde(default)]
     pub v_impact_m_s_err: Option<f64>,
@@ -181,6 +192,8 @@ impl DropRecord {
             surface: String::new(),
             drop_height_cm: None,
             path: String::new(),
+            fps: None,
+            fps_source: String::new(),
             v_impact_m_s: None,
             v_impact_m_s_err: None,
             v_rebound_m_s: None,
@@ -273,7 +286,7 @@ pub struct TrackRow {
 }
 
 /// What a text column holds for none: in a track's `flags` a frame without
-/// flags; in drops.csv's `surface`, `path`, `setup`, `scale_source`,
+/// flags; in drops.csv's `surface`, `path`, `fps_source`, `setup`, `scale_source`,
 /// `surface_source`, `flags` and `reason` a row without one. A word, never
 /// an empty field, so that a reader takes the column as text in every file
 /// (pandas read an all-empty column as float64, issue 17).
@@ -418,6 +431,7 @@ mod tests {
         let text = [
             "surface",
             "path",
+            "fps_source",
             "setup",
             "scale_source",
             "surface_source",

@@ -143,6 +143,7 @@ fn job_counts(job: &dropscope::batch::JobSummary) -> String {
 fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
+    cfg.command_line = args.recording.values();
     if args.config.is_none() && name == dropscope::config::EMBEDDED_NAME {
         if let Some(m) = cfg.input.manifest.as_ref().filter(|m| !m.exists()) {
             anyhow::bail!(
@@ -199,7 +200,10 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         // succeeded) reports them with exit status 1.
         return Ok(ExitCode::SUCCESS);
     }
-    for w in &job.collapse_warnings {
+    for w in dropscope::progress::closing_warnings(&job.records)
+        .iter()
+        .chain(&job.collapse_warnings)
+    {
         eprintln!("warning: {w}");
     }
     eprintln!(
@@ -230,6 +234,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     }
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
+    cfg.command_line = args.recording.values();
     let runs = match &args.manifest {
         Some(m) => dropscope::manifest::read_job_manifest(m)?,
         None => dropscope::process::runs_from_inputs(
@@ -258,7 +263,10 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     );
     progress.finish();
     let job = job?;
-    for w in &job.warnings {
+    for w in dropscope::progress::closing_warnings(&job.records)
+        .iter()
+        .chain(&job.warnings)
+    {
         eprintln!("warning: {w}");
     }
     let failed = job.count(DropStatus::Failed);
@@ -373,6 +381,28 @@ fn run_report(
     let records = dropscope::dataset::read_csv(&out.join("drops.csv"))?;
     let path = dropscope::report::write_report(&out, &name, &records)?;
     println!("report: {}", path.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `dropscope export`: the frames, and a warning when their times are at a
+/// frame rate the input does not hold and `--fps` did not give (the
+/// configuration's camera.fps).
+fn run_export(args: &dropscope::source::cli::ExportArgs) -> anyhow::Result<ExitCode> {
+    let files = dropscope::source::cli::run_export(args)?;
+    eprintln!("wrote {} frame(s) to {}", files.len(), args.out.display());
+    if args.source.fps.is_none() {
+        // Opened again (headers only) to learn where its frame rate came from.
+        if let (src, Some(origin)) = args.source.open_source(&args.input)? {
+            eprintln!(
+                "warning: {} holds no frame rate: the time_s of {}_frames.csv are at {} \
+                 frames/s, from {origin}, an assumed value; pass --fps if that is not this \
+                 recording's",
+                args.input.display(),
+                dropscope::source::input_name(&args.input),
+                src.meta().fps
+            );
+        }
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -493,10 +523,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => {
             dropscope::source::cli::run_inspect(&args).map(|()| ExitCode::SUCCESS)
         }
-        Command::Export(args) => dropscope::source::cli::run_export(&args).map(|files| {
-            eprintln!("wrote {} frame(s) to {}", files.len(), args.out.display());
-            ExitCode::SUCCESS
-        }),
+        Command::Export(args) => run_export(&args),
         Command::Render(args) => run_render(&args),
         Command::Collapse { args, wait } => run_collapse(&args, wait),
         Command::Process { args, wait } => run_process(&args, wait),

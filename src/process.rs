@@ -43,6 +43,8 @@ pub struct ProcessArgs {
     /// Sphere radius for INPUTs (default: the configuration's sphere.radius_mm).
     #[arg(long, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub radius_mm: Option<f64>,
+    #[command(flatten)]
+    pub recording: crate::cli_values::RecordingArgs,
     /// Also draw the overlay of these camera image numbers (comma-separated,
     /// e.g. `-5,0,12`) for every run: `plots/overlays/<run>_<number>.png`.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
@@ -210,7 +212,7 @@ pub fn process_setup(
     mut kept: Vec<Option<KeptRun>>,
 ) -> Vec<RunOutcome> {
     kept.resize_with(runs.len(), || None);
-    let (tracked, track_s): (Vec<Result<Tracked, String>>, Vec<f64>) = runs
+    let (tracked, track_s): (Vec<Result<Tracked, RunFailure>>, Vec<f64>) = runs
         .par_iter()
         .zip(kept)
         .map(|(r, kept)| {
@@ -242,11 +244,21 @@ pub fn process_setup(
         .zip(track_s)
         .map(|((run, t), track_s)| {
             let start = std::time::Instant::now();
+            let recording = match &t {
+                Ok(t) => Some(t.recording()),
+                Err(f) => f.recording.clone(),
+            };
             let mut o = caught(run, || {
                 let _timed = crate::timings::start(crate::timings::Stage::Events);
-                measure_run(t?, run, cfg, [pooled, pooled_at_bound], overlay_frames)
+                measure_run(
+                    t.map_err(|f| f.reason)?,
+                    run,
+                    cfg,
+                    [pooled, pooled_at_bound],
+                    overlay_frames,
+                )
             })
-            .unwrap_or_else(|reason| failed_outcome(run, cfg, reason));
+            .unwrap_or_else(|reason| failed_outcome(run, cfg, reason, recording.as_ref()));
             o.seconds = track_s + start.elapsed().as_secs_f64();
             o
         })
@@ -254,13 +266,46 @@ pub fn process_setup(
 }
 
 /// Run `work` for `run`: its panic becomes an error naming the input.
-fn caught<T>(run: &RunSpec, work: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
+fn caught<T, E: From<String>>(run: &RunSpec, work: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(work))
-        .unwrap_or_else(|payload| Err(panic_reason(&run.path, payload.as_ref())))
+        .unwrap_or_else(|payload| Err(panic_reason(&run.path, payload.as_ref()).into()))
 }
 
-/// The `failed` outcome of `run`, with its reason.
-fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOutcome {
+/// Why a run could not be tracked, with what is known of its recording
+/// once it was opened.
+#[derive(Debug, Clone, PartialEq)]
+struct RunFailure {
+    reason: String,
+    recording: Option<Recording>,
+}
+
+impl From<String> for RunFailure {
+    fn from(reason: String) -> Self {
+        RunFailure {
+            reason,
+            recording: None,
+        }
+    }
+}
+
+/// What a run's row says of its recording, failed or not.
+#[derive(Debug, Clone, PartialEq)]
+struct Recording {
+    /// Its frames (the track's rows; the summary's frames read).
+    frames: usize,
+    fps: f64,
+    /// The `fps_source` word ([`open_run`]).
+    fps_source: String,
+}
+
+/// The `failed` outcome of `run`, with its reason and what is known of its
+/// recording.
+fn failed_outcome(
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+    reason: String,
+    recording: Option<&Recording>,
+) -> RunOutcome {
     let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, reason);
     record.surface = run
         .surface
@@ -270,10 +315,12 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
     record.setup = run.setup.clone().unwrap_or_default();
     record.drop_height_cm = run.drop_height_cm;
     record.path = run.path.display().to_string();
+    record.fps = recording.map(|r| r.fps);
+    record.fps_source = recording.map(|r| r.fps_source.clone()).unwrap_or_default();
     RunOutcome {
         record,
         track_csv: Spool::new(0),
-        track_rows: 0,
+        track_rows: recording.map_or(0, |r| r.frames),
         overlay: None,
         frame_overlays: Vec::new(),
         impact: None,
@@ -332,7 +379,7 @@ impl KeptRuns {
 }
 
 /// A run [`prepare`] tracked (see [`KeptRuns`]).
-pub struct KeptRun(Result<ShelvedRun, String>);
+pub struct KeptRun(Result<ShelvedRun, RunFailure>);
 
 /// A [`Tracked`] without its source (opened again: a job's runs are not
 /// all held open) and the distortion bound's track (made again from the
@@ -344,12 +391,13 @@ struct ShelvedRun {
     settings: TrackSettings,
     surface_name: String,
     curvature: Option<Curvature>,
+    fps_source: String,
 }
 
 impl KeptRun {
     /// What [`track_run`] gave, or `t`'s track put on `shelf`; `None` when
     /// it could not be put there.
-    fn new(t: Result<Tracked, String>, shelf: Option<&Arc<Shelf>>) -> Option<KeptRun> {
+    fn new(t: Result<Tracked, RunFailure>, shelf: Option<&Arc<Shelf>>) -> Option<KeptRun> {
         let t = match t {
             Ok(t) => t,
             Err(e) => return Some(KeptRun(Err(e))),
@@ -363,12 +411,13 @@ impl KeptRun {
             settings: t.settings,
             surface_name: t.surface_name,
             curvature: t.curvature,
+            fps_source: t.fps_source,
         })))
     }
 
     /// The run as [`track_run`] gave it; `None` when its track cannot be
     /// read back (the run is then tracked again).
-    fn restore(self, run: &RunSpec, cfg: &PipelineConfig) -> Option<Result<Tracked, String>> {
+    fn restore(self, run: &RunSpec, cfg: &PipelineConfig) -> Option<Result<Tracked, RunFailure>> {
         let s = match self.0 {
             Ok(s) => s,
             Err(e) => return Some(Err(e)),
@@ -376,7 +425,9 @@ impl KeptRun {
         let tr =
             crate::timings::time(crate::timings::Stage::Shelf, || s.shelf.take(s.track)).ok()?;
         Some(caught(run, || {
-            let source = open_run(run, cfg)?;
+            // The same recording, opened again: its frame rate is the one
+            // it was tracked at.
+            let (source, _) = open_run(run, cfg)?;
             let bounded = bounded_of(&tr, &s.meta, cfg);
             tr.frames
                 .check()
@@ -389,6 +440,7 @@ impl KeptRun {
                 surface_name: s.surface_name,
                 curvature: s.curvature,
                 bounded,
+                fps_source: s.fps_source,
             })
         }))
     }
@@ -498,9 +550,20 @@ struct Tracked {
     /// The track through a lens at `camera.distortion_bound_px`, when no
     /// k1 is given and the bound is not 0.
     bounded: Option<crate::lens::Bounded>,
+    /// Where `meta.fps` came from (the `fps_source` word, [`open_run`]).
+    fps_source: String,
 }
 
 impl Tracked {
+    /// What the run's row says of its recording.
+    fn recording(&self) -> Recording {
+        Recording {
+            frames: self.tr.frames.len(),
+            fps: self.meta.fps,
+            fps_source: self.fps_source.clone(),
+        }
+    }
+
     /// What the run's images say of its camera set-up.
     fn scene(&self, radius_mm: f64) -> SceneSignature {
         let g_m_s2 = EventConfig::default().g_m_s2;
@@ -542,17 +605,44 @@ fn panic_reason(input: &Path, payload: &(dyn std::any::Any + Send)) -> String {
     )
 }
 
-/// `run`'s frames, opened.
+/// `run`'s frames, opened, and where their frame rate came from (the
+/// `fps_source` column): the recording's own when it holds one, else the
+/// fallback [`PipelineConfig::fps_fallback`] names. A recording without a
+/// rate of its own is opened twice, the first time to learn that.
 fn open_run(
     run: &RunSpec,
     cfg: &PipelineConfig,
-) -> Result<Box<dyn crate::source::FrameSource>, String> {
-    let options = OpenOptions {
-        fps_fallback: run.fps.or(cfg.camera.fps),
-        ..OpenOptions::default()
+) -> Result<(Box<dyn crate::source::FrameSource>, String), String> {
+    use crate::config::FpsSource;
+    let open_with = |fps_fallback: Option<f64>| {
+        let options = OpenOptions {
+            fps_fallback,
+            ..OpenOptions::default()
+        };
+        crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
     };
-    crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
-        .map_err(|e| e.to_string())
+    let has_fps = |m: &crate::source::SourceMeta| m.fps.is_finite() && m.fps > 0.0;
+    match open_with(None) {
+        Ok(src) if has_fps(src.meta()) => {
+            let word = FpsSource::Recording.word(&recording_fps_word(src.meta()));
+            return Ok((src, word));
+        }
+        Ok(_) | Err(crate::source::SourceError::NoFrameRate { .. }) => {}
+        Err(e) => return Err(e.to_string()),
+    }
+    let (fps, from) = cfg.fps_fallback(run.fps);
+    let src = open_with(Some(fps)).map_err(|e| e.to_string())?;
+    Ok((src, from.word("")))
+}
+
+/// The `fps_source` word of a recording's own frame rate: `cine` for a
+/// cine header, `xml` for a PCC XML side file, else the reader's format.
+fn recording_fps_word(meta: &crate::source::SourceMeta) -> String {
+    match meta.format.as_str() {
+        "cine" => "cine".into(),
+        _ if meta.details.side_file.is_some() => "xml".into(),
+        other => other.to_string(),
+    }
 }
 
 /// The track through a lens at `camera.distortion_bound_px`, when no k1 is
@@ -585,7 +675,7 @@ fn bounded_of(
     })
 }
 
-fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
+fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, RunFailure> {
     crate::run_name::check(&run.run)?;
     let surface_name = run
         .surface
@@ -595,18 +685,28 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         return Err(format!(
             "surface `{surface_name}` is not defined in pipeline.toml (known: {})",
             cfg.surfaces.keys().cloned().collect::<Vec<_>>().join(", ")
-        ));
+        )
+        .into());
     }
     use crate::timings::{time, Stage};
-    let mut source = open_run(run, cfg)?;
+    let (mut source, fps_source) = open_run(run, cfg)?;
     let meta = source.meta().clone();
-    let settings = TrackSettings::from_config(&cfg.detect);
-    let mut tr =
-        track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
+    // A failure from here on has a recording: its frames and frame rate
+    // are in the failed row.
+    let failed = |e: &dyn std::fmt::Display| RunFailure {
+        reason: format!("{}: {e}", run.path.display()),
+        recording: Some(Recording {
+            frames: meta.frame_count,
+            fps: meta.fps,
+            fps_source: fps_source.clone(),
+        }),
+    };
+    let settings = TrackSettings::from_config(&cfg.detect_settings());
+    let mut tr = track(source.as_mut(), &settings).map_err(|e| failed(&e))?;
     let camera = &cfg.camera;
     if let Some(k1) = camera.distortion_k1_per_px2 {
-        tr = undistort_track(tr, &Lens::new(k1, meta.width, meta.height))
-            .map_err(|e| format!("{}: {e}", run.path.display()))?;
+        tr =
+            undistort_track(tr, &Lens::new(k1, meta.width, meta.height)).map_err(|e| failed(&e))?;
     }
     // The free falls' curvature, and the track through the lens at the
     // distortion bound with its own: each on a thread.
@@ -622,9 +722,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         },
         || bounded_of(&tr, &meta, cfg),
     );
-    tr.frames
-        .check()
-        .map_err(|e| format!("{}: {e}", run.path.display()))?;
+    tr.frames.check().map_err(|e| failed(&e))?;
     Ok(Tracked {
         source,
         meta,
@@ -633,6 +731,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         surface_name,
         curvature,
         bounded,
+        fps_source,
     })
 }
 
@@ -652,6 +751,7 @@ fn measure_run(
         surface_name,
         curvature,
         bounded,
+        fps_source,
     } = t;
     let event_cfg = EventConfig {
         exposure_s: meta.exposure_s.unwrap_or(0.0),
@@ -662,7 +762,7 @@ fn measure_run(
     let inputs = ScaleInputs {
         radius_mm: run.sphere_radius_mm,
         g_m_s2: event_cfg.g_m_s2,
-        given_mm_per_px: run.mm_per_px.or(cfg.camera.mm_per_px),
+        given_mm_per_px: cfg.given_mm_per_px(run.mm_per_px),
         setup,
         own: curvature,
         r_app_px: tr.radius_px,
@@ -828,19 +928,7 @@ fn measure_run(
             quality::flag(&mut record, quality::FPS_MISMATCH, w.clone());
         }
     }
-    if let Some(f) = run.fps {
-        if (f / meta.fps - 1.0).abs() > crate::source::validate::FPS_AGREEMENT {
-            quality::flag(
-                &mut record,
-                quality::FPS_MISMATCH,
-                format!(
-                    "the manifest's fps {f} disagrees with the file's frame rate {} frames/s; \
-                     the file's is used",
-                    meta.fps
-                ),
-            );
-        }
-    }
+    frame_rate_checks(&mut record, run, cfg, meta.fps, &fps_source);
 
     // The overlay at the frame nearest the maximum penetration, those asked
     // for, and the animated impact; beside them, the track CSV.
@@ -901,6 +989,61 @@ fn measure_run(
         scene: Some(scene),
         seconds: 0.0,
     })
+}
+
+/// Fill the row's `fps` and `fps_source` and flag what is doubtful about
+/// them: a frame rate assumed (`camera.fps` or [`crate::config::DEFAULT_FPS`]:
+/// [`quality::FPS_ASSUMED`]), or one given (manifest, `--fps`) that
+/// disagrees with the recording's own, which is used
+/// ([`quality::FPS_MISMATCH`]).
+fn frame_rate_checks(
+    record: &mut DropRecord,
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+    fps: f64,
+    fps_source: &str,
+) {
+    record.fps = Some(fps);
+    record.fps_source = fps_source.to_string();
+    match fps_source {
+        "config" => quality::flag(
+            record,
+            quality::FPS_ASSUMED,
+            format!(
+                "the recording holds no frame rate: measured at {fps} frames/s, camera.fps of \
+                 the configuration; if that is not this recording's, pass --fps (or the \
+                 manifest's fps column)"
+            ),
+        ),
+        "default" => quality::flag(
+            record,
+            quality::FPS_ASSUMED,
+            format!(
+                "the recording holds no frame rate and none was given: measured at {fps} \
+                 frames/s, dropscope's default, a guess; times and speeds scale with it: pass \
+                 --fps (or the manifest's fps column, or camera.fps)"
+            ),
+        ),
+        "manifest" | "flag" => {}
+        _ => {
+            let given = [
+                (run.fps, "the manifest's fps"),
+                (cfg.command_line.fps, "--fps"),
+            ];
+            if let Some((f, by)) = given.iter().find_map(|(f, by)| Some((f.as_ref()?, by))) {
+                if (f / fps - 1.0).abs() > crate::source::validate::FPS_AGREEMENT {
+                    quality::flag(
+                        record,
+                        quality::FPS_MISMATCH,
+                        format!(
+                            "{by} {f} disagrees with the recording's own frame rate {fps} \
+                             frames/s ({fps_source}); the recording's is used"
+                        ),
+                    );
+                }
+            }
+        }
+    }
 }
 
 /// The share of the background at the white level (within 1 % of
@@ -1291,7 +1434,7 @@ mod tests {
                 seconds: 0.0,
             })
         })
-        .unwrap_or_else(|reason| failed_outcome(&runs[0], &cfg, reason));
+        .unwrap_or_else(|reason| failed_outcome(&runs[0], &cfg, reason, None));
         assert_eq!(o.record.status, crate::dataset::DropStatus::Failed);
         assert_eq!(o.record.run, "drop");
         assert!(

@@ -27,9 +27,13 @@ pub const SCALE_DISAGREEMENT: &str = "scale_disagreement";
 /// Gravity fitted to the free flight is more than 2 % (and 3σ) off g:
 /// the frame rate or the scale is wrong.
 pub const GRAVITY_OFF: &str = "gravity_off";
-/// The manifest's `fps` or the file's frame times disagree with the
-/// file's frame rate.
+/// The manifest's `fps`, `--fps`, or the file's frame times disagree with
+/// the file's frame rate.
 pub const FPS_MISMATCH: &str = "fps_mismatch";
+/// The recording holds no frame rate and none was given for it (manifest
+/// `fps`, `--fps`): it was measured at `camera.fps` or at dropscope's
+/// default, a guess.
+pub const FPS_ASSUMED: &str = "fps_assumed";
 /// The file's frame times are off their regular spacing by more than 1 %
 /// of a frame interval (used as they are).
 pub const TIME_IRREGULAR: &str = "time_irregular";
@@ -43,7 +47,7 @@ pub const NEGATIVE_DAMPING: &str = "negative_damping";
 pub const RESTITUTION_ABOVE_ONE: &str = "restitution_above_one";
 
 /// Every flag with its meaning, in the order they are checked.
-pub const FLAGS: [(&str, &str); 13] = [
+pub const FLAGS: [(&str, &str); 14] = [
     (GAP_IN_CONTACT, "frames missing during the contact"),
     (GAP_AT_PEAK, "frames missing at the maximum penetration"),
     (
@@ -65,7 +69,11 @@ pub const FLAGS: [(&str, &str); 13] = [
     (GRAVITY_OFF, "free-flight gravity > 2 % off g"),
     (
         FPS_MISMATCH,
-        "manifest fps or frame times disagree with the file's frame rate",
+        "manifest fps, --fps or frame times disagree with the file's frame rate",
+    ),
+    (
+        FPS_ASSUMED,
+        "no frame rate in the recording nor given for it: camera.fps or the 10000 default",
     ),
     (
         TIME_IRREGULAR,

@@ -244,9 +244,9 @@ fn json_fps(stdout: &str) -> f64 {
 }
 
 /// Without a PCC XML the frame rate comes from `--fps`, else camera.fps of
-/// `--config`, else of ./pipeline.toml, else of the embedded default — the
-/// rule `process` follows. The values are distinct, so each assertion can
-/// only pass if that source was used.
+/// `--config`, else of ./pipeline.toml; the embedded default sets none, so
+/// without either inspect asks for --fps. The values are distinct, so each
+/// assertion can only pass if that source was used.
 #[test]
 fn inspect_takes_a_folders_missing_fps_from_the_flag_or_the_configuration() {
     let dir = tempfile::tempdir().unwrap();
@@ -257,19 +257,21 @@ fn inspect_takes_a_folders_missing_fps_from_the_flag_or_the_configuration() {
     let work = dir.path().join("work");
     std::fs::create_dir(&work).unwrap();
 
-    // No ./pipeline.toml in `work`: the embedded default's camera.fps.
+    // No ./pipeline.toml in `work`: the embedded default, which assumes no
+    // frame rate.
     let embedded = dropscope::config::PipelineConfig::from_toml_str(
         dropscope::config::EMBEDDED_DEFAULT,
         std::path::Path::new("embedded"),
         std::path::Path::new(""),
     )
-    .unwrap()
-    .camera
-    .fps
     .unwrap();
-    let (code, out, err) = inspect(&work, &run, &[]);
-    assert_eq!(code, 0, "{err}");
-    assert_eq!(json_fps(&out), embedded);
+    assert_eq!(embedded.camera.fps, None);
+    let (code, _, err) = inspect(&work, &run, &[]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("no frame rate") && err.contains("--fps"),
+        "{err}"
+    );
 
     // --config FILE.
     let (code, out, err) = inspect(&work, &run, &["--config", cfg_arg]);

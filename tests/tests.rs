@@ -4,6 +4,7 @@ mod accuracy_effects;
 mod cli;
 mod collapse;
 mod detect;
+mod footage;
 mod hostile;
 mod parallel;
 mod pcc_xml;

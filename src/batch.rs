@@ -669,10 +669,7 @@ fn job_on_pool(
         replace_provenance(out, cfg, config_name, &entries, events)
     })?;
     let collapse = timings::start(Stage::Collapse);
-    let measured = records
-        .iter()
-        .filter(|r| r.status != DropStatus::Failed)
-        .count();
+    let measured = records.iter().filter(|r| r.status.measured()).count();
     // The collapse is redone from drops.csv every time: first remove what an
     // earlier job's collapse wrote, so that no figure of a run that has
     // since failed or left the manifest survives (nor all of it when no

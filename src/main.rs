@@ -68,6 +68,13 @@ enum Command {
         wait: bool,
     },
     /// Measure drops: per-drop dataset (drops.csv), tracks and overlays.
+    ///
+    /// Each row's status: ok; warning (measured, with flags); tracked (the
+    /// sphere was followed but never reached the surface: its track,
+    /// overlay and free flight, v_last_m_s and g_fit_m_s2, no impact);
+    /// failed. Each row's fps_source says where its frame rate came from
+    /// (xml, cine, manifest, flag, config, default). Exit status 0 when no
+    /// run failed, 1 when some did, 2 when the command could not run.
     Process {
         #[command(flatten)]
         args: dropscope::process::ProcessArgs,
@@ -129,13 +136,25 @@ fn hold_folder(
 fn job_counts(job: &dropscope::batch::JobSummary) -> String {
     use dropscope::dataset::DropStatus;
     format!(
-        "{}: {} measured, {} with warnings, {} failed, {} reused from the cache; {}",
+        "{}: {} measured, {} with warnings, {}{} failed, {} reused from the cache; {}",
         dropscope::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
+        tracked_count(job.count(DropStatus::Tracked)),
         job.failed(),
         job.cached,
         speed(job.frames, job.process_s, job.threads),
+    )
+}
+
+/// "N tracked without contact (…), " when some runs are, else nothing.
+fn tracked_count(n: usize) -> String {
+    if n == 0 {
+        return String::new();
+    }
+    format!(
+        "{n} tracked without contact (no impact: their tracks, overlays and free flights, \
+         status `tracked`), "
     )
 }
 
@@ -271,11 +290,12 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     }
     let failed = job.count(DropStatus::Failed);
     eprintln!(
-        "{}: {} measured, {} with warnings, {} failed, {} reused from the cache; {}; \
+        "{}: {} measured, {} with warnings, {}{} failed, {} reused from the cache; {}; \
          results in {}",
         dropscope::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
+        tracked_count(job.count(DropStatus::Tracked)),
         failed,
         job.cached,
         speed(job.frames, job.process_s, job.threads),

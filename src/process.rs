@@ -812,7 +812,39 @@ fn measure_run(
         surface: surface_name,
     };
     let failed = |e: crate::events::EventError| format!("{}: {e}", run.path.display());
-    let points = window(&geom, &geom).map_err(failed)?;
+    let points = match window(&geom, &geom) {
+        Err(e @ crate::events::EventError::NeverLands { .. }) => {
+            // Tracked, never landing: its free flight and files, no impact.
+            let row_of = |f: &FrameTrack| {
+                let mut row = track_row(f);
+                row.delta_mm = row
+                    .x_px
+                    .zip(row.z_px)
+                    .map(|(x, z)| geom.penetration_px(x, z) * geom.mm_per_px);
+                row
+            };
+            let files = Files {
+                recording: RecordingRow {
+                    run,
+                    cfg,
+                    meta: &meta,
+                    tr: &tr,
+                    sc: &sc,
+                    edge_offset,
+                    fps_source: &fps_source,
+                },
+                source: source.as_mut(),
+                settings: &settings,
+                row_of: &row_of,
+                still_at_s: None,
+                impact: None,
+                overlay_frames,
+                scene,
+            };
+            return tracked_only(failed(e), &info, &geom, event_cfg.g_m_s2, files);
+        }
+        points => points.map_err(failed)?,
+    };
     let mut m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
     drop(points);
     // The surface: the image's line, checked against (and moved to) where
@@ -899,54 +931,135 @@ fn measure_run(
         }
     }
     crate::measure::flag_restitution_above_one(&mut record);
-    record.setup = run.setup.clone().unwrap_or_default();
-    record.drop_height_cm = run.drop_height_cm;
-    record.path = run.path.display().to_string();
-    record.scale_source = sc.source.name().to_string();
-    record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
-    record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);
-    record.edge_offset_px = edge_offset.map(|(o, _)| o);
-    record.edge_offset_px_err = edge_offset.map(|(_, e)| e);
-    record.surface_model_err_px = Some(tr.surface.model_err_px);
-    if let Some(w) = sc.warning {
-        quality::flag(&mut record, quality::SCALE_DISAGREEMENT, w);
-    }
-    if let Some(share) = saturated_share(&tr, meta.bit_depth) {
-        quality::flag(
-            &mut record,
-            quality::SATURATED,
-            format!(
-                "{:.1} % of the background near the sphere's path is clipped at the white level",
-                share * 100.0
-            ),
-        );
-    }
-    for w in &meta.details.warnings {
-        if w.starts_with(crate::source::validate::IRREGULAR_TIMES) {
-            quality::flag(&mut record, quality::TIME_IRREGULAR, w.clone());
-        } else if w.starts_with(crate::source::validate::TIMES_AND_RATE_DISAGREE) {
-            quality::flag(&mut record, quality::FPS_MISMATCH, w.clone());
-        }
-    }
-    frame_rate_checks(&mut record, run, cfg, meta.fps, &fps_source);
+    let recording = RecordingRow {
+        run,
+        cfg,
+        meta: &meta,
+        tr: &tr,
+        sc: &sc,
+        edge_offset,
+        fps_source: &fps_source,
+    };
+    recording.describe(&mut record);
+    let impact = record
+        .t_contact_s
+        .filter(|_| cfg.output.animation)
+        .map(|t| (t, record.t_rebound_s));
+    // The overlay at the frame nearest the maximum penetration.
+    let still_at_s = record.t_max_s;
+    with_files(
+        record,
+        Files {
+            recording,
+            source: source.as_mut(),
+            settings: &settings,
+            row_of: &row_of,
+            still_at_s,
+            impact,
+            overlay_frames,
+            scene,
+        },
+    )
+}
 
-    // The overlay at the frame nearest the maximum penetration, those asked
-    // for, and the animated impact; beside them, the track CSV.
+/// What a run's row says of its recording, its scale and its checks,
+/// whatever became of its impact.
+struct RecordingRow<'a> {
+    run: &'a RunSpec,
+    cfg: &'a PipelineConfig,
+    meta: &'a crate::source::SourceMeta,
+    tr: &'a Track,
+    sc: &'a crate::scale::Scale,
+    /// Apparent minus true radius and its error, px.
+    edge_offset: Option<(f64, f64)>,
+    fps_source: &'a str,
+}
+
+impl RecordingRow<'_> {
+    /// Fill `record`'s manifest, scale and frame-rate columns and flag what
+    /// weakens them (scale disagreement, saturation, frame times, an
+    /// assumed or disagreeing frame rate).
+    fn describe(&self, record: &mut DropRecord) {
+        let (run, sc, meta, tr) = (self.run, self.sc, self.meta, self.tr);
+        record.setup = run.setup.clone().unwrap_or_default();
+        record.drop_height_cm = run.drop_height_cm;
+        record.path = run.path.display().to_string();
+        record.scale_source = sc.source.name().to_string();
+        record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
+        record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);
+        record.edge_offset_px = self.edge_offset.map(|(o, _)| o);
+        record.edge_offset_px_err = self.edge_offset.map(|(_, e)| e);
+        record.surface_model_err_px = Some(tr.surface.model_err_px);
+        if let Some(w) = &sc.warning {
+            quality::flag(record, quality::SCALE_DISAGREEMENT, w.clone());
+        }
+        if let Some(share) = saturated_share(tr, meta.bit_depth) {
+            quality::flag(
+                record,
+                quality::SATURATED,
+                format!(
+                    "{:.1} % of the background near the sphere's path is clipped at the white level",
+                    share * 100.0
+                ),
+            );
+        }
+        for w in &meta.details.warnings {
+            if w.starts_with(crate::source::validate::IRREGULAR_TIMES) {
+                quality::flag(record, quality::TIME_IRREGULAR, w.clone());
+            } else if w.starts_with(crate::source::validate::TIMES_AND_RATE_DISAGREE) {
+                quality::flag(record, quality::FPS_MISMATCH, w.clone());
+            }
+        }
+        frame_rate_checks(record, run, self.cfg, meta.fps, self.fps_source);
+    }
+}
+
+/// What a run's files are drawn and written from.
+struct Files<'a> {
+    recording: RecordingRow<'a>,
+    source: &'a mut dyn crate::source::FrameSource,
+    settings: &'a TrackSettings,
+    /// A frame's row of the track CSV.
+    row_of: &'a (dyn Fn(&FrameTrack) -> TrackRow + Sync),
+    /// The main overlay is the held frame nearest this time.
+    still_at_s: Option<f64>,
+    /// The animated impact's contact and rebound times.
+    impact: Option<(f64, Option<f64>)>,
+    overlay_frames: &'a [i64],
+    scene: SceneSignature,
+}
+
+/// The run's outcome: `record`, with its overlays, animated impact and
+/// track CSV (drawn and written beside each other).
+fn with_files(record: DropRecord, f: Files<'_>) -> Result<RunOutcome, String> {
+    let Files {
+        recording,
+        source,
+        settings,
+        row_of,
+        still_at_s,
+        impact,
+        overlay_frames,
+        scene,
+    } = f;
+    let RecordingRow {
+        run, meta, tr, sc, ..
+    } = recording;
     let pictures = || {
         let mut pictures = crate::pictures::Pictures {
-            source: source.as_mut(),
-            meta: &meta,
-            track: &tr,
-            settings: &settings,
+            source,
+            meta,
+            track: tr,
+            settings,
             delta_mm: &|f| row_of(f).delta_mm,
             mm_per_px: sc.mm_per_px,
         };
-        let overlay = record.t_max_s.and_then(|t_max| {
+        let overlay = still_at_s.and_then(|at| {
             let ft = tr
                 .frames
                 .iter()
                 .filter(|f| f.held.is_some())
-                .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
+                .min_by(|a, b| (a.t_s - at).abs().total_cmp(&(b.t_s - at).abs()))?;
             pictures.still(&ft)
         });
         let frame_overlays: Vec<(i64, Vec<u8>)> = overlay_frames
@@ -956,10 +1069,7 @@ fn measure_run(
                 pictures.still(&ft).map(|png| (n, png))
             })
             .collect();
-        let impact = record
-            .t_contact_s
-            .filter(|_| cfg.output.animation)
-            .and_then(|t| pictures.impact(t, record.t_rebound_s));
+        let impact = impact.and_then(|(t, rebound)| pictures.impact(t, rebound));
         (overlay, frame_overlays, impact)
     };
     let track_csv = || {
@@ -989,6 +1099,77 @@ fn measure_run(
         scene: Some(scene),
         seconds: 0.0,
     })
+}
+
+/// The outcome of a run whose sphere was tracked but never reached the
+/// surface (`why`): status `tracked`, its free flight ([`crate::flight`]:
+/// v at the last tracked frame, g) at the run's scale, its scale and frame
+/// rate columns, its track (δ negative: the clearance) and the overlay of
+/// its last tracked frame, no impact.
+fn tracked_only(
+    why: String,
+    info: &DropInfo,
+    geom: &Geometry,
+    g_m_s2: f64,
+    f: Files<'_>,
+) -> Result<RunOutcome, String> {
+    let (run, tr, sc) = (f.recording.run, f.recording.tr, f.recording.sc);
+    let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, String::new());
+    record.status = crate::dataset::DropStatus::Tracked;
+    record.sphere_density_kg_m3 = info.sphere_density_kg_m3;
+    record.surface = info.surface.clone();
+    record.mm_per_px = Some(sc.mm_per_px);
+    record.mm_per_px_err = Some(sc.mm_per_px * sc.rel_err);
+    let points: Vec<TrackPoint> = held_points(tr, |_| (None, None)).collect();
+    record.surface_row_px = points
+        .last()
+        .map(|p| geom.surface_row_at(p.x_px))
+        .or(Some(geom.surface_row_px));
+    record.surface_row_px_err = Some(geom.surface_row_err_px);
+    record.surface_source = "image".into();
+    record.reason = match crate::flight::free_flight(&points, sc.mm_per_px, sc.rel_err, g_m_s2) {
+        Ok(ff) => {
+            // To the nanosecond, as the track's times.
+            record.t_last_s = Some((ff.t_last_s * 1e9).round() / 1e9);
+            record.v_last_m_s = Some(ff.v_last_m_s.value);
+            record.v_last_m_s_err = Some(ff.v_last_m_s.err);
+            record.g_fit_m_s2 = ff.g_fit_m_s2.map(|g| g.value);
+            record.g_fit_m_s2_err = ff.g_fit_m_s2.map(|g| g.err);
+            format!(
+                "{why}: tracked only, no impact measured: {} frames of free flight, v = \
+                 {:.4} ± {:.4} m/s at the last one",
+                ff.frames, ff.v_last_m_s.value, ff.v_last_m_s.err
+            )
+        }
+        Err(e) => format!("{why}: tracked only, no impact measured; no free-flight fit: {e}"),
+    };
+    if let Some(g) = record.g_fit_m_s2.zip(record.g_fit_m_s2_err) {
+        // As a drop's flight is checked (crate::measure).
+        let off = g.0 / g_m_s2 - 1.0;
+        if off.abs() > 0.02 && (g.0 - g_m_s2).abs() > 3.0 * g.1 {
+            quality::flag(
+                &mut record,
+                quality::GRAVITY_OFF,
+                format!(
+                    "free-flight gravity {:.3} ± {:.3} m/s² is {:+.1} % off {g_m_s2} m/s²: \
+                     check the frame rate and the scale",
+                    g.0,
+                    g.1,
+                    off * 100.0
+                ),
+            );
+        }
+    }
+    f.recording.describe(&mut record);
+    let still_at_s = points.last().map(|p| p.t_s);
+    with_files(
+        record,
+        Files {
+            still_at_s,
+            impact: None,
+            ..f
+        },
+    )
 }
 
 /// Fill the row's `fps` and `fps_source` and flag what is doubtful about
@@ -1261,6 +1442,9 @@ fn track_row(f: &FrameTrack) -> TrackRow {
         in_contact: false,
         delta_mm: None,
         sigma_z_px: fit.map(|c| c.cov.sigma_z_px()),
+        sigma_x_px: fit.map(|c| c.cov.sigma_x_px()),
+        r_free_px: f.free.map(|c| c.r_px),
+        sigma_r_free_px: f.free.and_then(|c| c.cov.sigma_r_px()),
         force_n: None,
         flags: f.flags.text(),
     }

@@ -46,6 +46,10 @@ pub fn run_line(record: &DropRecord, frames: usize, seconds: Option<f64>) -> Str
             record.run, record.reason
         ),
         DropStatus::Ok => format!("{}: measured{from}", record.run),
+        DropStatus::Tracked => format!(
+            "{}: tracked{from}, no impact measured: {}",
+            record.run, record.reason
+        ),
     }
 }
 
@@ -201,6 +205,8 @@ impl JobProgress {
                         }
                         if record.status == DropStatus::Failed {
                             b.failed.fetch_add(1, Ordering::Relaxed);
+                        }
+                        if !record.status.measured() {
                             let _ = b.multi.println(run_line(record, frames, seconds));
                         }
                         b.overall.set_message(format!(

@@ -104,13 +104,16 @@ pub const FORCE_EXPONENT_RANGE: (f64, f64) = (1.0, 4.0);
 /// before the drop is flagged [`SATURATED`].
 pub const SATURATED_SHARE: f64 = 0.01;
 
-/// Add a flag and its sentence to a measured record (status `warning`). A
-/// flag already there is not repeated.
+/// Add a flag and its sentence to a measured record (status `warning`;
+/// a `tracked` one keeps its status). A flag already there is not
+/// repeated; a failed record takes none.
 pub fn flag(record: &mut DropRecord, word: &str, message: impl Into<String>) {
     if record.status == DropStatus::Failed || record.flags.split(' ').any(|w| w == word) {
         return;
     }
-    record.status = DropStatus::Warning;
+    if record.status == DropStatus::Ok {
+        record.status = DropStatus::Warning;
+    }
     if !record.flags.is_empty() {
         record.flags.push(' ');
     }

@@ -95,8 +95,8 @@ pub(crate) fn stderr(o: &Output) -> String {
 /// a folder with no XML and no frame rate anywhere, a corrupt cine, a
 /// sphere that never lands and an empty folder: the good runs are measured,
 /// each bad one has a failed row that says what is wrong (the folder
-/// without a frame rate is measured at an assumed one, flagged), the job
-/// exits 1.
+/// without a frame rate is measured at an assumed one, flagged; the sphere
+/// that never lands is `tracked`), the job exits 1.
 #[test]
 fn broken_runs_get_reasons_and_the_good_ones_finish() {
     let dir = tempfile::tempdir().unwrap();
@@ -172,7 +172,6 @@ fn broken_runs_get_reasons_and_the_good_ones_finish() {
     for (run, says) in [
         ("truncated_tiff", "t_000010.tif"),
         ("corrupt_cine", "corrupt.cine"),
-        ("never_lands", "never reaches the surface"),
         ("empty", "empty"),
     ] {
         let r = by(run);
@@ -186,6 +185,16 @@ fn broken_runs_get_reasons_and_the_good_ones_finish() {
         // Each reason is printed as the run fails, not only in drops.csv.
         assert!(stderr(&o).contains(&r.reason), "{run}");
     }
+    // Cut before the contact: tracked, with its free flight, no impact.
+    let r = by("never_lands");
+    assert_eq!(r.status, DropStatus::Tracked, "{}", r.reason);
+    assert!(
+        r.reason.contains("never reaches the surface"),
+        "{}",
+        r.reason
+    );
+    assert!(r.v_last_m_s.is_some() && r.delta_max_mm.is_none());
+    assert!(stderr(&o).contains(&r.reason));
     // The frames without their XML: measured at the frame rate dropscope
     // assumes (the fixture's own, 10 000 frames/s), and said so.
     let r = by("no_xml");

@@ -237,7 +237,7 @@ pub fn fits_json(
     let doc = FitsJson {
         provenance: prov,
         n_used: used.len(),
-        n_skipped: outcomes.len() - used.len(),
+        n_skipped: outcomes.iter().filter(|o| o.skipped()).count(),
         n_geometric_contact_radius: used.iter().filter(|g| g.a_source.is_geometric()).count(),
         psi_series: fits.psi_series.as_ref().map(|s| Psi {
             a1: &s.coef[0],
@@ -286,6 +286,7 @@ pub fn fits_json(
         force_laws,
         skipped: outcomes
             .iter()
+            .filter(|o| o.skipped())
             .filter_map(|o| {
                 o.groups.as_ref().err().map(|r| Skipped {
                     row: o.row,

@@ -239,7 +239,21 @@ pub fn process_setup(
             .collect(),
     );
     let pooled = pool(curvatures);
-    runs.par_iter()
+    // The members' apparent sizes per mm, compared once all are measured.
+    let sizes: Vec<Option<crate::scale::ApparentSize>> = tracked
+        .iter()
+        .zip(runs)
+        .map(|(t, r)| {
+            let t = t.as_ref().ok()?;
+            Some(crate::scale::ApparentSize {
+                r_app_px: t.tr.radius_px,
+                r_app_err_px: t.tr.radius_err_px,
+                radius_mm: r.sphere_radius_mm,
+            })
+        })
+        .collect();
+    let mut outcomes: Vec<RunOutcome> = runs
+        .par_iter()
         .zip(tracked)
         .zip(track_s)
         .map(|((run, t), track_s)| {
@@ -262,7 +276,21 @@ pub fn process_setup(
             o.seconds = track_s + start.elapsed().as_secs_f64();
             o
         })
-        .collect()
+        .collect();
+    if runs.len() >= 2 {
+        let found = crate::scale::size_disagreements(&sizes, cfg.camera.edge_offset());
+        for ((o, run), d) in outcomes.iter_mut().zip(runs).zip(found) {
+            if let Some(d) = d {
+                let setup = run.setup.as_deref().unwrap_or("-");
+                quality::flag(
+                    &mut o.record,
+                    quality::RADIUS_DISAGREEMENT,
+                    d.sentence(setup),
+                );
+            }
+        }
+    }
+    outcomes
 }
 
 /// Run `work` for `run`: its panic becomes an error naming the input.

@@ -57,7 +57,8 @@ pub fn run_line(record: &DropRecord, frames: usize, seconds: Option<f64>) -> Str
 /// rows (cached ones too): the runs measured at a frame rate nobody gave
 /// (`fps_assumed`), by where it came from, and the runs whose frame rate
 /// given disagrees with their recording's (`fps_mismatch` from the manifest or
-/// `--fps`).
+/// `--fps`), and the runs whose apparent size per mm disagrees with their
+/// set-up's (`radius_disagreement`).
 pub fn closing_warnings(records: &[DropRecord]) -> Vec<String> {
     fn flagged<'a>(
         records: &'a [DropRecord],
@@ -91,6 +92,15 @@ pub fn closing_warnings(records: &[DropRecord]) -> Vec<String> {
                 first.fps.unwrap_or(f64::NAN),
                 names(&runs)
             ));
+        }
+    }
+    for r in flagged(records, crate::quality::RADIUS_DISAGREEMENT) {
+        if let Some(s) = r
+            .reason
+            .split("; ")
+            .find(|s| s.contains("px per mm of sphere radius"))
+        {
+            out.push(format!("{} (set-up {}): {s}", r.run, r.setup));
         }
     }
     for r in flagged(records, crate::quality::FPS_MISMATCH) {

@@ -37,6 +37,10 @@ pub const FPS_ASSUMED: &str = "fps_assumed";
 /// The file's frame times are off their regular spacing by more than 1 %
 /// of a frame interval (used as they are).
 pub const TIME_IRREGULAR: &str = "time_irregular";
+/// The sphere's apparent size per mm of its radius disagrees with its
+/// set-up's other runs beyond their errors: a wrong `sphere_radius_mm`, or
+/// a run in the wrong set-up ([`crate::scale::size_disagreements`]).
+pub const RADIUS_DISAGREEMENT: &str = "radius_disagreement";
 /// The contact law could not be fitted (or its fit hit its limits).
 pub const NO_FORCE_LAW: &str = "no_force_law";
 /// The fitted exponent n lies outside [`FORCE_EXPONENT_RANGE`].
@@ -47,7 +51,7 @@ pub const NEGATIVE_DAMPING: &str = "negative_damping";
 pub const RESTITUTION_ABOVE_ONE: &str = "restitution_above_one";
 
 /// Every flag with its meaning, in the order they are checked.
-pub const FLAGS: [(&str, &str); 14] = [
+pub const FLAGS: [(&str, &str); 15] = [
     (GAP_IN_CONTACT, "frames missing during the contact"),
     (GAP_AT_PEAK, "frames missing at the maximum penetration"),
     (
@@ -78,6 +82,10 @@ pub const FLAGS: [(&str, &str); 14] = [
     (
         TIME_IRREGULAR,
         "frame times off their regular spacing by > 1 % of an interval",
+    ),
+    (
+        RADIUS_DISAGREEMENT,
+        "apparent size per mm of radius disagrees with the set-up's other runs",
     ),
     (NO_FORCE_LAW, "the contact law could not be fitted"),
     (FORCE_EXPONENT_IMPLAUSIBLE, "force exponent n outside 1–4"),

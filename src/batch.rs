@@ -142,6 +142,9 @@ pub struct JobSummary {
     /// The share of the runs this job took (`None`: all, and it assembled them).
     pub shard: Option<crate::shard::Shard>,
     pub collapse_warnings: Vec<String>,
+    /// Too few drops for the collapse's exponents and series: what they can
+    /// and cannot show (`fits.json`'s `few_drops`; not among the warnings).
+    pub collapse_note: Option<String>,
 }
 
 impl JobSummary {
@@ -661,6 +664,7 @@ fn job_on_pool(
             threads,
             collapsed: false,
             collapse_warnings: Vec::new(),
+            collapse_note: None,
             shard: options.shard,
         });
     }
@@ -675,7 +679,7 @@ fn job_on_pool(
     // since failed or left the manifest survives (nor all of it when no
     // drop is measured now).
     crate::collapse::remove_outputs(out).map_err(io(out))?;
-    let (collapsed, collapse_warnings) = if measured > 0 {
+    let (collapsed, collapse_warnings, collapse_note) = if measured > 0 {
         events(RunEvent::Collapsing);
         let args = CollapseArgs {
             drops: out.join("drops.csv"),
@@ -687,10 +691,16 @@ fn job_on_pool(
             no_plots: false,
         };
         let s = crate::collapse::run(&args, cfg, config_name)?;
-        (true, s.warnings)
+        let note = s.fits.few_drops.clone();
+        let warnings = s
+            .warnings
+            .into_iter()
+            .filter(|w| note.as_ref() != Some(w))
+            .collect();
+        (true, warnings, note)
     } else {
         crate::collapse::per_drop::replace(out, Vec::new(), &mut Vec::new())?;
-        (false, Vec::new())
+        (false, Vec::new(), None)
     };
     drop(collapse);
     timings::time(Stage::Report, || {
@@ -705,6 +715,7 @@ fn job_on_pool(
         threads,
         collapsed,
         collapse_warnings,
+        collapse_note,
         shard: None,
     })
 }

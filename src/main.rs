@@ -225,6 +225,9 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     {
         eprintln!("warning: {w}");
     }
+    if let Some(note) = &job.collapse_note {
+        eprintln!("note: {note}");
+    }
     eprintln!(
         "{}; collapse {}; {:.2} s in all; results in {} (open report.html there)",
         job_counts(&job),
@@ -338,7 +341,10 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
     let _held = hold_folder(&args.out_dir(), "collapse", &cfg, &[], wait)?;
     let s = dropscope::collapse::run(args, &cfg, &name)?;
     for w in &s.warnings {
-        eprintln!("warning: {w}");
+        match &s.fits.few_drops {
+            Some(note) if note == w => eprintln!("note: {w}"),
+            _ => eprintln!("warning: {w}"),
+        }
     }
     println!(
         "collapse: {} used, {} skipped; {} files in {}",

@@ -79,6 +79,24 @@ fn no_argument_runs_the_main_job_on_the_local_pipeline_toml() {
     ] {
         assert!(results.join(f).is_file(), "{f} missing");
     }
+    // Three drops of three radii: said once, plainly, what they can and
+    // cannot show and where to see more, not nine warnings of fits that
+    // need more drops, and no empty fit tables in the report.
+    assert!(!err.contains("warning:"), "{err}");
+    assert_eq!(err.matches("note: ").count(), 1, "{err}");
+    assert!(
+        err.contains("note: 3 drops of 3 radii")
+            && err.contains("needs 3 drops of one radius")
+            && err.contains("dropscope render --campaign"),
+        "{err}"
+    );
+    let fits: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(results.join("fits.json")).unwrap()).unwrap();
+    assert!(fits["few_drops"].as_str().unwrap().starts_with("3 drops"));
+    assert_eq!(fits["warnings"].as_array().unwrap().len(), 1, "{fits}");
+    let report = std::fs::read_to_string(results.join("report.html")).unwrap();
+    assert!(report.contains("<p class=\"few-drops\">3 drops of 3 radii"));
+    assert!(!report.contains("not fitted") && !report.contains("Warnings of the collapse"));
 }
 
 /// A job started from another folder on the same configuration reuses the

@@ -212,6 +212,10 @@ struct FitsJson<'a> {
     theory: Theory,
     force_laws: &'a [ForceLaw],
     skipped: Vec<Skipped<'a>>,
+    /// Too few drops for any exponent or series: what they can and cannot
+    /// show (also the first warning).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    few_drops: Option<&'a str>,
     warnings: &'a [String],
 }
 
@@ -295,6 +299,7 @@ pub fn fits_json(
                 })
             })
             .collect(),
+        few_drops: fits.few_drops.as_deref(),
         warnings,
     };
     let mut bytes = serde_json::to_vec_pretty(&doc).expect("fits serialise to JSON");

@@ -66,10 +66,15 @@ pub fn require_all() -> bool {
 
 /// Whether `need` is met. When it is not: under `DROPSCOPE_REQUIRE_ALL=1`
 /// the test fails saying what is missing and how to get it; otherwise that
-/// is printed as `SKIPPED: <test>: …` on the terminal (written past the
-/// test harness's capture, so that it shows for a passing test) and
-/// `false` is returned.
+/// is printed as `SKIPPED: <test>: …` on the terminal (written to stderr
+/// itself, past the test harness's capture of `eprintln!`, so that it shows
+/// for a passing test) and `false` is returned.
 pub fn available(need: Need) -> bool {
+    available_with(need, require_all(), &mut std::io::stderr())
+}
+
+/// [`available`] with `require_all` given, its notice written to `notice`.
+fn available_with(need: Need, require_all: bool, notice: &mut dyn Write) -> bool {
     let shared_data = "the project's shared/ folder must sit beside the checkout (the \
                        repository's sibling `shared/`, holding data/): clone or copy it there";
     let (met, what, how) = match need {
@@ -113,11 +118,11 @@ pub fn available(need: Need) -> bool {
         .unwrap_or("a test")
         .to_string();
     assert!(
-        !require_all(),
+        !require_all,
         "{test}: {what} is missing: {how} (DROPSCOPE_REQUIRE_ALL=1: every test must run)"
     );
     let _ = writeln!(
-        std::io::stderr(),
+        notice,
         "SKIPPED: {test}: {what} is missing: {how} (set DROPSCOPE_REQUIRE_ALL=1 to fail instead)"
     );
     false
@@ -143,4 +148,36 @@ pub fn phantom_sample(rel: &str) -> PathBuf {
 /// [`available`]'s notice (or its failure under `DROPSCOPE_REQUIRE_ALL=1`).
 pub fn shared_data(rel: &'static str) -> Option<PathBuf> {
     available(Need::SharedData(rel)).then(|| shared().join("data").join(rel))
+}
+
+/// A need that is not met skips its test (`false`, with the notice) unless
+/// every test is required, when the test fails naming what is missing and
+/// how to get it; one that is met lets the test run.
+#[test]
+fn a_missing_need_skips_out_loud_or_fails_when_every_test_is_required() {
+    let missing = Need::SharedData("no-such-folder-of-this-test");
+    let mut notice = Vec::new();
+    assert!(!available_with(missing, false, &mut notice));
+    let notice = String::from_utf8(notice).unwrap();
+    assert!(
+        notice.starts_with(
+            "SKIPPED: a_missing_need_skips_out_loud_or_fails_when_every_test_is_required: "
+        ) && notice.contains("no-such-folder-of-this-test is missing")
+            && notice.contains("set DROPSCOPE_REQUIRE_ALL=1 to fail instead"),
+        "{notice}"
+    );
+    let failed = std::panic::catch_unwind(|| available_with(missing, true, &mut Vec::new()))
+        .expect_err("required and missing must fail");
+    let message = failed.downcast_ref::<String>().cloned().unwrap_or_default();
+    assert!(
+        message.contains("no-such-folder-of-this-test is missing")
+            && message.contains("shared/ folder must sit beside the checkout")
+            && message.contains("DROPSCOPE_REQUIRE_ALL=1"),
+        "{message}"
+    );
+    // The checkout itself is always there: `shared/..` is its parent.
+    assert!(Path::new(env!("CARGO_MANIFEST_DIR")).is_dir());
+    if shared().is_dir() {
+        assert!(available_with(Need::SharedData("."), true, &mut Vec::new()));
+    }
 }

@@ -346,13 +346,13 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
             _ => eprintln!("warning: {w}"),
         }
     }
-    println!(
-        "collapse: {} used, {} skipped; {} files in {}",
+    say(format_args!(
+        "collapse: {} used, {} skipped; {} files in {}\n",
         dropscope::plural(s.n_used, "drop"),
         s.n_skipped,
         s.files.len(),
         s.out_dir.display()
-    );
+    ))?;
     Ok(if s.n_skipped > 0 {
         ExitCode::from(1)
     } else {
@@ -406,7 +406,7 @@ fn run_report(
     };
     let records = dropscope::dataset::read_csv(&out.join("drops.csv"))?;
     let path = dropscope::report::write_report(&out, &name, &records)?;
-    println!("report: {}", path.display());
+    say(format_args!("report: {}\n", path.display()))?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -450,8 +450,10 @@ fn run_check_config(config: Option<&std::path::Path>) -> anyhow::Result<ExitCode
              and set [input] manifest to your runs.csv"
         );
     }
-    println!("# {name}: valid; resolved (paths as dropscope will use them):");
-    print!("{}", cfg.to_toml());
+    say(format_args!(
+        "# {name}: valid; resolved (paths as dropscope will use them):\n{}",
+        cfg.to_toml()
+    ))?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -469,32 +471,51 @@ fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
         local.exists().then_some(local),
     )?;
     let scripts = slurm::write_scripts(args, &plan)?;
-    println!(
-        "{} runs in {} shards into {}; scripts {} and {}, logs in {}",
+    say(format_args!(
+        "{} runs in {} shards into {}; scripts {} and {}, logs in {}\n",
         runs.len(),
         args.array,
         plan.out.display(),
         scripts.array.display(),
         scripts.finish.display(),
         plan.scripts.join("logs").display()
-    );
+    ))?;
     if !args.submit {
-        println!(
-            "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}",
+        say(format_args!(
+            "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}\n",
             scripts.array.display(),
             scripts.finish.display()
-        );
+        ))?;
         return Ok(ExitCode::SUCCESS);
     }
     let ids = slurm::submit(&scripts)?;
-    println!("array job {} ({} tasks)", ids.array_job, args.array);
-    println!(
-        "finishing job {} (starts when every task of {} has succeeded; then {} holds report.html)",
+    say(format_args!(
+        "array job {} ({} tasks)\nfinishing job {} (starts when every task of {} has \
+         succeeded; then {} holds report.html)\n",
+        ids.array_job,
+        args.array,
         ids.finish_job,
         ids.array_job,
         plan.out.display()
-    );
+    ))?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Stdout's reader closed it before all was written (`dropscope inspect
+/// X | head -1`): no error, the command stops there with exit status 0.
+#[derive(Debug, thiserror::Error)]
+#[error("stdout was closed by its reader")]
+struct StdoutClosed;
+
+/// Write `text` to stdout. A closed pipe is [`StdoutClosed`], not the
+/// panic of `print!`.
+fn say(text: impl std::fmt::Display) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match write!(out, "{text}").and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(StdoutClosed.into()),
+        r => r.map_err(|e| anyhow::anyhow!("writing to stdout: {e}")),
+    }
 }
 
 /// An error and its causes on one line, each cause only when the text so
@@ -538,17 +559,14 @@ fn main() -> ExitCode {
         Command::CheckConfig {
             default: true,
             config: _,
-        } => {
-            print!("{}", dropscope::config::EMBEDDED_DEFAULT);
-            Ok(ExitCode::SUCCESS)
-        }
+        } => say(dropscope::config::EMBEDDED_DEFAULT).map(|()| ExitCode::SUCCESS),
         Command::CheckConfig {
             config,
             default: false,
         } => run_check_config(config.as_deref()),
-        Command::Inspect(args) => {
-            dropscope::source::cli::run_inspect(&args).map(|()| ExitCode::SUCCESS)
-        }
+        Command::Inspect(args) => dropscope::source::cli::inspect_text(&args)
+            .and_then(|text| say(format_args!("{text}\n")))
+            .map(|()| ExitCode::SUCCESS),
         Command::Export(args) => run_export(&args),
         Command::Render(args) => run_render(&args),
         Command::Collapse { args, wait } => run_collapse(&args, wait),
@@ -563,6 +581,9 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(code) => code,
+        // The reader of stdout has gone (`dropscope inspect X | head -1`):
+        // what it wanted was written.
+        Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", error_text(&e));
             ExitCode::from(2)

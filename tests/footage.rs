@@ -89,12 +89,11 @@ fn flags(r: &DropRecord) -> Vec<&str> {
     r.flags.split(' ').filter(|w| !w.is_empty()).collect()
 }
 
-/// A 30 000 frames/s drop whose XML is gone was measured at the 10 000
-/// frames/s of the shipped configuration without a word (its free flight
-/// then looks like 1.1 m/s² of gravity, and other drops fail outright).
-/// Now its row says the rate was assumed (`fps_source` `default`, flag
-/// `fps_assumed`, a reason naming 10000 and --fps), and so does the
-/// console; with `--fps 30000` the same frames give the true speed.
+/// A 30 000 frames/s drop whose XML is gone is measured at dropscope's
+/// assumed 10 000 frames/s (its free flight then looks like 1.1 m/s² of
+/// gravity), and its row says the rate was assumed (`fps_source`
+/// `default`, flag `fps_assumed`, a reason naming 10000 and --fps), and so
+/// does the console; with `--fps 30000` the same frames give the true speed.
 #[test]
 fn a_recording_without_its_frame_rate_says_it_was_assumed_and_takes_fps() {
     let (_, _, truth) = drop_30k();
@@ -280,9 +279,9 @@ fn export_warns_when_its_times_are_at_an_assumed_rate() {
 
 /// The real Photron recording (`shared/data/real-footage/photron-ball-30kfps`,
 /// SOURCE.md there): 15 frames of a 2.5 mm ball falling at 30 000 frames/s,
-/// 122 px above the surface when the clip ends. It failed with "never
-/// reaches the surface line" and kept nothing; it is now `tracked`, with its
-/// track, overlay and free flight, and the job exits 0.
+/// 122 px above the surface when the clip ends: it never reaches the
+/// surface line, and is `tracked`, with its track, overlay and free flight;
+/// the job exits 0.
 ///
 /// Tolerances. In pixels: SOURCE.md's independent half-level edges move
 /// 2.650 px/frame (straight-line fit, σ 0.003 px/frame); ours within 0.5 %
@@ -501,4 +500,113 @@ fn a_mistyped_sphere_radius_is_named_against_its_setup() {
             }
         }
     }
+}
+
+/// 8-bit grey frames `<name>_NNNN.png` in `dir/name`, `frames` of them,
+/// pixel (row, column) of frame k from `pixel(k, row, column)`.
+fn write_frames(
+    dir: &Path,
+    name: &str,
+    frames: usize,
+    pixel: impl Fn(usize, u32, u32) -> u8,
+) -> PathBuf {
+    let out = dir.join(name);
+    std::fs::create_dir_all(&out).unwrap();
+    for k in 0..frames {
+        image::GrayImage::from_fn(256, 192, |j, i| image::Luma([pixel(k, i, j)]))
+            .save(out.join(format!("{name}_{k:04}.png")))
+            .unwrap();
+    }
+    out
+}
+
+/// Footage dropscope cannot measure gets a reason in the picture's words,
+/// saying what dropscope looks for and what to give: a dark bar falling
+/// across the picture (no round sphere; its straight outline fits no
+/// circle) is "no sphere found in any of the 40 frames" with what is
+/// measured, not a circle fit's internals ("degenerate fit", "collinear",
+/// "usable points"); a picture without a surface line names
+/// `--surface-row-px`, with which the same frames are tracked.
+#[test]
+fn footage_without_a_sphere_or_a_surface_is_told_in_the_pictures_words() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let developer = ["degenerate", "collinear", "usable points", "fit ("];
+    // Bright above a dark surface from row 150; from frame 10 a 7-row bar
+    // across the whole width falls 3 rows a frame.
+    let bar = write_frames(d, "bar", 40, |k, i, _| match i {
+        150.. => 60,
+        i if k >= 10 && (5 + 3 * k..12 + 3 * k).contains(&(i as usize)) => 20,
+        _ => 200,
+    });
+    let (o, r) = process(d, &bar, &["--fps", "10000"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert_eq!(r.status, DropStatus::Failed);
+    assert!(
+        r.reason.contains("no sphere found in any of the 40 frames: dropscope measures a dark, round sphere against a bright backlit background"),
+        "{}",
+        r.reason
+    );
+    for word in developer {
+        assert!(!r.reason.contains(word), "{word}: {}", r.reason);
+    }
+    // No surface in view: a 20 px disk falls 2 px a frame over a bright,
+    // even picture.
+    let disk = |k: usize, i: u32, j: u32| {
+        let (x, z) = (j as f64 - 128.0, i as f64 - (30.0 + 2.0 * k as f64));
+        if x.hypot(z) < 20.0 {
+            30
+        } else {
+            200
+        }
+    };
+    let no_surface = write_frames(d, "no_surface", 40, disk);
+    let (o, r) = process(d, &no_surface, &["--fps", "10000"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        r.reason.contains("no surface line in the background")
+            && r.reason.contains("give its row with --surface-row-px"),
+        "{}",
+        r.reason
+    );
+    for word in developer {
+        assert!(!r.reason.contains(word), "{word}: {}", r.reason);
+    }
+    // Given below the picture: the disk is tracked, never landing.
+    let (o, r) = process(
+        d,
+        &no_surface,
+        &["--fps", "10000", "--surface-row-px", "300"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(r.status, DropStatus::Tracked, "{}", r.reason);
+}
+
+/// `dropscope inspect DIR | head -1`: a reader that closes the pipe early
+/// ends the command with exit status 0 and nothing on stderr (no panic of
+/// a print into a closed pipe). The pipe's reading end is closed before
+/// dropscope starts, so its first write meets it closed.
+#[test]
+fn inspect_into_a_closed_pipe_exits_0() {
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/R3mm_H1.5cm_01");
+    for args in [vec!["inspect"], vec!["inspect", "--json"]] {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let o = dropscope(Path::new(env!("CARGO_MANIFEST_DIR")))
+            .args(&args)
+            .arg(&fixture)
+            .stdout(writer)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
+        assert_eq!(stderr(&o), "", "{args:?}");
+    }
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = dropscope(Path::new(env!("CARGO_MANIFEST_DIR")))
+        .args(["check-config", "--default"])
+        .stdout(writer)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }

@@ -320,18 +320,55 @@ pub enum TrackError {
         #[source]
         source: DetectError,
     },
-    #[error("no sphere found: no backlit background to measure against ({0})")]
+    #[error("no sphere found: no backlit background to measure against: {0}")]
     Background(DetectError),
-    #[error("no sphere found: no surface line in the background ({0}); if the surface is out of view, set detect.surface_row_px in pipeline.toml")]
+    #[error(
+        "no sphere found: no surface line in the background ({}); if the surface is out of \
+         view, give its row with --surface-row-px (or detect.surface_row_px in pipeline.toml)",
+        surface_problem(.0)
+    )]
     Surface(DetectError),
-    #[error("no sphere found in any of the {frames} frames")]
+    #[error(
+        "no sphere found in any of the {frames} frames: dropscope measures a dark, round \
+         sphere against a bright backlit background, falling onto a surface whose top is a \
+         horizontal line below it; no dark round shape was seen in these frames"
+    )]
     NoSphere { frames: usize },
-    #[error("no sphere found whole: its circle is clear of the frame border and of the surface in {found} frame(s) only (at least 3 needed to measure R_px)")]
+    #[error(
+        "no sphere found whole: the sphere's outline is clear of the picture's border and of \
+         the surface in {} (3 needed to measure its radius in pixels): a sphere only partly \
+         in view, or a dark shape that is not round",
+        frames_text(*found)
+    )]
     NoCalibration { found: usize },
-    #[error("only {0} frames: too short a movie to find a drop in")]
+    #[error("only {0} frames: too short a movie to find a drop in (at least 8 needed)")]
     TooShort(usize),
     #[error("a temporary file for the track's per-frame records (set TMPDIR to a folder with room): {0}")]
     Records(#[from] std::io::Error),
+}
+
+/// "no frame", "1 frame only", "N frames only".
+fn frames_text(n: usize) -> String {
+    match n {
+        0 => "no frame".into(),
+        1 => "1 frame only".into(),
+        n => format!("{n} frames only"),
+    }
+}
+
+/// Why no surface line was found, in the words of the picture.
+fn surface_problem(e: &DetectError) -> String {
+    match e {
+        DetectError::TooFewPoints { found, .. } => format!(
+            "a horizontal edge from bright above to dark below was found in {} of the \
+             background's columns, too few",
+            found
+        ),
+        DetectError::Degenerate { .. } => {
+            "the edges from bright above to dark below do not lie on one line".into()
+        }
+        other => other.to_string(),
+    }
 }
 
 /// Track the sphere through `source` (see the module doc).

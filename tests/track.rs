@@ -22,21 +22,18 @@ use std::path::{Path, PathBuf};
 const PHOTRON_FPS: f64 = 30_000.0;
 
 /// `../shared/data/real-footage/photron-ball-30kfps/` beside the checkout,
-/// or `None` (after printing a SKIPPED notice that says where it looked)
-/// when the project's shared/ folder is not there.
+/// or `None` (after [`crate::available`]'s SKIPPED notice, or its failure
+/// under `DROPSCOPE_REQUIRE_ALL=1`) when the project's shared/ folder is
+/// not there.
 fn photron() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/real-footage/photron-ball-30kfps");
-    if dir.join("frames16").is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "SKIPPED: the real Photron recording is missing: looked for {}. These tests \
-             need the project's shared/ folder beside the checkout (shared/data/real-footage/)",
-            dir.join("frames16").display()
-        );
-        None
+    let rel = "real-footage/photron-ball-30kfps/frames16";
+    if !crate::available(crate::Need::SharedData(rel)) {
+        return None;
     }
+    Some(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data/real-footage/photron-ball-30kfps"),
+    )
 }
 
 /// The Photron frames in memory and the folder they came from, or `None`

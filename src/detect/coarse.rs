@@ -74,7 +74,9 @@ pub struct CoarseScratch {
 }
 
 /// Find the sphere in `band` (see the module doc); `Ok(None)` when there is
-/// no dark group of at least `min_area_px` pixels.
+/// no dark group of at least `min_area_px` pixels, or when no circle fits
+/// the largest one's outline (a straight bar across the frame, a frame
+/// dark all over).
 pub fn detect_coarse(
     band: &Band,
     bg: &Background,
@@ -229,12 +231,18 @@ pub fn detect_coarse(
             }
         }
     }
-    let fit = fit_circle(
+    // A group whose outline no circle fits (a bar or a line across the
+    // frame, a frame dark all over: no outline inside it) is not a sphere.
+    let fit = match fit_circle(
         &scratch.points,
         None,
         &FitOptions::default(),
         &mut scratch.fit,
-    )?;
+    ) {
+        Ok(fit) => fit,
+        Err(DetectError::TooFewPoints { .. } | DetectError::Degenerate { .. }) => return Ok(None),
+        Err(e) => return Err(e),
+    };
     Ok(Some(Coarse {
         circle: fit.circle(),
         area_px: area,
@@ -554,6 +562,73 @@ mod tests {
         // tenths: the threshold is not at half contrast).
         assert!(
             err[0].abs() < 0.1 && err[1].abs() < 0.1 && err[2].abs() < 1.0,
+            "{c:?}"
+        );
+    }
+
+    /// Dark shapes no circle fits — a line or a bar across the frame, a
+    /// frame dark all over — are no sphere (`None`), in the full and the
+    /// binned search alike, not an error that stops the run; a dark disk
+    /// beside them is still found.
+    #[test]
+    fn a_dark_shape_no_circle_fits_is_no_sphere() {
+        let (w, h) = (256usize, 192usize);
+        let empty = ndarray::Array2::<u16>::from_elem((h, w), 2000);
+        let bg = Background::from_frames(&[empty.view()], Default::default()).unwrap();
+        let binned = BinnedBackground::new(&bg);
+        type Shape = fn(usize, usize) -> bool;
+        let shapes: [(&str, Shape); 5] = [
+            ("a one-pixel line across", |i, _| i == 50),
+            ("a one-pixel column", |_, j| j == 50),
+            ("a bar across", |i, _| (40..60).contains(&i)),
+            ("dark from the top down", |i, _| i < 30),
+            ("dark all over", |_, _| true),
+        ];
+        let mut scratch = CoarseScratch::default();
+        for (what, dark) in shapes {
+            let frame =
+                ndarray::Array2::from_shape_fn(
+                    (h, w),
+                    |(i, j)| {
+                        if dark(i, j) {
+                            300u16
+                        } else {
+                            2000
+                        }
+                    },
+                );
+            let band = Band::new(frame.view(), 0).unwrap();
+            let params = CoarseParams::default();
+            let full = detect_coarse(&band, &bg, 1.0, None, &params, &mut scratch);
+            assert!(matches!(full, Ok(None)), "{what}: {full:?}");
+            let half = binned.detect(&band, 1.0, None, &params, &mut scratch);
+            assert!(matches!(half, Ok(None)), "{what} (binned): {half:?}");
+        }
+        // A disk of radius 20 at (120, 100): found to a pixel.
+        let frame = ndarray::Array2::from_shape_fn((h, w), |(i, j)| {
+            let (x, z) = (j as f64 - 120.0, i as f64 - 100.0);
+            if x.hypot(z) < 20.0 {
+                300u16
+            } else {
+                2000
+            }
+        });
+        let band = Band::new(frame.view(), 0).unwrap();
+        let c = detect_coarse(
+            &band,
+            &bg,
+            1.0,
+            None,
+            &CoarseParams::default(),
+            &mut scratch,
+        )
+        .unwrap()
+        .expect("the disk")
+        .circle;
+        assert!(
+            (c.x_px - 120.0).abs() < 1.0
+                && (c.z_px - 100.0).abs() < 1.0
+                && (c.r_px - 20.0).abs() < 1.0,
             "{c:?}"
         );
     }

@@ -140,7 +140,14 @@ pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
             meta.fps
         ));
     }
-    println!("{}", inspect_report(&meta, args.json)?);
+    let report = inspect_report(&meta, args.json)?;
+    // Text from the file (a cine's camera name, file names) never reaches
+    // the terminal as escape sequences; a closed pipe is no panic.
+    if args.json {
+        crate::console::out_raw(&format!("{report}\n"));
+    } else {
+        crate::outln!("{report}");
+    }
     Ok(())
 }
 
@@ -184,7 +191,8 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, super::Sourc
         "warnings": d.warnings,
     });
     if json {
-        return Ok(serde_json::to_string_pretty(&value).unwrap_or_default());
+        let doc = serde_json::to_string_pretty(&value).unwrap_or_default();
+        return Ok(crate::text::json(&doc).into_owned());
     }
     let opt = |v: Option<String>| v.unwrap_or_else(|| "—".into());
     let mut lines = vec![

@@ -31,7 +31,8 @@ pub const GRAVITY_OFF: &str = "gravity_off";
 /// file's frame rate.
 pub const FPS_MISMATCH: &str = "fps_mismatch";
 /// The file's frame times are off their regular spacing by more than 1 %
-/// of a frame interval (used as they are).
+/// of a frame interval (used as they are), or the side file's TIMEBLOCK
+/// lists no time for some frames (placed on the frame rate's grid).
 pub const TIME_IRREGULAR: &str = "time_irregular";
 /// The contact law could not be fitted (or its fit hit its limits).
 pub const NO_FORCE_LAW: &str = "no_force_law";
@@ -69,7 +70,7 @@ pub const FLAGS: [(&str, &str); 13] = [
     ),
     (
         TIME_IRREGULAR,
-        "frame times off their regular spacing by > 1 % of an interval",
+        "frame times off their regular spacing by > 1 % of an interval, or missing from the side file for some frames",
     ),
     (NO_FORCE_LAW, "the contact law could not be fitted"),
     (FORCE_EXPONENT_IMPLAUSIBLE, "force exponent n outside 1–4"),

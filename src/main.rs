@@ -121,7 +121,7 @@ fn hold_folder(
     let me =
         dropscope::lock::Holder::this_process(&dropscope::cache::job_id(kind, cfg, runs), None);
     Ok(dropscope::lock::acquire(out, &me, wait, &|m| {
-        eprintln!("{m}")
+        dropscope::errln!("{m}")
     })?)
 }
 
@@ -141,6 +141,7 @@ fn job_counts(job: &dropscope::batch::JobSummary) -> String {
 
 /// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
 fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
+    dropscope::batch::check_threads(args.threads.map(usize::from))?;
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
     if args.config.is_none() && name == dropscope::config::EMBEDDED_NAME {
@@ -187,22 +188,22 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         )
     });
     if let Some(shard) = job.shard {
-        eprintln!(
+        dropscope::errln!(
             "shard {shard}: {}; committed to {}. Once every shard is done, `dropscope run` on \
              that folder assembles drops.csv, the collapse and the report",
             job_counts(&job),
             out.display()
         );
-        timings.iter().for_each(|t| eprintln!("{t}"));
+        timings.iter().for_each(|t| dropscope::errln!("{t}"));
         // Failed runs are committed rows too: the shard did its work, and
         // the finishing run (started by Slurm only after every task
         // succeeded) reports them with exit status 1.
         return Ok(ExitCode::SUCCESS);
     }
     for w in &job.collapse_warnings {
-        eprintln!("warning: {w}");
+        dropscope::errln!("warning: {w}");
     }
-    eprintln!(
+    dropscope::errln!(
         "{}; collapse {}; {:.2} s in all; results in {} (open report.html there)",
         job_counts(&job),
         if job.collapsed {
@@ -213,7 +214,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         start.elapsed().as_secs_f64(),
         out.display()
     );
-    timings.iter().for_each(|t| eprintln!("{t}"));
+    timings.iter().for_each(|t| dropscope::errln!("{t}"));
     Ok(if job.failed() > 0 {
         ExitCode::from(1)
     } else {
@@ -228,6 +229,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     if args.timings {
         dropscope::timings::enable();
     }
+    dropscope::batch::check_threads(args.threads.map(usize::from))?;
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
     let runs = match &args.manifest {
@@ -259,10 +261,10 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     progress.finish();
     let job = job?;
     for w in &job.warnings {
-        eprintln!("warning: {w}");
+        dropscope::errln!("warning: {w}");
     }
     let failed = job.count(DropStatus::Failed);
-    eprintln!(
+    dropscope::errln!(
         "{}: {} measured, {} with warnings, {} failed, {} reused from the cache; {}; \
          results in {}",
         dropscope::plural(job.records.len(), "run"),
@@ -274,7 +276,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
         out.display()
     );
     if args.timings {
-        eprintln!(
+        dropscope::errln!(
             "{}",
             dropscope::timings::table(
                 job.records.len() - job.cached,
@@ -310,9 +312,9 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
     let _held = hold_folder(&args.out_dir(), "collapse", &cfg, &[], wait)?;
     let s = dropscope::collapse::run(args, &cfg, &name)?;
     for w in &s.warnings {
-        eprintln!("warning: {w}");
+        dropscope::errln!("warning: {w}");
     }
-    println!(
+    dropscope::outln!(
         "collapse: {} used, {} skipped; {} files in {}",
         dropscope::plural(s.n_used, "drop"),
         s.n_skipped,
@@ -330,15 +332,15 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
 fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> {
     let start = std::time::Instant::now();
     let report = dropscope::render::render_with_progress(args, &mut |done, total, run| {
-        eprintln!("[{}/{total}] {run}", done + 1);
+        dropscope::errln!("[{}/{total}] {run}", done + 1);
     })?;
     let secs = start.elapsed().as_secs_f64();
     for (run, reason) in &report.failures {
-        eprintln!("error: {reason}");
-        eprintln!("  (run {run} was not rendered)");
+        dropscope::errln!("error: {reason}");
+        dropscope::errln!("  (run {run} was not rendered)");
     }
     let frames = report.frames();
-    eprintln!(
+    dropscope::errln!(
         "rendered {}, {frames} frames into {} in {secs:.2} s ({:.0} frames/s){}",
         dropscope::plural(report.drops.len(), "drop"),
         args.out.display(),
@@ -372,7 +374,7 @@ fn run_report(
     };
     let records = dropscope::dataset::read_csv(&out.join("drops.csv"))?;
     let path = dropscope::report::write_report(&out, &name, &records)?;
-    println!("report: {}", path.display());
+    dropscope::outln!("report: {}", path.display());
     Ok(ExitCode::SUCCESS)
 }
 
@@ -388,14 +390,14 @@ fn run_check_config(config: Option<&std::path::Path>) -> anyhow::Result<ExitCode
         if name != dropscope::config::EMBEDDED_NAME {
             return Err(e.into());
         }
-        eprintln!(
+        dropscope::errln!(
             "warning: {e}; this built-in default names the sample drops of the dropscope \
              repository: to start your own, `dropscope check-config --default > pipeline.toml` \
              and set [input] manifest to your runs.csv"
         );
     }
-    println!("# {name}: valid; resolved (paths as dropscope will use them):");
-    print!("{}", cfg.to_toml());
+    dropscope::outln!("# {name}: valid; resolved (paths as dropscope will use them):");
+    dropscope::console::out(&cfg.to_toml());
     Ok(ExitCode::SUCCESS)
 }
 
@@ -413,7 +415,7 @@ fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
         local.exists().then_some(local),
     )?;
     let scripts = slurm::write_scripts(args, &plan)?;
-    println!(
+    dropscope::outln!(
         "{} runs in {} shards into {}; scripts {} and {}, logs in {}",
         runs.len(),
         args.array,
@@ -423,16 +425,16 @@ fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
         plan.scripts.join("logs").display()
     );
     if !args.submit {
-        println!(
+        dropscope::outln!(
             "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}",
-            scripts.array.display(),
-            scripts.finish.display()
+            slurm::quote(&scripts.array),
+            slurm::quote(&scripts.finish)
         );
         return Ok(ExitCode::SUCCESS);
     }
     let ids = slurm::submit(&scripts)?;
-    println!("array job {} ({} tasks)", ids.array_job, args.array);
-    println!(
+    dropscope::outln!("array job {} ({} tasks)", ids.array_job, args.array);
+    dropscope::outln!(
         "finishing job {} (starts when every task of {} has succeeded; then {} holds report.html)",
         ids.finish_job,
         ids.array_job,
@@ -483,7 +485,7 @@ fn main() -> ExitCode {
             default: true,
             config: _,
         } => {
-            print!("{}", dropscope::config::EMBEDDED_DEFAULT);
+            dropscope::console::out_raw(dropscope::config::EMBEDDED_DEFAULT);
             Ok(ExitCode::SUCCESS)
         }
         Command::CheckConfig {
@@ -494,7 +496,7 @@ fn main() -> ExitCode {
             dropscope::source::cli::run_inspect(&args).map(|()| ExitCode::SUCCESS)
         }
         Command::Export(args) => dropscope::source::cli::run_export(&args).map(|files| {
-            eprintln!("wrote {} frame(s) to {}", files.len(), args.out.display());
+            dropscope::errln!("wrote {} frame(s) to {}", files.len(), args.out.display());
             ExitCode::SUCCESS
         }),
         Command::Render(args) => run_render(&args),
@@ -511,7 +513,7 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {}", error_text(&e));
+            dropscope::errln!("error: {}", error_text(&e));
             ExitCode::from(2)
         }
     }

@@ -19,6 +19,7 @@ mod slurm;
 mod source;
 mod source_tiff;
 mod timings;
+mod untrusted;
 mod wide_frames;
 
 /// `../shared/data/phantom-samples/` beside the checkout, with `rel` joined:

@@ -420,6 +420,34 @@ fn escape_sequences_in_names_never_reach_the_terminal_or_a_cell() {
             assert!(v["path"].as_str().unwrap().ends_with("\u{1b}[31m"));
         }
     }
+    // A cine whose camera text (SETUP.CameraModel, 256 bytes at 10128)
+    // sets the window title and clears the screen.
+    let mut cine = std::fs::read(crate::phantom_sample("pims/cine_781.cine")).unwrap();
+    let setup = u32::from_le_bytes(cine[28..32].try_into().unwrap()) as usize;
+    let camera = b"Phantom\x1b]0;pwned\x07\x1b[2J\x1b]52;c;ZWNobyBoaQ==\x07\0";
+    cine[setup + 10128..setup + 10128 + camera.len()].copy_from_slice(camera);
+    let path = d.join("camera.cine");
+    std::fs::write(&path, cine).unwrap();
+    for json in [false, true] {
+        let o = dropscope()
+            .arg("inspect")
+            .arg(&path)
+            .args(json.then_some("--json"))
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let shown = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(
+            !o.stdout.contains(&0x1b) && !o.stdout.contains(&0x07),
+            "{shown}"
+        );
+        if json {
+            let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+            assert!(v["camera"].to_string().contains("pwned"), "{v}");
+        } else {
+            assert!(shown.contains("Phantom\\u{1b}]0;pwned"), "{shown}");
+        }
+    }
 }
 
 /// Class: look-alike run names. A zero-width space or a right-to-left
@@ -500,8 +528,8 @@ fn edit(xml: &str, from: &str, to: &str) -> String {
 
 /// Class: the PCC side file says what it says, or is refused. A comment
 /// inside a value does not cut it; a value given twice differently is
-/// refused; a TIMEBLOCK missing a frame is kept (the irregular time beside
-/// it still flagged) and said; files renumbered from 0 get the side
+/// refused; a TIMEBLOCK missing a frame, or listing one under a stray
+/// number, is kept (the irregular time beside it still flagged) and said; files renumbered from 0 get the side
 /// file's numbers and times; a side file of other frames is refused.
 #[test]
 fn a_side_file_is_read_whole_and_applied_only_to_its_frames() {
@@ -531,10 +559,16 @@ fn a_side_file_is_read_whole_and_applied_only_to_its_frames() {
             "<Time frame=\"-25\">10:00:59.997 500.00</Time>",
             "<Time frame=\"-25\">10:00:59.997 503.00</Time>",
         );
-        edit(
+        let x = edit(
             &x,
             "<Date frame=\"-20\">Thu Jun 13 2019</Date><Time frame=\"-20\">10:00:59.998 000.00</Time>",
             "",
+        );
+        // A stray frame number: frame -15's time listed under 9999.
+        edit(
+            &x,
+            "<Date frame=\"-15\">Thu Jun 13 2019</Date><Time frame=\"-15\">",
+            "<Date frame=\"9999\">Thu Jun 13 2019</Date><Time frame=\"9999\">",
         )
     });
     let o = process(&[&irregular], &out, &[]);
@@ -543,7 +577,7 @@ fn a_side_file_is_read_whole_and_applied_only_to_its_frames() {
     assert_eq!(row.status, DropStatus::Warning, "{}", row.reason);
     assert!(row.flags.contains("time_irregular"), "{}", row.flags);
     assert!(
-        row.reason.contains("no time for 1 of the 87 frames"),
+        row.reason.contains("no time for 2 of the 87 frames"),
         "{}",
         row.reason
     );
@@ -592,7 +626,7 @@ fn a_side_file_is_read_whole_and_applied_only_to_its_frames() {
 
 /// Class: numbers out of any physical range. A frame rate of 1e300 in
 /// pipeline.toml is refused by check-config naming the key; a density of
-/// 1e308 in a manifest naming the column; in a hand-made drops.csv given
+/// 1e308 or 1e-308 in a manifest naming the column; in a hand-made drops.csv given
 /// to `collapse`, the row is skipped saying why, never used as Ψ = Ξ = 0.
 #[test]
 fn numbers_out_of_physical_range_are_refused_where_they_enter() {
@@ -609,24 +643,30 @@ fn numbers_out_of_physical_range_are_refused_where_they_enter() {
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(e.contains("camera.fps") && e.contains("1e7"), "{e}");
     copy_drop(d, DROP, |x| x);
-    std::fs::write(
-        d.join("runs.csv"),
-        format!("run,path,sphere_radius_mm,sphere_density_kg_m3\n{DROP},{DROP},4.5,1e308\n"),
-    )
-    .unwrap();
-    let o = dropscope()
-        .args(["process", "--manifest"])
-        .arg(d.join("runs.csv"))
-        .arg("--out")
-        .arg(d.join("out"))
-        .output()
+    // 1e308 overflows the force constants; 1e-308 sent the log axes' tick
+    // code into an unbounded loop.
+    for density in ["1e308", "1e-308"] {
+        std::fs::write(
+            d.join("runs.csv"),
+            format!(
+                "run,path,sphere_radius_mm,sphere_density_kg_m3\n{DROP},{DROP},4.5,{density}\n"
+            ),
+        )
         .unwrap();
-    let e = stderr(&o);
-    assert_eq!(o.status.code(), Some(2), "{e}");
-    assert!(
-        e.contains("sphere_density_kg_m3") && e.contains("row 2"),
-        "{e}"
-    );
+        let mut c = dropscope();
+        c.args(["process", "--no-animation", "--manifest"])
+            .arg(d.join("runs.csv"))
+            .arg("--out")
+            .arg(d.join("out"));
+        let o = within(c, Duration::from_secs(120))
+            .unwrap_or_else(|| panic!("density {density}: still running after 120 s"));
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{density}: {e}");
+        assert!(
+            e.contains("sphere_density_kg_m3") && e.contains("row 2") && e.contains("1e5 kg/m³"),
+            "{e}"
+        );
+    }
     // A drops.csv edited by hand.
     let out = d.join("made");
     std::fs::create_dir(&out).unwrap();
@@ -691,6 +731,41 @@ fn a_frame_too_large_to_decode_is_refused_from_its_header() {
         e.contains("huge_000001.png") && e.contains("30000×30000") && e.contains("8192 × 4096"),
         "{e}"
     );
+    // A deflate TIFF of 16 000² (3.75 GB a worker to decode) from a
+    // 1 kB file: refused from its tags.
+    let deflated = dir.path().join("deflated");
+    std::fs::create_dir(&deflated).unwrap();
+    let strip = fdeflate::compress_to_vec(&vec![0u8; 1 << 20]);
+    for i in 0..3 {
+        std::fs::write(
+            deflated.join(format!("t_{i:03}.tif")),
+            tiff(16_000, 16_000, 1, 8, strip.clone()),
+        )
+        .unwrap();
+    }
+    let e = inspect(&deflated).unwrap_err();
+    assert!(
+        e.contains("t_000.tif") && e.contains("16000×16000") && e.contains("8192 × 4096"),
+        "{e}"
+    );
+    // In a job, the run fails and the next one is measured.
+    let good = copy_drop(dir.path(), DROP, |x| x);
+    let out = dir.path().join("out");
+    let o = process(&[&run, &deflated, &good], &out, &["--fps", "1000"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let rows = read_csv(&out.join("drops.csv")).unwrap();
+    let status: Vec<(&str, DropStatus)> = rows.iter().map(|r| (r.run.as_str(), r.status)).collect();
+    assert_eq!(
+        status,
+        [
+            ("huge", DropStatus::Failed),
+            ("deflated", DropStatus::Failed),
+            (DROP, DropStatus::Ok)
+        ],
+        "{}",
+        stderr(&o)
+    );
+    assert!(rows[0].reason.contains("30000×30000"), "{}", rows[0].reason);
 }
 
 /// Class: a write to a closed or full standard output or error is no
@@ -798,6 +873,16 @@ fn a_named_pipe_or_a_device_is_refused_for_every_input() {
             ],
             "device",
         ),
+        (
+            vec![
+                "process".as_ref(),
+                "--manifest".as_ref(),
+                "/dev/zero".as_ref(),
+                "--out".as_ref(),
+                out.as_os_str(),
+            ],
+            "device",
+        ),
     ];
     for (args, what) in cases {
         let mut cmd = dropscope();
@@ -881,16 +966,23 @@ fn a_signal_releases_the_output_folder_and_an_empty_ticket_is_taken_over() {
 
 /// An 8-bit grey little-endian TIFF of `w` × `h` with `orientation`.
 fn tiff_with_orientation(w: u16, h: u16, orientation: u16) -> Vec<u8> {
+    let pixels = (0..u32::from(w) * u32::from(h)).map(|i| (i % 251) as u8);
+    tiff(w, h, orientation, 1, pixels.collect())
+}
+
+/// An 8-bit grey little-endian TIFF of `w` × `h` with `orientation` and
+/// `compression` (1 none, 8 deflate), one strip holding `data`.
+fn tiff(w: u16, h: u16, orientation: u16, compression: u16, data: Vec<u8>) -> Vec<u8> {
     let entries: [(u16, u16, u32, u32); 9] = [
         (256, 3, 1, u32::from(w)),
         (257, 3, 1, u32::from(h)),
         (258, 3, 1, 8),
-        (259, 3, 1, 1),
+        (259, 3, 1, u32::from(compression)),
         (262, 3, 1, 1),
         (273, 4, 1, 8 + 2 + 9 * 12 + 4),
         (274, 3, 1, u32::from(orientation)),
         (277, 3, 1, 1),
-        (279, 4, 1, u32::from(w) * u32::from(h)),
+        (279, 4, 1, data.len() as u32),
     ];
     let mut b = b"II*\0".to_vec();
     b.extend_from_slice(&8u32.to_le_bytes());
@@ -902,7 +994,7 @@ fn tiff_with_orientation(w: u16, h: u16, orientation: u16) -> Vec<u8> {
         b.extend_from_slice(&value.to_le_bytes());
     }
     b.extend_from_slice(&0u32.to_le_bytes());
-    b.extend((0..u32::from(w) * u32::from(h)).map(|i| (i % 251) as u8));
+    b.extend(data);
     b
 }
 

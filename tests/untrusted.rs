@@ -749,9 +749,24 @@ fn a_frame_too_large_to_decode_is_refused_from_its_header() {
         "{e}"
     );
     // In a job, the run fails and the next one is measured.
-    let good = copy_drop(dir.path(), DROP, |x| x);
+    copy_drop(dir.path(), DROP, |x| x);
+    let manifest = dir.path().join("runs.csv");
+    std::fs::write(
+        &manifest,
+        format!(
+            "run,path,sphere_radius_mm,fps\nhuge,huge,4.5,10000\ndeflated,deflated,4.5,10000\n\
+             {DROP},{DROP},4.5,10000\n"
+        ),
+    )
+    .unwrap();
     let out = dir.path().join("out");
-    let o = process(&[&run, &deflated, &good], &out, &["--fps", "1000"]);
+    let o = dropscope()
+        .args(["process", "--no-animation", "--manifest"])
+        .arg(&manifest)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let rows = read_csv(&out.join("drops.csv")).unwrap();
     let status: Vec<(&str, DropStatus)> = rows.iter().map(|r| (r.run.as_str(), r.status)).collect();

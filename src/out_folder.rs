@@ -60,8 +60,13 @@ fn link(out: &Path, at: &Path) -> io::Error {
 }
 
 /// Make the folder `out/rel_dir` and every folder between, each a real
-/// folder (a link or a file in the way is an error naming it).
+/// folder (a link or a file in the way is an error naming it); the output
+/// folder itself is made when missing (it may be a link).
 pub fn create_dirs(out: &Path, rel_dir: &str) -> io::Result<PathBuf> {
+    fs::create_dir_all(out)?;
+    if rel_dir.is_empty() {
+        return Ok(out.to_path_buf());
+    }
     let full = crate::io_util::inside(out, rel_dir)?;
     let mut at = out.to_path_buf();
     for c in Path::new(rel_dir).components() {
@@ -100,12 +105,8 @@ pub fn write_as(
     durable: Durable,
     write: impl FnOnce(&mut fs::File) -> io::Result<()>,
 ) -> io::Result<PathBuf> {
-    if let Some(parent) = Path::new(rel)
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-    {
-        create_dirs(out, &parent.to_string_lossy())?;
-    }
+    let parent = Path::new(rel).parent().unwrap_or(Path::new(""));
+    create_dirs(out, &parent.to_string_lossy())?;
     let full = path(out, rel)?;
     crate::io_util::write_atomic_as(&full, durable, write)?;
     Ok(full)
@@ -306,6 +307,16 @@ mod tests {
         assert!(open(&out, "plots/x.png").is_err());
         assert!(!remove_if_holds(&out, "plots/x.png", &h).unwrap_or(false));
         assert_eq!(fs::read(photos.join("cat.png")).unwrap(), b"cat");
+    }
+
+    #[test]
+    fn a_missing_output_folder_is_made() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("new/out");
+        write(&out, "collapse.csv", b"a\n").unwrap();
+        write(&out, "plots/drops/a.svg", b"<svg/>").unwrap();
+        assert_eq!(fs::read(out.join("collapse.csv")).unwrap(), b"a\n");
+        assert!(out.join("plots/drops/a.svg").is_file());
     }
 
     #[test]

@@ -88,6 +88,31 @@ pub enum BatchError {
     NothingFound(String),
     #[error(transparent)]
     Lock(#[from] crate::lock::LockError),
+    #[error(
+        "--threads {asked}: at most {max} on this machine (4 × its {cores} cores): more threads \
+         only share the cores, and each holds frames in memory"
+    )]
+    TooManyThreads {
+        asked: usize,
+        max: usize,
+        cores: usize,
+    },
+}
+
+/// `threads` refused when above [`max_threads`].
+pub fn check_threads(threads: Option<usize>) -> Result<(), BatchError> {
+    let (max, cores) = max_threads();
+    match threads.filter(|&n| n > max) {
+        Some(asked) => Err(BatchError::TooManyThreads { asked, max, cores }),
+        None => Ok(()),
+    }
+}
+
+/// Most worker threads a job takes: 4 × the machine's cores (at least 4),
+/// never more than 1024.
+pub fn max_threads() -> (usize, usize) {
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    (cores.saturating_mul(4).clamp(4, 1024), cores)
 }
 
 /// How the job runs (not what it computes: outputs do not depend on these).
@@ -177,6 +202,23 @@ fn is_cine(p: &Path) -> bool {
         .is_some_and(|x| x.eq_ignore_ascii_case("cine"))
 }
 
+/// Whether `dir` is an output folder dropscope wrote (it holds its
+/// `provenance.json` or the ledger of its files).
+fn is_output_folder(dir: &Path) -> bool {
+    [crate::out_folder::LEDGER_FILE, "provenance.json"]
+        .iter()
+        .any(|f| dir.join(f).is_file())
+}
+
+/// Whether `path`, inside an output folder, is one of the folders
+/// dropscope writes there (never searched for runs: `process DIR --out
+/// DIR` again would take `plots/overlays/` for a run).
+fn is_output_part(path: &Path) -> bool {
+    path.file_name()
+        .and_then(|n| n.to_str())
+        .is_some_and(|n| matches!(n, "plots" | "tracks" | "runs" | crate::lock::LOCK_DIR))
+}
+
 /// Deepest folder level searched under an input path (guards symlink loops).
 const MAX_SEARCH_DEPTH: usize = 16;
 
@@ -194,7 +236,12 @@ pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
             .map(|e| e.path())
             .collect();
         children.sort();
+        let output_folder = is_output_folder(dir);
         for c in children {
+            if output_folder && is_output_part(&c) {
+                // dropscope's own figures, tracks and cache, not runs.
+                continue;
+            }
             if is_cine(&c) {
                 out.push(c);
             } else if c.is_dir() {
@@ -303,7 +350,19 @@ fn run_setup(
             let hits: Vec<Entry> = members
                 .iter()
                 .zip(&keys)
-                .filter_map(|(r, k)| cache::lookup(out, &r.run, k.as_ref()?))
+                .filter_map(|(r, k)| match cache::check(out, &r.run, k.as_ref()?) {
+                    Ok(e) => Some(e),
+                    Err(cache::Miss::Altered(path)) => {
+                        events(RunEvent::Notice(&format!(
+                            "{}: changed since dropscope wrote it (its content no longer \
+                             matches its entry_sha256): run {} is measured again",
+                            path.display(),
+                            crate::text::terminal(&r.run)
+                        )));
+                        None
+                    }
+                    Err(_) => None,
+                })
                 .collect();
             if hits.len() == members.len() {
                 for e in &hits {
@@ -346,6 +405,7 @@ fn run_setup(
             record: o.record,
             scene: o.scene,
             scene_key: fp.as_ref().map(|fp| cache::scene_key(cfg, r, fp)),
+            entry_sha256: String::new(),
         };
         if key.is_some() && crate::run_name::check(&r.run).is_ok() {
             cache::store(out, &entry).map_err(|source| BatchError::Io {
@@ -582,6 +642,7 @@ pub fn on_threads<R: Send>(
 ) -> Result<R, BatchError> {
     let in_pool =
         |n: usize| rayon::current_thread_index().is_some() && rayon::current_num_threads() == n;
+    check_threads(threads)?;
     match threads {
         Some(n) if !in_pool(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -678,7 +739,10 @@ fn job_on_pool(
     // earlier job's collapse wrote, so that no figure of a run that has
     // since failed or left the manifest survives (nor all of it when no
     // drop is measured now).
-    crate::collapse::remove_outputs(out).map_err(io(out))?;
+    let mut ledger = crate::out_folder::Ledger::open(out);
+    crate::collapse::remove_outputs(&mut ledger)
+        .and_then(|()| ledger.save())
+        .map_err(io(out))?;
     let (collapsed, collapse_warnings, collapse_note) = if measured > 0 {
         events(RunEvent::Collapsing);
         let args = CollapseArgs {
@@ -699,7 +763,9 @@ fn job_on_pool(
             .collect();
         (true, warnings, note)
     } else {
-        crate::collapse::per_drop::replace(out, Vec::new(), &mut Vec::new())?;
+        let replaced = crate::collapse::per_drop::replace(&mut ledger, Vec::new(), &mut Vec::new());
+        ledger.save().map_err(io(out))?;
+        replaced?;
         (false, Vec::new(), None)
     };
     drop(collapse);

@@ -376,9 +376,18 @@ impl PipelineConfig {
     /// Read and validate a configuration file. Relative paths inside it are
     /// taken relative to the file's folder.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        // A named pipe or a device is refused before it is opened; a file
+        // of more than 16 MiB is no configuration.
+        let io = |source| ConfigError::Io {
             path: path.to_path_buf(),
             source,
+        };
+        let bytes = crate::io_util::read_input(path, 16 << 20).map_err(io)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("not UTF-8 text: {e}"),
+            ))
         })?;
         let base = path.parent().unwrap_or(Path::new("")).to_path_buf();
         Self::from_toml_str(&text, path, &base)
@@ -464,8 +473,38 @@ impl Checker<'_> {
         }
     }
 
-    fn positive_opt(&self, key: &str, v: Option<f64>) -> Result<Option<f64>, ConfigError> {
-        v.map(|v| self.positive(key, v)).transpose()
+    /// A number within its physical range ([`crate::ranges`]).
+    fn ranged(&self, key: &str, range: crate::ranges::Range, v: f64) -> Result<f64, ConfigError> {
+        let v = self.positive(key, v)?;
+        range
+            .check(v)
+            .map_err(|allowed| self.invalid(key, crate::ranges::show(v), &allowed))
+    }
+
+    fn ranged_opt(
+        &self,
+        key: &str,
+        range: crate::ranges::Range,
+        v: Option<f64>,
+    ) -> Result<Option<f64>, ConfigError> {
+        v.map(|v| self.ranged(key, range, v)).transpose()
+    }
+
+    /// A path without a control character (a newline in `[output] dir`
+    /// would reach a Slurm script as a command).
+    fn path(&self, key: &str, p: PathBuf) -> Result<PathBuf, ConfigError> {
+        let text = p.to_string_lossy();
+        if text
+            .chars()
+            .any(|c| c.is_control() || crate::text::is_format(c))
+        {
+            return Err(self.invalid(
+                key,
+                format!("{:?}", crate::text::one_line(&text)),
+                "must be a path without control or invisible format characters",
+            ));
+        }
+        Ok(p)
     }
 }
 
@@ -478,10 +517,11 @@ impl RawConfig {
         let mut surfaces = BTreeMap::new();
         for (name, s) in self.surface {
             let key = |k: &str| format!("surface.{name}.{k}");
-            let modulus_pa = c.positive(&key("modulus_pa"), s.modulus_pa)?;
-            let h = c.positive(&key("pillar_height_mm"), s.pillar_height_mm)?;
-            let b = c.positive(&key("pillar_width_mm"), s.pillar_width_mm)?;
-            let ch = c.positive(&key("channel_width_mm"), s.channel_width_mm)?;
+            use crate::ranges::{MODULUS_PA, PILLAR_MM};
+            let modulus_pa = c.ranged(&key("modulus_pa"), MODULUS_PA, s.modulus_pa)?;
+            let h = c.ranged(&key("pillar_height_mm"), PILLAR_MM, s.pillar_height_mm)?;
+            let b = c.ranged(&key("pillar_width_mm"), PILLAR_MM, s.pillar_width_mm)?;
+            let ch = c.ranged(&key("channel_width_mm"), PILLAR_MM, s.channel_width_mm)?;
             let phi = s.solid_fraction.unwrap_or(b / (b + ch));
             if !(phi.is_finite() && phi > 0.0 && phi <= 1.0) {
                 return Err(c.invalid(&key("solid_fraction"), phi, "must lie in (0, 1]"));
@@ -520,15 +560,17 @@ impl RawConfig {
             }
         };
 
-        let density = c.positive(
+        use crate::ranges::{DENSITY_KG_M3, FPS, MM_PER_PX, SPHERE_RADIUS_MM};
+        let density = c.ranged(
             "sphere.density_kg_m3",
+            DENSITY_KG_M3,
             self.sphere.density_kg_m3.unwrap_or(7800.0),
         )?;
         let radius_m = c
-            .positive_opt("sphere.radius_mm", self.sphere.radius_mm)?
+            .ranged_opt("sphere.radius_mm", SPHERE_RADIUS_MM, self.sphere.radius_mm)?
             .map(|r| r * 1e-3);
-        let fps = c.positive_opt("camera.fps", self.camera.fps)?;
-        let mm_per_px = c.positive_opt("camera.mm_per_px", self.camera.mm_per_px)?;
+        let fps = c.ranged_opt("camera.fps", FPS, self.camera.fps)?;
+        let mm_per_px = c.ranged_opt("camera.mm_per_px", MM_PER_PX, self.camera.mm_per_px)?;
         let distortion_k1_per_px2 = match self.camera.distortion_k1_per_px2 {
             // |k1| r² above 5 % at 1 000 px from the centre is no lens of
             // this experiment, and the one-term model would not hold.
@@ -637,10 +679,25 @@ impl RawConfig {
             }
         }
 
+        let manifest = self
+            .input
+            .manifest
+            .map(|p| c.path("input.manifest", p))
+            .transpose()?;
+        let paths = self
+            .input
+            .paths
+            .into_iter()
+            .map(|p| c.path("input.paths", p))
+            .collect::<Result<Vec<_>, _>>()?;
+        let dir = c.path(
+            "output.dir",
+            self.output.dir.unwrap_or_else(|| PathBuf::from("out")),
+        )?;
         Ok(PipelineConfig {
             input: InputConfig {
-                manifest: self.input.manifest.map(resolve),
-                paths: self.input.paths.into_iter().map(resolve).collect(),
+                manifest: manifest.map(resolve),
+                paths: paths.into_iter().map(resolve).collect(),
                 surface,
             },
             camera: CameraConfig {
@@ -666,7 +723,7 @@ impl RawConfig {
                 edge_spacing_px,
             },
             output: OutputConfig {
-                dir: resolve(self.output.dir.unwrap_or_else(|| PathBuf::from("out"))),
+                dir: resolve(dir),
                 animation: self.output.animation.unwrap_or(true),
             },
             command_line: CommandLineValues::default(),

@@ -35,7 +35,9 @@ impl DropStatus {
 /// columns. Measured fields are `None` (an empty CSV cell) when the run failed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DropRecord {
-    /// Run name (the manifest's `run` column, or the folder / file stem).
+    /// Run name (the manifest's `run` column, or the folder / file stem);
+    /// in the file as a text cell ([`crate::text::csv_cell`]).
+    #[serde(serialize_with = "text_out", deserialize_with = "text_in")]
     pub run: String,
     pub sphere_radius_mm: f64,
     #[serde(default = "default_density")]
@@ -275,6 +277,38 @@ impl DropRecord {
     }
 }
 
+impl DropRecord {
+    /// The numeric columns whose value is not finite (`inf`, `NaN`): none
+    /// in a measured row ([`crate::process::process_setup`] fails the run).
+    pub fn non_finite_columns(&self) -> Vec<String> {
+        const TEXT: [&str; 9] = [
+            "run",
+            "surface",
+            "path",
+            "setup",
+            "scale_source",
+            "surface_source",
+            "status",
+            "flags",
+            "reason",
+        ];
+        let bytes = csv_bytes([self]);
+        let mut r = csv::Reader::from_reader(bytes.as_slice());
+        let Ok(header) = r.headers().cloned() else {
+            return Vec::new();
+        };
+        let Some(Ok(row)) = r.records().next() else {
+            return Vec::new();
+        };
+        header
+            .iter()
+            .zip(row.iter())
+            .filter(|(h, v)| !TEXT.contains(h) && v.parse::<f64>().is_ok_and(|x| !x.is_finite()))
+            .map(|(h, _)| h.to_string())
+            .collect()
+    }
+}
+
 /// One frame of a drop's track (`tracks/<run>.csv`, SPEC §4). Rows are in
 /// frame order; a frame where the sphere was not measured keeps its row with
 /// the measured columns empty and `flags` saying why.
@@ -328,8 +362,21 @@ pub struct TrackRow {
 /// (pandas read an all-empty column as float64, issue 17).
 pub const NO_TEXT: &str = "-";
 
+/// A text cell: no control or format character, and nothing a spreadsheet
+/// runs as a formula ([`crate::text::csv_cell`]).
+fn text_out<S: serde::Serializer>(text: &str, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(&crate::text::csv_cell(text))
+}
+
+/// A text cell back ([`crate::text::csv_cell_back`]).
+fn text_in<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
+    let text = String::deserialize(d)?;
+    Ok(crate::text::csv_cell_back(&text).to_string())
+}
+
+/// A text cell that may hold none ([`NO_TEXT`]).
 fn dash_out<S: serde::Serializer>(text: &str, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_str(if text.is_empty() { NO_TEXT } else { text })
+    text_out(if text.is_empty() { NO_TEXT } else { text }, s)
 }
 
 /// [`NO_TEXT`] (or an empty field, as written before) reads as none.
@@ -338,7 +385,7 @@ fn dash_in<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
     Ok(if text.trim() == NO_TEXT {
         String::new()
     } else {
-        text
+        crate::text::csv_cell_back(&text).to_string()
     })
 }
 
@@ -401,10 +448,12 @@ pub fn write_csv(path: &Path, records: &[DropRecord]) -> Result<(), DatasetError
 pub fn read_csv(path: &Path) -> Result<Vec<DropRecord>, DatasetError> {
     // Opened here, not by csv, so that a missing file is an I/O error on
     // the path rather than a CSV error in "row 0".
-    let bytes = std::fs::read(path).map_err(|source| DatasetError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::io_util::read_input(path, crate::io_util::TEXT_INPUT_MAX_BYTES).map_err(
+        |source| DatasetError::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+    )?;
     let mut rdr = csv::Reader::from_reader(bytes.as_slice());
     let mut out = Vec::new();
     for (i, rec) in rdr.deserialize().enumerate() {
@@ -512,6 +561,19 @@ mod tests {
         assert_eq!(r[0].tau_c_ms, Some(4.1));
         assert_eq!(r[0].t_contact_s, None);
         assert_eq!(r[0].sphere_density_kg_m3, 7800.0);
+    }
+
+    #[test]
+    fn non_finite_numbers_are_found_by_column_and_text_is_not() {
+        let mut r = DropRecord::failed("inf", 4.5, "NaN");
+        r.status = DropStatus::Ok;
+        r.v_impact_m_s = Some(1.0);
+        r.force_k_si = Some(f64::INFINITY);
+        r.restitution = Some(f64::NAN);
+        assert_eq!(r.non_finite_columns(), ["restitution", "force_k_si"]);
+        r.force_k_si = Some(1.0);
+        r.restitution = None;
+        assert!(r.non_finite_columns().is_empty());
     }
 
     #[test]

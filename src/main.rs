@@ -128,7 +128,7 @@ fn hold_folder(
     let me =
         dropscope::lock::Holder::this_process(&dropscope::cache::job_id(kind, cfg, runs), None);
     Ok(dropscope::lock::acquire(out, &me, wait, &|m| {
-        eprintln!("{m}")
+        dropscope::errln!("{m}")
     })?)
 }
 
@@ -160,6 +160,7 @@ fn tracked_count(n: usize) -> String {
 
 /// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
 fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
+    dropscope::batch::check_threads(args.threads.map(usize::from))?;
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
     cfg.command_line = args.recording.values();
@@ -207,13 +208,13 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         )
     });
     if let Some(shard) = job.shard {
-        eprintln!(
+        dropscope::errln!(
             "shard {shard}: {}; committed to {}. Once every shard is done, `dropscope run` on \
              that folder assembles drops.csv, the collapse and the report",
             job_counts(&job),
             out.display()
         );
-        timings.iter().for_each(|t| eprintln!("{t}"));
+        timings.iter().for_each(|t| dropscope::errln!("{t}"));
         // Failed runs are committed rows too: the shard did its work, and
         // the finishing run (started by Slurm only after every task
         // succeeded) reports them with exit status 1.
@@ -223,12 +224,12 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         .iter()
         .chain(&job.collapse_warnings)
     {
-        eprintln!("warning: {w}");
+        dropscope::errln!("warning: {w}");
     }
     if let Some(note) = &job.collapse_note {
-        eprintln!("note: {note}");
+        dropscope::errln!("note: {note}");
     }
-    eprintln!(
+    dropscope::errln!(
         "{}; collapse {}; {:.2} s in all; results in {} (open report.html there)",
         job_counts(&job),
         if job.collapsed {
@@ -239,7 +240,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         start.elapsed().as_secs_f64(),
         out.display()
     );
-    timings.iter().for_each(|t| eprintln!("{t}"));
+    timings.iter().for_each(|t| dropscope::errln!("{t}"));
     Ok(if job.failed() > 0 {
         ExitCode::from(1)
     } else {
@@ -254,6 +255,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     if args.timings {
         dropscope::timings::enable();
     }
+    dropscope::batch::check_threads(args.threads.map(usize::from))?;
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
     cfg.command_line = args.recording.values();
@@ -289,10 +291,10 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
         .iter()
         .chain(&job.warnings)
     {
-        eprintln!("warning: {w}");
+        dropscope::errln!("warning: {w}");
     }
     let failed = job.count(DropStatus::Failed);
-    eprintln!(
+    dropscope::errln!(
         "{}: {} measured, {} with warnings, {}{} failed, {} reused from the cache; {}; \
          results in {}",
         dropscope::plural(job.records.len(), "run"),
@@ -305,7 +307,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
         out.display()
     );
     if args.timings {
-        eprintln!(
+        dropscope::errln!(
             "{}",
             dropscope::timings::table(
                 job.records.len() - job.cached,
@@ -342,8 +344,8 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
     let s = dropscope::collapse::run(args, &cfg, &name)?;
     for w in &s.warnings {
         match &s.fits.few_drops {
-            Some(note) if note == w => eprintln!("note: {w}"),
-            _ => eprintln!("warning: {w}"),
+            Some(note) if note == w => dropscope::errln!("note: {w}"),
+            _ => dropscope::errln!("warning: {w}"),
         }
     }
     say(format_args!(
@@ -364,15 +366,15 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
 fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> {
     let start = std::time::Instant::now();
     let report = dropscope::render::render_with_progress(args, &mut |done, total, run| {
-        eprintln!("[{}/{total}] {run}", done + 1);
+        dropscope::errln!("[{}/{total}] {run}", done + 1);
     })?;
     let secs = start.elapsed().as_secs_f64();
     for (run, reason) in &report.failures {
-        eprintln!("error: {reason}");
-        eprintln!("  (run {run} was not rendered)");
+        dropscope::errln!("error: {reason}");
+        dropscope::errln!("  (run {run} was not rendered)");
     }
     let frames = report.frames();
-    eprintln!(
+    dropscope::errln!(
         "rendered {}, {frames} frames into {} in {secs:.2} s ({:.0} frames/s){}",
         dropscope::plural(report.drops.len(), "drop"),
         args.out.display(),
@@ -415,11 +417,11 @@ fn run_report(
 /// configuration's camera.fps).
 fn run_export(args: &dropscope::source::cli::ExportArgs) -> anyhow::Result<ExitCode> {
     let files = dropscope::source::cli::run_export(args)?;
-    eprintln!("wrote {} frame(s) to {}", files.len(), args.out.display());
+    dropscope::errln!("wrote {} frame(s) to {}", files.len(), args.out.display());
     if args.source.fps.is_none() {
         // Opened again (headers only) to learn where its frame rate came from.
         if let (src, Some(origin)) = args.source.open_source(&args.input)? {
-            eprintln!(
+            dropscope::errln!(
                 "warning: {} holds no frame rate: the time_s of {}_frames.csv are at {} \
                  frames/s, from {origin}, an assumed value; pass --fps if that is not this \
                  recording's",
@@ -444,7 +446,7 @@ fn run_check_config(config: Option<&std::path::Path>) -> anyhow::Result<ExitCode
         if name != dropscope::config::EMBEDDED_NAME {
             return Err(e.into());
         }
-        eprintln!(
+        dropscope::errln!(
             "warning: {e}; this built-in default names the sample drops of the dropscope \
              repository: to start your own, `dropscope check-config --default > pipeline.toml` \
              and set [input] manifest to your runs.csv"
@@ -483,8 +485,8 @@ fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
     if !args.submit {
         say(format_args!(
             "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}\n",
-            scripts.array.display(),
-            scripts.finish.display()
+            slurm::quote(&scripts.array),
+            slurm::quote(&scripts.finish)
         ))?;
         return Ok(ExitCode::SUCCESS);
     }
@@ -507,10 +509,13 @@ fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
 #[error("stdout was closed by its reader")]
 struct StdoutClosed;
 
-/// Write `text` to stdout. A closed pipe is [`StdoutClosed`], not the
-/// panic of `print!`.
+/// Write `text` to stdout, made safe for a terminal
+/// ([`dropscope::text::terminal`]). A closed pipe is [`StdoutClosed`], not
+/// the panic of `print!`.
 fn say(text: impl std::fmt::Display) -> anyhow::Result<()> {
     use std::io::Write;
+    let text = text.to_string();
+    let text = dropscope::text::terminal(&text);
     let mut out = std::io::stdout().lock();
     match write!(out, "{text}").and_then(|()| out.flush()) {
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(StdoutClosed.into()),
@@ -564,9 +569,9 @@ fn main() -> ExitCode {
             config,
             default: false,
         } => run_check_config(config.as_deref()),
-        Command::Inspect(args) => dropscope::source::cli::inspect_text(&args)
-            .and_then(|text| say(format_args!("{text}\n")))
-            .map(|()| ExitCode::SUCCESS),
+        Command::Inspect(args) => {
+            dropscope::source::cli::run_inspect(&args).map(|()| ExitCode::SUCCESS)
+        }
         Command::Export(args) => run_export(&args),
         Command::Render(args) => run_render(&args),
         Command::Collapse { args, wait } => run_collapse(&args, wait),
@@ -585,7 +590,7 @@ fn main() -> ExitCode {
         // what it wanted was written.
         Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", error_text(&e));
+            dropscope::errln!("error: {}", error_text(&e));
             ExitCode::from(2)
         }
     }

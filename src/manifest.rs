@@ -118,10 +118,12 @@ pub fn read_job_manifest(path: &Path) -> Result<Vec<RunSpec>, ManifestError> {
 
 /// Read and validate a manifest.
 pub fn read_manifest(path: &Path) -> Result<Vec<RunSpec>, ManifestError> {
-    let bytes = std::fs::read(path).map_err(|source| ManifestError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::io_util::read_input(path, crate::io_util::TEXT_INPUT_MAX_BYTES).map_err(
+        |source| ManifestError::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+    )?;
     parse_manifest(&bytes, path)
 }
 
@@ -160,20 +162,68 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
         if runs.iter().any(|x| x.run == r.run) {
             return Err(row_err(row, format!("run `{}` is listed twice", r.run)));
         }
-        let positive = |col: &str, v: Option<f64>| -> Result<Option<f64>, ManifestError> {
+        // Each number within its physical range ([`crate::ranges`]).
+        let ranged = |col: &str,
+                      range: crate::ranges::Range,
+                      v: Option<f64>|
+         -> Result<Option<f64>, ManifestError> {
             match v {
-                Some(x) if !(x.is_finite() && x > 0.0) => Err(row_err(
+                Some(x) if x.is_finite() && x <= 0.0 => Err(row_err(
                     row,
                     format!("column `{col}` = {x}: must be a number greater than 0"),
                 )),
-                _ => Ok(v),
+                Some(x) => match range.check(x) {
+                    Ok(_) => Ok(v),
+                    Err(allowed) => Err(row_err(
+                        row,
+                        format!("column `{col}` = {}: {allowed}", crate::ranges::show(x)),
+                    )),
+                },
+                None => Ok(v),
             }
         };
-        positive("sphere_radius_mm", Some(r.sphere_radius_mm))?;
-        let fps = positive("fps", r.fps)?;
-        let mm_per_px = positive("mm_per_px", r.mm_per_px)?;
-        let density = positive("sphere_density_kg_m3", r.sphere_density_kg_m3)?;
-        let height = positive("drop_height_cm", r.drop_height_cm)?;
+        use crate::ranges::{DENSITY_KG_M3, DROP_HEIGHT_CM, FPS, MM_PER_PX, SPHERE_RADIUS_MM};
+        ranged(
+            "sphere_radius_mm",
+            SPHERE_RADIUS_MM,
+            Some(r.sphere_radius_mm),
+        )?;
+        let fps = ranged("fps", FPS, r.fps)?;
+        let mm_per_px = ranged("mm_per_px", MM_PER_PX, r.mm_per_px)?;
+        let density = ranged(
+            "sphere_density_kg_m3",
+            DENSITY_KG_M3,
+            r.sphere_density_kg_m3,
+        )?;
+        let height = ranged("drop_height_cm", DROP_HEIGHT_CM, r.drop_height_cm)?;
+        if r.path
+            .as_os_str()
+            .to_string_lossy()
+            .chars()
+            .any(|c| c.is_control())
+        {
+            return Err(row_err(
+                row,
+                format!(
+                    "column `path` = {:?}: holds a control character",
+                    crate::text::one_line(&r.path.to_string_lossy())
+                ),
+            ));
+        }
+        for (col, v) in [("surface", &r.surface), ("setup", &r.setup)] {
+            if let Some(v) = v.as_deref().filter(|v| {
+                v.chars()
+                    .any(|c| c.is_control() || crate::text::is_format(c))
+            }) {
+                return Err(row_err(
+                    row,
+                    format!(
+                        "column `{col}` = {:?}: holds a control or invisible format character",
+                        crate::text::one_line(v)
+                    ),
+                ));
+            }
+        }
         let p = if r.path.is_absolute() {
             r.path.clone()
         } else {

@@ -273,6 +273,9 @@ pub fn process_setup(
                 )
             })
             .unwrap_or_else(|reason| failed_outcome(run, cfg, reason, recording.as_ref()));
+            if let Some(reason) = non_finite(&o.record) {
+                o = failed_outcome(run, cfg, reason, recording.as_ref());
+            }
             o.seconds = track_s + start.elapsed().as_secs_f64();
             o
         })
@@ -291,6 +294,22 @@ pub fn process_setup(
         }
     }
     outcomes
+}
+
+/// Why a measured record cannot stand: a number in it that is not finite
+/// (an input value far out of range overflowed). `None` when all are.
+fn non_finite(record: &DropRecord) -> Option<String> {
+    if record.status == crate::dataset::DropStatus::Failed {
+        return None;
+    }
+    let columns = record.non_finite_columns();
+    (!columns.is_empty()).then(|| {
+        format!(
+            "the measurement gave a number that is not finite in {}: an input value (density, \
+             radius, frame rate, scale) is out of any physical range",
+            columns.join(", ")
+        )
+    })
 }
 
 /// Run `work` for `run`: its panic becomes an error naming the input.
@@ -1032,7 +1051,9 @@ impl RecordingRow<'_> {
             );
         }
         for w in &meta.details.warnings {
-            if w.starts_with(crate::source::validate::IRREGULAR_TIMES) {
+            if w.starts_with(crate::source::validate::IRREGULAR_TIMES)
+                || w.starts_with(crate::source::validate::TIMES_INCOMPLETE)
+            {
                 quality::flag(record, quality::TIME_IRREGULAR, w.clone());
             } else if w.starts_with(crate::source::validate::TIMES_AND_RATE_DISAGREE) {
                 quality::flag(record, quality::FPS_MISMATCH, w.clone());
@@ -1542,15 +1563,12 @@ fn write_file_as(
     durable: Durable,
     write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
 ) -> Result<(), ProcessError> {
-    let path = output_path(out, rel)?;
-    if let Some(d) = path.parent() {
-        std::fs::create_dir_all(d).map_err(|source| ProcessError::Write {
-            path: d.to_path_buf(),
+    crate::out_folder::write_as(out, rel, durable, write)
+        .map(drop)
+        .map_err(|source| ProcessError::Write {
+            path: out.join(rel),
             source,
-        })?;
-    }
-    crate::io_util::write_atomic_as(&path, durable, write)
-        .map_err(|source| ProcessError::Write { path, source })
+        })
 }
 
 /// Make the files written by [`write_run_outputs`] (and the cache entries)
@@ -1568,8 +1586,10 @@ pub fn sync_outputs(out: &Path) -> Result<(), ProcessError> {
 /// (`plots/overlays/<run>[_<number>].png`) and animated impact
 /// (`plots/impacts/<run>.png`) into `out`, each atomically but unsynced:
 /// the job makes them durable at once ([`sync_outputs`]) before its
-/// drops.csv. A track or main overlay left by an earlier job for this run, which this
-/// outcome does not have (the run now fails), is removed. A run whose name
+/// drops.csv. A track, main overlay or animation that this run's previous
+/// cache entry lists, and that this outcome does not have (the run now
+/// fails), is removed while it holds the bytes written then
+/// ([`crate::out_folder::remove_if_holds`]). A run whose name
 /// is no file name writes and removes nothing. Returns the files written,
 /// relative to `out`, with the SHA-256 of their bytes.
 pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, ProcessError> {
@@ -1580,6 +1600,8 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, 
     }
     let track = format!("tracks/{run}.csv");
     let main_overlay = format!("plots/overlays/{run}.png");
+    let before = crate::cache::listed_outputs(out, run);
+    let remove_if_present = |out: &Path, rel: &str| remove_if_listed(out, rel, &before);
     let mut written = Vec::new();
     if o.track_csv.is_empty() {
         remove_if_present(out, &track)?;
@@ -1611,17 +1633,18 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, 
     Ok(written)
 }
 
-/// `out/rel`, refused unless it stays inside `out` ([`crate::io_util::inside`]).
-fn output_path(out: &Path, rel: &str) -> Result<PathBuf, ProcessError> {
-    crate::io_util::inside(out, rel).map_err(|source| ProcessError::Write {
-        path: out.join(rel),
-        source,
-    })
-}
-
-fn remove_if_present(out: &Path, rel: &str) -> Result<(), ProcessError> {
-    let path = output_path(out, rel)?;
-    crate::io_util::remove_if_present(&path).map_err(|source| ProcessError::Write { path, source })
+/// Remove `out/rel` if `listed` (what an earlier job wrote for the run)
+/// names it and it still holds the bytes listed there.
+fn remove_if_listed(out: &Path, rel: &str, listed: &[OutputFile]) -> Result<(), ProcessError> {
+    let Some(f) = listed.iter().find(|f| f.path == rel) else {
+        return Ok(());
+    };
+    crate::out_folder::remove_if_holds(out, rel, &f.sha256)
+        .map(drop)
+        .map_err(|source| ProcessError::Write {
+            path: out.join(rel),
+            source,
+        })
 }
 
 #[cfg(test)]

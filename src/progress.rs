@@ -173,7 +173,7 @@ impl JobProgress {
                         ProgressStyle::with_template("  {spinner} {msg} {elapsed}")
                             .unwrap_or_else(|_| ProgressStyle::default_spinner()),
                     );
-                    s.set_message(run.to_string());
+                    s.set_message(crate::text::terminal(run).into_owned());
                     s.enable_steady_tick(Duration::from_millis(120));
                     if let Ok(mut m) = b.running.lock() {
                         m.insert(run.to_string(), s);
@@ -181,13 +181,13 @@ impl JobProgress {
                 }
             }
             RunEvent::Notice(message) => match &self.bars {
-                None => eprintln!("{message}"),
+                None => crate::errln!("{message}"),
                 Some(b) => {
-                    let _ = b.multi.println(message);
+                    let _ = b.multi.println(crate::text::terminal(message));
                 }
             },
             RunEvent::Collapsing => match &self.bars {
-                None => eprintln!("collapse …"),
+                None => crate::errln!("collapse …"),
                 Some(b) => b.overall.set_message("collapse …"),
             },
             RunEvent::Finished {
@@ -199,7 +199,7 @@ impl JobProgress {
                 let k = self.done.fetch_add(1, Ordering::Relaxed) + 1;
                 let n = self.total.load(Ordering::Relaxed);
                 match &self.bars {
-                    None => eprintln!("[{k}/{n}] {}", run_line(record, frames, seconds)),
+                    None => crate::errln!("[{k}/{n}] {}", run_line(record, frames, seconds)),
                     Some(b) => {
                         if let Some(s) = b
                             .running
@@ -217,7 +217,9 @@ impl JobProgress {
                             b.failed.fetch_add(1, Ordering::Relaxed);
                         }
                         if !record.status.measured() {
-                            let _ = b.multi.println(run_line(record, frames, seconds));
+                            let _ = b
+                                .multi
+                                .println(crate::text::terminal(&run_line(record, frames, seconds)));
                         }
                         b.overall.set_message(format!(
                             "({} failed, {} cached)",

@@ -35,7 +35,8 @@ pub const FPS_MISMATCH: &str = "fps_mismatch";
 /// default, a guess.
 pub const FPS_ASSUMED: &str = "fps_assumed";
 /// The file's frame times are off their regular spacing by more than 1 %
-/// of a frame interval (used as they are).
+/// of a frame interval (used as they are), or the side file's TIMEBLOCK
+/// lists no time for some frames (placed on the frame rate's grid).
 pub const TIME_IRREGULAR: &str = "time_irregular";
 /// The sphere's apparent size per mm of its radius disagrees with its
 /// set-up's other runs beyond their errors: a wrong `sphere_radius_mm`, or
@@ -81,7 +82,7 @@ pub const FLAGS: [(&str, &str); 15] = [
     ),
     (
         TIME_IRREGULAR,
-        "frame times off their regular spacing by > 1 % of an interval",
+        "frame times off their regular spacing by > 1 % of an interval, or missing from the side file for some frames",
     ),
     (
         RADIUS_DISAGREEMENT,

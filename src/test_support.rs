@@ -138,6 +138,7 @@ pub fn cache_entry(
         record: crate::dataset::DropRecord::failed(run, 4.5, "why"),
         scene: None,
         scene_key: None,
+        entry_sha256: String::new(),
     }
 }
 

@@ -873,7 +873,9 @@ fn write_pcc_xml(path: &Path, numbers: &[i64], fps: f64, real_bpp: u8) {
          <RealBPP>{real_bpp}</RealBPP><BlackLevel>0</BlackLevel><WhiteLevel>{}</WhiteLevel></CameraSetup>\
          <TIMEBLOCK>{t}</TIMEBLOCK></chd>",
         numbers[0],
-        numbers.len(),
+        // PCC counts the images exported, first to last: files removed
+        // since are gaps, not fewer images.
+        numbers[numbers.len() - 1] - numbers[0] + 1,
         (1u32 << real_bpp) - 1
     );
     std::fs::write(path, xml).unwrap();

@@ -42,6 +42,7 @@ mod source;
 mod source_tiff;
 mod timings;
 mod track;
+mod untrusted;
 mod wide_frames;
 
 /// What a test needs from the machine beyond the checkout.

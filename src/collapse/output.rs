@@ -62,14 +62,20 @@ pub fn collapse_csv(outcomes: &[DropOutcome], dataset_id: &str) -> Vec<u8> {
             Ok(_) => "",
             Err(reason) => reason.0.as_str(),
         };
+        // Text cells: nothing a spreadsheet runs ([`crate::text::csv_cell`]).
+        let (run, surface) = (
+            crate::text::csv_cell(&o.run),
+            crate::text::csv_cell(&o.surface),
+        );
+        let note = crate::text::csv_cell(note);
         let row = Row {
             row: o.row,
-            run: &o.run,
+            run: &run,
             sphere_radius_mm: o.sphere_radius_mm,
-            surface: &o.surface,
+            surface: &surface,
             used: g.is_some(),
             a_source: g.map_or("", |g| g.a_source.as_str()),
-            note,
+            note: &note,
             Pi: g.and_then(|g| v(&g.pi)),
             Pi_err: g.and_then(|g| g.pi.err()),
             xi: g.and_then(|g| v(&g.xi)),

@@ -31,12 +31,18 @@ const THUMB_QUALITY: u8 = 75;
 /// could point outside `plots/`), the run was measured (a failed run's
 /// files, if any, are from an earlier job) and the file is there.
 fn figure(out_dir: &Path, rec: &DropRecord, sub: &str, ext: &str) -> Option<String> {
-    if rec.status == DropStatus::Failed || crate::plot::file_stem(&rec.run) != rec.run {
+    if rec.status == DropStatus::Failed || crate::run_name::check(&rec.run).is_err() {
         return None;
     }
     let rel = format!("plots/{sub}/{}.{ext}", rec.run);
-    out_dir.join(&rel).is_file().then_some(rel)
+    crate::out_folder::path(out_dir, &rel)
+        .is_ok_and(|p| p.is_file())
+        .then_some(rel)
 }
+
+/// An overlay larger than this is not made into a thumbnail (dropscope's
+/// are ~100 kB).
+const OVERLAY_MAX_BYTES: u64 = 64 << 20;
 
 /// A relative path as a URL path: every byte but the unreserved characters
 /// and `/` percent-encoded (run names may hold `#`, `?`, `%` or spaces).
@@ -54,7 +60,13 @@ pub fn url_path(rel: &str) -> String {
 
 /// The overlay at `rel` shrunk to [`THUMB_PX`] wide, as JPEG bytes.
 fn thumbnail(out_dir: &Path, rel: &str) -> Option<Vec<u8>> {
-    let img = image::open(out_dir.join(rel)).ok()?.to_rgb8();
+    // Read through no link, decoded within the frame readers' pixel cap.
+    let bytes = crate::out_folder::read(out_dir, rel, OVERLAY_MAX_BYTES).ok()??;
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .ok()?;
+    reader.limits(crate::source::decode_limits());
+    let img = reader.decode().ok()?.to_rgb8();
     let (w, h) = img.dimensions();
     let tw = THUMB_PX.min(w).max(1);
     let th = ((u64::from(h) * u64::from(tw)) / u64::from(w.max(1))).max(1) as u32;

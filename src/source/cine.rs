@@ -32,8 +32,8 @@ use super::{
     P10Mode, SourceDetails, SourceError, SourceMeta,
 };
 
-/// Largest accepted frame (pixels); 16 k × 16 k is far beyond any Phantom.
-const MAX_PIXELS: u64 = 1 << 28;
+/// Largest accepted frame (pixels): the cap of every reader.
+const MAX_PIXELS: u64 = super::validate::MAX_FRAME_PIXELS;
 /// Largest accepted per-image annotation (bytes); 8 in every file seen.
 const MAX_ANNOTATION: u32 = 1 << 20;
 

@@ -131,7 +131,7 @@ pub struct ExportArgs {
 }
 
 /// Run `inspect`: the report, for stdout.
-pub fn inspect_text(args: &InspectArgs) -> anyhow::Result<String> {
+pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
     let (src, fps_origin) = args.source.open_source(&args.input)?;
     let mut meta = src.meta().clone();
     if let Some(origin) = fps_origin {
@@ -140,7 +140,15 @@ pub fn inspect_text(args: &InspectArgs) -> anyhow::Result<String> {
             meta.fps
         ));
     }
-    Ok(inspect_report(&meta, args.json)?)
+    let report = inspect_report(&meta, args.json)?;
+    // Text from the file (a cine's camera name, file names) never reaches
+    // the terminal as escape sequences; a closed pipe is no panic.
+    if args.json {
+        crate::console::out_raw(&format!("{report}\n"));
+    } else {
+        crate::outln!("{report}");
+    }
+    Ok(())
 }
 
 /// The inspect report as JSON (`json`) or as aligned text.
@@ -183,7 +191,8 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, super::Sourc
         "warnings": d.warnings,
     });
     if json {
-        return Ok(serde_json::to_string_pretty(&value).unwrap_or_default());
+        let doc = serde_json::to_string_pretty(&value).unwrap_or_default();
+        return Ok(crate::text::json(&doc).into_owned());
     }
     let opt = |v: Option<String>| v.unwrap_or_else(|| "—".into());
     let mut lines = vec![

@@ -107,6 +107,10 @@ pub struct FrameFiles {
     digits: usize,
     /// `(frame index, file name)` of the files not named by the pattern.
     others: Vec<(usize, String)>,
+    /// Image number minus the number in the file's name: not 0 when the
+    /// files were renumbered (from 0, as `dropscope export` names them)
+    /// and the side file says which images they are ([`align_side_file`]).
+    renumbered: i64,
 }
 
 impl FrameFiles {
@@ -127,6 +131,7 @@ impl FrameFiles {
             ext,
             digits,
             others: Vec::new(),
+            renumbered: 0,
         };
         for (i, (number, name)) in frames.iter().enumerate() {
             if files.named(*number) != *name {
@@ -147,7 +152,7 @@ impl FrameFiles {
     pub fn path(&self, index: usize, number: i64) -> PathBuf {
         match self.others.binary_search_by_key(&index, |o| o.0) {
             Ok(k) => self.dir.join(&self.others[k].1),
-            Err(_) => self.dir.join(self.named(number)),
+            Err(_) => self.dir.join(self.named(number - self.renumbered)),
         }
     }
 
@@ -303,7 +308,7 @@ impl FolderSource {
                 format!("frame number {} also belongs to {}", w[0].0, w[0].1),
             ));
         }
-        let files = FrameFiles::new(dir, &frames);
+        let mut files = FrameFiles::new(dir, &frames);
         let mut frame_numbers: FrameNumbers = frames.iter().map(|(n, _)| *n).collect();
         let gaps = gaps_of(&frame_numbers);
         let file = |i: usize| files.path(i, frames[i].0);
@@ -365,26 +370,20 @@ impl FolderSource {
                  not numbered): read as image {number}, {why}"
             ));
         }
-        let timestamps_s = xml
-            .as_ref()
-            .and_then(|x| per_frame(&x.times, &frame_numbers));
+        if let (Some(x), Some(path), None) = (&xml, &xml_path, &lone) {
+            files.renumbered = align_side_file(x, path, &mut frame_numbers, &mut warnings)?;
+        }
+        let timestamps_s = xml.as_ref().and_then(|x| {
+            let (times, note) = times_per_frame(&x.times, &frame_numbers, fps);
+            warnings.extend(note);
+            times
+        });
         let exposures_s = xml
             .as_ref()
             .and_then(|x| per_frame(&x.exposures, &frame_numbers));
         if let Some(x) = &mut xml {
             // Each frame's values are in the two tables now.
             (x.times, x.exposures) = (Vec::new(), Vec::new());
-        }
-        if let Some(x) = &xml {
-            if let Some(f0) = x.first_image_no {
-                let n0 = frame_numbers.first().unwrap_or_default();
-                if x.image_count == Some(frame_numbers.len() as u64) && f0 != n0 {
-                    warnings.push(format!(
-                        "XML FirstImageNo {f0} differs from the first file number {n0}; \
-                         file numbers are used"
-                    ));
-                }
-            }
         }
         let meta = SourceMeta {
             path: dir.to_path_buf(),
@@ -524,6 +523,149 @@ fn per_frame(by_number: &[(i64, f64)], numbers: &FrameNumbers) -> Option<Vec<f64
                 .map(|i| sorted[i].1)
         })
         .collect()
+}
+
+/// Check that the side file at `path` describes the frames beside it:
+/// the images it names (`FirstImageNo` and `ImageCount`, else its
+/// TIMEBLOCK's first and last frame) must hold the files' numbers. Files
+/// numbered otherwise but as many and in a row (from 0, as `dropscope
+/// export` names them) are those images renumbered: `numbers` become the
+/// side file's, with a warning, and the shift from the names is returned.
+/// A side file describing other images is refused naming both ranges: its
+/// times, rate and exposure would be applied to frames they do not belong to.
+fn align_side_file(
+    x: &PccXml,
+    path: &Path,
+    numbers: &mut FrameNumbers,
+    warnings: &mut Vec<String>,
+) -> Result<i64, SourceError> {
+    let (Some(n0), Some(n1)) = (numbers.first(), numbers.last()) else {
+        return Ok(0);
+    };
+    let n = numbers.len() as u64;
+    let described = match (x.first_image_no, x.image_count) {
+        (Some(f0), Some(c)) if c > 0 => Some((f0, c, "its FirstImageNo and ImageCount")),
+        _ => {
+            let lo = x.times.iter().map(|t| t.0).min();
+            let hi = x.times.iter().map(|t| t.0).max();
+            lo.zip(hi)
+                .map(|(lo, hi)| (lo, hi.abs_diff(lo) + 1, "its TIMEBLOCK"))
+        }
+    };
+    let Some((f0, c, by)) = described else {
+        return Ok(0);
+    };
+    let f1 = f0.saturating_add(i64::try_from(c - 1).unwrap_or(i64::MAX));
+    if n0 >= f0 && n1 <= f1 {
+        return Ok(0);
+    }
+    let in_a_row = n1.abs_diff(n0) + 1 == n;
+    if in_a_row && n == c {
+        let shift = f0 - n0;
+        *numbers = FrameNumbers::consecutive(f0, numbers.len());
+        warnings.push(format!(
+            "the {n} files are numbered {n0}…{n1}, the side file {} describes images {f0}…{f1} \
+             ({by}): the same frames renumbered (as `dropscope export` names them), read as \
+             images {f0}…{f1}",
+            path.display()
+        ));
+        return Ok(shift);
+    }
+    Err(format_err(
+        path,
+        format!(
+            "this side file describes images {f0}…{f1} ({c} frames, {by}) but the frame files \
+             beside it are numbered {n0}…{n1} ({n} files): it is not their side file, and its \
+             frame rate and times are not applied to them. Put the sequence's own side file \
+             there, or remove this one and give the frame rate (--fps, or the manifest's fps)"
+        ),
+    ))
+}
+
+/// The frame times of `numbers` from the side file's TIMEBLOCK (frame,
+/// seconds), and a warning when it lists none for some of them: those are
+/// placed on the frame rate's grid from the nearest frame it lists, and
+/// the warning (starting [`super::validate::TIMES_INCOMPLETE`]) says how
+/// many, so that the run is flagged. A block listing none of the frames
+/// is not used, with a warning.
+fn times_per_frame(
+    by_number: &[(i64, f64)],
+    numbers: &FrameNumbers,
+    fps: f64,
+) -> (Option<Vec<f64>>, Option<String>) {
+    if by_number.is_empty() {
+        return (None, None);
+    }
+    let mut sorted = by_number.to_vec();
+    sorted.sort_by_key(|t| t.0);
+    let listed: Vec<Option<f64>> = numbers
+        .iter()
+        .map(|n| {
+            sorted
+                .binary_search_by_key(&n, |t| t.0)
+                .ok()
+                .map(|i| sorted[i].1)
+        })
+        .collect();
+    let missing: Vec<i64> = numbers
+        .iter()
+        .zip(&listed)
+        .filter(|(_, t)| t.is_none())
+        .map(|(n, _)| n)
+        .collect();
+    if missing.is_empty() {
+        return (Some(listed.into_iter().flatten().collect()), None);
+    }
+    let anchors: Vec<(i64, f64)> = numbers
+        .iter()
+        .zip(&listed)
+        .filter_map(|(n, t)| t.map(|t| (n, t)))
+        .collect();
+    let example = missing
+        .iter()
+        .take(3)
+        .map(|n| n.to_string())
+        .collect::<Vec<_>>();
+    if anchors.is_empty() {
+        return (
+            None,
+            Some(format!(
+                "{}: the side file's TIMEBLOCK lists none of the {} frames (frames {}…): its \
+                 times are not used, frame times are frame number / fps",
+                super::validate::TIMES_INCOMPLETE,
+                numbers.len(),
+                example.join(", ")
+            )),
+        );
+    }
+    let filled = numbers
+        .iter()
+        .zip(&listed)
+        .map(|(n, t)| {
+            t.unwrap_or_else(|| {
+                let k = anchors.partition_point(|a| a.0 < n);
+                let near = match (k.checked_sub(1).map(|i| anchors[i]), anchors.get(k)) {
+                    (Some(a), Some(b)) if n - a.0 <= b.0 - n => a,
+                    (Some(a), None) => a,
+                    (_, Some(b)) => *b,
+                    (None, None) => unreachable!("anchors is not empty"),
+                };
+                near.1 + (n - near.0) as f64 / fps
+            })
+        })
+        .collect();
+    (
+        Some(filled),
+        Some(format!(
+            "{}: the side file's TIMEBLOCK has no time for {} of the {} frames (frame {}{}); \
+             theirs are placed on the frame rate's grid from the nearest listed frame",
+            super::validate::TIMES_INCOMPLETE,
+            missing.len(),
+            numbers.len(),
+            example.join(", "),
+            if missing.len() > 3 { ", …" } else { "" }
+        )),
+    )
 }
 
 /// The folder's PCC XML: the one named like the sequence prefix, else the

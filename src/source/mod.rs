@@ -11,6 +11,7 @@ use ndarray::{Array2, ArrayViewMut1, ArrayViewMut2};
 use std::path::{Path, PathBuf};
 
 pub use index::{FrameNumbers, FrameValues};
+pub use validate::{decode_limits, frame_too_large, MAX_FRAME_PIXELS};
 
 pub mod cine;
 pub mod cine_write;

@@ -12,7 +12,7 @@ use crate::events::{EventConfig, Geometry, TrackPoint};
 use crate::io_util::{Durable, Spool};
 use crate::lens::{undistort_track, Lens};
 use crate::manifest::RunSpec;
-use crate::measure::{annotate_track, measure_drop, measure_drop_with, surface_from_law, DropInfo};
+use crate::measure::{annotate_track, measure_drop, DropInfo};
 use crate::quality;
 use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
 use crate::setup_infer::SceneSignature;
@@ -713,29 +713,18 @@ fn measure_run(
     };
     let failed = |e: crate::events::EventError| format!("{}: {e}", run.path.display());
     let points = window(&geom, &geom).map_err(failed)?;
-    let mut m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
+    let m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
     drop(points);
-    // The surface: the image's line, checked against (and moved to) where
-    // the contact law puts it, unless the configuration gave the line.
-    // Without the law's surface, the image's line alone, with the band
-    // top's systematic in its error.
-    let band_top_px = crate::measure::band_top_systematic_px(tr.surface.model_err_px);
-    let by_law = Some(
-        m.law
-            .as_ref()
-            .ok()
-            .and_then(|law| surface_from_law(law, geom.surface_row_err_px, band_top_px))
-            .unwrap_or_else(|| (0.0, geom.surface_row_err_px.hypot(band_top_px), "image")),
-    );
-    let mut geom = geom;
-    let mut surface_source = "image";
-    if let (Some((offset_px, err_px, source)), false) = (by_law, tr.surface_from_config) {
-        geom.surface_row_px += offset_px;
-        geom.surface_row_err_px = err_px;
-        surface_source = source;
-        let points = window(&geom, &geom).map_err(failed)?;
-        m = measure_drop_with(&info, &points, &geom, &event_cfg, Some(&m.law)).map_err(failed)?;
-    }
+    // The surface is the image's line (or the configuration's), never the
+    // contact law's: the law is what the experiment measures. The law's
+    // surface only cross-checks the line, and raises a flag where they
+    // disagree.
+    let geom = geom;
+    let surface_source = if tr.surface_from_config {
+        "config"
+    } else {
+        "image"
+    };
     // A frame's row of the track CSV, with contact, δ and force: made
     // when written, one at a time (a long movie's rows, 168 bytes a frame,
     // were held beside its track).
@@ -746,27 +735,13 @@ fn measure_run(
     };
     let law_offset = m.law.as_ref().ok().and_then(|l| l.surface_offset_px);
     let mut record = m.record.clone();
-    if let (Ok(law), Some(off), true) = (&m.law, law_offset, surface_source != "image") {
-        // n and K (n free) were fitted on the image's line: the two
-        // surfaces' disagreement is an uncertainty of that line they carry.
-        // K at n = 2 is the law's own, on its surface.
-        let widen = |err: &mut Option<f64>, per_px: f64| {
-            *err = err.map(|e| e.hypot(per_px * off.value));
-        };
-        widen(&mut record.force_exponent_err, law.n_per_surface_px);
-        // Where the law rejected the image's line, K and n on that line are
-        // not measurements: they come from the fit with the surface free
-        // too (n not assumed, so the law's own n = 2 is not fed back).
-        if let (Some((k, n)), "contact_law") = (law.with_surface_free, surface_source) {
-            record.force_k_si = Some(k.value);
-            record.force_k_si_err = Some(k.err);
-            record.force_exponent = Some(n.value);
-            record.force_exponent_err = Some(n.err);
-        }
-        widen(&mut record.force_k_si_err, law.k_per_surface_px);
-        if let Some(k2) = law.k_at_n2_on_law_surface {
-            record.force_k2_n_m2 = Some(k2.value);
-            record.force_k2_n_m2_err = Some(k2.err);
+    if let Ok(law) = &m.law {
+        if !tr.surface_from_config {
+            if let Some((word, message)) =
+                crate::measure::surface_law_check(law, geom.surface_row_err_px)
+            {
+                quality::flag(&mut record, word, message);
+            }
         }
     }
     record.surface_source = surface_source.to_string();

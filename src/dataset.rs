@@ -107,10 +107,18 @@ pub struct DropRecord {
     pub surface_law_offset_px: Option<f64>,
     #[serde(default)]
     pub surface_law_offset_px_err: Option<f64>,
-    /// The lens's radial distortion k1 (1/px²) undone on the track, when
-    /// the configuration gives one (`camera.distortion_k1_per_px2`).
+    /// The lens's radial distortion k1 (1/px²) undone on the track: the
+    /// configuration's (`camera.distortion_k1_per_px2`) or the one the
+    /// surface line's bow measures; its error (measured only).
     #[serde(default)]
     pub distortion_k1_per_px2: Option<f64>,
+    #[serde(default)]
+    pub distortion_k1_per_px2_err: Option<f64>,
+    /// Where the lens came from: `config` (a calibration), `surface_bow`
+    /// (measured in the images; its error a systematic term), `bound` (not
+    /// measured: `camera.distortion_bound_px` a systematic term) or `none`.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub distortion_source: String,
     /// Without a calibrated k1: how far the distortion bound
     /// (`camera.distortion_bound_px` at the image corner) moves the scale,
     /// v_impact, δmax and τc; each enters its `_err` as a systematic term
@@ -225,6 +233,8 @@ impl DropRecord {
             surface_law_offset_px: None,
             surface_law_offset_px_err: None,
             distortion_k1_per_px2: None,
+            distortion_k1_per_px2_err: None,
+            distortion_source: String::new(),
             distortion_mm_per_px: None,
             distortion_v_impact_m_s: None,
             distortion_delta_max_mm: None,
@@ -288,7 +298,8 @@ pub struct TrackRow {
 
 /// What a text column holds for none: in a track's `flags` a frame without
 /// flags; in drops.csv's `surface`, `path`, `setup`, `scale_source`,
-/// `surface_source`, `force_model`, `flags` and `reason` a row without one. A word, never
+/// `surface_source`, `distortion_source`, `force_model`, `flags` and
+/// `reason` a row without one. A word, never
 /// an empty field, so that a reader takes the column as text in every file
 /// (pandas read an all-empty column as float64, issue 17).
 pub const NO_TEXT: &str = "-";
@@ -435,6 +446,7 @@ mod tests {
             "setup",
             "scale_source",
             "surface_source",
+            "distortion_source",
             "force_model",
             "flags",
             "reason",

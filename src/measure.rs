@@ -237,30 +237,6 @@ pub fn measure_drop_with(
     })
 }
 
-/// The band top's systematic in the image's line (px) at most, beyond its
-/// edge-model disagreement: a glossy strip or a pillar-top row narrower
-/// than the blur moves the flank fit and the area row alike (to first order
-/// a narrow strip is a shift of the step), so their disagreement — the
-/// line's model error — understates it. On 120 real-preset drops lines off
-/// by 0.14–0.18 px showed a disagreement of 0.03–0.08.
-pub const BAND_TOP_SYSTEMATIC_PX: f64 = 0.15;
-
-/// The band top's systematic per px of the line's edge-model disagreement
-/// ([`band_top_systematic_px`]).
-pub const BAND_TOP_PER_MODEL_ERR: f64 = 5.0;
-
-/// The band top's systematic (px) for a line whose flank fit and area row
-/// disagree by `model_err_px`: [`BAND_TOP_PER_MODEL_ERR`] times it, at most
-/// [`BAND_TOP_SYSTEMATIC_PX`]. A clean step (the `realistic` and `harsh`
-/// renders: disagreement ≤ 0.023 px, 45 drops) keeps most of its weight
-/// against the contact law's surface; a structured top (the real preset:
-/// median 0.22 px) carries the whole term. On the 120 real-preset drops
-/// the line's own error covered its true one at 2σ on 81, with this term
-/// on 91 (after the edge points' per-sample background).
-pub fn band_top_systematic_px(model_err_px: f64) -> f64 {
-    (BAND_TOP_PER_MODEL_ERR * model_err_px.abs()).min(BAND_TOP_SYSTEMATIC_PX)
-}
-
 /// The contact law's cross-check of the image's surface line: a flag
 /// and its sentence when the surface the trajectory puts under the sphere
 /// ([`ForceLaw::surface_offset_px`], n free) is more than 3σ of their
@@ -410,16 +386,6 @@ mod tests {
             surface_law_check(&law_with(2.0, 0.0, Some((0.2, f64::NAN))), 0.1),
             None
         );
-    }
-
-    #[test]
-    fn the_band_tops_systematic_follows_its_structure_up_to_a_cap() {
-        // A clean step: its flank and area rows within 0.01 px, a term of
-        // 0.05 px; a structured top carries the whole 0.15 px.
-        assert!((band_top_systematic_px(0.01) - 0.05).abs() < 1e-12);
-        assert!((band_top_systematic_px(-0.01) - 0.05).abs() < 1e-12);
-        assert_eq!(band_top_systematic_px(0.2), BAND_TOP_SYSTEMATIC_PX);
-        assert_eq!(band_top_systematic_px(0.0), 0.0);
     }
 
     #[test]

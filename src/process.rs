@@ -557,15 +557,65 @@ fn open_run(
 
 /// The track through a lens at `camera.distortion_bound_px`, when no k1 is
 /// given and the bound is not 0.
+/// The lens a run's track is seen through (see `lens.rs`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum LensUsed {
+    /// `camera.distortion_k1_per_px2`: the track is corrected with it.
+    Calibrated(f64),
+    /// Measured by the surface line's bow: the track is corrected with
+    /// `k1`, and `err` is a systematic term.
+    Measured { k1: f64, err: f64 },
+    /// Not measured: the distortion bound's lens is a systematic term.
+    Bound(Lens),
+    /// No distortion considered (`camera.distortion_bound_px = 0`).
+    None,
+}
+
+impl LensUsed {
+    /// The `k1` the track is corrected with, its error, and where it came
+    /// from (`drops.csv`'s `distortion_source`).
+    fn describe(&self) -> (Option<f64>, Option<f64>, &'static str) {
+        match *self {
+            LensUsed::Calibrated(k1) => (Some(k1), None, "config"),
+            LensUsed::Measured { k1, err } => (Some(k1), Some(err), "surface_bow"),
+            LensUsed::Bound(_) => (None, None, "bound"),
+            LensUsed::None => (None, None, "none"),
+        }
+    }
+}
+
+/// Which lens a track is seen through: the configuration's calibration;
+/// else the one its surface line's bow measures, where that is informative
+/// and tighter than the distortion bound; else the bound (or none).
+fn lens_of(tr: &Track, meta: &crate::source::SourceMeta, cfg: &PipelineConfig) -> LensUsed {
+    let camera = &cfg.camera;
+    if let Some(k1) = camera.distortion_k1_per_px2 {
+        return LensUsed::Calibrated(k1);
+    }
+    if camera.distortion_bound_px <= 0.0 {
+        return LensUsed::None;
+    }
+    let bound = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
+    match crate::lens::k1_from_bow(&tr.surface, meta.width, meta.height) {
+        Some((k1, err)) if err * 3f64.sqrt() < bound.k1_per_px2.abs() => {
+            LensUsed::Measured { k1, err }
+        }
+        _ => LensUsed::Bound(bound),
+    }
+}
+
 fn bounded_of(
     tr: &Track,
     meta: &crate::source::SourceMeta,
     cfg: &PipelineConfig,
 ) -> Option<crate::lens::Bounded> {
     use crate::timings::{time, Stage};
-    let camera = &cfg.camera;
-    (camera.distortion_k1_per_px2.is_none() && camera.distortion_bound_px > 0.0).then(|| {
-        let lens = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
+    let lens = match lens_of(tr, meta, cfg) {
+        LensUsed::Measured { err, .. } => Lens::new(-err * 3f64.sqrt(), meta.width, meta.height),
+        LensUsed::Bound(lens) => lens,
+        LensUsed::Calibrated(_) | LensUsed::None => return None,
+    };
+    Some({
         let (surface, radius_px, curvature) = time(Stage::Events, || {
             let (surface, radius_px) = crate::lens::undistorted_line(tr, &lens);
             let c = free_fall_curvature(
@@ -603,8 +653,8 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
     let settings = TrackSettings::from_config(&cfg.detect);
     let mut tr =
         track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
-    let camera = &cfg.camera;
-    if let Some(k1) = camera.distortion_k1_per_px2 {
+    let lens = lens_of(&tr, &meta, cfg);
+    if let LensUsed::Calibrated(k1) | LensUsed::Measured { k1, .. } = lens {
         tr = undistort_track(tr, &Lens::new(k1, meta.width, meta.height))
             .map_err(|e| format!("{}: {e}", run.path.display()))?;
     }
@@ -748,8 +798,13 @@ fn measure_run(
     record.surface_law_offset_px = law_offset.map(|d| d.value);
     record.surface_law_offset_px_err = law_offset.map(|d| d.err);
     widen_a_max_err(&mut record, &geom, edge_offset.map_or(0.0, |(_, e)| e));
-    speeds_at_the_impact_scale(&mut record, &sc);
-    record.distortion_k1_per_px2 = cfg.camera.distortion_k1_per_px2;
+    let lens = lens_of(&tr, &meta, cfg);
+    let corrected = matches!(lens, LensUsed::Calibrated(_) | LensUsed::Measured { .. });
+    speeds_at_the_impact_scale(&mut record, &sc, corrected);
+    let (k1, k1_err, lens_source) = lens.describe();
+    record.distortion_k1_per_px2 = k1;
+    record.distortion_k1_per_px2_err = k1_err;
+    record.distortion_source = lens_source.to_string();
     if let Some(b) = &bounded {
         // The first look's points (their half-widths on the image's line)
         // and the lens's, each under the geometry measured on them.
@@ -767,7 +822,7 @@ fn measure_run(
             geom.surface_row_px - tr.surface.row0_px,
             &info.sphere(),
             &event_cfg,
-            |sc| speed_factor(sc).0,
+            |sc| if corrected { 1.0 } else { speed_factor(sc).0 },
         );
         if let Some(shift) = shift {
             distortion_systematic(&mut record, &shift);
@@ -957,7 +1012,10 @@ fn points_of(
         })
 }
 
-/// With a given scale, the speeds use [`crate::scale::Scale::for_speeds`]:
+/// With a given scale and a lens that is not corrected (`corrected`:
+/// calibrated or measured by the surface's bow, the track then in the
+/// scene's pixels, where the given scale holds at the impact as anywhere),
+/// the speeds use [`crate::scale::Scale::for_speeds`]:
 /// the magnification at the impact that free fall measures, where it is
 /// precise and disagrees with the given one. Where free fall is too
 /// imprecise to be used (one drop's own flight), its disagreement beyond
@@ -965,7 +1023,10 @@ fn points_of(
 /// need not be the magnification at the impact. On the real preset with
 /// the true scale given, v_impact was 0.03 % high (barrel distortion) with
 /// the given scale alone.
-fn speeds_at_the_impact_scale(record: &mut DropRecord, sc: &crate::scale::Scale) {
+fn speeds_at_the_impact_scale(record: &mut DropRecord, sc: &crate::scale::Scale, corrected: bool) {
+    if corrected {
+        return;
+    }
     let (factor, rel) = speed_factor(sc);
     for (v, err) in [
         (&mut record.v_impact_m_s, &mut record.v_impact_m_s_err),

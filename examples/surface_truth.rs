@@ -35,8 +35,15 @@ fn pct(v: &mut [f64], p: f64) -> f64 {
 
 fn main() -> anyhow::Result<()> {
     let dirs: Vec<PathBuf> = std::env::args().skip(1).map(PathBuf::from).collect();
-    anyhow::ensure!(!dirs.is_empty(), "usage: surface_truth RUN_DIR [RUN_DIR ...]");
-    let cfg = PipelineConfig::from_toml_str(EMBEDDED_DEFAULT, Path::new("pipeline.toml"), Path::new("."))?;
+    anyhow::ensure!(
+        !dirs.is_empty(),
+        "usage: surface_truth RUN_DIR [RUN_DIR ...]"
+    );
+    let cfg = PipelineConfig::from_toml_str(
+        EMBEDDED_DEFAULT,
+        Path::new("pipeline.toml"),
+        Path::new("."),
+    )?;
     let st = TrackSettings::from_config(&cfg.detect);
     let options = OpenOptions {
         fps_fallback: Some(10_000.0),
@@ -47,12 +54,22 @@ fn main() -> anyhow::Result<()> {
     for dir in &dirs {
         let truth: serde_json::Value =
             serde_json::from_slice(&std::fs::read(dir.join("truth.json"))?)?;
-        let (row_true, col) = truth_row(&truth).ok_or_else(|| anyhow::anyhow!("{}: no surface truth", dir.display()))?;
+        let (row_true, col) = truth_row(&truth)
+            .ok_or_else(|| anyhow::anyhow!("{}: no surface truth", dir.display()))?;
         let mut source = open(dir, &options)?;
         let (bg, line, _) = background_and_surface(source.as_mut(), &st)?;
         let edges = column_edges(&bg, &st.surface);
-        let flank_line = fit_line(&edges.iter().map(|e| (e.x_px, e.row_px)).collect::<Vec<_>>(), &st.surface)?;
-        let area_line = fit_line(&edges.iter().map(|e| (e.x_px, e.row_area_px)).collect::<Vec<_>>(), &st.surface)?;
+        let flank_line = fit_line(
+            &edges.iter().map(|e| (e.x_px, e.row_px)).collect::<Vec<_>>(),
+            &st.surface,
+        )?;
+        let area_line = fit_line(
+            &edges
+                .iter()
+                .map(|e| (e.x_px, e.row_area_px))
+                .collect::<Vec<_>>(),
+            &st.surface,
+        )?;
         let (u, f, a) = (
             line.row_at(col) - row_true,
             flank_line.row_at(col) - row_true,
@@ -68,8 +85,17 @@ fn main() -> anyhow::Result<()> {
         flank.push(f.abs());
         area.push(a.abs());
     }
-    for (what, v) in [("used", &mut used), ("flank", &mut flank), ("area", &mut area)] {
-        println!("{what}: median |error| {:.3} px, p95 {:.3} px, max {:.3} px", pct(v, 0.5), pct(v, 0.95), pct(v, 1.0));
+    for (what, v) in [
+        ("used", &mut used),
+        ("flank", &mut flank),
+        ("area", &mut area),
+    ] {
+        println!(
+            "{what}: median |error| {:.3} px, p95 {:.3} px, max {:.3} px",
+            pct(v, 0.5),
+            pct(v, 0.95),
+            pct(v, 1.0)
+        );
     }
     Ok(())
 }

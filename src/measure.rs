@@ -254,9 +254,10 @@ pub fn surface_law_check(law: &ForceLaw, image_err_px: f64) -> Option<(&'static 
             quality::SURFACE_LAW_DISAGREEMENT,
             format!(
                 "the trajectory, fitted with a power-law contact ({}) and the surface free, \
-                 puts the undeformed surface {:.2} ± {:.2} px {} the image's line: check the \
-                 surface line in the overlay (a reflection or a glossy band top moves it) and \
-                 F(δ) in the drop's figure (a contact that is no power law moves the fit)",
+                 puts the undeformed surface {:.2} ± {:.2} px {} the image's line, whose \
+                 errors now include that disagreement: check the surface line in the overlay \
+                 (a reflection or a glossy band top moves it) and F(δ) in the drop's figure \
+                 (a contact that is no power law moves the fit)",
                 law.model.name(),
                 d.value.abs(),
                 combined,

@@ -121,22 +121,30 @@ pub struct DropRecord {
     /// `surface_row_px_err` and every error that depends on the line).
     #[serde(default)]
     pub surface_model_err_px: Option<f64>,
-    /// Where `surface_row_px` came from: `image` (the band's top edge),
-    /// `contact_law` (the trajectory fitted with F = K·δ² put it where the
-    /// image line is inconsistent with it) or `image+contact_law` (the two
-    /// agree and are averaged). See `measure::surface_from_law`.
+    /// Where `surface_row_px` came from: `image` (the band's top edge in
+    /// the frames before the impact) or `config` (`detect.surface_row_px`).
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub surface_source: String,
-    /// Offset (px, positive down) of the surface the contact law finds from
-    /// the image's line, whether used or not: a check on the image line.
+    /// Offset (px, positive down) from the image's line of the surface the
+    /// trajectory puts under the sphere when fitted with the contact law
+    /// and the surface free: a cross-check of the line, never used in its
+    /// place (`surface_law_disagreement` when beyond 3σ).
     #[serde(default)]
     pub surface_law_offset_px: Option<f64>,
     #[serde(default)]
     pub surface_law_offset_px_err: Option<f64>,
-    /// The lens's radial distortion k1 (1/px²) undone on the track, when
-    /// the configuration gives one (`camera.distortion_k1_per_px2`).
+    /// The lens's radial distortion k1 (1/px²) undone on the track: the
+    /// configuration's (`camera.distortion_k1_per_px2`) or the one the
+    /// surface line's bow measures; its error (measured only).
     #[serde(default)]
     pub distortion_k1_per_px2: Option<f64>,
+    #[serde(default)]
+    pub distortion_k1_per_px2_err: Option<f64>,
+    /// Where the lens came from: `config` (a calibration), `surface_bow`
+    /// (measured in the images; its error a systematic term), `bound` (not
+    /// measured: `camera.distortion_bound_px` a systematic term) or `none`.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub distortion_source: String,
     /// Without a calibrated k1: how far the distortion bound
     /// (`camera.distortion_bound_px` at the image corner) moves the scale,
     /// v_impact, δmax and τc; each enters its `_err` as a systematic term
@@ -185,11 +193,22 @@ pub struct DropRecord {
     pub force_k2_n_m2: Option<f64>,
     #[serde(default)]
     pub force_k2_n_m2_err: Option<f64>,
-    /// Linear damping c of F = K·δⁿ + c·δ̇.
+    /// The contact model of the law's best fit: `linear` (F = K·δⁿ + c·δ̇),
+    /// `hunt_crossley` (F = K·δⁿ·(1 + α·δ̇)), each with `_no_pull` where the
+    /// force cannot pull (F ≥ 0). See `force::ContactModel`.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub force_model: String,
+    /// Linear damping c of F = K·δⁿ + c·δ̇ (when `force_model` is linear).
     #[serde(default)]
     pub damping_n_s_m: Option<f64>,
     #[serde(default)]
     pub damping_n_s_m_err: Option<f64>,
+    /// Hunt–Crossley damping α of F = K·δⁿ·(1 + α·δ̇) (when `force_model`
+    /// is hunt_crossley).
+    #[serde(default)]
+    pub hunt_crossley_alpha_s_m: Option<f64>,
+    #[serde(default)]
+    pub hunt_crossley_alpha_s_m_err: Option<f64>,
     pub status: DropStatus,
     /// Quality flags, space-separated words ([`crate::quality::FLAGS`]);
     /// empty (written `-`) when nothing weakens the measurement. Any flag makes the
@@ -251,6 +270,8 @@ impl DropRecord {
             surface_law_offset_px: None,
             surface_law_offset_px_err: None,
             distortion_k1_per_px2: None,
+            distortion_k1_per_px2_err: None,
+            distortion_source: String::new(),
             distortion_mm_per_px: None,
             distortion_v_impact_m_s: None,
             distortion_delta_max_mm: None,
@@ -268,8 +289,11 @@ impl DropRecord {
             force_exponent_err: None,
             force_k2_n_m2: None,
             force_k2_n_m2_err: None,
+            force_model: String::new(),
             damping_n_s_m: None,
             damping_n_s_m_err: None,
+            hunt_crossley_alpha_s_m: None,
+            hunt_crossley_alpha_s_m_err: None,
             status: DropStatus::Failed,
             flags: String::new(),
             reason: reason.into(),
@@ -357,7 +381,8 @@ pub struct TrackRow {
 
 /// What a text column holds for none: in a track's `flags` a frame without
 /// flags; in drops.csv's `surface`, `path`, `fps_source`, `setup`, `scale_source`,
-/// `surface_source`, `flags` and `reason` a row without one. A word, never
+/// `surface_source`, `distortion_source`, `force_model`, `flags` and
+/// `reason` a row without one. A word, never
 /// an empty field, so that a reader takes the column as text in every file
 /// (pandas read an all-empty column as float64, issue 17).
 pub const NO_TEXT: &str = "-";
@@ -520,6 +545,8 @@ mod tests {
             "setup",
             "scale_source",
             "surface_source",
+            "distortion_source",
+            "force_model",
             "flags",
             "reason",
         ];

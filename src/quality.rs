@@ -50,9 +50,14 @@ pub const FORCE_EXPONENT_IMPLAUSIBLE: &str = "force_exponent_implausible";
 pub const NEGATIVE_DAMPING: &str = "negative_damping";
 /// The restitution exceeds 1 by more than 3σ: the sphere cannot gain energy.
 pub const RESTITUTION_ABOVE_ONE: &str = "restitution_above_one";
+/// The trajectory, fitted with a power-law contact and the surface free,
+/// puts the undeformed surface more than 3σ away from the image's line:
+/// the line may be off (a reflection or a glossy band top moves it), or the
+/// contact is no power law. The image's line is kept.
+pub const SURFACE_LAW_DISAGREEMENT: &str = "surface_law_disagreement";
 
 /// Every flag with its meaning, in the order they are checked.
-pub const FLAGS: [(&str, &str); 15] = [
+pub const FLAGS: [(&str, &str); 16] = [
     (GAP_IN_CONTACT, "frames missing during the contact"),
     (GAP_AT_PEAK, "frames missing at the maximum penetration"),
     (
@@ -97,6 +102,10 @@ pub const FLAGS: [(&str, &str); 15] = [
     (
         RESTITUTION_ABOVE_ONE,
         "restitution above 1 by more than 3 sigma",
+    ),
+    (
+        SURFACE_LAW_DISAGREEMENT,
+        "the contact law's surface is > 3 sigma off the image's line",
     ),
 ];
 

@@ -70,13 +70,6 @@ use ndarray::s;
 /// Systematic uncertainty of the calibrated R_px (see `track`).
 pub const RADIUS_SYSTEMATIC_PX: f64 = 0.002;
 
-/// Systematic uncertainty of a detected surface row, added in quadrature to
-/// the line fit's statistical error where the row is used (δ's zero). The
-/// fit's error is ~0.0005 px, but the row at the impact column is off by up
-/// to 0.0018 px on rendered drops (realistic preset; 0.0066 px harsh): the
-/// edge of the pillar band is not a clean step.
-pub const SURFACE_SYSTEMATIC_PX: f64 = 0.002;
-
 /// Settings of the tracker.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackSettings {
@@ -782,15 +775,15 @@ fn remeasure(
 
 impl Track {
     /// One-sigma uncertainty of the surface row at column `x_px`: the line
-    /// fit's, plus [`SURFACE_SYSTEMATIC_PX`] and the edge model's error
-    /// ([`SurfaceLine::model_err_px`]) in quadrature for a detected line (a line from the configuration is taken as given).
+    /// fit's, plus the systematic error of the edge model it was taken with
+    /// ([`SurfaceLine::edge_model_sigma_px`]) in quadrature for a detected
+    /// line (a line from the configuration is taken as given).
     pub fn surface_row_err_px(&self, x_px: f64) -> f64 {
         let fit = self.surface.sigma_row_at(x_px);
         if self.surface_from_config {
             fit
         } else {
-            fit.hypot(SURFACE_SYSTEMATIC_PX)
-                .hypot(self.surface.model_err_px)
+            fit.hypot(self.surface.edge_model_sigma_px())
         }
     }
 }

@@ -87,6 +87,10 @@ pub struct RunOutcome {
     /// Seconds spent on this run (tracking and measuring), for the speed
     /// shown to the user; no output depends on it.
     pub seconds: f64,
+    /// What reading its input should say once as a warning (a colour input
+    /// read as grey, frame names read one of two ways:
+    /// [`crate::source::SourceMeta::reading_notes`]).
+    pub notes: Vec<String>,
 }
 
 /// The most bytes of a run's track CSV held in memory (~11 000 frames'
@@ -160,6 +164,7 @@ pub fn runs_from_inputs(
             surface: None,
             sphere_density_kg_m3: None,
             setup: None,
+            number_digits: None,
         });
     }
     Ok(runs)
@@ -279,6 +284,11 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
         impact: None,
         scene: None,
         seconds: 0.0,
+        // What its input says of itself (colour, frame names) helps read
+        // why it failed: opened again for that (its header only).
+        notes: open_run(run, cfg)
+            .map(|s| s.meta().reading_notes())
+            .unwrap_or_default(),
     }
 }
 
@@ -549,6 +559,7 @@ fn open_run(
 ) -> Result<Box<dyn crate::source::FrameSource>, String> {
     let options = OpenOptions {
         fps_fallback: run.fps.or(cfg.camera.fps),
+        number_digits: run.number_digits,
         ..OpenOptions::default()
     };
     crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
@@ -900,6 +911,7 @@ fn measure_run(
         impact,
         scene: Some(scene),
         seconds: 0.0,
+        notes: meta.reading_notes(),
     })
 }
 
@@ -1289,6 +1301,7 @@ mod tests {
                 impact: None,
                 scene: None,
                 seconds: 0.0,
+                notes: Vec::new(),
             })
         })
         .unwrap_or_else(|reason| failed_outcome(&runs[0], &cfg, reason));

@@ -185,6 +185,7 @@ pub fn render_with_progress(
                     surface: Some(args.surface_name.clone()),
                     sphere_density_kg_m3: Some(d.truth.sphere_density_kg_m3),
                     setup: None,
+                    number_digits: None,
                 })
                 .collect();
             crate::manifest::to_csv_bytes(&rows)

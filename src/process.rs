@@ -17,7 +17,7 @@ use crate::quality;
 use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
 use crate::setup_infer::SceneSignature;
 use crate::shelf::{Shelf, ShelvedTrack};
-use crate::source::{open, OpenOptions};
+use crate::source::{open, OpenOptions, P10Mode};
 use crate::track::{track, FrameTrack, Track, TrackSettings};
 use rayon::prelude::*;
 use std::io::Write;
@@ -58,6 +58,15 @@ pub struct ProcessArgs {
     /// drop): the configuration's `output.animation = false`.
     #[arg(long)]
     pub no_animation: bool,
+    /// Measure the frames in storage orientation, without the viewer flips
+    /// a .cine or Photron header records: the configuration's
+    /// `camera.apply_flips = false`.
+    #[arg(long)]
+    pub no_flips: bool,
+    /// Measure P10 cines on their log-encoded 10-bit codes, not linearised:
+    /// the configuration's `camera.p10_linear = false`.
+    #[arg(long)]
+    pub p10_codes: bool,
     /// After the job, print on stderr where its time went: wall and CPU
     /// seconds per stage (reading, tracking passes, force fits, pictures,
     /// writes, …) summed over runs, each stage's share and its mean per
@@ -275,6 +284,10 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
     record.setup = run.setup.clone().unwrap_or_default();
     record.drop_height_cm = run.drop_height_cm;
     record.path = run.path.display().to_string();
+    // What its input says of itself (colour, flips, frame names) helps read
+    // why it failed: opened again for that (its header only).
+    let meta = open_run(run, cfg).ok().map(|s| s.meta().clone());
+    record.reading = meta.as_ref().map(|m| m.reading()).unwrap_or_default();
     RunOutcome {
         record,
         track_csv: Spool::new(0),
@@ -284,11 +297,7 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
         impact: None,
         scene: None,
         seconds: 0.0,
-        // What its input says of itself (colour, frame names) helps read
-        // why it failed: opened again for that (its header only).
-        notes: open_run(run, cfg)
-            .map(|s| s.meta().reading_notes())
-            .unwrap_or_default(),
+        notes: meta.map(|m| m.reading_notes()).unwrap_or_default(),
     }
 }
 
@@ -559,8 +568,13 @@ fn open_run(
 ) -> Result<Box<dyn crate::source::FrameSource>, String> {
     let options = OpenOptions {
         fps_fallback: run.fps.or(cfg.camera.fps),
+        apply_flips: cfg.camera.apply_flips,
+        p10: if cfg.camera.p10_linear {
+            P10Mode::Linear
+        } else {
+            P10Mode::Raw
+        },
         number_digits: run.number_digits,
-        ..OpenOptions::default()
     };
     crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
         .map_err(|e| e.to_string())
@@ -813,6 +827,7 @@ fn measure_run(
     record.setup = run.setup.clone().unwrap_or_default();
     record.drop_height_cm = run.drop_height_cm;
     record.path = run.path.display().to_string();
+    record.reading = meta.reading();
     record.scale_source = sc.source.name().to_string();
     record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
     record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);

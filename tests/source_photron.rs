@@ -455,8 +455,11 @@ fn inspect_export_and_process_take_the_mraw_its_header_or_its_folder() {
         );
     }
 
-    // process reads it (its frame rate from the CIHX); whatever the
-    // measurement gives, the run is read, not refused.
+    // process reads it (its frame rate from the CIHX) and tracks the ball:
+    // it never reaches the substrate in these 15 frames, its bottom ≈ 120 px
+    // above the band (SOURCE.md: bottom edge at row ≈ 210 in frame 66, the
+    // band's top at row ≈ 330, where the row mean falls from 4095 at 329 to
+    // ≈ 1450 at 336); the gap found must lie within 118‥127 px.
     let res = out.path().join("res");
     let o = dropscope()
         .args(["process", "--radius-mm", "1.25", "--no-animation", "--out"])
@@ -477,6 +480,13 @@ fn inspect_export_and_process_take_the_mraw_its_header_or_its_folder() {
         !row.contains("unsupported") && !row.contains("frame rate"),
         "{row}"
     );
+    let gap_px: f64 = row
+        .split("closest approach ")
+        .nth(1)
+        .and_then(|t| t.split(" px").next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no closest approach in {row}"));
+    assert!((118.0..=127.0).contains(&gap_px), "{row}");
 }
 
 #[test]

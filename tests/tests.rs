@@ -8,6 +8,7 @@ mod hostile;
 mod parallel;
 mod pcc_xml;
 mod process;
+mod process_formats;
 mod process_job;
 mod render;
 mod render_real;

@@ -466,7 +466,11 @@ pub fn render_drop(
             st.look.bit_depth,
             jpeg_quality.unwrap_or(95),
         )),
-        FrameFormat::Cine => Box::new(CineSink::create(&dir.join(format!("{run}.cine")), &header)?),
+        FrameFormat::Cine => Box::new(CineSink::create(
+            &dir.join(format!("{run}.cine")),
+            &header,
+            st.packing,
+        )?),
     };
     let missing: &[i64] = match &painter {
         Painter::Camera(c) => &c.optics().truth.missing_frames,

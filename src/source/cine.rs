@@ -904,6 +904,7 @@ fn build_meta(
             warnings,
             colour: h.colour(),
             frame_names: None,
+            p10: (h.storage == CineStorage::P10).then_some(options.p10),
         },
     })
 }

@@ -529,6 +529,7 @@ impl FolderSource {
                     number_digits: files.digits,
                     note: names_note,
                 }),
+                p10: None,
             },
         };
         drop(frames);

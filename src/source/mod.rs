@@ -116,6 +116,9 @@ pub struct SourceDetails {
     pub colour: Option<ColourInput>,
     /// How a folder's frame files are named; `None` for a recording file.
     pub frame_names: Option<FrameNames>,
+    /// A P10 packed cine: how its codes are returned; `None` for any other
+    /// storage.
+    pub p10: Option<P10Mode>,
 }
 
 /// How a folder's frame files are named: `<prefix><number>.<ext>`.
@@ -392,6 +395,41 @@ impl SourceMeta {
             .map(|c| format!("the frames are {}", c.describe()))
             .chain(d.frame_names.iter().filter_map(|n| n.note.clone()))
             .collect()
+    }
+
+    /// How the stored samples became the grey picture returned, as
+    /// space-separated words (drops.csv's `reading` column); empty when
+    /// the frames are returned as stored: `bayer_<pattern>_luminance` or
+    /// `rgb_luminance` (a colour input read as grey luminance), `flip_v`
+    /// and `flip_h` (the viewer flips the header records, applied),
+    /// `flips_not_applied` (a recording file's, not applied: storage
+    /// orientation),
+    /// `p10_linear` or `p10_codes` (a P10 cine's log-encoded codes
+    /// linearised to 12 bits, or returned as stored).
+    pub fn reading(&self) -> String {
+        let d = &self.details;
+        let mut words: Vec<String> = Vec::new();
+        match d.colour {
+            Some(ColourInput::Bayer(b)) => {
+                words.push(format!("bayer_{}_luminance", b.name().to_lowercase()))
+            }
+            Some(ColourInput::Rgb) => words.push("rgb_luminance".into()),
+            None => {}
+        }
+        if d.flips_applied {
+            words.extend(d.flip_v.then(|| "flip_v".to_string()));
+            words.extend(d.flip_h.then(|| "flip_h".to_string()));
+        } else if (d.flip_v || d.flip_h) && d.frame_names.is_none() {
+            // Frame files are exported as the viewer shows them: a flip
+            // their side file records is no difference from what is read.
+            words.push("flips_not_applied".into());
+        }
+        match d.p10 {
+            Some(P10Mode::Linear) => words.push("p10_linear".into()),
+            Some(P10Mode::Raw) => words.push("p10_codes".into()),
+            None => {}
+        }
+        words.join(" ")
     }
 
     /// The camera image number of frame `index` (the index itself past the

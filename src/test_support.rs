@@ -5,7 +5,7 @@
 use crate::config::Surface;
 use crate::events::{Geometry, TrackPoint};
 use crate::kinematics::SphereParams;
-use crate::render::physics::{DropParams, Trajectory};
+use crate::render::physics::{ContactLaw, DropParams, Trajectory};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
@@ -31,6 +31,7 @@ impl Drop {
             gravity_m_s2: 9.81,
             impact_speed_m_s: v_in,
             damping_n_s_m: 0.0,
+            law: ContactLaw::MODEL,
         };
         let traj = Trajectory::simulate(&params, t0, t0 + 0.01, params.default_step_s(1e-6))
             .expect("valid test drop");

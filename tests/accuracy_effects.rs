@@ -77,7 +77,12 @@ fn check(what: &str, extra: &[&str]) {
 
 /// [`check`] with v_impact's tolerance.
 fn check_with(what: &str, extra: &[&str], v_tol: f64) {
-    let (r, t) = measure(extra);
+    check_from("6", what, extra, v_tol);
+}
+
+/// [`check_with`] on the drop from `height_cm`.
+fn check_from(height_cm: &str, what: &str, extra: &[&str], v_tol: f64) {
+    let (r, t) = measure_from(height_cm, extra, |_| String::new());
     assert_ne!(r.status, DropStatus::Failed, "{what}: {}", r.reason);
     let f = |k: &str| t[k].as_f64().unwrap();
     let quantities = [
@@ -151,6 +156,50 @@ fn a_highlight_does_not_move_the_centre_as_the_ball_sinks() {
         assert!(delta.abs() < 5e-4, "seed {seed}: δmax off by {delta:.2e}");
     }
 }
+
+/// A backlight saturated 50 % above full scale (the background clipped at
+/// white, an edge's half level 0.3–0.5 px inside the outline), a central
+/// glint of three times the backlight (wide and narrow), and motion blur
+/// over the whole frame interval (100 µs at 10 000 frames/s), on the 6 cm
+/// drop; the glint and the full exposure also from 50 cm, where the motion
+/// blur is 6 px. Seen: saturation δmax +2.3e-3 (0.9σ), τc +2.3e-3,
+/// v_impact +3.4e-4 (flagged `saturated`); glint δmax ≤ 1.1e-3, τc ≤
+/// 1.7e-3; full exposure ≤ 2.2e-4 on every quantity.
+#[test]
+fn a_saturated_backlight_a_glint_and_the_longest_exposure_at_their_strongest() {
+    check("saturation", &["--saturation", "0.5"]);
+    check("glint", &["--glint", "3", "--glint-sigma", "0.2"]);
+    check("narrow glint", &["--glint", "3", "--glint-sigma", "0.08"]);
+    check("exposure 100 µs", &["--exposure-us", "100"]);
+    check_from(
+        "50",
+        "glint from 50 cm",
+        &["--glint", "3", "--glint-sigma", "0.2"],
+        5e-4,
+    );
+    check_from(
+        "50",
+        "exposure 100 µs from 50 cm",
+        &["--exposure-us", "100"],
+        5e-4,
+    );
+}
+
+/// Cases the measurement does not yet meet with [`check`]'s targets
+/// (render options, drop height, v_impact tolerance), to be wired into a
+/// test as it does. Measured with the true scale given (seed 13 unless
+/// given): a saturated backlight on the faster drops — 0.5 from 50 cm: δmax
+/// +1.95e-2 (9σ), τc +1.76e-2 (11σ), n 1.62; 0.1 from 50 cm: δmax +8.8e-3
+/// (5.5σ); 0.3 from 25 cm: δmax +9.3e-3 (5σ) — and every effect of
+/// `--preset real-saturated` together (seed 3: v_impact +7.6e-4, over the
+/// 6e-4 that `real` holds).
+#[allow(dead_code)]
+pub(crate) const SATURATED_CASES_NOT_YET_MET: [(&str, &[&str], f64); 4] = [
+    ("50", &["--saturation", "0.5"], 5e-4),
+    ("50", &["--saturation", "0.1"], 5e-4),
+    ("25", &["--saturation", "0.3"], 5e-4),
+    ("6", &["--preset", "real-saturated", "--seed", "3"], 6e-4),
+];
 
 #[test]
 fn a_glossy_band_top_and_a_bright_or_dark_top_row_at_their_strongest() {

@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 use clap::Parser;
 use dropscope::config::Surface;
 use dropscope::render::physics::{
-    damping_for_restitution, DropParams, Trajectory, BETA_THIRD_HALF, STANDARD_GRAVITY_M_S2,
+    damping_for_restitution, ContactLaw, DropParams, Trajectory, BETA_THIRD_HALF,
+    STANDARD_GRAVITY_M_S2,
 };
 use dropscope::render::raster::{Look, Raster, Scene};
 use dropscope::render::truth::Truth;
@@ -34,6 +35,7 @@ fn params(radius_mm: f64, v_m_s: f64, g: f64) -> DropParams {
         gravity_m_s2: g,
         impact_speed_m_s: v_m_s,
         damping_n_s_m: 0.0,
+        law: ContactLaw::MODEL,
     }
 }
 

@@ -15,11 +15,11 @@ use dropscope::render::export::{frame_file_name, FrameFormat};
 
 /// A clean 12-bit look (uniform backlight 0.75, transmission 0.06, no blur,
 /// no noise) seen through the camera `spec`.
-fn camera(spec: &OpticsSpec, scene: Scene) -> CameraRaster {
+pub(crate) fn camera(spec: &OpticsSpec, scene: Scene) -> CameraRaster {
     camera_with(Preset::Clean.look(), spec, scene)
 }
 
-fn camera_with(look: Look, spec: &OpticsSpec, scene: Scene) -> CameraRaster {
+pub(crate) fn camera_with(look: Look, spec: &OpticsSpec, scene: Scene) -> CameraRaster {
     let frame = FrameGeometry {
         width_px: scene.width_px,
         height_px: scene.height_px,

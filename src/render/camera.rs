@@ -4,7 +4,8 @@
 //! the glossy band top and its darkening by the sphere's mirror image, the
 //! pillar tops' top row, the band dipping under the sphere, defocus that
 //! varies with the row, camera roll, barrel distortion, column fixed-pattern
-//! noise, hot pixels and a slow illumination drift.
+//! noise, hot pixels, a slow illumination drift, a saturated backlight and
+//! a central glint on the ball.
 //!
 //! # Image formation
 //!
@@ -23,7 +24,8 @@
 //! T(p)   band: 1 above the top edge y_t(x), pillar/channel grey below it,
 //!        × (1 + top_row) over the top row(s), + gloss over the glossy strip
 //! S(p)   = B · T(p)                                   (static; y_t = y_s)
-//! Δ(p)   = B · vis · [−(1 − τs) C + rim·g(R − ρ) C + halo·g(ρ − R)(1 − C) + highlight·H(p) C]
+//! Δ(p)   = B · vis · [−(1 − τs) C + rim·g(R − ρ) C + halo·g(ρ − R)(1 − C) + highlight·H(p) C
+//!                      + glint·⟨Gl(p − c_k) C_k⟩]
 //!        − B · C_m · (gloss · strip + reflection · grey · strip_r)
 //!        + B · (T_dipped − T)                         (during contact, with dip)
 //! ```
@@ -33,8 +35,12 @@
 //! during contact), `C_m` the coverage by the sphere's mirror image in the
 //! surface line. Then `I = D · Blur_σ(row)(S + Δ)` (σ of the output row; the
 //! static part blurred once per run, `Δ` only around the sphere), and the
-//! sensor: `DN = white · (I · (1 + γ_j) + o_j) · drift(j, t) · flicker`,
-//! with shot and read noise as in [`super::raster`], then the hot pixels.
+//! sensor: `DN = white · (I · (1 + γ_j) + o_j) · drift(j, t) · G_sat · flicker`,
+//! with shot and read noise as in [`super::raster`] and clipped at white,
+//! then the hot pixels. `G_sat` (1 unless the backlight is saturated) lifts
+//! the dimmest background pixel to `1 + saturation` times white. `Gl` is the
+//! glint's Gaussian about each exposure sample's centre `c_k` (plus an
+//! offset), weighted by that sample's disk coverage `C_k` and averaged.
 
 use ndarray::Array2;
 use rand::Rng;
@@ -98,6 +104,11 @@ impl CameraRaster {
         let kernels: Vec<Vec<f32>> = (0..h)
             .map(|i| gaussian_kernel(optics.sigma_at_row(i as f64)))
             .collect();
+        let mut optics = optics;
+        if optics.truth.saturation > 0.0 {
+            let dimmest = background.iter().fold(f32::MAX, |a, &b| a.min(b));
+            optics.truth.saturation_gain = (1.0 + optics.truth.saturation) / f64::from(dimmest);
+        }
         let dust = (look.dust_count > 0).then(|| dust_mask(h, w, look.dust_count, dust_rng));
         let mut raster = CameraRaster {
             scene,
@@ -211,11 +222,19 @@ impl CameraRaster {
         let o = &self.optics;
         let drift: Vec<f64> = (0..w).map(|j| o.drift_gain(j, movie_fraction)).collect();
         let white = f64::from(self.white_dn());
+        let gain = o.truth.saturation_gain;
         let mut frame = expose(
             &self.look,
             white,
             (h, w),
-            |i, j| (f64::from(sig[[i, j]]) * o.column_gain[j] + o.column_offset[j]) * drift[j],
+            |i, j| {
+                let v = (f64::from(sig[[i, j]]) * o.column_gain[j] + o.column_offset[j]) * drift[j];
+                if gain != 1.0 {
+                    v * gain
+                } else {
+                    v
+                }
+            },
             rng,
         );
         for &[i, j] in &o.truth.hot_pixels {
@@ -326,6 +345,7 @@ impl CameraRaster {
         let reach = r + halo_w.max(HALF_DIAGONAL) + 0.75;
         let inner = (r - rim_w - HALF_DIAGONAL).max(0.0);
         let two_sigma2 = 2.0 * o.highlight_sigma_px * o.highlight_sigma_px;
+        let two_glint2 = 2.0 * o.glint_sigma_px * o.glint_sigma_px;
         let (hx, hz) = (xm + o.highlight_offset_px[0], zm + o.highlight_offset_px[1]);
         let mirrored: Vec<(f64, f64)> = centres
             .iter()
@@ -366,6 +386,15 @@ impl CameraRaster {
                         let d2 = dx * dx + dz * dz;
                         if d2 >= reach * reach {
                             continue;
+                        }
+                        if o.glint > 0.0 {
+                            let (gx, gz) = (dx - o.glint_offset_px[0], dz - o.glint_offset_px[1]);
+                            let g = o.glint * (-(gx * gx + gz * gz) / two_glint2).exp();
+                            s_sum += if d2 <= inner * inner {
+                                g
+                            } else {
+                                g * coverage(dx, dz, d2.sqrt())
+                            };
                         }
                         if d2 <= inner * inner {
                             c_sum += 1.0;

@@ -4,6 +4,7 @@
 //! | file | does |
 //! | --- | --- |
 //! | [`physics`] | the contact ODE, its events and the exact motion |
+//! | [`contact`] | each drop's contact law: the model's, set, or drawn (`--contact wide`) |
 //! | [`coverage`] | exact pixel coverage of disk, line and pillars |
 //! | [`raster`] | one frame from the sphere centres over the exposure |
 //! | [`optics`] | a real camera's effects: strengths per drop and set-up, roll and distortion |
@@ -33,6 +34,7 @@
 
 pub mod camera;
 pub mod campaign;
+pub mod contact;
 pub mod coverage;
 pub mod export;
 pub mod optics;
@@ -50,12 +52,12 @@ use crate::manifest::ManifestRow;
 use camera::CameraRaster;
 use campaign::DropSpec;
 use export::{CineSink, FolderSink, FrameFormat, FrameSink, PccHeader};
-use physics::{DropParams, Trajectory};
+use physics::{ContactLaw, Damping, DropParams, Trajectory};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use raster::{Raster, Scene};
 use rayon::prelude::*;
-use truth::{BounceTruth, FrameTruth, SurfaceTruth, Truth};
+use truth::{BounceTruth, ContactTruth, FrameTruth, SurfaceTruth, Truth};
 
 /// Why rendering failed.
 #[derive(Debug, thiserror::Error)]
@@ -151,53 +153,75 @@ pub fn render_with_progress(
         }
     }
     // The manifest of what was rendered, one drop or many, ready for
-    // `dropscope process --manifest`.
-    {
-        let bytes = if settings.preset == Preset::Real {
-            let rows: Vec<campaign::SetupManifestRow> = report
-                .drops
-                .iter()
-                .map(|d| campaign::SetupManifestRow {
-                    run: d.run.clone(),
-                    path: export::run_input_path(&d.run, args.format),
-                    sphere_radius_mm: d.truth.sphere_radius_mm,
-                    drop_height_cm: d.truth.drop_height_cm,
-                    setup: d
-                        .truth
-                        .camera
-                        .as_ref()
-                        .map_or_else(String::new, |c| c.setup.clone()),
-                    mm_per_px: args.manifest_scale.then_some(d.truth.mm_per_px),
-                })
-                .collect();
-            crate::dataset::csv_bytes(&rows)
-        } else {
-            let rows: Vec<ManifestRow> = report
-                .drops
-                .iter()
-                .map(|d| ManifestRow {
-                    run: d.run.clone(),
-                    path: export::run_input_path(&d.run, args.format),
-                    sphere_radius_mm: d.truth.sphere_radius_mm,
-                    drop_height_cm: Some(d.truth.drop_height_cm),
-                    fps: Some(d.truth.fps),
-                    mm_per_px: args.manifest_scale.then_some(d.truth.mm_per_px),
-                    surface: Some(args.surface_name.clone()),
-                    sphere_density_kg_m3: Some(d.truth.sphere_density_kg_m3),
-                    setup: None,
-                    number_digits: None,
-                })
-                .collect();
-            crate::manifest::to_csv_bytes(&rows)
-        };
-        let path = args.out.join("runs.csv");
-        crate::io_util::write_atomic(&path, &bytes).map_err(|source| export::ExportError::Io {
-            path: path.clone(),
-            source,
-        })?;
-        report.manifest = Some(path);
+    // `dropscope process --manifest`; with --scaled-manifest the same rows
+    // with the true scale beside it.
+    let path = args.out.join("runs.csv");
+    write_manifest(&path, &report, args, &settings, args.manifest_scale)?;
+    report.manifest = Some(path);
+    if args.scaled_manifest {
+        write_manifest(
+            &args.out.join("runs_scaled.csv"),
+            &report,
+            args,
+            &settings,
+            true,
+        )?;
     }
     Ok(report)
+}
+
+/// Write the manifest of the rendered drops to `path`, with the true
+/// `mm_per_px` when `with_scale`.
+fn write_manifest(
+    path: &Path,
+    report: &RenderReport,
+    args: &RenderArgs,
+    settings: &RenderSettings,
+    with_scale: bool,
+) -> Result<(), RenderError> {
+    let bytes = if settings.preset.is_real() {
+        let rows: Vec<campaign::SetupManifestRow> = report
+            .drops
+            .iter()
+            .map(|d| campaign::SetupManifestRow {
+                run: d.run.clone(),
+                path: export::run_input_path(&d.run, args.format),
+                sphere_radius_mm: d.truth.sphere_radius_mm,
+                drop_height_cm: d.truth.drop_height_cm,
+                setup: d
+                    .truth
+                    .camera
+                    .as_ref()
+                    .map_or_else(String::new, |c| c.setup.clone()),
+                mm_per_px: with_scale.then_some(d.truth.mm_per_px),
+            })
+            .collect();
+        crate::dataset::csv_bytes(&rows)
+    } else {
+        let rows: Vec<ManifestRow> = report
+            .drops
+            .iter()
+            .map(|d| ManifestRow {
+                run: d.run.clone(),
+                path: export::run_input_path(&d.run, args.format),
+                sphere_radius_mm: d.truth.sphere_radius_mm,
+                drop_height_cm: Some(d.truth.drop_height_cm),
+                fps: Some(d.truth.fps),
+                mm_per_px: with_scale.then_some(d.truth.mm_per_px),
+                surface: Some(args.surface_name.clone()),
+                sphere_density_kg_m3: Some(d.truth.sphere_density_kg_m3),
+                setup: None,
+                number_digits: None,
+            })
+            .collect();
+        crate::manifest::to_csv_bytes(&rows)
+    };
+    crate::io_util::write_atomic(path, &bytes).map_err(|source| {
+        RenderError::Export(export::ExportError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    })
 }
 
 /// A ChaCha8 generator for one purpose, seeded from `(seed, run, stream,
@@ -309,10 +333,22 @@ pub fn render_drop(
         gravity_m_s2: g,
         impact_speed_m_s: v,
         damping_n_s_m: 0.0,
+        law: ContactLaw::MODEL,
     };
     let step = params.default_step_s(frame_dt / 100.0);
-    params.damping_n_s_m =
-        physics::damping_for_restitution(&params, st.restitution, step).map_err(phys_err)?;
+    // The model's law exactly as it always was, or the law of the contact options.
+    let drawn = (!st.contact.is_model()).then(|| contact::draw(&st.contact, st.seed, run));
+    let restitution_requested = match &drawn {
+        None => {
+            params.damping_n_s_m = physics::damping_for_restitution(&params, st.restitution, step)
+                .map_err(phys_err)?;
+            st.restitution
+        }
+        Some(c) => {
+            params = contact::apply(&params, c, step).map_err(phys_err)?;
+            c.restitution
+        }
+    };
     let t_contact = contact_phase / st.fps;
     let first = Trajectory::simulate(&params, t_contact, t_contact, step).map_err(phys_err)?;
     let b0 = first.bounces()[0];
@@ -536,7 +572,27 @@ pub fn render_drop(
             v_rebound_m_s: s.v_rebound_m_s,
             restitution: s.restitution(),
             delta_max_mm: s.delta_max_m * 1e3,
+            t_force_zero_s: s.force_zero.map(|(t, _)| t),
         });
+    let contact = drawn.map(|c| ContactTruth {
+        contact_physics: match st.contact.mode {
+            contact::ContactMode::Wide => "wide",
+            contact::ContactMode::Model => "set",
+        }
+        .to_string(),
+        contact_law: contact::describe(&c),
+        force_n: params.law.exponent,
+        stiffness_n_per_m_n: params.elastic_stiffness(),
+        model_stiffness_n_per_m2: params.stiffness_n_m2(),
+        delta_ref_mm: params.delta_max_eq4_m() * 1e3,
+        damping_model: c.damping.name().to_string(),
+        damping_c_n_s_per_m: (c.damping == Damping::Linear).then_some(params.damping_n_s_m),
+        hunt_crossley_alpha_s_per_m: (c.damping == Damping::HuntCrossley)
+            .then_some(params.law.hunt_crossley_s_m),
+        adhesion: params.law.adhesion,
+        t_force_zero_s: b.force_zero.map(|(t, _)| t),
+        delta_force_zero_mm: b.force_zero.map(|(_, d)| d * 1e3),
+    });
     let r_mm = spec.radius_mm;
     let dmax_mm = b.delta_max_m * 1e3;
     let truth = Truth {
@@ -553,7 +609,7 @@ pub fn render_drop(
             channel_width_mm: st.surface.channel_width_m * 1e3,
             solid_fraction: st.surface.solid_fraction,
         },
-        restitution_requested: st.restitution,
+        restitution_requested,
         fps: st.fps,
         exposure_s: st.exposure_s,
         width_px: st.width_px,
@@ -577,6 +633,7 @@ pub fn render_drop(
         resting_contact_s: traj.resting_contact_s().filter(|&t| t <= t_window_end),
         gravity_m_s2: g,
         damping_n_s_m: params.damping_n_s_m,
+        contact,
         integration_step_s: step,
         first_image_no: n0,
         camera: match &painter {

@@ -7,9 +7,10 @@ use std::path::PathBuf;
 use serde::Serialize;
 
 use super::campaign::{self, DropSpec};
+use super::contact::{ContactMode, ContactSpec, DampingArg};
 use super::export::{CinePackingChoice, FrameFormat};
 use super::optics::{OpticsSpec, Strength};
-use super::physics;
+use super::physics::{self, Damping};
 use super::raster::Look;
 use super::RenderError;
 use crate::config::Surface;
@@ -40,6 +41,11 @@ pub enum Preset {
     /// one frame file in flight. Scale ±8 % and surface row ±10 px per set-up
     /// (one set-up per radius and repeat).
     Real,
+    /// `real` with a saturated backlight and a glinting ball, as in many real
+    /// rigs: the background clipped at white (the light 10–50 % above full
+    /// scale, so the background has no noise), and a central glint of
+    /// 0.5–3 times the backlight with σ 0.08–0.2 R, clipped at white.
+    RealSaturated,
 }
 
 impl Preset {
@@ -49,7 +55,14 @@ impl Preset {
             Preset::Realistic => "realistic",
             Preset::Harsh => "harsh",
             Preset::Real => "real",
+            Preset::RealSaturated => "real-saturated",
         }
+    }
+
+    /// A real camera's presets: every camera effect drawn per drop, one
+    /// camera set-up per radius and repeat, `runs.csv` without the scale.
+    pub fn is_real(self) -> bool {
+        matches!(self, Preset::Real | Preset::RealSaturated)
     }
 
     /// The preset's look.
@@ -76,7 +89,7 @@ impl Preset {
                 bit_depth: 12,
                 ..base
             },
-            Preset::Realistic | Preset::Real => Look {
+            Preset::Realistic | Preset::Real | Preset::RealSaturated => Look {
                 gradient: 0.12,
                 blur_sigma_px: 0.7,
                 motion_blur: true,
@@ -167,9 +180,21 @@ pub struct RenderArgs {
     /// Channel width c, mm (φ = b / (b + c)).
     #[arg(long, default_value_t = 1.5, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub channel_width_mm: f64,
-    /// Coefficient of restitution; below 1 adds linear damping solved to give it.
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
-    pub restitution: f64,
+    /// Coefficient of restitution (speeds where δ crosses 0); below 1 adds damping solved to give it (linear unless --damping says otherwise) [default: 1; with --contact wide: drawn in 0.3‥0.98].
+    #[arg(long, allow_negative_numbers = true)]
+    pub restitution: Option<f64>,
+    /// The contact law: `model` (π E φ R δ²/h, the measurement's) or `wide` (per drop: n 1.4‥2.6, damping none / linear / Hunt–Crossley, adhesion or not, restitution 0.3‥0.98; truth.json records each); the three options below fix one value.
+    #[arg(long, value_enum, default_value_t = ContactMode::Model)]
+    pub contact: ContactMode,
+    /// Elastic exponent n of the force K_n·δ^n, 1‥4, with K_n = K·δ_ref^(2−n) (δ_ref: the model's δmax for the drop) [default: 2; wide: drawn].
+    #[arg(long, allow_negative_numbers = true)]
+    pub force_exponent: Option<f64>,
+    /// Damping solved for the restitution: none (restitution 1), linear (c·dδ/dt) or hunt-crossley (α·K_n·δ^n·dδ/dt) [default: linear when --restitution < 1; wide: drawn].
+    #[arg(long, value_enum)]
+    pub damping: Option<DampingArg>,
+    /// A force that cannot pull: clamped at F ≥ 0, so the sphere leaves the surface where the force reaches 0, before δ returns to 0 [default: the force may pull; wide: drawn].
+    #[arg(long)]
+    pub no_adhesion: bool,
     /// Gravity, m/s².
     #[arg(long, default_value_t = physics::STANDARD_GRAVITY_M_S2, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub gravity_m_s2: f64,
@@ -302,6 +327,15 @@ pub struct RenderArgs {
     /// JPEG quality 1‥100 with --format jpeg [real: drawn per drop in 85‥98; else 95].
     #[arg(long)]
     pub jpeg_quality: Option<u8>,
+    /// Saturated backlight: the dimmest background pixel reads 1 + this times white before the sensor clips [real-saturated: 0.1–0.5].
+    #[arg(long, allow_negative_numbers = true)]
+    pub saturation: Option<f64>,
+    /// Central glint on the ball (Gaussian), fraction of the backlight; above 1 it clips at white [real-saturated: 0.5–3].
+    #[arg(long, allow_negative_numbers = true)]
+    pub glint: Option<f64>,
+    /// σ of the glint, fraction of the sphere's radius [real-saturated: 0.08–0.2; else 0.15].
+    #[arg(long, allow_negative_numbers = true)]
+    pub glint_sigma: Option<f64>,
     /// Go on through a second contact when the flight to it takes at most this many frames; 0: never [real: 1500].
     #[arg(long)]
     pub second_bounce_frames: Option<usize>,
@@ -309,6 +343,9 @@ pub struct RenderArgs {
     /// Write mm_per_px into runs.csv (by default the pipeline must measure it).
     #[arg(long)]
     pub manifest_scale: bool,
+    /// Also write runs_scaled.csv: runs.csv's rows with the true mm_per_px, as from a calibration target.
+    #[arg(long)]
+    pub scaled_manifest: bool,
 }
 
 /// Validated settings shared by every drop of a render.
@@ -335,7 +372,10 @@ pub struct RenderSettings {
     pub surface_slope: f64,
     pub density_kg_m3: f64,
     pub surface: Surface,
+    /// The model's restitution (linear damping solved for it).
     pub restitution: f64,
+    /// The contact law's options ([`ContactSpec::is_model`]: the model).
+    pub contact: ContactSpec,
     pub gravity_m_s2: f64,
 }
 
@@ -446,13 +486,11 @@ impl RenderArgs {
             channel_width_m: c * 1e-3,
             solid_fraction: b / (b + c),
         };
-        if !(self.restitution.is_finite() && self.restitution >= 0.05 && self.restitution <= 1.0) {
-            return Err(invalid(
-                "restitution",
-                self.restitution,
-                "must lie in [0.05, 1]",
-            ));
+        let restitution = self.restitution.unwrap_or(1.0);
+        if !(restitution.is_finite() && (0.05..=1.0).contains(&restitution)) {
+            return Err(invalid("restitution", restitution, "must lie in [0.05, 1]"));
         }
+        let contact = self.contact_spec()?;
         positive("gravity-m-s2", self.gravity_m_s2)?;
         if self.repeats == 0 || self.repeats > 1000 {
             return Err(invalid("repeats", self.repeats, "must lie in 1‥1000"));
@@ -490,7 +528,7 @@ impl RenderArgs {
                 return Err(invalid("jpeg-quality", q, "must lie in 1‥100"))
             }
             (Some(q), _) => (q, q),
-            (None, Preset::Real) => (85, 98),
+            (None, p) if p.is_real() => (85, 98),
             (None, _) => (95, 95),
         };
         Ok(RenderSettings {
@@ -512,20 +550,58 @@ impl RenderArgs {
             surface_slope: slope,
             density_kg_m3: positive("density-kg-m3", self.density_kg_m3)?,
             surface,
-            restitution: self.restitution,
+            restitution,
+            contact,
             gravity_m_s2: self.gravity_m_s2,
+        })
+    }
+
+    /// The contact options, checked against each other.
+    fn contact_spec(&self) -> Result<ContactSpec, RenderError> {
+        if let Some(n) = self.force_exponent {
+            if !(n.is_finite() && (1.0..=4.0).contains(&n)) {
+                return Err(invalid("force-exponent", n, "must lie in [1, 4]"));
+            }
+        }
+        let damping = self.damping.map(Damping::from);
+        let e = self.restitution;
+        match (damping, e) {
+            (Some(Damping::None), Some(e)) if e < 1.0 => {
+                return Err(invalid(
+                    "restitution",
+                    e,
+                    "must be 1 with --damping none (no damping: nothing is lost)",
+                ))
+            }
+            (Some(kind @ (Damping::Linear | Damping::HuntCrossley)), e)
+                if self.contact == ContactMode::Model && e.unwrap_or(1.0) >= 1.0 =>
+            {
+                return Err(invalid(
+                    "damping",
+                    kind.name(),
+                    "damps nothing at restitution 1: add --restitution below 1 (or --contact wide to draw it)",
+                ))
+            }
+            _ => {}
+        }
+        Ok(ContactSpec {
+            mode: self.contact,
+            exponent: self.force_exponent,
+            damping,
+            no_adhesion: self.no_adhesion,
+            restitution: e,
         })
     }
 
     /// The real-camera effects: the preset's ranges, each replaced by its
     /// option when given.
     fn optics(&self, look: &Look) -> Result<OpticsSpec, RenderError> {
-        let mut o = if self.preset == Preset::Real {
-            OpticsSpec::real()
-        } else {
-            OpticsSpec::off()
+        let mut o = match self.preset {
+            Preset::Real => OpticsSpec::real(),
+            Preset::RealSaturated => OpticsSpec::real_saturated(),
+            _ => OpticsSpec::off(),
         };
-        if self.preset == Preset::Real {
+        if self.preset.is_real() {
             if let Some(b) = self.blur_px {
                 o.blur_sigma0_px = Strength::Fixed(b);
             }
@@ -607,6 +683,14 @@ impl RenderArgs {
             (0.0, 10_000.0),
         )?;
         fix(&mut o.drift, self.drift, "drift", (0.0, 0.5))?;
+        fix(&mut o.saturation, self.saturation, "saturation", (0.0, 2.0))?;
+        fix(&mut o.glint, self.glint, "glint", (0.0, 10.0))?;
+        fix(
+            &mut o.glint_sigma,
+            self.glint_sigma,
+            "glint-sigma",
+            (0.01, 1.0),
+        )?;
         if let Some(n) = self.missing_frames {
             if n > 100 {
                 return Err(invalid("missing-frames", n, "must be ≤ 100"));

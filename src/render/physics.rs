@@ -20,19 +20,41 @@
 //!     m d̈ = m g − [d > 0] (K d² + c ḋ).
 //! ```
 //!
+//! That is the model the measurement is built on, and the renderer's
+//! default. A [`ContactLaw`] widens it to contacts the model does not
+//! describe:
+//!
+//! ```text
+//!     F = K_n δ^n (1 + α ḋ) + c ḋ
+//! ```
+//!
+//! with any elastic exponent `n` and stiffness `K_n` (N/m^n), linear
+//! damping `c` and Hunt–Crossley damping `α` (s/m), and a force that may pull
+//! (adhesion: the sphere stays on the surface until `δ = 0`) or not. Without
+//! adhesion the force is clamped at 0: the sphere leaves the deformed
+//! surface when `F` reaches 0 on the way out (`t_force_zero`, δ still > 0)
+//! and flies freely from there; the contact as the renderer reports it
+//! still runs from `δ` crossing 0 going down to `δ` returning to 0 (the
+//! sphere's bottom back on the undeformed line), and the rebound speed is
+//! the speed there.
+//!
 //! Flight phases are integrated exactly (parabolas). Each contact phase starts
 //! exactly at `d = 0` (from the analytic flight) and is integrated with the
 //! classical fourth-order Runge–Kutta method at a fixed step. The events
-//! (maximum penetration `ḋ = 0`, loss of contact `d = 0`) are located by
-//! bisection on the Runge–Kutta step map `h ↦ Φ_h(state)` from the last grid
-//! state, i.e. on the continuous extension of the discrete solution, to
-//! floating-point resolution — never rounded to a grid step. The state at an
-//! arbitrary time in contact is `Φ_{t − t_k}(state_k)` from the grid state just
-//! before it, so truth and pictures come from the same dense solution.
+//! (maximum penetration `ḋ = 0`, loss of contact `d = 0`, and without
+//! adhesion the force's zero `F = 0`) are located by bisection on the
+//! Runge–Kutta step map `h ↦ Φ_h(state)` from the last grid state, i.e. on
+//! the continuous extension of the discrete solution, to floating-point
+//! resolution — never rounded to a grid step. The state at an arbitrary time
+//! in contact is `Φ_{t − t_k}(state_k)` from the grid state just before it,
+//! so truth and pictures come from the same dense solution.
 //!
 //! Without gravity and damping, energy conservation gives Eq. (4) of
 //! Maruoka 2019, `δmax/R = (2/φ)^{1/3} (h/R)^{1/3} (ρv²/E)^{1/3}`, and Eq. (5),
-//! `τc = (2/3) B(1/3, 1/2) δmax / v`; the tests hold the integrator to both.
+//! `τc = (2/3) B(1/3, 1/2) δmax / v`; for any `n`,
+//! `δmax = ((n + 1) m v² / (2 K_n))^{1/(n+1)}` and
+//! `τc = 2/(n + 1) · B(1/(n + 1), 1/2) · δmax / v`. The tests hold the
+//! integrator to these.
 
 use crate::config::Surface;
 use std::f64::consts::PI;
@@ -55,15 +77,76 @@ pub enum PhysicsError {
     },
     #[error(
         "the sphere did not leave the surface within {limit_s:.3e} s of contact at t = {t_contact_s:.6e} s \
-         (damping {damping_n_s_m:.4e} N·s/m too strong): ask for a larger restitution"
+         (damping c = {damping_n_s_m:.4e} N·s/m, α = {hunt_crossley_s_m:.4e} s/m too strong): ask for a larger restitution"
     )]
     NoRebound {
         t_contact_s: f64,
         limit_s: f64,
         damping_n_s_m: f64,
+        hunt_crossley_s_m: f64,
     },
-    #[error("restitution {requested} cannot be reached with linear damping (the sphere sticks); use a value in (0.05, 1]")]
-    RestitutionUnreachable { requested: f64 },
+    #[error("restitution {requested} cannot be reached with {damping} damping (the sphere sticks); ask for a larger restitution")]
+    RestitutionUnreachable {
+        requested: f64,
+        damping: &'static str,
+    },
+    #[error(
+        "the sphere left the surface at t = {t_s:.6e} s with δ = {delta_m:.3e} m still below the \
+         undeformed line and too slow ({speed_m_s:.3e} m/s) to rise back to it: ask for a larger restitution"
+    )]
+    FallsBackInside {
+        t_s: f64,
+        delta_m: f64,
+        speed_m_s: f64,
+    },
+}
+
+/// How the contact dissipates energy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Damping {
+    /// None: the restitution is 1.
+    None,
+    /// Linear (viscous): `c ḋ`.
+    Linear,
+    /// Hunt–Crossley: `α K_n δ^n ḋ`, vanishing with δ at the contact's ends.
+    HuntCrossley,
+}
+
+impl Damping {
+    /// The name written to `truth.json`: `none`, `linear` or `hunt_crossley`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Damping::None => "none",
+            Damping::Linear => "linear",
+            Damping::HuntCrossley => "hunt_crossley",
+        }
+    }
+}
+
+/// The contact force beyond the model's `K δ²`: `F = K_n δ^n (1 + α ḋ) + c ḋ`
+/// (the linear coefficient `c` is [`DropParams::damping_n_s_m`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactLaw {
+    /// Elastic exponent n.
+    pub exponent: f64,
+    /// K_n, N/m^n; `None`: the model's `K = π E φ R / h` (with n = 2).
+    pub stiffness_n_per_m_n: Option<f64>,
+    /// Hunt–Crossley coefficient α, s/m (0 = none).
+    pub hunt_crossley_s_m: f64,
+    /// The force may pull (true, the model's), or is clamped at F ≥ 0 and
+    /// the sphere leaves the surface where it reaches 0.
+    pub adhesion: bool,
+}
+
+impl ContactLaw {
+    /// The measurement's model: `K δ²` with `K = π E φ R / h`, a force that
+    /// may pull, no Hunt–Crossley term.
+    pub const MODEL: ContactLaw = ContactLaw {
+        exponent: 2.0,
+        stiffness_n_per_m_n: None,
+        hunt_crossley_s_m: 0.0,
+        adhesion: true,
+    };
 }
 
 /// Everything the motion depends on, in SI units.
@@ -81,6 +164,9 @@ pub struct DropParams {
     pub impact_speed_m_s: f64,
     /// Linear damping coefficient c of the contact force `c ḋ` (0 = none).
     pub damping_n_s_m: f64,
+    /// The elastic law, Hunt–Crossley damping and adhesion
+    /// ([`ContactLaw::MODEL`]: the paper's).
+    pub law: ContactLaw,
 }
 
 impl DropParams {
@@ -93,6 +179,32 @@ impl DropParams {
     pub fn stiffness_n_m2(&self) -> f64 {
         PI * self.surface.modulus_pa * self.surface.solid_fraction * self.sphere_radius_m
             / self.surface.pillar_height_m
+    }
+
+    /// The elastic stiffness of the contact: `K_n` (N/m^n) of the law, or
+    /// the model's `K` (N/m²).
+    pub fn elastic_stiffness(&self) -> f64 {
+        self.law
+            .stiffness_n_per_m_n
+            .unwrap_or_else(|| self.stiffness_n_m2())
+    }
+
+    /// `K_n = K · δ_ref^{2 − n}` with `δ_ref` the model's δmax (Eq. 4) for
+    /// this drop: the stiffness of an exponent-`n` law whose force equals
+    /// the model's at `δ_ref`, so that δmax stays near the model's
+    /// (`δmax/δ_ref = ((n + 1)/3)^{1/(n+1)}` without gravity and damping:
+    /// 0.91 at n = 1.4, 1.05 at n = 2.6), N/m^n.
+    pub fn stiffness_for_exponent(&self, n: f64) -> f64 {
+        self.stiffness_n_m2() * self.delta_max_eq4_m().powf(2.0 - n)
+    }
+
+    /// δmax without gravity and damping under the law, from energy
+    /// conservation: `((n + 1) m v² / (2 K_n))^{1/(n+1)}`, m.
+    pub fn delta_max_energy_m(&self) -> f64 {
+        let n = self.law.exponent;
+        ((n + 1.0) * self.mass_kg() * self.impact_speed_m_s.powi(2)
+            / (2.0 * self.elastic_stiffness()))
+        .powf(1.0 / (n + 1.0))
     }
 
     /// Eq. (4) of Maruoka 2019 (no gravity, no damping):
@@ -109,12 +221,13 @@ impl DropParams {
         2.0 / 3.0 * BETA_THIRD_HALF * self.delta_max_eq4_m() / self.impact_speed_m_s
     }
 
-    /// Mechanical energy `½ m ḋ² − m g d + [d > 0] K d³ / 3` (J), conserved
-    /// when there is no damping.
+    /// Mechanical energy `½ m ḋ² − m g d + [d > 0] K_n d^{n+1} / (n + 1)`
+    /// (J), conserved when there is no damping.
     pub fn energy_j(&self, d_m: f64, w_m_s: f64) -> f64 {
         let m = self.mass_kg();
+        let n = self.law.exponent;
         let elastic = if d_m > 0.0 {
-            self.stiffness_n_m2() * d_m.powi(3) / 3.0
+            self.elastic_stiffness() * d_m.powf(n + 1.0) / (n + 1.0)
         } else {
             0.0
         };
@@ -122,7 +235,27 @@ impl DropParams {
     }
 
     fn validate(&self) -> Result<(), PhysicsError> {
-        let checks: [(&'static str, f64, bool, &'static str); 8] = [
+        let law = &self.law;
+        let checks: [(&'static str, f64, bool, &'static str); 11] = [
+            (
+                "force_exponent",
+                law.exponent,
+                law.exponent >= 1.0 && law.exponent <= 4.0,
+                "must lie in [1, 4]",
+            ),
+            (
+                "stiffness_n_per_m_n",
+                law.stiffness_n_per_m_n.unwrap_or(1.0),
+                law.stiffness_n_per_m_n.unwrap_or(1.0) > 0.0
+                    && (law.stiffness_n_per_m_n.is_some() || law.exponent == 2.0),
+                "must be > 0 (and given whenever n ≠ 2)",
+            ),
+            (
+                "hunt_crossley_s_m",
+                law.hunt_crossley_s_m,
+                law.hunt_crossley_s_m >= 0.0,
+                "must be ≥ 0",
+            ),
             (
                 "sphere_radius_m",
                 self.sphere_radius_m,
@@ -184,15 +317,31 @@ impl DropParams {
         Ok(())
     }
 
+    /// The contact force `K_n |d|^n (1 + α ḋ) + c ḋ` (N) at depth `d` and
+    /// rate `w`, unclamped (`k` = [`DropParams::elastic_stiffness`]). For
+    /// the model's n = 2 the elastic part is `k·d·d`, as it always was.
+    fn contact_force(&self, d: f64, w: f64, k: f64) -> f64 {
+        let law = &self.law;
+        let elastic = if law.exponent == 2.0 {
+            k * d * d
+        } else {
+            k * d.abs().powf(law.exponent)
+        };
+        let f = elastic + self.damping_n_s_m * w;
+        if law.hunt_crossley_s_m != 0.0 {
+            f + law.hunt_crossley_s_m * elastic * w
+        } else {
+            f
+        }
+    }
+
     /// `(ḋ, d̈)` of the contact equation, valid for `d ≥ 0`. Used unchanged a
-    /// hair beyond `d = 0` inside the step that crosses it: that is the
-    /// analytic continuation of the contact solution, exact up to the crossing.
+    /// hair beyond `d = 0` (with `|d|^n`) or beyond the force's zero inside
+    /// the step that crosses it: that is the continuation of the contact
+    /// solution, exact up to the crossing.
     fn contact_rhs(&self, s: [f64; 2], m: f64, k: f64) -> [f64; 2] {
         let [d, w] = s;
-        [
-            w,
-            self.gravity_m_s2 - (k * d * d + self.damping_n_s_m * w) / m,
-        ]
+        [w, self.gravity_m_s2 - self.contact_force(d, w, k) / m]
     }
 
     /// One classical RK4 step of length `h` of the contact equation.
@@ -238,6 +387,10 @@ pub struct Bounce {
     pub v_rebound_m_s: f64,
     /// Maximum penetration δmax (m).
     pub delta_max_m: f64,
+    /// Without adhesion, when the force reached 0 on the way out and the
+    /// sphere left the deformed surface (δ still > 0), and δ then (m);
+    /// `None` when it stayed on the surface until δ = 0.
+    pub force_zero: Option<(f64, f64)>,
 }
 
 impl Bounce {
@@ -283,11 +436,13 @@ pub struct Trajectory {
     resting_contact_s: Option<f64>,
 }
 
-/// Result of integrating one contact phase: the grid states, and the
-/// bounce if the sphere left the surface within the time limit.
+/// Result of integrating one contact phase: the grid states, the bounce if
+/// the sphere left the surface within the time limit, and without adhesion
+/// the state `(t, d, ḋ)` where the force reached zero (the flight starts there).
 struct ContactRun {
     states: Vec<[f64; 2]>,
     end: Result<Bounce, PhysicsError>,
+    leave: Option<(f64, f64, f64)>,
 }
 
 /// Bisection for the sign change of `f` on `[0, hi]` (`f(0) > 0 ≥ f(hi)`),
@@ -377,8 +532,28 @@ impl Trajectory {
                     break;
                 }
             };
+            // Without adhesion the flight starts where the force reached
+            // zero, below the undeformed line (the same parabola).
+            let (t_leave, flight) = match run.leave {
+                Some((t, d, w)) => (
+                    t,
+                    Segment::Flight {
+                        t0: t,
+                        d0: d,
+                        w0: w,
+                    },
+                ),
+                None => (
+                    b.t_rebound_s,
+                    Segment::Flight {
+                        t0: b.t_rebound_s,
+                        d0: 0.0,
+                        w0: -b.v_rebound_m_s,
+                    },
+                ),
+            };
             pieces.push(Piece {
-                t_end: b.t_rebound_s,
+                t_end: t_leave,
                 seg: Segment::Contact {
                     t0: t_in,
                     dt: step_s,
@@ -387,11 +562,7 @@ impl Trajectory {
             });
             pieces.push(Piece {
                 t_end: f64::INFINITY,
-                seg: Segment::Flight {
-                    t0: b.t_rebound_s,
-                    d0: 0.0,
-                    w0: -b.v_rebound_m_s,
-                },
+                seg: flight,
             });
             bounces.push(b);
             // Back to the surface after 2 v_out / g, at the same speed.
@@ -450,7 +621,7 @@ impl Trajectory {
             }
             Segment::Contact { t0, dt, states } => {
                 let m = self.params.mass_kg();
-                let k = self.params.stiffness_n_m2();
+                let k = self.params.elastic_stiffness();
                 let pos = ((t_s - t0) / dt).floor().max(0.0) as usize;
                 let idx = pos.min(states.len() - 1);
                 let h = t_s - (t0 + idx as f64 * dt);
@@ -473,10 +644,13 @@ impl Trajectory {
 }
 
 /// Integrate one contact phase from `d = 0`, `ḋ = w_in > 0` at `t_in`,
-/// for at most 100 τc (Eq. 5 at this speed).
+/// for at most 100 τc (Eq. 5 at this speed). Without adhesion the phase
+/// ends where the force reaches zero; the flight from there back to `d = 0`
+/// is a parabola, solved exactly.
 fn integrate_contact(p: &DropParams, t_in: f64, w_in: f64, dt: f64) -> ContactRun {
     let m = p.mass_kg();
-    let k = p.stiffness_n_m2();
+    let k = p.elastic_stiffness();
+    let g = p.gravity_m_s2;
     let tau_est = {
         let mut q = *p;
         q.impact_speed_m_s = w_in;
@@ -487,6 +661,7 @@ fn integrate_contact(p: &DropParams, t_in: f64, w_in: f64, dt: f64) -> ContactRu
     let mut states = vec![[0.0, w_in]];
     let mut s = [0.0, w_in];
     let mut max_event: Option<(f64, f64)> = None;
+    let force = |s: [f64; 2]| p.contact_force(s[0], s[1], k);
     for i in 0..max_steps {
         let t_i = t_in + i as f64 * dt;
         let next = p.rk4(s, dt, m, k);
@@ -494,8 +669,52 @@ fn integrate_contact(p: &DropParams, t_in: f64, w_in: f64, dt: f64) -> ContactRu
             let h = bisect(|h| p.rk4(s, h, m, k)[1], dt);
             max_event = Some((t_i + h, p.rk4(s, h, m, k)[0]));
         }
-        if next[0] <= 0.0 {
-            let h = bisect(|h| p.rk4(s, h, m, k)[0], dt);
+        // Without adhesion: the force's zero on the way out, unless δ
+        // reaches 0 first within this step.
+        let h_leave = (!p.law.adhesion && s[1] < 0.0 && force(s) > 0.0 && force(next) <= 0.0)
+            .then(|| bisect(|h| force(p.rk4(s, h, m, k)), dt));
+        let h_surface = (next[0] <= 0.0).then(|| bisect(|h| p.rk4(s, h, m, k)[0], dt));
+        let leave_first = match (h_leave, h_surface) {
+            (Some(hl), Some(hs)) => hl < hs,
+            (Some(_), None) => true,
+            _ => false,
+        };
+        if leave_first {
+            let h = h_leave.expect("the force's zero was located");
+            let [d_f, w_f] = p.rk4(s, h, m, k);
+            let t_f = t_i + h;
+            let (t_max_s, delta_max_m) = max_event.unwrap_or((t_f, d_f.max(s[0])));
+            // d_f + w_f τ + ½ g τ² = 0 on the way up (w_f < 0): the smaller
+            // root, written without cancellation.
+            let disc = w_f * w_f - 2.0 * g * d_f;
+            if !(disc > 0.0 && w_f < 0.0) {
+                return ContactRun {
+                    states,
+                    end: Err(PhysicsError::FallsBackInside {
+                        t_s: t_f,
+                        delta_m: d_f,
+                        speed_m_s: -w_f,
+                    }),
+                    leave: None,
+                };
+            }
+            let v_out = disc.sqrt();
+            let tau = 2.0 * d_f / (-w_f + v_out);
+            return ContactRun {
+                states,
+                end: Ok(Bounce {
+                    t_contact_s: t_in,
+                    t_max_s,
+                    t_rebound_s: t_f + tau,
+                    v_impact_m_s: w_in,
+                    v_rebound_m_s: v_out,
+                    delta_max_m,
+                    force_zero: Some((t_f, d_f)),
+                }),
+                leave: Some((t_f, d_f, w_f)),
+            };
+        }
+        if let Some(h) = h_surface {
             let out = p.rk4(s, h, m, k);
             let (t_max_s, delta_max_m) = max_event.unwrap_or((t_i + h, out[0].max(s[0])));
             return ContactRun {
@@ -507,7 +726,9 @@ fn integrate_contact(p: &DropParams, t_in: f64, w_in: f64, dt: f64) -> ContactRu
                     v_impact_m_s: w_in,
                     v_rebound_m_s: -out[1],
                     delta_max_m,
+                    force_zero: None,
                 }),
+                leave: None,
             };
         }
         states.push(next);
@@ -519,7 +740,9 @@ fn integrate_contact(p: &DropParams, t_in: f64, w_in: f64, dt: f64) -> ContactRu
             t_contact_s: t_in,
             limit_s,
             damping_n_s_m: p.damping_n_s_m,
+            hunt_crossley_s_m: p.law.hunt_crossley_s_m,
         }),
+        leave: None,
     }
 }
 
@@ -529,6 +752,22 @@ fn integrate_contact(p: &DropParams, t_in: f64, w_in: f64, dt: f64) -> ContactRu
 /// `requested = 1` gives `c = 0`.
 pub fn damping_for_restitution(
     params: &DropParams,
+    requested: f64,
+    step_s: f64,
+) -> Result<f64, PhysicsError> {
+    damping_coefficient_for_restitution(params, Damping::Linear, requested, step_s)
+}
+
+/// The coefficient of `kind` — `c` (N·s/m) for [`Damping::Linear`], `α`
+/// (s/m) for [`Damping::HuntCrossley`] — for which the first bounce has the
+/// restitution `v_rebound / v_impact = requested` (the speeds where δ
+/// crosses 0), by bisection on the coefficient (the restitution falls
+/// monotonically with it) to 1e-13 in restitution where floating point
+/// allows. `requested = 1` gives 0; [`Damping::None`] accepts only 1. The
+/// other coefficient of `params` is left as it is (0 in the renderer).
+pub fn damping_coefficient_for_restitution(
+    params: &DropParams,
+    kind: Damping,
     requested: f64,
     step_s: f64,
 ) -> Result<f64, PhysicsError> {
@@ -542,25 +781,48 @@ pub fn damping_for_restitution(
     if requested == 1.0 {
         return Ok(0.0);
     }
-    let e_of = |c: f64| -> f64 {
+    let with = |x: f64| {
         let mut q = *params;
-        q.damping_n_s_m = c;
+        match kind {
+            Damping::Linear => q.damping_n_s_m = x,
+            Damping::HuntCrossley => q.law.hunt_crossley_s_m = x,
+            Damping::None => {}
+        }
+        q
+    };
+    if kind == Damping::None {
+        return Err(PhysicsError::InvalidParameter {
+            name: "restitution",
+            value: requested,
+            allowed: "must be 1 without damping",
+        });
+    }
+    let e_of = |x: f64| -> f64 {
+        let q = with(x);
         match integrate_contact(&q, 0.0, q.impact_speed_m_s, step_s).end {
             Ok(b) => b.restitution(),
             Err(_) => 0.0, // stuck: below any positive target
         }
     };
-    // Start at a damping rate c/m of 1000 /s (about 1/τc) and double: a
-    // bracket built from arithmetic only, so the bisection is reproducible.
-    let mut hi = params.mass_kg() * 1000.0;
+    // Start at a damping rate c/m of 1000 /s (about 1/τc), or α v = 0.1,
+    // and double: a bracket built from arithmetic only, so the bisection is
+    // reproducible.
+    let mut hi = match kind {
+        Damping::HuntCrossley => 0.1 / params.impact_speed_m_s,
+        _ => params.mass_kg() * 1000.0,
+    };
     let mut lo = 0.0;
     let mut tries = 0;
+    let unreachable = PhysicsError::RestitutionUnreachable {
+        requested,
+        damping: kind.name(),
+    };
     while e_of(hi) > requested {
         lo = hi;
         hi *= 2.0;
         tries += 1;
         if tries > 60 {
-            return Err(PhysicsError::RestitutionUnreachable { requested });
+            return Err(unreachable);
         }
     }
     for _ in 0..200 {
@@ -580,7 +842,7 @@ pub fn damping_for_restitution(
     }
     let c = 0.5 * (lo + hi);
     if e_of(c) <= 0.0 {
-        return Err(PhysicsError::RestitutionUnreachable { requested });
+        return Err(unreachable);
     }
     Ok(c)
 }
@@ -597,6 +859,7 @@ mod tests {
             gravity_m_s2: g,
             impact_speed_m_s: (2.0 * STANDARD_GRAVITY_M_S2 * height_cm * 1e-2).sqrt(),
             damping_n_s_m: 0.0,
+            law: ContactLaw::MODEL,
         }
     }
 

@@ -54,6 +54,56 @@ pub struct BounceTruth {
     pub v_rebound_m_s: f64,
     pub restitution: f64,
     pub delta_max_mm: f64,
+    /// Without adhesion: when the force reached 0 and the sphere left the
+    /// deformed surface (δ still > 0); absent when it stayed until δ = 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t_force_zero_s: Option<f64>,
+}
+
+/// The contact law of a drop rendered with a contact option (`--contact
+/// wide`, `--force-exponent`, `--damping`, `--no-adhesion`); absent from
+/// `truth.json` under the model's law (n = 2, `K = π E φ R / h`, linear
+/// damping `damping_n_s_m`, a force that may pull). Key names follow the
+/// independent drops' `truth.json`.
+///
+/// The force is `F = K_n δ^n (1 + α ḋ) + c ḋ` (ḋ > 0 going in). With
+/// adhesion it may pull and the contact lasts until δ = 0; without, it is
+/// clamped at F ≥ 0 and the sphere leaves the deformed surface at
+/// `t_force_zero_s`, δ = `delta_force_zero_mm` > 0, then flies freely. The
+/// contact times stay those of δ: `t_contact_s` where δ crosses 0 going
+/// down, `t_rebound_s` where δ returns to 0 (the sphere's bottom back on the
+/// undeformed line), `tau_c_s` between them, `v_rebound_m_s` the speed there
+/// and `restitution` = `v_rebound_m_s / v_impact_m_s`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ContactTruth {
+    /// `wide` (drawn per drop) or `set` (by the options).
+    pub contact_physics: String,
+    /// The law in words.
+    pub contact_law: String,
+    /// Elastic exponent n.
+    pub force_n: f64,
+    /// K_n = `K_N_per_m2` · δ_ref^{2 − n}, N/m^n.
+    #[serde(rename = "K_n_N_per_m_n")]
+    pub stiffness_n_per_m_n: f64,
+    /// The model's K = π E φ R / h, N/m².
+    #[serde(rename = "K_N_per_m2")]
+    pub model_stiffness_n_per_m2: f64,
+    /// The model's δmax for this drop (Eq. (4) of Maruoka 2019), mm.
+    pub delta_ref_mm: f64,
+    /// `none`, `linear` or `hunt_crossley`.
+    pub damping_model: String,
+    /// Linear damping c, N·s/m (with `linear`).
+    #[serde(rename = "damping_c_N_s_per_m")]
+    pub damping_c_n_s_per_m: Option<f64>,
+    /// Hunt–Crossley α, s/m (with `hunt_crossley`).
+    pub hunt_crossley_alpha_s_per_m: Option<f64>,
+    /// The force may pull (true) or is clamped at F ≥ 0.
+    pub adhesion: bool,
+    /// When the force reached 0 on the way out (no adhesion), s; null when
+    /// the sphere stayed on the surface until δ = 0.
+    pub t_force_zero_s: Option<f64>,
+    /// δ at that instant, mm.
+    pub delta_force_zero_mm: Option<f64>,
 }
 
 /// The sphere at one frame's mid-exposure.
@@ -125,6 +175,9 @@ pub struct Truth {
     pub gravity_m_s2: f64,
     /// Linear damping c solved for `restitution_requested`, N·s/m.
     pub damping_n_s_m: f64,
+    /// The contact law, when it is not the model's (keys flattened here).
+    #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<ContactTruth>,
     /// RK4 step of the contact integration, s.
     pub integration_step_s: f64,
     /// Camera image number of the first frame (the XML's FirstImageNo).
@@ -208,6 +261,21 @@ pub struct CameraTruth {
     pub drift_phase_left: f64,
     pub drift_phase_right: f64,
     pub drift_cycles: f64,
+    /// Saturated backlight: the light is multiplied by `saturation_gain =
+    /// (1 + saturation) / B_min` (`B_min` the dimmest background pixel of
+    /// the look) before the sensor, which clips at white: the background
+    /// reads white with no noise, and an edge's half level lies inside the
+    /// true outline. 0 and 1: off.
+    pub saturation: f64,
+    pub saturation_gain: f64,
+    /// Central glint (the backlight's specular image on the ball):
+    /// `glint · exp(−|p − c_k − offset|² / (2 σ²))` inside the disk for each
+    /// sphere centre `c_k` over the exposure (so it smears with the motion),
+    /// a fraction of the backlight that may exceed 1 (clipped at white).
+    pub glint: f64,
+    pub glint_sigma_px: f64,
+    /// Offset of the glint from the centre (column, row), px.
+    pub glint_offset_px: [f64; 2],
     /// Image numbers whose frame file was not written.
     pub missing_frames: Vec<i64>,
     /// The movie starts as the sphere enters at the top edge (or at its

@@ -501,7 +501,7 @@ mod tests {
             surface: None,
             sphere_density_kg_m3: None,
             setup: Some("s".into()),
-            number_digits: None,
+            number_digits: Some(10),
         };
         let bytes = to_csv_bytes(&[row]);
         let header = String::from_utf8(bytes).unwrap();

@@ -58,6 +58,8 @@ pub struct RunArgs {
     /// drop. Changes no output.
     #[arg(long)]
     pub timings: bool,
+    #[command(flatten)]
+    pub recording: crate::cli_values::RecordingArgs,
 }
 
 /// Why the job could not run (a bad run is a row, not this).
@@ -141,6 +143,9 @@ pub struct JobSummary {
     /// The share of the runs this job took (`None`: all, and it assembled them).
     pub shard: Option<crate::shard::Shard>,
     pub collapse_warnings: Vec<String>,
+    /// Too few drops for the collapse's exponents and series: what they can
+    /// and cannot show (`fits.json`'s `few_drops`; not among the warnings).
+    pub collapse_note: Option<String>,
 }
 
 impl JobSummary {
@@ -416,6 +421,9 @@ pub(crate) fn provenance_json(
         /// With the keys of pipeline.toml (`radius_mm`, `[surface.<name>]`),
         /// as check-config prints it.
         configuration: toml::Value,
+        /// `--fps`, `--mm-per-px`, `--surface-row-px` when given.
+        #[serde(skip_serializing_if = "crate::config::CommandLineValues::is_empty")]
+        command_line: crate::config::CommandLineValues,
         runs: Vec<RunProvenance<'a>>,
     }
     let p = Provenance {
@@ -423,6 +431,7 @@ pub(crate) fn provenance_json(
         dropscope_source_sha256: cache::SOURCE_SHA256,
         configuration_file: config_name,
         configuration: cfg.to_file_value(),
+        command_line: cfg.command_line,
         runs: entries
             .iter()
             .map(|e| RunProvenance {
@@ -651,6 +660,7 @@ fn job_on_pool(
             threads,
             collapsed: false,
             collapse_warnings: Vec::new(),
+            collapse_note: None,
             shard: options.shard,
         });
     }
@@ -659,16 +669,13 @@ fn job_on_pool(
         replace_provenance(out, cfg, config_name, &entries, events)
     })?;
     let collapse = timings::start(Stage::Collapse);
-    let measured = records
-        .iter()
-        .filter(|r| r.status != DropStatus::Failed)
-        .count();
+    let measured = records.iter().filter(|r| r.status.measured()).count();
     // The collapse is redone from drops.csv every time: first remove what an
     // earlier job's collapse wrote, so that no figure of a run that has
     // since failed or left the manifest survives (nor all of it when no
     // drop is measured now).
     crate::collapse::remove_outputs(out).map_err(io(out))?;
-    let (collapsed, collapse_warnings) = if measured > 0 {
+    let (collapsed, collapse_warnings, collapse_note) = if measured > 0 {
         events(RunEvent::Collapsing);
         let args = CollapseArgs {
             drops: out.join("drops.csv"),
@@ -680,10 +687,16 @@ fn job_on_pool(
             no_plots: false,
         };
         let s = crate::collapse::run(&args, cfg, config_name)?;
-        (true, s.warnings)
+        let note = s.fits.few_drops.clone();
+        let warnings = s
+            .warnings
+            .into_iter()
+            .filter(|w| note.as_ref() != Some(w))
+            .collect();
+        (true, warnings, note)
     } else {
         crate::collapse::per_drop::replace(out, Vec::new(), &mut Vec::new())?;
-        (false, Vec::new())
+        (false, Vec::new(), None)
     };
     drop(collapse);
     timings::time(Stage::Report, || {
@@ -698,6 +711,7 @@ fn job_on_pool(
         threads,
         collapsed,
         collapse_warnings,
+        collapse_note,
         shard: None,
     })
 }

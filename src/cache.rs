@@ -24,8 +24,9 @@ use std::path::{Path, PathBuf};
 use std::time::UNIX_EPOCH;
 
 /// Bump when the entry layout or anything it depends on changes meaning.
-/// 2: each output listed with its SHA-256.
-pub const CACHE_SCHEMA: u32 = 2;
+/// 2: each output listed with its SHA-256. 3: rows carry `fps` and
+/// `fps_source`.
+pub const CACHE_SCHEMA: u32 = 3;
 
 /// SHA-256 (hex) of the sources this dropscope was built from: every file
 /// under `src/`, `Cargo.toml` and `Cargo.lock`, taken by `build.rs`. Any

@@ -154,6 +154,111 @@ pub struct PipelineConfig {
     pub surfaces: BTreeMap<String, Surface>,
     pub detect: DetectConfig,
     pub output: OutputConfig,
+    /// Values given on the command line (`--fps`, `--mm-per-px`,
+    /// `--surface-row-px`), not in the file: in the cache key, printed by
+    /// neither `check-config` nor the file's keys in `provenance.json`
+    /// (which records them beside, as `command_line`).
+    #[serde(skip_serializing_if = "CommandLineValues::is_empty")]
+    pub command_line: CommandLineValues,
+}
+
+/// Values a job's command line gives for its runs (`process` and `run`
+/// take `--fps`, `--mm-per-px` and `--surface-row-px`). Each stands where
+/// the run's manifest row gives none, above the configuration's value:
+///
+/// - frame rate: the recording's own (PCC XML, cine header, …) > the
+///   manifest's `fps` > `--fps` > `camera.fps` > [`DEFAULT_FPS`]; a
+///   value given that disagrees with the recording's own is flagged
+///   `fps_mismatch` and the recording's is used;
+/// - scale: the manifest's `mm_per_px` > `--mm-per-px` > `camera.mm_per_px`
+///   > measured (free fall, else the sphere);
+/// - surface row: `--surface-row-px` > `detect.surface_row_px` > found in
+///   the images.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct CommandLineValues {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fps: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mm_per_px: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub surface_row_px: Option<f64>,
+}
+
+impl CommandLineValues {
+    /// None given.
+    pub fn is_empty(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// The frame rate of a recording that holds none, when neither its
+/// manifest row, `--fps` nor `camera.fps` gives one (frames/s): a guess,
+/// used so that the recording is still tracked, and said in its row
+/// (`fps_source` `default`, flag `fps_assumed`) and on the console.
+pub const DEFAULT_FPS: f64 = 10_000.0;
+
+/// Where a run's frame rate came from: the `fps_source` column of drops.csv.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FpsSource {
+    /// The recording's own record: its PCC XML side file (`xml`), its cine
+    /// header (`cine`), or another reader's header, named by its format.
+    Recording,
+    /// The manifest's `fps` column.
+    Manifest,
+    /// `--fps` on the command line.
+    Flag,
+    /// `camera.fps` of the configuration.
+    Config,
+    /// [`DEFAULT_FPS`]: nothing gave one.
+    Default,
+}
+
+impl FpsSource {
+    /// The word of the `fps_source` column; `recording` names the
+    /// recording's own record (`xml`, `cine`, …).
+    pub fn word(self, recording: &str) -> String {
+        match self {
+            FpsSource::Recording => recording,
+            FpsSource::Manifest => "manifest",
+            FpsSource::Flag => "flag",
+            FpsSource::Config => "config",
+            FpsSource::Default => "default",
+        }
+        .to_string()
+    }
+}
+
+impl PipelineConfig {
+    /// The frame rate for `run`'s recording should it hold none, and where
+    /// it comes from: the manifest's `fps`, else `--fps`, else
+    /// `camera.fps`, else [`DEFAULT_FPS`].
+    pub fn fps_fallback(&self, manifest_fps: Option<f64>) -> (f64, FpsSource) {
+        manifest_fps
+            .map(|f| (f, FpsSource::Manifest))
+            .or(self.command_line.fps.map(|f| (f, FpsSource::Flag)))
+            .or(self.camera.fps.map(|f| (f, FpsSource::Config)))
+            .unwrap_or((DEFAULT_FPS, FpsSource::Default))
+    }
+
+    /// The scale given for a run whose manifest row gives `manifest`: it,
+    /// else `--mm-per-px`, else `camera.mm_per_px`.
+    pub fn given_mm_per_px(&self, manifest: Option<f64>) -> Option<f64> {
+        manifest
+            .or(self.command_line.mm_per_px)
+            .or(self.camera.mm_per_px)
+    }
+
+    /// The detection settings, with `--surface-row-px` over
+    /// `detect.surface_row_px`.
+    pub fn detect_settings(&self) -> DetectConfig {
+        DetectConfig {
+            surface_row_px: self
+                .command_line
+                .surface_row_px
+                .or(self.detect.surface_row_px),
+            ..self.detect.clone()
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -577,6 +682,7 @@ impl RawConfig {
                 dir: resolve(self.output.dir.unwrap_or_else(|| PathBuf::from("out"))),
                 animation: self.output.animation.unwrap_or(true),
             },
+            command_line: CommandLineValues::default(),
         })
     }
 }

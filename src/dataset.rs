@@ -16,6 +16,19 @@ pub enum DropStatus {
     Warning,
     /// Nothing measured; `reason` says why.
     Failed,
+    /// The sphere was tracked but never reached the surface (a calibration
+    /// drop, a clip cut before the impact): its track, overlay and free
+    /// flight (`v_last_m_s`, `g_fit_m_s2`, the scale) are kept, no impact;
+    /// `reason` says why, with any flags' sentences. Not in the collapse.
+    Tracked,
+}
+
+impl DropStatus {
+    /// Whether the run's impact was measured (`ok` or `warning`): the rows
+    /// the collapse and the report's values use.
+    pub fn measured(self) -> bool {
+        matches!(self, DropStatus::Ok | DropStatus::Warning)
+    }
 }
 
 /// One drop: what was measured, with one-sigma uncertainties in the `_err`
@@ -38,6 +51,17 @@ pub struct DropRecord {
     /// resolved it.
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub path: String,
+    /// The frame rate the run was measured at (frames/s): the recording's
+    /// own, else the fallback `fps_source` names.
+    #[serde(default)]
+    pub fps: Option<f64>,
+    /// Where `fps` came from: `xml` (the PCC XML side file), `cine` (the
+    /// cine header), or another reader's format: the recording's own; else
+    /// `manifest`, `flag` (`--fps`), `config` (`camera.fps`) or `default`
+    /// ([`crate::config::DEFAULT_FPS`], nothing gave one). The last two are
+    /// flagged `fps_assumed`.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub fps_source: String,
     pub v_impact_m_s: Option<f64>,
     #[serde(default)]
     pub v_impact_m_s_err: Option<f64>,
@@ -135,6 +159,15 @@ pub struct DropRecord {
     pub g_fit_m_s2: Option<f64>,
     #[serde(default)]
     pub g_fit_m_s2_err: Option<f64>,
+    /// Status `tracked` only: the vertical velocity (positive downward) at
+    /// the last tracked frame, from its free flight ([`crate::flight`]).
+    #[serde(default)]
+    pub v_last_m_s: Option<f64>,
+    #[serde(default)]
+    pub v_last_m_s_err: Option<f64>,
+    /// Status `tracked` only: the time of that last tracked frame.
+    #[serde(default)]
+    pub t_last_s: Option<f64>,
     /// Contact law F = K·δⁿ fitted to the trajectory: K in SI units (N/mⁿ, δ in m).
     #[serde(default)]
     pub force_k_si: Option<f64>,
@@ -189,6 +222,8 @@ impl DropRecord {
             surface: String::new(),
             drop_height_cm: None,
             path: String::new(),
+            fps: None,
+            fps_source: String::new(),
             v_impact_m_s: None,
             v_impact_m_s_err: None,
             v_rebound_m_s: None,
@@ -230,6 +265,9 @@ impl DropRecord {
             second_contact_s: None,
             g_fit_m_s2: None,
             g_fit_m_s2_err: None,
+            v_last_m_s: None,
+            v_last_m_s_err: None,
+            t_last_s: None,
             force_k_si: None,
             force_k_si_err: None,
             force_exponent: None,
@@ -272,6 +310,17 @@ pub struct TrackRow {
     /// One-sigma uncertainty of `z_px` from the fit's covariance.
     #[serde(default)]
     pub sigma_z_px: Option<f64>,
+    /// One-sigma uncertainty of `x_px` from the same fit.
+    #[serde(default)]
+    pub sigma_x_px: Option<f64>,
+    /// The frame's own circle with its radius free (the silhouette's
+    /// apparent radius, pass 1), where fitted; `r_px` is the radius held
+    /// for the run.
+    #[serde(default)]
+    pub r_free_px: Option<f64>,
+    /// One-sigma uncertainty of `r_free_px` from its fit's covariance.
+    #[serde(default)]
+    pub sigma_r_free_px: Option<f64>,
     /// Contact force F = m (g − z̈) from the smoothed trajectory, in contact only.
     #[serde(default)]
     pub force_n: Option<f64>,
@@ -282,7 +331,7 @@ pub struct TrackRow {
 }
 
 /// What a text column holds for none: in a track's `flags` a frame without
-/// flags; in drops.csv's `surface`, `path`, `setup`, `scale_source`,
+/// flags; in drops.csv's `surface`, `path`, `fps_source`, `setup`, `scale_source`,
 /// `surface_source`, `flags` and `reason` a row without one. A word, never
 /// an empty field, so that a reader takes the column as text in every file
 /// (pandas read an all-empty column as float64, issue 17).
@@ -427,6 +476,7 @@ mod tests {
         let text = [
             "surface",
             "path",
+            "fps_source",
             "setup",
             "scale_source",
             "surface_source",

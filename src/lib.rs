@@ -16,6 +16,7 @@
 //! | [`scale`] | mm/px: given, from free fall (pooled per camera set-up), or from the radius |
 //! | [`lens`] | radial lens distortion: a known k1 undone on the track, or its bound as a systematic |
 //! | [`force`] | F(δ) table and the trajectory-fitted contact law |
+//! | [`flight`] | a run without a contact: its free flight (v at the last frame, g) |
 //! | [`measure`] | one drop from track to record |
 //! | [`quality`] | the quality flags of a measured drop (`flags` in drops.csv) |
 //! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
@@ -52,6 +53,7 @@ pub mod dataset;
 pub mod dataset_id;
 pub mod detect;
 pub mod events;
+pub mod flight;
 pub mod force;
 pub mod io_util;
 pub mod kinematics;

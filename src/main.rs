@@ -68,6 +68,13 @@ enum Command {
         wait: bool,
     },
     /// Measure drops: per-drop dataset (drops.csv), tracks and overlays.
+    ///
+    /// Each row's status: ok; warning (measured, with flags); tracked (the
+    /// sphere was followed but never reached the surface: its track,
+    /// overlay and free flight, v_last_m_s and g_fit_m_s2, no impact);
+    /// failed. Each row's fps_source says where its frame rate came from
+    /// (xml, cine, manifest, flag, config, default). Exit status 0 when no
+    /// run failed, 1 when some did, 2 when the command could not run.
     Process {
         #[command(flatten)]
         args: dropscope::process::ProcessArgs,
@@ -129,13 +136,25 @@ fn hold_folder(
 fn job_counts(job: &dropscope::batch::JobSummary) -> String {
     use dropscope::dataset::DropStatus;
     format!(
-        "{}: {} measured, {} with warnings, {} failed, {} reused from the cache; {}",
+        "{}: {} measured, {} with warnings, {}{} failed, {} reused from the cache; {}",
         dropscope::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
+        tracked_count(job.count(DropStatus::Tracked)),
         job.failed(),
         job.cached,
         speed(job.frames, job.process_s, job.threads),
+    )
+}
+
+/// "N tracked without contact (…), " when some runs are, else nothing.
+fn tracked_count(n: usize) -> String {
+    if n == 0 {
+        return String::new();
+    }
+    format!(
+        "{n} tracked without contact (no impact: their tracks, overlays and free flights, \
+         status `tracked`), "
     )
 }
 
@@ -143,6 +162,7 @@ fn job_counts(job: &dropscope::batch::JobSummary) -> String {
 fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
+    cfg.command_line = args.recording.values();
     if args.config.is_none() && name == dropscope::config::EMBEDDED_NAME {
         if let Some(m) = cfg.input.manifest.as_ref().filter(|m| !m.exists()) {
             anyhow::bail!(
@@ -199,8 +219,14 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         // succeeded) reports them with exit status 1.
         return Ok(ExitCode::SUCCESS);
     }
-    for w in &job.collapse_warnings {
+    for w in dropscope::progress::closing_warnings(&job.records)
+        .iter()
+        .chain(&job.collapse_warnings)
+    {
         eprintln!("warning: {w}");
+    }
+    if let Some(note) = &job.collapse_note {
+        eprintln!("note: {note}");
     }
     eprintln!(
         "{}; collapse {}; {:.2} s in all; results in {} (open report.html there)",
@@ -232,6 +258,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     cfg.output.animation &= !args.no_animation;
     cfg.camera.apply_flips &= !args.no_flips;
     cfg.camera.p10_linear &= !args.p10_codes;
+    cfg.command_line = args.recording.values();
     let runs = match &args.manifest {
         Some(m) => dropscope::manifest::read_job_manifest(m)?,
         None => dropscope::process::runs_from_inputs(
@@ -260,16 +287,20 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     );
     progress.finish();
     let job = job?;
-    for w in &job.warnings {
+    for w in dropscope::progress::closing_warnings(&job.records)
+        .iter()
+        .chain(&job.warnings)
+    {
         eprintln!("warning: {w}");
     }
     let failed = job.count(DropStatus::Failed);
     eprintln!(
-        "{}: {} measured, {} with warnings, {} failed, {} reused from the cache; {}; \
+        "{}: {} measured, {} with warnings, {}{} failed, {} reused from the cache; {}; \
          results in {}",
         dropscope::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
+        tracked_count(job.count(DropStatus::Tracked)),
         failed,
         job.cached,
         speed(job.frames, job.process_s, job.threads),
@@ -312,15 +343,18 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
     let _held = hold_folder(&args.out_dir(), "collapse", &cfg, &[], wait)?;
     let s = dropscope::collapse::run(args, &cfg, &name)?;
     for w in &s.warnings {
-        eprintln!("warning: {w}");
+        match &s.fits.few_drops {
+            Some(note) if note == w => eprintln!("note: {w}"),
+            _ => eprintln!("warning: {w}"),
+        }
     }
-    println!(
-        "collapse: {} used, {} skipped; {} files in {}",
+    say(format_args!(
+        "collapse: {} used, {} skipped; {} files in {}\n",
         dropscope::plural(s.n_used, "drop"),
         s.n_skipped,
         s.files.len(),
         s.out_dir.display()
-    );
+    ))?;
     Ok(if s.n_skipped > 0 {
         ExitCode::from(1)
     } else {
@@ -374,7 +408,29 @@ fn run_report(
     };
     let records = dropscope::dataset::read_csv(&out.join("drops.csv"))?;
     let path = dropscope::report::write_report(&out, &name, &records)?;
-    println!("report: {}", path.display());
+    say(format_args!("report: {}\n", path.display()))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `dropscope export`: the frames, and a warning when their times are at a
+/// frame rate the input does not hold and `--fps` did not give (the
+/// configuration's camera.fps).
+fn run_export(args: &dropscope::source::cli::ExportArgs) -> anyhow::Result<ExitCode> {
+    let files = dropscope::source::cli::run_export(args)?;
+    eprintln!("wrote {} frame(s) to {}", files.len(), args.out.display());
+    if args.source.fps.is_none() {
+        // Opened again (headers only) to learn where its frame rate came from.
+        if let (src, Some(origin)) = args.source.open_source(&args.input)? {
+            eprintln!(
+                "warning: {} holds no frame rate: the time_s of {}_frames.csv are at {} \
+                 frames/s, from {origin}, an assumed value; pass --fps if that is not this \
+                 recording's",
+                args.input.display(),
+                dropscope::source::input_name(&args.input),
+                src.meta().fps
+            );
+        }
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -396,8 +452,10 @@ fn run_check_config(config: Option<&std::path::Path>) -> anyhow::Result<ExitCode
              and set [input] manifest to your runs.csv"
         );
     }
-    println!("# {name}: valid; resolved (paths as dropscope will use them):");
-    print!("{}", cfg.to_toml());
+    say(format_args!(
+        "# {name}: valid; resolved (paths as dropscope will use them):\n{}",
+        cfg.to_toml()
+    ))?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -415,32 +473,51 @@ fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
         local.exists().then_some(local),
     )?;
     let scripts = slurm::write_scripts(args, &plan)?;
-    println!(
-        "{} runs in {} shards into {}; scripts {} and {}, logs in {}",
+    say(format_args!(
+        "{} runs in {} shards into {}; scripts {} and {}, logs in {}\n",
         runs.len(),
         args.array,
         plan.out.display(),
         scripts.array.display(),
         scripts.finish.display(),
         plan.scripts.join("logs").display()
-    );
+    ))?;
     if !args.submit {
-        println!(
-            "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}",
+        say(format_args!(
+            "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}\n",
             scripts.array.display(),
             scripts.finish.display()
-        );
+        ))?;
         return Ok(ExitCode::SUCCESS);
     }
     let ids = slurm::submit(&scripts)?;
-    println!("array job {} ({} tasks)", ids.array_job, args.array);
-    println!(
-        "finishing job {} (starts when every task of {} has succeeded; then {} holds report.html)",
+    say(format_args!(
+        "array job {} ({} tasks)\nfinishing job {} (starts when every task of {} has \
+         succeeded; then {} holds report.html)\n",
+        ids.array_job,
+        args.array,
         ids.finish_job,
         ids.array_job,
         plan.out.display()
-    );
+    ))?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Stdout's reader closed it before all was written (`dropscope inspect
+/// X | head -1`): no error, the command stops there with exit status 0.
+#[derive(Debug, thiserror::Error)]
+#[error("stdout was closed by its reader")]
+struct StdoutClosed;
+
+/// Write `text` to stdout. A closed pipe is [`StdoutClosed`], not the
+/// panic of `print!`.
+fn say(text: impl std::fmt::Display) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match write!(out, "{text}").and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(StdoutClosed.into()),
+        r => r.map_err(|e| anyhow::anyhow!("writing to stdout: {e}")),
+    }
 }
 
 /// An error and its causes on one line, each cause only when the text so
@@ -484,21 +561,15 @@ fn main() -> ExitCode {
         Command::CheckConfig {
             default: true,
             config: _,
-        } => {
-            print!("{}", dropscope::config::EMBEDDED_DEFAULT);
-            Ok(ExitCode::SUCCESS)
-        }
+        } => say(dropscope::config::EMBEDDED_DEFAULT).map(|()| ExitCode::SUCCESS),
         Command::CheckConfig {
             config,
             default: false,
         } => run_check_config(config.as_deref()),
-        Command::Inspect(args) => {
-            dropscope::source::cli::run_inspect(&args).map(|()| ExitCode::SUCCESS)
-        }
-        Command::Export(args) => dropscope::source::cli::run_export(&args).map(|files| {
-            eprintln!("wrote {} frame(s) to {}", files.len(), args.out.display());
-            ExitCode::SUCCESS
-        }),
+        Command::Inspect(args) => dropscope::source::cli::inspect_text(&args)
+            .and_then(|text| say(format_args!("{text}\n")))
+            .map(|()| ExitCode::SUCCESS),
+        Command::Export(args) => run_export(&args),
         Command::Render(args) => run_render(&args),
         Command::Collapse { args, wait } => run_collapse(&args, wait),
         Command::Process { args, wait } => run_process(&args, wait),
@@ -512,6 +583,9 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(code) => code,
+        // The reader of stdout has gone (`dropscope inspect X | head -1`):
+        // what it wanted was written.
+        Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", error_text(&e));
             ExitCode::from(2)

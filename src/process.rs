@@ -43,6 +43,8 @@ pub struct ProcessArgs {
     /// Sphere radius for INPUTs (default: the configuration's sphere.radius_mm).
     #[arg(long, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub radius_mm: Option<f64>,
+    #[command(flatten)]
+    pub recording: crate::cli_values::RecordingArgs,
     /// Also draw the overlay of these camera image numbers (comma-separated,
     /// e.g. `-5,0,12`) for every run: `plots/overlays/<run>_<number>.png`.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
@@ -224,7 +226,7 @@ pub fn process_setup(
     mut kept: Vec<Option<KeptRun>>,
 ) -> Vec<RunOutcome> {
     kept.resize_with(runs.len(), || None);
-    let (tracked, track_s): (Vec<Result<Tracked, String>>, Vec<f64>) = runs
+    let (tracked, track_s): (Vec<Result<Tracked, RunFailure>>, Vec<f64>) = runs
         .par_iter()
         .zip(kept)
         .map(|(r, kept)| {
@@ -251,30 +253,101 @@ pub fn process_setup(
             .collect(),
     );
     let pooled = pool(curvatures);
-    runs.par_iter()
+    // The members' apparent sizes per mm, compared once all are measured.
+    let sizes: Vec<Option<crate::scale::ApparentSize>> = tracked
+        .iter()
+        .zip(runs)
+        .map(|(t, r)| {
+            let t = t.as_ref().ok()?;
+            Some(crate::scale::ApparentSize {
+                r_app_px: t.tr.radius_px,
+                r_app_err_px: t.tr.radius_err_px,
+                radius_mm: r.sphere_radius_mm,
+            })
+        })
+        .collect();
+    let mut outcomes: Vec<RunOutcome> = runs
+        .par_iter()
         .zip(tracked)
         .zip(track_s)
         .map(|((run, t), track_s)| {
             let start = std::time::Instant::now();
+            let recording = match &t {
+                Ok(t) => Some(t.recording()),
+                Err(f) => f.recording.clone(),
+            };
             let mut o = caught(run, || {
                 let _timed = crate::timings::start(crate::timings::Stage::Events);
-                measure_run(t?, run, cfg, [pooled, pooled_at_bound], overlay_frames)
+                measure_run(
+                    t.map_err(|f| f.reason)?,
+                    run,
+                    cfg,
+                    [pooled, pooled_at_bound],
+                    overlay_frames,
+                )
             })
-            .unwrap_or_else(|reason| failed_outcome(run, cfg, reason));
+            .unwrap_or_else(|reason| failed_outcome(run, cfg, reason, recording.as_ref()));
             o.seconds = track_s + start.elapsed().as_secs_f64();
             o
         })
-        .collect()
+        .collect();
+    if runs.len() >= 2 {
+        let found = crate::scale::size_disagreements(&sizes, cfg.camera.edge_offset());
+        for ((o, run), d) in outcomes.iter_mut().zip(runs).zip(found) {
+            if let Some(d) = d {
+                let setup = run.setup.as_deref().unwrap_or("-");
+                quality::flag(
+                    &mut o.record,
+                    quality::RADIUS_DISAGREEMENT,
+                    d.sentence(setup),
+                );
+            }
+        }
+    }
+    outcomes
 }
 
 /// Run `work` for `run`: its panic becomes an error naming the input.
-fn caught<T>(run: &RunSpec, work: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
+fn caught<T, E: From<String>>(run: &RunSpec, work: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(work))
-        .unwrap_or_else(|payload| Err(panic_reason(&run.path, payload.as_ref())))
+        .unwrap_or_else(|payload| Err(panic_reason(&run.path, payload.as_ref()).into()))
 }
 
-/// The `failed` outcome of `run`, with its reason.
-fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOutcome {
+/// Why a run could not be tracked, with what is known of its recording
+/// once it was opened.
+#[derive(Debug, Clone, PartialEq)]
+struct RunFailure {
+    reason: String,
+    recording: Option<Recording>,
+}
+
+impl From<String> for RunFailure {
+    fn from(reason: String) -> Self {
+        RunFailure {
+            reason,
+            recording: None,
+        }
+    }
+}
+
+/// What a run's row says of its recording, failed or not.
+#[derive(Debug, Clone, PartialEq)]
+struct Recording {
+    /// Its frames (the track's rows; the summary's frames read).
+    frames: usize,
+    fps: f64,
+    /// The `fps_source` word ([`open_run`]).
+    fps_source: String,
+}
+
+/// The `failed` outcome of `run`, with its reason and what is known of its
+/// recording.
+fn failed_outcome(
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+    reason: String,
+    recording: Option<&Recording>,
+) -> RunOutcome {
     let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, reason);
     record.surface = run
         .surface
@@ -284,14 +357,16 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
     record.setup = run.setup.clone().unwrap_or_default();
     record.drop_height_cm = run.drop_height_cm;
     record.path = run.path.display().to_string();
+    record.fps = recording.map(|r| r.fps);
+    record.fps_source = recording.map(|r| r.fps_source.clone()).unwrap_or_default();
     // What its input says of itself (colour, flips, frame names) helps read
     // why it failed: opened again for that (its header only).
-    let meta = open_run(run, cfg).ok().map(|s| s.meta().clone());
+    let meta = open_run(run, cfg).ok().map(|(s, _)| s.meta().clone());
     record.reading = meta.as_ref().map(|m| m.reading()).unwrap_or_default();
     RunOutcome {
         record,
         track_csv: Spool::new(0),
-        track_rows: 0,
+        track_rows: recording.map_or(0, |r| r.frames),
         overlay: None,
         frame_overlays: Vec::new(),
         impact: None,
@@ -351,7 +426,7 @@ impl KeptRuns {
 }
 
 /// A run [`prepare`] tracked (see [`KeptRuns`]).
-pub struct KeptRun(Result<ShelvedRun, String>);
+pub struct KeptRun(Result<ShelvedRun, RunFailure>);
 
 /// A [`Tracked`] without its source (opened again: a job's runs are not
 /// all held open) and the distortion bound's track (made again from the
@@ -363,12 +438,13 @@ struct ShelvedRun {
     settings: TrackSettings,
     surface_name: String,
     curvature: Option<Curvature>,
+    fps_source: String,
 }
 
 impl KeptRun {
     /// What [`track_run`] gave, or `t`'s track put on `shelf`; `None` when
     /// it could not be put there.
-    fn new(t: Result<Tracked, String>, shelf: Option<&Arc<Shelf>>) -> Option<KeptRun> {
+    fn new(t: Result<Tracked, RunFailure>, shelf: Option<&Arc<Shelf>>) -> Option<KeptRun> {
         let t = match t {
             Ok(t) => t,
             Err(e) => return Some(KeptRun(Err(e))),
@@ -382,12 +458,13 @@ impl KeptRun {
             settings: t.settings,
             surface_name: t.surface_name,
             curvature: t.curvature,
+            fps_source: t.fps_source,
         })))
     }
 
     /// The run as [`track_run`] gave it; `None` when its track cannot be
     /// read back (the run is then tracked again).
-    fn restore(self, run: &RunSpec, cfg: &PipelineConfig) -> Option<Result<Tracked, String>> {
+    fn restore(self, run: &RunSpec, cfg: &PipelineConfig) -> Option<Result<Tracked, RunFailure>> {
         let s = match self.0 {
             Ok(s) => s,
             Err(e) => return Some(Err(e)),
@@ -395,7 +472,9 @@ impl KeptRun {
         let tr =
             crate::timings::time(crate::timings::Stage::Shelf, || s.shelf.take(s.track)).ok()?;
         Some(caught(run, || {
-            let source = open_run(run, cfg)?;
+            // The same recording, opened again: its frame rate is the one
+            // it was tracked at.
+            let (source, _) = open_run(run, cfg)?;
             let bounded = bounded_of(&tr, &s.meta, cfg);
             tr.frames
                 .check()
@@ -408,6 +487,7 @@ impl KeptRun {
                 surface_name: s.surface_name,
                 curvature: s.curvature,
                 bounded,
+                fps_source: s.fps_source,
             })
         }))
     }
@@ -517,9 +597,20 @@ struct Tracked {
     /// The track through a lens at `camera.distortion_bound_px`, when no
     /// k1 is given and the bound is not 0.
     bounded: Option<crate::lens::Bounded>,
+    /// Where `meta.fps` came from (the `fps_source` word, [`open_run`]).
+    fps_source: String,
 }
 
 impl Tracked {
+    /// What the run's row says of its recording.
+    fn recording(&self) -> Recording {
+        Recording {
+            frames: self.tr.frames.len(),
+            fps: self.meta.fps,
+            fps_source: self.fps_source.clone(),
+        }
+    }
+
     /// What the run's images say of its camera set-up.
     fn scene(&self, radius_mm: f64) -> SceneSignature {
         let g_m_s2 = EventConfig::default().g_m_s2;
@@ -561,23 +652,50 @@ fn panic_reason(input: &Path, payload: &(dyn std::any::Any + Send)) -> String {
     )
 }
 
-/// `run`'s frames, opened.
+/// `run`'s frames, opened, and where their frame rate came from (the
+/// `fps_source` column): the recording's own when it holds one, else the
+/// fallback [`PipelineConfig::fps_fallback`] names. A recording without a
+/// rate of its own is opened twice, the first time to learn that.
 fn open_run(
     run: &RunSpec,
     cfg: &PipelineConfig,
-) -> Result<Box<dyn crate::source::FrameSource>, String> {
-    let options = OpenOptions {
-        fps_fallback: run.fps.or(cfg.camera.fps),
-        apply_flips: cfg.camera.apply_flips,
-        p10: if cfg.camera.p10_linear {
-            P10Mode::Linear
-        } else {
-            P10Mode::Raw
-        },
-        number_digits: run.number_digits,
+) -> Result<(Box<dyn crate::source::FrameSource>, String), String> {
+    use crate::config::FpsSource;
+    let open_with = |fps_fallback: Option<f64>| {
+        let options = OpenOptions {
+            fps_fallback,
+            apply_flips: cfg.camera.apply_flips,
+            p10: if cfg.camera.p10_linear {
+                P10Mode::Linear
+            } else {
+                P10Mode::Raw
+            },
+            number_digits: run.number_digits,
+        };
+        crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
     };
-    crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
-        .map_err(|e| e.to_string())
+    let has_fps = |m: &crate::source::SourceMeta| m.fps.is_finite() && m.fps > 0.0;
+    match open_with(None) {
+        Ok(src) if has_fps(src.meta()) => {
+            let word = FpsSource::Recording.word(&recording_fps_word(src.meta()));
+            return Ok((src, word));
+        }
+        Ok(_) | Err(crate::source::SourceError::NoFrameRate { .. }) => {}
+        Err(e) => return Err(e.to_string()),
+    }
+    let (fps, from) = cfg.fps_fallback(run.fps);
+    let src = open_with(Some(fps)).map_err(|e| e.to_string())?;
+    Ok((src, from.word("")))
+}
+
+/// The `fps_source` word of a recording's own frame rate: `cine` for a
+/// cine header, `xml` for a PCC XML side file, else the reader's format.
+fn recording_fps_word(meta: &crate::source::SourceMeta) -> String {
+    match meta.format.as_str() {
+        "cine" => "cine".into(),
+        _ if meta.details.side_file.is_some() => "xml".into(),
+        other => other.to_string(),
+    }
 }
 
 /// The track through a lens at `camera.distortion_bound_px`, when no k1 is
@@ -610,7 +728,7 @@ fn bounded_of(
     })
 }
 
-fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
+fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, RunFailure> {
     crate::run_name::check(&run.run)?;
     let surface_name = run
         .surface
@@ -620,18 +738,28 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         return Err(format!(
             "surface `{surface_name}` is not defined in pipeline.toml (known: {})",
             cfg.surfaces.keys().cloned().collect::<Vec<_>>().join(", ")
-        ));
+        )
+        .into());
     }
     use crate::timings::{time, Stage};
-    let mut source = open_run(run, cfg)?;
+    let (mut source, fps_source) = open_run(run, cfg)?;
     let meta = source.meta().clone();
-    let settings = TrackSettings::from_config(&cfg.detect);
-    let mut tr =
-        track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
+    // A failure from here on has a recording: its frames and frame rate
+    // are in the failed row.
+    let failed = |e: &dyn std::fmt::Display| RunFailure {
+        reason: format!("{}: {e}", run.path.display()),
+        recording: Some(Recording {
+            frames: meta.frame_count,
+            fps: meta.fps,
+            fps_source: fps_source.clone(),
+        }),
+    };
+    let settings = TrackSettings::from_config(&cfg.detect_settings());
+    let mut tr = track(source.as_mut(), &settings).map_err(|e| failed(&e))?;
     let camera = &cfg.camera;
     if let Some(k1) = camera.distortion_k1_per_px2 {
-        tr = undistort_track(tr, &Lens::new(k1, meta.width, meta.height))
-            .map_err(|e| format!("{}: {e}", run.path.display()))?;
+        tr =
+            undistort_track(tr, &Lens::new(k1, meta.width, meta.height)).map_err(|e| failed(&e))?;
     }
     // The free falls' curvature, and the track through the lens at the
     // distortion bound with its own: each on a thread.
@@ -647,9 +775,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         },
         || bounded_of(&tr, &meta, cfg),
     );
-    tr.frames
-        .check()
-        .map_err(|e| format!("{}: {e}", run.path.display()))?;
+    tr.frames.check().map_err(|e| failed(&e))?;
     Ok(Tracked {
         source,
         meta,
@@ -658,6 +784,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         surface_name,
         curvature,
         bounded,
+        fps_source,
     })
 }
 
@@ -677,6 +804,7 @@ fn measure_run(
         surface_name,
         curvature,
         bounded,
+        fps_source,
     } = t;
     let event_cfg = EventConfig {
         exposure_s: meta.exposure_s.unwrap_or(0.0),
@@ -687,7 +815,7 @@ fn measure_run(
     let inputs = ScaleInputs {
         radius_mm: run.sphere_radius_mm,
         g_m_s2: event_cfg.g_m_s2,
-        given_mm_per_px: run.mm_per_px.or(cfg.camera.mm_per_px),
+        given_mm_per_px: cfg.given_mm_per_px(run.mm_per_px),
         setup,
         own: curvature,
         r_app_px: tr.radius_px,
@@ -737,7 +865,39 @@ fn measure_run(
         surface: surface_name,
     };
     let failed = |e: crate::events::EventError| format!("{}: {e}", run.path.display());
-    let points = window(&geom, &geom).map_err(failed)?;
+    let points = match window(&geom, &geom) {
+        Err(e @ crate::events::EventError::NeverLands { .. }) => {
+            // Tracked, never landing: its free flight and files, no impact.
+            let row_of = |f: &FrameTrack| {
+                let mut row = track_row(f);
+                row.delta_mm = row
+                    .x_px
+                    .zip(row.z_px)
+                    .map(|(x, z)| geom.penetration_px(x, z) * geom.mm_per_px);
+                row
+            };
+            let files = Files {
+                recording: RecordingRow {
+                    run,
+                    cfg,
+                    meta: &meta,
+                    tr: &tr,
+                    sc: &sc,
+                    edge_offset,
+                    fps_source: &fps_source,
+                },
+                source: source.as_mut(),
+                settings: &settings,
+                row_of: &row_of,
+                still_at_s: None,
+                impact: None,
+                overlay_frames,
+                scene,
+            };
+            return tracked_only(failed(e), &info, &geom, event_cfg.g_m_s2, files);
+        }
+        points => points.map_err(failed)?,
+    };
     let mut m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
     drop(points);
     // The surface: the image's line, checked against (and moved to) where
@@ -824,67 +984,136 @@ fn measure_run(
         }
     }
     crate::measure::flag_restitution_above_one(&mut record);
-    record.setup = run.setup.clone().unwrap_or_default();
-    record.drop_height_cm = run.drop_height_cm;
-    record.path = run.path.display().to_string();
-    record.reading = meta.reading();
-    record.scale_source = sc.source.name().to_string();
-    record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
-    record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);
-    record.edge_offset_px = edge_offset.map(|(o, _)| o);
-    record.edge_offset_px_err = edge_offset.map(|(_, e)| e);
-    record.surface_model_err_px = Some(tr.surface.model_err_px);
-    if let Some(w) = sc.warning {
-        quality::flag(&mut record, quality::SCALE_DISAGREEMENT, w);
-    }
-    if let Some(share) = saturated_share(&tr, meta.bit_depth) {
-        quality::flag(
-            &mut record,
-            quality::SATURATED,
-            format!(
-                "{:.1} % of the background near the sphere's path is clipped at the white level",
-                share * 100.0
-            ),
-        );
-    }
-    for w in &meta.details.warnings {
-        if w.starts_with(crate::source::validate::IRREGULAR_TIMES) {
-            quality::flag(&mut record, quality::TIME_IRREGULAR, w.clone());
-        } else if w.starts_with(crate::source::validate::TIMES_AND_RATE_DISAGREE) {
-            quality::flag(&mut record, quality::FPS_MISMATCH, w.clone());
+    let recording = RecordingRow {
+        run,
+        cfg,
+        meta: &meta,
+        tr: &tr,
+        sc: &sc,
+        edge_offset,
+        fps_source: &fps_source,
+    };
+    recording.describe(&mut record);
+    let impact = record
+        .t_contact_s
+        .filter(|_| cfg.output.animation)
+        .map(|t| (t, record.t_rebound_s));
+    // The overlay at the frame nearest the maximum penetration.
+    let still_at_s = record.t_max_s;
+    with_files(
+        record,
+        Files {
+            recording,
+            source: source.as_mut(),
+            settings: &settings,
+            row_of: &row_of,
+            still_at_s,
+            impact,
+            overlay_frames,
+            scene,
+        },
+    )
+}
+
+/// What a run's row says of its recording, its scale and its checks,
+/// whatever became of its impact.
+struct RecordingRow<'a> {
+    run: &'a RunSpec,
+    cfg: &'a PipelineConfig,
+    meta: &'a crate::source::SourceMeta,
+    tr: &'a Track,
+    sc: &'a crate::scale::Scale,
+    /// Apparent minus true radius and its error, px.
+    edge_offset: Option<(f64, f64)>,
+    fps_source: &'a str,
+}
+
+impl RecordingRow<'_> {
+    /// Fill `record`'s manifest, scale and frame-rate columns and flag what
+    /// weakens them (scale disagreement, saturation, frame times, an
+    /// assumed or disagreeing frame rate).
+    fn describe(&self, record: &mut DropRecord) {
+        let (run, sc, meta, tr) = (self.run, self.sc, self.meta, self.tr);
+        record.setup = run.setup.clone().unwrap_or_default();
+        record.drop_height_cm = run.drop_height_cm;
+        record.path = run.path.display().to_string();
+        record.reading = meta.reading();
+        record.scale_source = sc.source.name().to_string();
+        record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
+        record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);
+        record.edge_offset_px = self.edge_offset.map(|(o, _)| o);
+        record.edge_offset_px_err = self.edge_offset.map(|(_, e)| e);
+        record.surface_model_err_px = Some(tr.surface.model_err_px);
+        if let Some(w) = &sc.warning {
+            quality::flag(record, quality::SCALE_DISAGREEMENT, w.clone());
         }
-    }
-    if let Some(f) = run.fps {
-        if (f / meta.fps - 1.0).abs() > crate::source::validate::FPS_AGREEMENT {
+        if let Some(share) = saturated_share(tr, meta.bit_depth) {
             quality::flag(
-                &mut record,
-                quality::FPS_MISMATCH,
+                record,
+                quality::SATURATED,
                 format!(
-                    "the manifest's fps {f} disagrees with the file's frame rate {} frames/s; \
-                     the file's is used",
-                    meta.fps
+                    "{:.1} % of the background near the sphere's path is clipped at the white level",
+                    share * 100.0
                 ),
             );
         }
+        for w in &meta.details.warnings {
+            if w.starts_with(crate::source::validate::IRREGULAR_TIMES) {
+                quality::flag(record, quality::TIME_IRREGULAR, w.clone());
+            } else if w.starts_with(crate::source::validate::TIMES_AND_RATE_DISAGREE) {
+                quality::flag(record, quality::FPS_MISMATCH, w.clone());
+            }
+        }
+        frame_rate_checks(record, run, self.cfg, meta.fps, self.fps_source);
     }
+}
 
-    // The overlay at the frame nearest the maximum penetration, those asked
-    // for, and the animated impact; beside them, the track CSV.
+/// What a run's files are drawn and written from.
+struct Files<'a> {
+    recording: RecordingRow<'a>,
+    source: &'a mut dyn crate::source::FrameSource,
+    settings: &'a TrackSettings,
+    /// A frame's row of the track CSV.
+    row_of: &'a (dyn Fn(&FrameTrack) -> TrackRow + Sync),
+    /// The main overlay is the held frame nearest this time.
+    still_at_s: Option<f64>,
+    /// The animated impact's contact and rebound times.
+    impact: Option<(f64, Option<f64>)>,
+    overlay_frames: &'a [i64],
+    scene: SceneSignature,
+}
+
+/// The run's outcome: `record`, with its overlays, animated impact and
+/// track CSV (drawn and written beside each other).
+fn with_files(record: DropRecord, f: Files<'_>) -> Result<RunOutcome, String> {
+    let Files {
+        recording,
+        source,
+        settings,
+        row_of,
+        still_at_s,
+        impact,
+        overlay_frames,
+        scene,
+    } = f;
+    let RecordingRow {
+        run, meta, tr, sc, ..
+    } = recording;
     let pictures = || {
         let mut pictures = crate::pictures::Pictures {
-            source: source.as_mut(),
-            meta: &meta,
-            track: &tr,
-            settings: &settings,
+            source,
+            meta,
+            track: tr,
+            settings,
             delta_mm: &|f| row_of(f).delta_mm,
             mm_per_px: sc.mm_per_px,
         };
-        let overlay = record.t_max_s.and_then(|t_max| {
+        let overlay = still_at_s.and_then(|at| {
             let ft = tr
                 .frames
                 .iter()
                 .filter(|f| f.held.is_some())
-                .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
+                .min_by(|a, b| (a.t_s - at).abs().total_cmp(&(b.t_s - at).abs()))?;
             pictures.still(&ft)
         });
         let frame_overlays: Vec<(i64, Vec<u8>)> = overlay_frames
@@ -894,10 +1123,7 @@ fn measure_run(
                 pictures.still(&ft).map(|png| (n, png))
             })
             .collect();
-        let impact = record
-            .t_contact_s
-            .filter(|_| cfg.output.animation)
-            .and_then(|t| pictures.impact(t, record.t_rebound_s));
+        let impact = impact.and_then(|(t, rebound)| pictures.impact(t, rebound));
         (overlay, frame_overlays, impact)
     };
     let track_csv = || {
@@ -928,6 +1154,132 @@ fn measure_run(
         seconds: 0.0,
         notes: meta.reading_notes(),
     })
+}
+
+/// The outcome of a run whose sphere was tracked but never reached the
+/// surface (`why`): status `tracked`, its free flight ([`crate::flight`]:
+/// v at the last tracked frame, g) at the run's scale, its scale and frame
+/// rate columns, its track (δ negative: the clearance) and the overlay of
+/// its last tracked frame, no impact.
+fn tracked_only(
+    why: String,
+    info: &DropInfo,
+    geom: &Geometry,
+    g_m_s2: f64,
+    f: Files<'_>,
+) -> Result<RunOutcome, String> {
+    let (run, tr, sc) = (f.recording.run, f.recording.tr, f.recording.sc);
+    let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, String::new());
+    record.status = crate::dataset::DropStatus::Tracked;
+    record.sphere_density_kg_m3 = info.sphere_density_kg_m3;
+    record.surface = info.surface.clone();
+    record.mm_per_px = Some(sc.mm_per_px);
+    record.mm_per_px_err = Some(sc.mm_per_px * sc.rel_err);
+    let points: Vec<TrackPoint> = held_points(tr, |_| (None, None)).collect();
+    record.surface_row_px = points
+        .last()
+        .map(|p| geom.surface_row_at(p.x_px))
+        .or(Some(geom.surface_row_px));
+    record.surface_row_px_err = Some(geom.surface_row_err_px);
+    record.surface_source = "image".into();
+    record.reason = match crate::flight::free_flight(&points, sc.mm_per_px, sc.rel_err, g_m_s2) {
+        Ok(ff) => {
+            // To the nanosecond, as the track's times.
+            record.t_last_s = Some((ff.t_last_s * 1e9).round() / 1e9);
+            record.v_last_m_s = Some(ff.v_last_m_s.value);
+            record.v_last_m_s_err = Some(ff.v_last_m_s.err);
+            record.g_fit_m_s2 = ff.g_fit_m_s2.map(|g| g.value);
+            record.g_fit_m_s2_err = ff.g_fit_m_s2.map(|g| g.err);
+            format!(
+                "{why}: tracked only, no impact measured: {} frames of free flight, v = \
+                 {:.4} ± {:.4} m/s at the last one",
+                ff.frames, ff.v_last_m_s.value, ff.v_last_m_s.err
+            )
+        }
+        Err(e) => format!("{why}: tracked only, no impact measured; no free-flight fit: {e}"),
+    };
+    if let Some(g) = record.g_fit_m_s2.zip(record.g_fit_m_s2_err) {
+        // As a drop's flight is checked (crate::measure).
+        let off = g.0 / g_m_s2 - 1.0;
+        if off.abs() > 0.02 && (g.0 - g_m_s2).abs() > 3.0 * g.1 {
+            quality::flag(
+                &mut record,
+                quality::GRAVITY_OFF,
+                format!(
+                    "free-flight gravity {:.3} ± {:.3} m/s² is {:+.1} % off {g_m_s2} m/s²: \
+                     check the frame rate and the scale",
+                    g.0,
+                    g.1,
+                    off * 100.0
+                ),
+            );
+        }
+    }
+    f.recording.describe(&mut record);
+    let still_at_s = points.last().map(|p| p.t_s);
+    with_files(
+        record,
+        Files {
+            still_at_s,
+            impact: None,
+            ..f
+        },
+    )
+}
+
+/// Fill the row's `fps` and `fps_source` and flag what is doubtful about
+/// them: a frame rate assumed (`camera.fps` or [`crate::config::DEFAULT_FPS`]:
+/// [`quality::FPS_ASSUMED`]), or one given (manifest, `--fps`) that
+/// disagrees with the recording's own, which is used
+/// ([`quality::FPS_MISMATCH`]).
+fn frame_rate_checks(
+    record: &mut DropRecord,
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+    fps: f64,
+    fps_source: &str,
+) {
+    record.fps = Some(fps);
+    record.fps_source = fps_source.to_string();
+    match fps_source {
+        "config" => quality::flag(
+            record,
+            quality::FPS_ASSUMED,
+            format!(
+                "the recording holds no frame rate: measured at {fps} frames/s, camera.fps of \
+                 the configuration; if that is not this recording's, pass --fps (or the \
+                 manifest's fps column)"
+            ),
+        ),
+        "default" => quality::flag(
+            record,
+            quality::FPS_ASSUMED,
+            format!(
+                "the recording holds no frame rate and none was given: measured at {fps} \
+                 frames/s, dropscope's default, a guess; times and speeds scale with it: pass \
+                 --fps (or the manifest's fps column, or camera.fps)"
+            ),
+        ),
+        "manifest" | "flag" => {}
+        _ => {
+            let given = [
+                (run.fps, "the manifest's fps"),
+                (cfg.command_line.fps, "--fps"),
+            ];
+            if let Some((f, by)) = given.iter().find_map(|(f, by)| Some((f.as_ref()?, by))) {
+                if (f / fps - 1.0).abs() > crate::source::validate::FPS_AGREEMENT {
+                    quality::flag(
+                        record,
+                        quality::FPS_MISMATCH,
+                        format!(
+                            "{by} {f} disagrees with the recording's own frame rate {fps} \
+                             frames/s ({fps_source}); the recording's is used"
+                        ),
+                    );
+                }
+            }
+        }
+    }
 }
 
 /// The share of the background at the white level (within 1 % of
@@ -989,12 +1341,14 @@ fn bounded_points<'a>(
 
 /// [`held_points`] of frames given with their held fits (the track's, or
 /// moved by a lens: [`crate::lens::undistort_held`]); a circle leaving the
-/// frame is no point.
+/// frame is no point, nor a frame the tracker found off its neighbours'
+/// flight ([`crate::track::Flag::Outlier`]).
 fn points_of(
     held: impl Iterator<Item = (FrameTrack, crate::detect::CircleFit)>,
     half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
 ) -> impl Iterator<Item = TrackPoint> {
-    held.filter(|(f, _)| !f.flags.contains(crate::track::Flag::Partial))
+    use crate::track::Flag;
+    held.filter(|(f, _)| !(f.flags.contains(Flag::Partial) || f.flags.contains(Flag::Outlier)))
         .map(move |(f, h)| {
             let (hw, hw_err) = f.free.as_ref().map_or((None, None), &half_width);
             TrackPoint {
@@ -1145,6 +1499,9 @@ fn track_row(f: &FrameTrack) -> TrackRow {
         in_contact: false,
         delta_mm: None,
         sigma_z_px: fit.map(|c| c.cov.sigma_z_px()),
+        sigma_x_px: fit.map(|c| c.cov.sigma_x_px()),
+        r_free_px: f.free.map(|c| c.r_px),
+        sigma_r_free_px: f.free.and_then(|c| c.cov.sigma_r_px()),
         force_n: None,
         flags: f.flags.text(),
     }
@@ -1319,7 +1676,7 @@ mod tests {
                 notes: Vec::new(),
             })
         })
-        .unwrap_or_else(|reason| failed_outcome(&runs[0], &cfg, reason));
+        .unwrap_or_else(|reason| failed_outcome(&runs[0], &cfg, reason, None));
         assert_eq!(o.record.status, crate::dataset::DropStatus::Failed);
         assert_eq!(o.record.run, "drop");
         assert!(

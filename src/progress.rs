@@ -46,7 +46,84 @@ pub fn run_line(record: &DropRecord, frames: usize, seconds: Option<f64>) -> Str
             record.run, record.reason
         ),
         DropStatus::Ok => format!("{}: measured{from}", record.run),
+        DropStatus::Tracked => format!(
+            "{}: tracked{from}, no impact measured: {}",
+            record.run, record.reason
+        ),
     }
+}
+
+/// What the job says once at its end, whatever the terminal, of its runs'
+/// rows (cached ones too): the runs measured at a frame rate nobody gave
+/// (`fps_assumed`), by where it came from, and the runs whose frame rate
+/// given disagrees with their recording's (`fps_mismatch` from the manifest or
+/// `--fps`), and the runs whose apparent size per mm disagrees with their
+/// set-up's (`radius_disagreement`).
+pub fn closing_warnings(records: &[DropRecord]) -> Vec<String> {
+    fn flagged<'a>(
+        records: &'a [DropRecord],
+        word: &'a str,
+    ) -> impl Iterator<Item = &'a DropRecord> + 'a {
+        records
+            .iter()
+            .filter(move |r| r.flags.split(' ').any(|w| w == word))
+    }
+    let mut out = Vec::new();
+    for (source, from) in [
+        (
+            "default",
+            "dropscope's default, a guess: nothing gave one (pass --fps, or the manifest's \
+             fps column, or set camera.fps)",
+        ),
+        (
+            "config",
+            "camera.fps of the configuration (pass --fps, or the manifest's fps column, if \
+             that is not theirs)",
+        ),
+    ] {
+        let runs: Vec<&DropRecord> = flagged(records, crate::quality::FPS_ASSUMED)
+            .filter(|r| r.fps_source == source)
+            .collect();
+        if let Some(first) = runs.first() {
+            out.push(format!(
+                "frame rate assumed for {} holding none: {} frames/s (fps_source {source}), \
+                 {from}: {}",
+                crate::plural(runs.len(), "recording"),
+                first.fps.unwrap_or(f64::NAN),
+                names(&runs)
+            ));
+        }
+    }
+    for r in flagged(records, crate::quality::RADIUS_DISAGREEMENT) {
+        if let Some(s) = r
+            .reason
+            .split("; ")
+            .find(|s| s.contains("px per mm of sphere radius"))
+        {
+            out.push(format!("{} (set-up {}): {s}", r.run, r.setup));
+        }
+    }
+    for r in flagged(records, crate::quality::FPS_MISMATCH) {
+        if let Some(s) = r
+            .reason
+            .split("; ")
+            .find(|s| s.contains("disagrees with the recording's own frame rate"))
+        {
+            out.push(format!("{}: {s}", r.run));
+        }
+    }
+    out
+}
+
+/// Run names for a message: the first five, then how many more.
+fn names(runs: &[&DropRecord]) -> String {
+    let mut text: Vec<&str> = runs.iter().take(5).map(|r| r.run.as_str()).collect();
+    let more = runs.len().saturating_sub(5);
+    let more = format!("and {more} more");
+    if runs.len() > 5 {
+        text.push(&more);
+    }
+    text.join(", ")
 }
 
 impl JobProgress {
@@ -138,6 +215,8 @@ impl JobProgress {
                         }
                         if record.status == DropStatus::Failed {
                             b.failed.fetch_add(1, Ordering::Relaxed);
+                        }
+                        if !record.status.measured() {
                             let _ = b.multi.println(run_line(record, frames, seconds));
                         }
                         b.overall.set_message(format!(

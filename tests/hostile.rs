@@ -509,7 +509,8 @@ fn weakened_measurements_are_flagged_warnings() {
         (
             "fps",
             "fps_mismatch",
-            "the manifest's fps 9000 disagrees with the file's frame rate 10000",
+            "the manifest's fps 9000 disagrees with the recording's own frame rate 10000 \
+             frames/s (xml)",
         ),
     ] {
         let r = by(&rows, run);

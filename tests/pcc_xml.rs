@@ -75,6 +75,7 @@ fn real_and_rendered() -> Vec<(String, String)> {
 
 #[test]
 fn real_and_rendered_side_files_read_as_the_tree_reader_read_them() {
+    need!(crate::Need::PhantomSamples);
     let mut files = real_and_rendered();
     // A long export as `dropscope render` writes it: 50 000 frames.
     files.push((
@@ -108,6 +109,7 @@ fn real_and_rendered_side_files_read_as_the_tree_reader_read_them() {
 /// frames; past the root's end it reads whole.
 #[test]
 fn a_side_file_cut_anywhere_is_refused_as_not_xml() {
+    need!(crate::Need::PhantomSamples);
     for (name, text) in real_and_rendered().iter().take(5) {
         let end = text.rfind("</chd>").unwrap() + "</chd>".len();
         for len in (0..text.len()).filter(|&l| text.is_char_boundary(l)) {
@@ -121,6 +123,7 @@ fn a_side_file_cut_anywhere_is_refused_as_not_xml() {
 
 #[test]
 fn what_a_stream_could_read_differently_reads_as_the_tree() {
+    need!(crate::Need::PhantomSamples);
     let real = std::fs::read_to_string(crate::phantom_sample("cinefiles-jl/cam_1.xml")).unwrap();
     let edits: Vec<(&str, String)> = vec![
         // References and CDATA in values and attributes.

@@ -83,6 +83,7 @@ fn fixtures_are_measured_within_the_targets() {
 /// a clear reason and no number.
 #[test]
 fn real_phantom_samples_give_no_sphere_rows_not_numbers() {
+    need!(crate::Need::PhantomSamples);
     let samples = crate::phantom_sample("");
     let mut inputs: Vec<PathBuf> = Vec::new();
     for d in ["pims", "pycine", "cinefiles-jl"] {

@@ -98,6 +98,7 @@ fn copy_dir(from: &Path, to: &Path) {
 /// bytes (no date, no output path in the page).
 #[test]
 fn the_report_renders_in_chromium_and_lists_every_drop() {
+    need!(crate::Need::Chromium);
     let start = Instant::now();
     let dir = tempfile::tempdir().unwrap();
     let work = dir.path();
@@ -322,6 +323,7 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
 /// filter and sort work. The load time is measured and printed, not asserted.
 #[test]
 fn a_thousand_drop_report_stays_small_and_sorts_and_filters() {
+    need!(crate::Need::Chromium);
     let dir = tempfile::tempdir().unwrap();
     let work = dir.path();
     let base = work.join("base");

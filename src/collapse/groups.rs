@@ -180,6 +180,11 @@ pub fn compute(
         };
         return Err(SkipReason(format!("status failed ({why})")));
     }
+    if rec.status == DropStatus::Tracked {
+        return Err(SkipReason(
+            "status tracked: no contact, so no impact to collapse".into(),
+        ));
+    }
     let r_mm = positive("sphere_radius_mm", Some(rec.sphere_radius_mm))?;
     let rho = positive("sphere_density_kg_m3", Some(rec.sphere_density_kg_m3))?;
     let v = positive("v_impact_m_s", rec.v_impact_m_s)?;

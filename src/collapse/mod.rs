@@ -90,6 +90,16 @@ pub struct DropOutcome {
     pub sphere_radius_mm: f64,
     pub surface: String,
     pub groups: Result<DropGroups, SkipReason>,
+    /// False for a `tracked` run (no contact): not a drop, left out of the
+    /// collapse without being counted or listed as skipped.
+    pub candidate: bool,
+}
+
+impl DropOutcome {
+    /// A drop the collapse could have used and did not.
+    pub fn skipped(&self) -> bool {
+        self.candidate && self.groups.is_err()
+    }
 }
 
 /// What a run of the collapse produced (also written to disk).
@@ -172,6 +182,7 @@ pub fn compute_groups(
             sphere_radius_mm: rec.sphere_radius_mm,
             surface: name.clone(),
             groups: groups::compute(rec, &name, surface, choice),
+            candidate: rec.status != crate::dataset::DropStatus::Tracked,
         });
     }
     Ok(outcomes)
@@ -256,7 +267,7 @@ pub fn run(
             runs.join(", ")
         ));
     }
-    let n_skipped = outcomes.len() - used.len();
+    let n_skipped = outcomes.iter().filter(|o| o.skipped()).count();
     if n_skipped > 0 {
         warnings.push(format!(
             "{n_skipped} of {} rows skipped (listed under `skipped`)",

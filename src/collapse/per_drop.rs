@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use super::diagnostics::{self, DropDiagnostics};
 use super::CollapseError;
 use crate::config::{PipelineConfig, Surface};
-use crate::dataset::{DropRecord, DropStatus};
+use crate::dataset::DropRecord;
 use crate::io_util::Durable;
 
 /// The diagnostics of the drops of `records` (the rows of `drops_csv`)
@@ -26,7 +26,7 @@ pub fn diagnose_all<'a>(
     let mut todo = Vec::new();
     for (i, rec) in records.iter().enumerate() {
         // A run name that is not a plain file name never reaches outside tracks/.
-        if crate::plot::file_stem(&rec.run) != rec.run || rec.status == DropStatus::Failed {
+        if crate::plot::file_stem(&rec.run) != rec.run || !rec.status.measured() {
             continue;
         }
         let p = tracks_dir.join(format!("{}.csv", rec.run));

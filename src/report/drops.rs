@@ -78,6 +78,7 @@ fn status(rec: &DropRecord) -> (&'static str, &'static str) {
         DropStatus::Ok => ("ok", "ok"),
         DropStatus::Warning => ("warning", "warning"),
         DropStatus::Failed => ("failed", "FAILED"),
+        DropStatus::Tracked => ("tracked", "tracked"),
     }
 }
 
@@ -107,7 +108,7 @@ fn controls(n: usize) -> String {
         "<div class=\"filter\"><label>filter <input id=\"drop-filter\" type=\"search\" \
          placeholder=\"run name or reason\"></label> <label>status <select id=\"drop-status\">\
          <option value=\"\">all</option><option>ok</option><option>warning</option>\
-         <option>failed</option></select></label> <span id=\"drop-count\">{n} of {n} drops\
+         <option>tracked</option><option>failed</option></select></label> <span id=\"drop-count\">{n} of {n} drops\
          </span> · click a column head to sort</div>"
     )
 }
@@ -136,7 +137,7 @@ pub fn drops_table(out_dir: &Path, records: &[DropRecord]) -> String {
     for ((i, rec), thumb) in records.iter().enumerate().zip(thumbs) {
         let (class, label) = status(rec);
         let run = escape(&rec.run);
-        let measured = rec.status != DropStatus::Failed;
+        let measured = rec.status.measured();
         let keys: String = [
             ("v", rec.v_impact_m_s),
             ("delta", rec.delta_max_mm),
@@ -164,24 +165,41 @@ pub fn drops_table(out_dir: &Path, records: &[DropRecord]) -> String {
             let _ = write!(out, "<div class=\"reason\">{}</div>", escape(&rec.reason));
         }
         out.push_str("</td>");
-        if !measured {
+        let reason = if rec.reason.is_empty() {
+            "no reason recorded".into()
+        } else {
+            escape(&rec.reason)
+        };
+        if rec.status == DropStatus::Failed {
             let _ = write!(
                 out,
-                "<td colspan=\"{}\" class=\"reason\">{}</td>",
+                "<td colspan=\"{}\" class=\"reason\">{reason}</td>",
                 N_COLUMNS - 4,
-                if rec.reason.is_empty() {
-                    "no reason recorded".into()
-                } else {
-                    escape(&rec.reason)
-                }
             );
         } else {
-            out.push_str(&cell(rec.v_impact_m_s, rec.v_impact_m_s_err));
-            out.push_str(&cell(rec.delta_max_mm, rec.delta_max_mm_err));
-            out.push_str(&cell(rec.a_max_mm, rec.a_max_mm_err));
-            out.push_str(&cell(rec.tau_c_ms, rec.tau_c_ms_err));
-            out.push_str(&cell(rec.restitution, rec.restitution_err));
-            out.push_str(&cell(rec.v_rebound_m_s, rec.v_rebound_m_s_err));
+            if rec.status == DropStatus::Tracked {
+                // No impact: the free flight's velocity at its last frame.
+                let v = match (rec.v_last_m_s, rec.t_last_s) {
+                    (Some(v), Some(t)) => format!(
+                        "v = {} m/s at the last frame ({} ms): ",
+                        pm(v, rec.v_last_m_s_err),
+                        num(t * 1e3)
+                    ),
+                    _ => String::new(),
+                };
+                let _ = write!(
+                    out,
+                    "<td colspan=\"{}\" class=\"reason\">{v}{reason}</td>",
+                    N_COLUMNS - 5,
+                );
+            } else {
+                out.push_str(&cell(rec.v_impact_m_s, rec.v_impact_m_s_err));
+                out.push_str(&cell(rec.delta_max_mm, rec.delta_max_mm_err));
+                out.push_str(&cell(rec.a_max_mm, rec.a_max_mm_err));
+                out.push_str(&cell(rec.tau_c_ms, rec.tau_c_ms_err));
+                out.push_str(&cell(rec.restitution, rec.restitution_err));
+                out.push_str(&cell(rec.v_rebound_m_s, rec.v_rebound_m_s_err));
+            }
             match thumb {
                 Some((rel, jpeg)) => {
                     let _ = write!(

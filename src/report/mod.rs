@@ -249,20 +249,26 @@ fn collapse_matches(rows: &[(String, bool)], records: &[DropRecord]) -> bool {
         && rows
             .iter()
             .zip(records)
-            .all(|((run, used), r)| *run == r.run && !(*used && r.status == DropStatus::Failed))
+            .all(|((run, used), r)| *run == r.run && (!*used || r.status.measured()))
 }
 
-fn counts(records: &[DropRecord]) -> [usize; 3] {
+fn counts(records: &[DropRecord]) -> [usize; 4] {
     let n = |s: DropStatus| records.iter().filter(|r| r.status == s).count();
     [
         n(DropStatus::Ok),
         n(DropStatus::Warning),
+        n(DropStatus::Tracked),
         n(DropStatus::Failed),
     ]
 }
 
 fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRecord]) {
-    let [ok, warning, failed] = counts(records);
+    let [ok, warning, tracked, failed] = counts(records);
+    let tracked = if tracked > 0 {
+        format!(" <span class=\"count tracked\">{tracked} tracked without contact</span>")
+    } else {
+        String::new()
+    };
     let dataset = crate::dataset_id::of_file(&out_dir.join("drops.csv"))
         .map(|id| format!(" · dataset <code title=\"SHA-256 of drops.csv\">{id}</code>"))
         .unwrap_or_default();
@@ -271,7 +277,7 @@ fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRe
         "<header><h1>dropscope report</h1><p class=\"meta\">dropscope {version} · configuration \
          <code>{config}</code>{dataset}</p><p class=\"counts\"><span class=\"count\">{total} runs</span> \
          <span class=\"count ok\">{ok} measured</span> <span class=\"count warning\">{warning} \
-         measured with warnings</span> <span class=\"count failed\">{failed} failed</span></p></header>",
+         measured with warnings</span>{tracked} <span class=\"count failed\">{failed} failed</span></p></header>",
         version = env!("CARGO_PKG_VERSION"),
         config = escape(config_name),
         total = records.len(),
@@ -284,7 +290,10 @@ fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRe
          <span class=\"badge warning\">warning</span> measured, but read the note (e.g. the \
          fitted gravity off by more than 2 %: check the frame rate and scale); \
          <span class=\"badge failed\">FAILED</span> nothing measured, the reason says which \
-         file or frame and why. Failed rows are left out of the collapse.</li>\
+         file or frame and why; <span class=\"badge tracked\">tracked</span> the sphere was \
+         followed but never reached the surface (a calibration drop, a clip cut before the \
+         impact): its overlay, track and the velocity at its last frame, no impact. Failed and \
+         tracked rows are left out of the collapse.</li>\
          <li><b>Overlay</b>: the frame nearest the maximum penetration, enlarged, with the edge \
          points, the fitted circle and the surface line. The circle should hug the sphere's \
          edge and the line sit on the pillar tops. Click to enlarge.</li>\
@@ -308,10 +317,7 @@ fn collapse_section(out: &mut String, out_dir: &Path, records: &[DropRecord]) {
     let fits_path = out_dir.join("fits.json");
     let fits_bytes = std::fs::read(&fits_path).ok();
     if fits_bytes.is_none() {
-        let measured = records
-            .iter()
-            .filter(|r| r.status != DropStatus::Failed)
-            .count();
+        let measured = records.iter().filter(|r| r.status.measured()).count();
         let _ = write!(
             out,
             "<p class=\"missing\">The collapse did not run: no fits.json in the output folder{}.</p>",

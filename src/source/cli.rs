@@ -136,8 +136,8 @@ pub struct ExportArgs {
     pub source: SourceArgs,
 }
 
-/// Run `inspect`: print the report on stdout.
-pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
+/// Run `inspect`: the report, for stdout.
+pub fn inspect_text(args: &InspectArgs) -> anyhow::Result<String> {
     let (src, fps_origin) = args.source.open_source(&args.input)?;
     let mut meta = src.meta().clone();
     if let Some(origin) = fps_origin {
@@ -146,8 +146,7 @@ pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
             meta.fps
         ));
     }
-    println!("{}", inspect_report(&meta, args.json)?);
-    Ok(())
+    Ok(inspect_report(&meta, args.json)?)
 }
 
 /// The inspect report as JSON (`json`) or as aligned text.

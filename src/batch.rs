@@ -17,7 +17,8 @@ use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::{read_job_manifest, RunSpec};
 use crate::process::{process_setup, write_file, write_run_outputs};
-use crate::source::folder::ImageKind;
+use crate::source::listing::{recording_kind, Listing};
+use crate::source::SourceError;
 use crate::timings::{self, Stage};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -183,25 +184,6 @@ impl JobSummary {
     }
 }
 
-fn is_frame_folder(dir: &Path) -> bool {
-    std::fs::read_dir(dir).is_ok_and(|entries| {
-        entries.flatten().any(|e| {
-            e.path()
-                .extension()
-                .and_then(|x| x.to_str())
-                .is_some_and(|x| {
-                    ImageKind::from_extension(x).is_some() || x.eq_ignore_ascii_case("xml")
-                })
-        })
-    })
-}
-
-fn is_cine(p: &Path) -> bool {
-    p.extension()
-        .and_then(|x| x.to_str())
-        .is_some_and(|x| x.eq_ignore_ascii_case("cine"))
-}
-
 /// Whether `dir` is an output folder dropscope wrote (it holds its
 /// `provenance.json` or the ledger of its files).
 fn is_output_folder(dir: &Path) -> bool {
@@ -222,31 +204,37 @@ fn is_output_part(path: &Path) -> bool {
 /// Deepest folder level searched under an input path (guards symlink loops).
 const MAX_SEARCH_DEPTH: usize = 16;
 
-/// Runs under the configured paths: a `.cine` or a folder of frames is one
-/// run; any other folder is searched, at any depth, for both (children in
-/// name order, so the runs' order does not depend on the file system).
+/// Runs under the configured paths: a recording file (`.cine`, `.mraw`) or
+/// a folder of frames is one run; any other folder is searched, at any
+/// depth, for both. A folder of frames is not searched further, but the
+/// recordings beside its frames are runs too (children in name order, so
+/// the runs' order does not depend on the file system).
 pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
     fn search(dir: &Path, depth: usize, out: &mut Vec<PathBuf>) -> Result<(), BatchError> {
-        let mut children: Vec<PathBuf> = std::fs::read_dir(dir)
-            .map_err(|source| BatchError::Io {
+        let listing = Listing::of(dir).map_err(|e| match e {
+            SourceError::Io { path, source } => BatchError::Io { path, source },
+            other => BatchError::Io {
                 path: dir.to_path_buf(),
-                source,
-            })?
-            .flatten()
-            .map(|e| e.path())
+                source: std::io::Error::other(other.to_string()),
+            },
+        })?;
+        let mut children: Vec<(PathBuf, bool)> = listing
+            .recordings()
+            .map(|r| (dir.join(r), false))
+            .chain(listing.dirs.iter().map(|d| (dir.join(d), true)))
             .collect();
         children.sort();
         let output_folder = is_output_folder(dir);
-        for c in children {
+        for (c, is_dir) in children {
             if output_folder && is_output_part(&c) {
                 // dropscope's own figures, tracks and cache, not runs.
                 continue;
             }
-            if is_cine(&c) {
+            if !is_dir {
                 out.push(c);
-            } else if c.is_dir() {
-                if is_frame_folder(&c) {
-                    out.push(c);
+            } else if let Ok(sub) = Listing::of(&c) {
+                if sub.has_frames() {
+                    out.extend(sub.runs_here());
                 } else if depth < MAX_SEARCH_DEPTH {
                     search(&c, depth + 1, out)?;
                 }
@@ -256,8 +244,12 @@ pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
     }
     let mut out = Vec::new();
     for p in paths {
-        if is_cine(p) || (p.is_dir() && is_frame_folder(p)) {
+        if recording_kind(p).is_some() && !p.is_dir() {
             out.push(p.clone());
+            continue;
+        }
+        if let Some(l) = Listing::of(p).ok().filter(|l| l.has_frames()) {
+            out.extend(l.runs_here());
             continue;
         }
         let before = out.len();
@@ -269,15 +261,16 @@ pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
     Ok(out)
 }
 
-/// `dropscope process`'s inputs with every folder that holds no frames of
-/// its own replaced by the runs found under it ([`discover_runs`]); any
-/// other input (a run, a folder with nothing found under it) is kept, so
+/// `dropscope process`'s inputs with every folder replaced by the runs
+/// found in it ([`discover_runs`]: itself when it holds frames, the
+/// recordings beside them, or the runs under it); any other input (a
+/// recording, a folder with nothing found in it) is kept, so
 /// that it gets its own row and reason, and a path that is not there is
 /// kept for [`crate::process::runs_from_inputs`] to refuse.
 pub fn expand_inputs(inputs: &[PathBuf]) -> Vec<PathBuf> {
     let mut out = Vec::new();
     for p in inputs {
-        if p.is_dir() && !is_frame_folder(p) {
+        if p.is_dir() {
             if let Ok(found) = discover_runs(std::slice::from_ref(p)) {
                 out.extend(found);
                 continue;
@@ -390,6 +383,9 @@ fn run_setup(
         .zip(fps)
         .zip(keys.into_iter().zip(members))
     {
+        for note in &o.notes {
+            events(RunEvent::Notice(&format!("warning: {}: {note}", r.run)));
+        }
         let writes = timings::start(Stage::Writes);
         let outputs = write_run_outputs(out, &o)?;
         let seconds = o.seconds;

@@ -531,6 +531,7 @@ mod tests {
             surface: None,
             sphere_density_kg_m3: None,
             setup: None,
+            number_digits: None,
         }
     }
 

@@ -85,6 +85,10 @@ pub struct RawCamera {
     pub edge_offset_px: Option<f64>,
     /// Its one-sigma spread from drop to drop (px).
     pub edge_offset_spread_px: Option<f64>,
+    /// Apply the viewer flips a recording's header records (default true).
+    pub apply_flips: Option<bool>,
+    /// Measure P10 cines linearised to 12 bits (default true), else on their codes.
+    pub p10_linear: Option<bool>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -282,6 +286,13 @@ pub struct CameraConfig {
     /// or measured on the job's runs ([`crate::scale::EdgeOffset`]).
     pub edge_offset_px: Option<f64>,
     pub edge_offset_spread_px: Option<f64>,
+    /// Runs are measured as Phantom Camera Control shows them: the viewer
+    /// flips a `.cine` (bFlipV, bFlipH) or a Photron header records are
+    /// applied to the frames; false measures the storage orientation.
+    pub apply_flips: bool,
+    /// P10 packed cines (log-encoded 10-bit codes) are measured linearised
+    /// to 12 bits through Vision Research's table; false measures the codes.
+    pub p10_linear: bool,
 }
 
 /// `camera.edge_offset_spread_px` when only the offset is given (px).
@@ -708,6 +719,8 @@ impl RawConfig {
                 infer_setups: self.camera.infer_setups.unwrap_or(true),
                 edge_offset_px: self.camera.edge_offset_px,
                 edge_offset_spread_px,
+                apply_flips: self.camera.apply_flips.unwrap_or(true),
+                p10_linear: self.camera.p10_linear.unwrap_or(true),
             },
             sphere: SphereConfig {
                 density_kg_m3: density,

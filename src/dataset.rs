@@ -209,6 +209,14 @@ pub struct DropRecord {
     pub hunt_crossley_alpha_s_m: Option<f64>,
     #[serde(default)]
     pub hunt_crossley_alpha_s_m_err: Option<f64>,
+    /// How the recording's stored samples became the grey picture measured,
+    /// space-separated words ([`crate::source::SourceMeta::reading`]):
+    /// `bayer_<pattern>_luminance` or `rgb_luminance` (colour read as grey),
+    /// `flip_v`, `flip_h` (recorded viewer flips applied),
+    /// `flips_not_applied`, `p10_linear` or `p10_codes`; empty (written `-`)
+    /// when the frames were measured as stored.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub reading: String,
     pub status: DropStatus,
     /// Quality flags, space-separated words ([`crate::quality::FLAGS`]);
     /// empty (written `-`) when nothing weakens the measurement. Any flag makes the
@@ -294,6 +302,7 @@ impl DropRecord {
             damping_n_s_m_err: None,
             hunt_crossley_alpha_s_m: None,
             hunt_crossley_alpha_s_m_err: None,
+            reading: String::new(),
             status: DropStatus::Failed,
             flags: String::new(),
             reason: reason.into(),

@@ -258,6 +258,8 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     dropscope::batch::check_threads(args.threads.map(usize::from))?;
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
+    cfg.camera.apply_flips &= !args.no_flips;
+    cfg.camera.p10_linear &= !args.p10_codes;
     cfg.command_line = args.recording.values();
     let runs = match &args.manifest {
         Some(m) => dropscope::manifest::read_job_manifest(m)?,

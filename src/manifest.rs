@@ -2,7 +2,8 @@
 //!
 //! Required columns `run, path, sphere_radius_mm`; optional `drop_height_cm,
 //! fps, mm_per_px, surface, sphere_density_kg_m3, setup` (runs sharing one
-//! camera set-up: the same zoom and position). Paths are relative to the
+//! camera set-up: the same zoom and position), `number_digits` (the digits
+//! ending a frame file's name that are its number). Paths are relative to the
 //! manifest's folder. The header is checked first (every required column,
 //! no unknown or repeated one), then every value; an error names the file,
 //! the row (its line, as a spreadsheet shows it: header = row 1), the column
@@ -13,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 /// The columns of a manifest: name, required, and what a value is (for
 /// messages). The same names, in the same order, as [`ManifestRow`]'s fields.
-pub const COLUMNS: [(&str, bool, &str); 9] = [
+pub const COLUMNS: [(&str, bool, &str); 10] = [
     ("run", true, "the run's name"),
     ("path", true, "the run's folder of frames or .cine file"),
     ("sphere_radius_mm", true, "mm"),
@@ -23,6 +24,11 @@ pub const COLUMNS: [(&str, bool, &str); 9] = [
     ("surface", false, "a [surface.<name>] of the configuration"),
     ("sphere_density_kg_m3", false, "kg/m³"),
     ("setup", false, "the camera set-up's name"),
+    (
+        "number_digits",
+        false,
+        "how many digits at the end of a frame file's name are its number (1‥18)",
+    ),
 ];
 
 /// One row as written in the file.
@@ -44,6 +50,8 @@ pub struct ManifestRow {
     pub sphere_density_kg_m3: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub setup: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub number_digits: Option<u32>,
 }
 
 /// A validated run: the path resolved against the manifest's folder.
@@ -61,6 +69,11 @@ pub struct RunSpec {
     /// Camera set-up shared with other runs (same zoom and position); `None`: not given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub setup: Option<String>,
+    /// A folder of frames: the digits at the end of a file's name that are
+    /// its number (the others are part of its name); `None`: all of them,
+    /// unless the names read two ways (`source::folder::number_split`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub number_digits: Option<usize>,
 }
 
 /// Why a manifest could not be read.
@@ -224,6 +237,12 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
                 ));
             }
         }
+        if let Some(d) = r.number_digits.filter(|d| !(1..=18).contains(d)) {
+            return Err(row_err(
+                row,
+                format!("column `number_digits` = {d}: must be a whole number from 1 to 18"),
+            ));
+        }
         let p = if r.path.is_absolute() {
             r.path.clone()
         } else {
@@ -239,6 +258,7 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
             surface: r.surface.filter(|s| !s.is_empty()),
             sphere_density_kg_m3: density,
             setup: r.setup.filter(|s| !s.is_empty()),
+            number_digits: r.number_digits.map(|d| d as usize),
         });
     }
     if runs.is_empty() {
@@ -531,6 +551,7 @@ mod tests {
             surface: None,
             sphere_density_kg_m3: None,
             setup: Some("s".into()),
+            number_digits: Some(10),
         };
         let bytes = to_csv_bytes(&[row]);
         let header = String::from_utf8(bytes).unwrap();
@@ -550,6 +571,7 @@ mod tests {
             surface: Some("pdms".into()),
             sphere_density_kg_m3: None,
             setup: None,
+            number_digits: None,
         }];
         // A second row with other optional cells empty: every row keeps every column.
         rows.push(ManifestRow {

@@ -17,7 +17,7 @@ use crate::quality;
 use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
 use crate::setup_infer::SceneSignature;
 use crate::shelf::{Shelf, ShelvedTrack};
-use crate::source::{open, OpenOptions};
+use crate::source::{open, OpenOptions, P10Mode};
 use crate::track::{track, FrameTrack, Track, TrackSettings};
 use rayon::prelude::*;
 use std::io::Write;
@@ -60,6 +60,15 @@ pub struct ProcessArgs {
     /// drop): the configuration's `output.animation = false`.
     #[arg(long)]
     pub no_animation: bool,
+    /// Measure the frames in storage orientation, without the viewer flips
+    /// a .cine or Photron header records: the configuration's
+    /// `camera.apply_flips = false`.
+    #[arg(long)]
+    pub no_flips: bool,
+    /// Measure P10 cines on their log-encoded 10-bit codes, not linearised:
+    /// the configuration's `camera.p10_linear = false`.
+    #[arg(long)]
+    pub p10_codes: bool,
     /// After the job, print on stderr where its time went: wall and CPU
     /// seconds per stage (reading, tracking passes, force fits, pictures,
     /// writes, …) summed over runs, each stage's share and its mean per
@@ -89,6 +98,10 @@ pub struct RunOutcome {
     /// Seconds spent on this run (tracking and measuring), for the speed
     /// shown to the user; no output depends on it.
     pub seconds: f64,
+    /// What reading its input should say once as a warning (a colour input
+    /// read as grey, frame names read one of two ways:
+    /// [`crate::source::SourceMeta::reading_notes`]).
+    pub notes: Vec<String>,
 }
 
 /// The most bytes of a run's track CSV held in memory (~11 000 frames'
@@ -162,6 +175,7 @@ pub fn runs_from_inputs(
             surface: None,
             sphere_density_kg_m3: None,
             setup: None,
+            number_digits: None,
         });
     }
     Ok(runs)
@@ -364,6 +378,10 @@ fn failed_outcome(
     record.path = run.path.display().to_string();
     record.fps = recording.map(|r| r.fps);
     record.fps_source = recording.map(|r| r.fps_source.clone()).unwrap_or_default();
+    // What its input says of itself (colour, flips, frame names) helps read
+    // why it failed: opened again for that (its header only).
+    let meta = open_run(run, cfg).ok().map(|(s, _)| s.meta().clone());
+    record.reading = meta.as_ref().map(|m| m.reading()).unwrap_or_default();
     RunOutcome {
         record,
         track_csv: Spool::new(0),
@@ -373,6 +391,7 @@ fn failed_outcome(
         impact: None,
         scene: None,
         seconds: 0.0,
+        notes: meta.map(|m| m.reading_notes()).unwrap_or_default(),
     }
 }
 
@@ -664,7 +683,13 @@ fn open_run(
     let open_with = |fps_fallback: Option<f64>| {
         let options = OpenOptions {
             fps_fallback,
-            ..OpenOptions::default()
+            apply_flips: cfg.camera.apply_flips,
+            p10: if cfg.camera.p10_linear {
+                P10Mode::Linear
+            } else {
+                P10Mode::Raw
+            },
+            number_digits: run.number_digits,
         };
         crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
     };
@@ -1077,6 +1102,7 @@ impl RecordingRow<'_> {
         record.setup = run.setup.clone().unwrap_or_default();
         record.drop_height_cm = run.drop_height_cm;
         record.path = run.path.display().to_string();
+        record.reading = meta.reading();
         record.scale_source = sc.source.name().to_string();
         record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
         record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);
@@ -1193,6 +1219,7 @@ fn with_files(record: DropRecord, f: Files<'_>) -> Result<RunOutcome, String> {
         impact,
         scene: Some(scene),
         seconds: 0.0,
+        notes: meta.reading_notes(),
     })
 }
 
@@ -1723,6 +1750,7 @@ mod tests {
                 impact: None,
                 scene: None,
                 seconds: 0.0,
+                notes: Vec::new(),
             })
         })
         .unwrap_or_else(|reason| failed_outcome(&runs[0], &cfg, reason, None));

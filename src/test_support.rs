@@ -173,6 +173,7 @@ pub fn run_spec(name: &str, setup: Option<&str>) -> crate::manifest::RunSpec {
         surface: None,
         sphere_density_kg_m3: None,
         setup: setup.map(String::from),
+        number_digits: None,
     }
 }
 

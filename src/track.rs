@@ -307,7 +307,7 @@ pub struct Track {
 pub enum TrackError {
     #[error(transparent)]
     Source(#[from] SourceError),
-    #[error("frame {frame}: {source}")]
+    #[error("frame {frame}: {}", plain_detect(source))]
     Detect {
         frame: i64,
         #[source]
@@ -330,14 +330,77 @@ pub enum TrackError {
     #[error(
         "no sphere found whole: the sphere's outline is clear of the picture's border and of \
          the surface in {} (3 needed to measure its radius in pixels): a sphere only partly \
-         in view, or a dark shape that is not round",
+         in view, or a dark shape that is not round{upside_down}",
         frames_text(*found)
     )]
-    NoCalibration { found: usize },
+    NoCalibration {
+        found: usize,
+        /// When the picture looks upside down: the question whether it is
+        /// ([`upside_down_hint`]); else empty.
+        upside_down: String,
+    },
     #[error("only {0} frames: too short a movie to find a drop in (at least 8 needed)")]
     TooShort(usize),
     #[error("a temporary file for the track's per-frame records (set TMPDIR to a folder with room): {0}")]
     Records(#[from] std::io::Error),
+}
+
+/// What dropscope measures, said where a frame shows something else.
+const SCOPE: &str = "dropscope measures a sphere seen dark against a bright background \
+     (backlit, side view) above a surface, and footage of anything else is beyond what it reads";
+
+/// A detection failure in a frame in a user's words: a fit that found no
+/// circle says so first, the fit's own words after it in parentheses,
+/// then what dropscope measures.
+fn plain_detect(e: &DetectError) -> String {
+    match e {
+        DetectError::Degenerate { .. } | DetectError::TooFewPoints { .. } => {
+            format!("the dark shape there does not outline a circle ({e}); {SCOPE}")
+        }
+        _ => format!("{e}; {SCOPE}"),
+    }
+}
+
+/// The question a failure asks when the picture looks upside down: the
+/// darkest rows of the background (the surface band, in an upright picture
+/// at the bottom) are at the top, and most circles found lie below the
+/// surface line; empty otherwise. The mean background level of the top
+/// tenth of the rows (in the columns the sphere's path reaches) is compared
+/// with the bottom tenth's: a drop on a dark substrate filmed upright (the
+/// substrate at the bottom) asks nothing, whatever its circles.
+pub fn upside_down_hint(fits: &[CircleFit], surface: &SurfaceLine, bg: &Background) -> String {
+    let below = fits
+        .iter()
+        .filter(|c| c.z_px > surface.row_at(c.x_px))
+        .count();
+    if fits.is_empty() || 2 * below <= fits.len() {
+        return String::new();
+    }
+    let (c0, c1) = bg.near_cols;
+    let (c0, c1) = if c1 > c0 { (c0, c1) } else { (0, bg.width) };
+    let tenth = (bg.height / 10).max(1);
+    let mean_of = |rows: std::ops::Range<usize>| {
+        let n = (rows.len() * (c1 - c0)).max(1);
+        rows.flat_map(|r| (c0..c1).map(move |c| (r, c)))
+            .map(|(r, c)| f64::from(bg.at(r, c)))
+            .sum::<f64>()
+            / n as f64
+    };
+    let top = mean_of(0..tenth.min(bg.height));
+    let bottom = mean_of(bg.height.saturating_sub(tenth)..bg.height);
+    if top.partial_cmp(&bottom) != Some(std::cmp::Ordering::Less) {
+        return String::new();
+    }
+    let mean_x = fits.iter().map(|c| c.x_px).sum::<f64>() / fits.len() as f64;
+    format!(
+        "; the picture is darkest at its top (mean level {top:.0} in the top tenth of the \
+         rows, {bottom:.0} in the bottom tenth) and the sphere was seen below the surface \
+         line found at row {:.0} in {below} of the {} frames where one was seen: is the \
+         picture upside down? (a .cine's or Photron header's recorded flips are applied \
+         unless camera.apply_flips = false or --no-flips; frame files are read as stored)",
+        surface.row_at(mean_x),
+        fits.len()
+    )
 }
 
 /// "no frame", "1 frame only", "N frames only".
@@ -530,10 +593,19 @@ pub fn track(source: &mut dyn FrameSource, st: &TrackSettings) -> Result<Track, 
             .filter(|f| full_circle(f, w, h, Some(&surface), &st.edge))
             .collect();
         frames.check()?;
-        timings::time(Stage::Pass1, || {
+        match timings::time(Stage::Pass1, || {
             calibrate_radius(&whole, w, h, Some(&surface), &st.edge, 3)
-        })
-        .ok_or(TrackError::NoCalibration { found: whole.len() })?
+        }) {
+            Some(cal) => cal,
+            None => {
+                let fits: Vec<CircleFit> = frames.iter().filter_map(|f| f.free).collect();
+                frames.check()?;
+                return Err(TrackError::NoCalibration {
+                    found: whole.len(),
+                    upside_down: upside_down_hint(&fits, &surface, &bg),
+                });
+            }
+        }
     };
     // The statistical error of a median misses the method's systematic
     // error, measured on rendered drops at up to 0.0016 px (realistic
@@ -2042,6 +2114,24 @@ mod tests {
     use crate::source::SourceMeta;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    /// A frame whose dark shape gives no circle fails in words a user
+    /// reads (no circle, what dropscope measures), the fit's own after
+    /// them, not the fit's words alone.
+    #[test]
+    fn a_fit_without_a_circle_is_said_in_a_users_words() {
+        let p = crate::detect::EdgePoint {
+            x_px: 10.0,
+            z_px: 20.0,
+            weight: 1.0,
+        };
+        let source = crate::detect::circle::hyper_fit(&[p, p, p]).unwrap_err();
+        let text = TrackError::Detect { frame: 12, source }.to_string();
+        assert!(
+            text.starts_with("frame 12: the dark shape there does not outline a circle (hyper circle fit: degenerate fit (all points coincide)); dropscope measures a sphere seen dark against a bright background"),
+            "{text}"
+        );
+    }
 
     /// 20 frames of 256×192 px, 8-bit: a sphere of R = 40 px falling at
     /// 3.1 px a frame (centre row 50 → 109, clear of the pillar band at

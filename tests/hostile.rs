@@ -113,6 +113,7 @@ fn spec(run: &str, path: &Path) -> RunSpec {
         surface: None,
         sphere_density_kg_m3: None,
         setup: None,
+        number_digits: None,
     }
 }
 

@@ -341,19 +341,6 @@ fn packed_10_is_read_despite_its_corrupt_image_size() {
     assert!(w.iter().any(|w| w.contains("0xE4005000")), "{w:?}");
 }
 
-#[test]
-fn a_raw_bayer_cine_is_refused_clearly() {
-    need!(crate::Need::PhantomSamples);
-    let err = match open_default(&sample("pycine/chart1.cine")) {
-        Ok(_) => panic!("chart1.cine opened"),
-        Err(e) => e,
-    };
-    let msg = err.to_string();
-    assert!(matches!(err, SourceError::Unsupported { .. }), "{msg}");
-    assert!(msg.contains("unsupported: colour cine (CFA 3"), "{msg}");
-    assert!(msg.contains("chart1.cine"), "{msg}");
-}
-
 /// Each cine with a PCC TIFF export beside it agrees with that TIFF under
 /// PCC's mapping `(raw − black)/(white − black)·65535 + fOffset·65535`
 /// (fOffset = −0.0043 in 8bpp/12bpp, 0 otherwise; gain and gamma are 1).
@@ -1322,18 +1309,21 @@ fn export_takes_camera_numbers_single_frames_and_scales_to_16_bits() {
 #[test]
 fn commands_exit_2_naming_the_file_on_bad_input() {
     need!(crate::Need::PhantomSamples);
-    let out = dropscope()
-        .arg("inspect")
-        .arg(sample("pycine/chart1.cine"))
-        .output()
-        .unwrap();
+    // chart1.cine with a colour pattern dropscope does not read (CFA 1,
+    // VRI): refused naming the file and the patterns it reads.
+    let dir = tempfile::tempdir().unwrap();
+    let mut bytes = std::fs::read(sample("pycine/chart1.cine")).unwrap();
+    bytes[84 + 808..84 + 812].copy_from_slice(&1u32.to_le_bytes());
+    let vri = dir.path().join("vri.cine");
+    std::fs::write(&vri, bytes).unwrap();
+    let out = dropscope().arg("inspect").arg(&vri).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("chart1.cine") && err.contains("colour"),
+        err.contains("vri.cine: unsupported: raw colour cine with CFA 1")
+            && err.contains("Bayer patterns CFA 3–6"),
         "{err}"
     );
-    let dir = tempfile::tempdir().unwrap();
     let out = dropscope()
         .args(["export", "--frames", "10:20", "--out"])
         .arg(dir.path())

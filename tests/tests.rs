@@ -28,6 +28,7 @@ mod hostile;
 mod parallel;
 mod pcc_xml;
 mod process;
+mod process_formats;
 mod process_job;
 mod render;
 mod render_contact;
@@ -39,6 +40,9 @@ mod setup_infer;
 mod shards;
 mod slurm;
 mod source;
+mod source_colour;
+mod source_inputs;
+mod source_photron;
 mod source_tiff;
 mod timings;
 mod track;
@@ -143,6 +147,21 @@ pub fn phantom_sample(rel: &str) -> PathBuf {
         "the real Phantom sample files are missing: looked for {}. These tests need the \
          project's shared/ folder beside the checkout (shared/data/phantom-samples/); \
          clone or copy it there, or run the tests from a checkout that sits beside it",
+        root.display()
+    );
+    root.join(rel)
+}
+
+/// `../shared/data/real-footage/` beside the checkout, with `rel` joined:
+/// real recordings of falling balls and drops (each folder's SOURCE.md
+/// gives its origin and known values). Missing, the test stops saying where
+/// it looked, as [`phantom_sample`] does.
+pub fn real_footage(rel: &str) -> std::path::PathBuf {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-footage");
+    assert!(
+        root.is_dir(),
+        "the real footage files are missing: looked for {}. These tests need the \
+         project's shared/ folder beside the checkout (shared/data/real-footage/)",
         root.display()
     );
     root.join(rel)

@@ -29,10 +29,11 @@ use std::path::{Path, PathBuf};
 use ndarray::ArrayViewMut2;
 
 use super::frame_decode::{format_err, io_err, FrameDecoder, Probe, Shape};
+use super::listing::Listing;
 use super::pcc_xml::{self, PccXml};
 use super::{
-    check_band, Frame, FrameNumbers, FrameSource, OpenOptions, SourceDetails, SourceError,
-    SourceMeta,
+    check_band, ColourInput, Frame, FrameNames, FrameNumbers, FrameSource, OpenOptions,
+    SourceDetails, SourceError, SourceMeta,
 };
 
 /// Image file kinds a folder may hold.
@@ -68,18 +69,26 @@ impl ImageKind {
 /// Split a file name into `(prefix, number, kind)`, or `None` when it is not
 /// a numbered image (see the module documentation for the sign rule).
 pub fn parse_frame_name(name: &str) -> Option<(String, i64, ImageKind)> {
+    parse_frame_name_split(name, None)
+}
+
+/// [`parse_frame_name`] reading at most the last `number_digits` digits of
+/// the name as its number (the manifest's `number_digits`), the digits
+/// before them as part of the prefix; `None`: every digit before the
+/// extension.
+pub fn parse_frame_name_split(
+    name: &str,
+    number_digits: Option<usize>,
+) -> Option<(String, i64, ImageKind)> {
     let (stem, ext) = name.rsplit_once('.')?;
     let kind = ImageKind::from_extension(ext)?;
-    let digits_start = stem
-        .char_indices()
-        .rev()
-        .take_while(|(_, c)| c.is_ascii_digit())
-        .last()
-        .map(|(i, _)| i)?;
-    let digits = &stem[digits_start..];
-    if digits.len() > 18 {
+    let run = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+    let take = number_digits.map_or(run, |n| run.min(n));
+    if take == 0 || take > 18 {
         return None;
     }
+    let digits_start = stem.len() - take;
+    let digits = &stem[digits_start..];
     let value: i64 = digits.parse().ok()?;
     let before = &stem[..digits_start];
     let negative = before.strip_suffix('-').is_some_and(|rest| {
@@ -92,6 +101,46 @@ pub fn parse_frame_name(name: &str) -> Option<(String, i64, ImageKind)> {
     } else {
         Some((before.to_string(), value, kind))
     }
+}
+
+/// How the digits at the end of a sequence's names divide into the end of
+/// the name and the frame number, when they can be read two ways: every
+/// name has the same number of digits, they begin alike with a digit other
+/// than 0 followed by zeros (`E_0094_2` + `0000000169` or `E_0094_` +
+/// `20000000169`), and the names differ further on. Returns (the digits
+/// read as the number, the other reading's), or `None` when the names
+/// allow one reading only. The shorter number is chosen when the common
+/// zeros are 3 or more, the zero padding of a counter after a name
+/// ending in a digit; else all the digits.
+pub fn number_split(digit_runs: &[&str]) -> Option<(usize, usize)> {
+    let first = *digit_runs.first()?;
+    let len = first.len();
+    if digit_runs.len() < 2 || digit_runs.iter().any(|d| d.len() != len) {
+        return None;
+    }
+    let common = digit_runs.iter().fold(len, |n, d| {
+        first
+            .bytes()
+            .zip(d.bytes())
+            .take(n)
+            .take_while(|(a, b)| a == b)
+            .count()
+    });
+    let c = &first.as_bytes()[..common];
+    if common == len || c.first().is_none_or(|&b| b == b'0') {
+        return None;
+    }
+    let z = c.iter().position(|&b| b == b'0')?;
+    let zeros = c[z..].iter().take_while(|&&b| b == b'0').count();
+    if zeros < 2 {
+        return None;
+    }
+    let short = len - z;
+    Some(if zeros >= 3 {
+        (short, len)
+    } else {
+        (len, short)
+    })
 }
 
 /// The files of a sequence: `<prefix><number>.<ext>` with the number
@@ -114,14 +163,17 @@ pub struct FrameFiles {
 }
 
 impl FrameFiles {
-    /// The files `(number, name)` of a sequence in `dir`, in index order.
-    fn new(dir: &Path, frames: &[(i64, String)]) -> Self {
+    /// The files `(number, name)` of a sequence in `dir`, in index order,
+    /// their numbers the last `number_digits` digits of their names (all
+    /// the digits: `None`).
+    fn new(dir: &Path, frames: &[(i64, String)], number_digits: Option<usize>) -> Self {
         let (prefix, ext, digits) = frames
             .first()
             .and_then(|(_, name)| {
-                let (prefix, _, _) = parse_frame_name(name)?;
+                let (prefix, _, _) = parse_frame_name_split(name, number_digits)?;
                 let (stem, ext) = name.rsplit_once('.')?;
-                let digits = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+                let run = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+                let digits = number_digits.map_or(run, |n| run.min(n));
                 Some((prefix, ext.to_string(), digits))
             })
             .unwrap_or_default();
@@ -191,37 +243,30 @@ impl FolderSource {
     /// List `dir`, pick its frame sequence, read its first file's header and
     /// the PCC XML side file if there is one.
     pub fn open(dir: &Path, options: &OpenOptions) -> Result<Self, SourceError> {
-        let entries = std::fs::read_dir(dir).map_err(io_err(dir))?;
-        let mut names = Vec::new();
-        // Named pipes, sockets and devices are never opened (a pipe would
-        // block `open` for ever); links are followed to what they name.
-        let mut not_files = Vec::new();
-        for e in entries {
-            let e = e.map_err(io_err(dir))?;
-            let Some(name) = e.file_name().to_str().map(str::to_string) else {
-                continue;
-            };
-            // The entry's own type costs no system call; only a link is
-            // followed to see what it names.
-            let (is_dir, is_file) = match e.file_type() {
-                Ok(t) if !t.is_symlink() => (t.is_dir(), t.is_file()),
-                _ => match std::fs::metadata(e.path()) {
-                    Ok(m) => (m.is_dir(), m.is_file()),
-                    Err(_) => (false, false),
-                },
-            };
-            if is_file {
-                names.push(name);
-            } else if !is_dir {
-                not_files.push(name);
-            }
-        }
-        names.sort();
-        not_files.sort();
+        Self::open_listed(Listing::of(dir)?, options)
+    }
+
+    /// [`FolderSource::open`] on a folder already listed. Frame files and
+    /// XMLs named like a recording beside them (its PCC export) are left
+    /// out; recordings beside the sequence are named in a warning.
+    pub fn open_listed(mut listing: Listing, options: &OpenOptions) -> Result<Self, SourceError> {
+        let recordings = listing.recordings_text();
+        let has_dirs = !listing.dirs.is_empty();
+        // The names are moved, not copied (a long movie's are megabytes).
+        let names: Vec<String> = if listing.recordings.is_empty() {
+            listing.files
+        } else {
+            let (files, l) = (std::mem::take(&mut listing.files), &listing);
+            files
+                .into_iter()
+                .filter(|n| !l.is_export(n) && !l.recordings.contains(n))
+                .collect()
+        };
+        let Listing { dir, not_files, .. } = listing;
+        let dir = dir.as_path();
         // Group numbered images by (prefix, kind); pick the largest group.
         let mut groups: std::collections::BTreeMap<(String, ImageKind), Vec<(i64, String)>> =
             Default::default();
-        // The names are moved, not copied (a long movie's are megabytes).
         let xmls: Vec<String> = names
             .iter()
             .filter(|n| n.to_ascii_lowercase().ends_with(".xml"))
@@ -229,8 +274,9 @@ impl FolderSource {
             .collect();
         let lone = lone_export(&names, &xmls);
         let mut others = Vec::new();
+        let given_digits = options.number_digits;
         for name in names {
-            if let Some((prefix, number, kind)) = parse_frame_name(&name) {
+            if let Some((prefix, number, kind)) = parse_frame_name_split(&name, given_digits) {
                 groups
                     .entry((prefix, kind))
                     .or_default()
@@ -246,18 +292,24 @@ impl FolderSource {
             others.retain(|o| o != name);
         }
         let Some(best) = groups.values().map(Vec::len).max() else {
-            let has_folders = std::fs::read_dir(dir)
-                .is_ok_and(|entries| entries.flatten().any(|e| e.path().is_dir()));
-            return Err(format_err(
-                dir,
-                if has_folders {
+            let what = if let Some(r) = &recordings {
+                format!(
                     "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder, \
-                     only sub-folders: give the run folders themselves, or list them in a \
-                     runs.csv and use --manifest"
-                } else {
-                    "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder"
-                },
-            ));
+                     but {r}: give the one to read as the input (or list them in a runs.csv)"
+                )
+            } else if has_dirs {
+                "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder, \
+                 only sub-folders: give the run folders themselves, or list them in a \
+                 runs.csv and use --manifest"
+                    .to_string()
+            } else {
+                format!(
+                    "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder; \
+                     dropscope reads {}",
+                    super::SUPPORTED_INPUTS
+                )
+            };
+            return Err(format_err(dir, what));
         };
         let mut tied = groups.iter().filter(|(_, v)| v.len() == best);
         let ((prefix, kind), _) = tied.next().expect("a largest group exists");
@@ -292,6 +344,12 @@ impl FolderSource {
                 if others.len() > 5 { ", …" } else { "" }
             ));
         }
+        if let Some(r) = &recordings {
+            warnings.push(format!(
+                "this folder also holds {r}, not read with its frame sequence: give each \
+                 as an input of its own"
+            ));
+        }
         if !not_files.is_empty() {
             warnings.push(format!(
                 "ignored {} entries that are not regular files (named pipes, sockets, \
@@ -301,6 +359,53 @@ impl FolderSource {
             ));
         }
         let mut frames = groups.remove(&(prefix.clone(), kind)).unwrap_or_default();
+        // Digits that can be read two ways: the split chosen, said.
+        let mut prefix = prefix;
+        let mut number_digits = given_digits;
+        let mut names_note = None;
+        let split = match (given_digits, &lone) {
+            (None, None) if frames.iter().all(|(n, _)| *n >= 0) => {
+                let runs: Vec<&str> = frames
+                    .iter()
+                    .filter_map(|(_, name)| {
+                        let stem = name.rsplit_once('.')?.0;
+                        let run = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+                        Some(&stem[stem.len() - run..])
+                    })
+                    .collect();
+                number_split(&runs)
+            }
+            _ => None,
+        };
+        if let Some((chosen, other)) = split {
+            let example = frames[0].1.clone();
+            let all = example.rsplit_once('.').map_or(0, |(stem, _)| {
+                stem.bytes().rev().take_while(u8::is_ascii_digit).count()
+            });
+            if chosen < all {
+                for f in frames.iter_mut() {
+                    if let Some((p, n, _)) = parse_frame_name_split(&f.1, Some(chosen)) {
+                        f.0 = n;
+                        prefix = p;
+                    }
+                }
+                number_digits = Some(chosen);
+            }
+            let reading = |d: usize| {
+                let a = if matches!(d, 8 | 11 | 18) { "an" } else { "a" };
+                match parse_frame_name_split(&example, Some(d)) {
+                    Some((p, n, _)) => format!("name {p:?} and {a} {d}-digit frame number ({n} …)"),
+                    None => format!("{a} {d}-digit frame number"),
+                }
+            };
+            names_note = Some(format!(
+                "the frame names ({example} …) end in {all} digits that read two ways: taken \
+                 as {}, not as {}; set number_digits = {other} in the run's manifest row to \
+                 read them the other way",
+                reading(chosen),
+                reading(other)
+            ));
+        }
         frames.sort();
         if let Some(w) = frames.windows(2).find(|w| w[0].0 == w[1].0) {
             return Err(format_err(
@@ -308,7 +413,10 @@ impl FolderSource {
                 format!("frame number {} also belongs to {}", w[0].0, w[0].1),
             ));
         }
-        let mut files = FrameFiles::new(dir, &frames);
+        let mut files = FrameFiles::new(dir, &frames, number_digits);
+        if let Some(note) = &names_note {
+            warnings.push(note.clone());
+        }
         let mut frame_numbers: FrameNumbers = frames.iter().map(|(n, _)| *n).collect();
         let gaps = gaps_of(&frame_numbers);
         let file = |i: usize| files.path(i, frames[i].0);
@@ -414,6 +522,13 @@ impl FolderSource {
                 setup_length: None,
                 side_file: xml_path,
                 warnings,
+                colour: first.colour.then_some(ColourInput::Rgb),
+                frame_names: Some(FrameNames {
+                    prefix: prefix.clone(),
+                    number_digits: files.digits,
+                    note: names_note,
+                }),
+                p10: None,
             },
         };
         drop(frames);

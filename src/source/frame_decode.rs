@@ -30,6 +30,8 @@ pub(super) struct Probe {
     pub(super) height: usize,
     /// Container bits per sample: 8 or 16.
     pub(super) bits: u8,
+    /// The file holds colour (RGB, RGBA, a colour palette): read as its luminance.
+    pub(super) colour: bool,
     layout: Layout,
 }
 
@@ -479,6 +481,7 @@ fn probe<F: FrameBytes>(
             width: w as usize,
             height: h as usize,
             bits,
+            colour: dec.color_type().has_color(),
             layout: Layout::Generic,
         },
         len,
@@ -527,10 +530,19 @@ fn png_info<R: std::io::BufRead + Seek>(r: R) -> Result<Probe, png::DecodingErro
             png::BitDepth::Eight | png::BitDepth::Sixteen
         )
         && !info.interlaced;
+    let colour = match info.color_type {
+        png::ColorType::Rgb | png::ColorType::Rgba => true,
+        png::ColorType::Indexed => !info
+            .palette
+            .as_ref()
+            .is_some_and(|p| p.chunks_exact(3).all(|c| c[0] == c[1] && c[1] == c[2])),
+        png::ColorType::Grayscale | png::ColorType::GrayscaleAlpha => false,
+    };
     Ok(Probe {
         width: info.width as usize,
         height: info.height as usize,
         bits,
+        colour,
         layout: if grey {
             Layout::PngGrey
         } else {
@@ -720,6 +732,7 @@ fn probe_tiff<F: FrameBytes>(
         width,
         height,
         bits: bits as u8,
+        colour: false,
         layout: Layout::TiffRaw {
             big_endian,
             rows_per_strip: rps,
@@ -785,6 +798,7 @@ fn probe_bmp<F: FrameBytes>(
         width: w,
         height: hh,
         bits: 8,
+        colour: false,
         layout: Layout::Bmp8 {
             data_offset,
             stride,

@@ -505,8 +505,9 @@ fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Stdout's reader closed it before all was written (`dropscope inspect
-/// X | head -1`): no error, the command stops there with exit status 0.
+/// Stdout could not take all that was written (its reader closed it,
+/// `dropscope inspect X | head -1`, or `>/dev/full`): no error, the command
+/// stops there with exit status 0.
 #[derive(Debug, thiserror::Error)]
 #[error("stdout was closed by its reader")]
 struct StdoutClosed;
@@ -520,8 +521,10 @@ fn say(text: impl std::fmt::Display) -> anyhow::Result<()> {
     let text = dropscope::text::terminal(&text);
     let mut out = std::io::stdout().lock();
     match write!(out, "{text}").and_then(|()| out.flush()) {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(StdoutClosed.into()),
-        r => r.map_err(|e| anyhow::anyhow!("writing to stdout: {e}")),
+        // A closed pipe, a full disk: what could be written was; the
+        // command stops there (exit 0), as console::out drops the rest.
+        Err(_) => Err(StdoutClosed.into()),
+        Ok(()) => Ok(()),
     }
 }
 

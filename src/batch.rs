@@ -17,7 +17,8 @@ use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::{read_job_manifest, RunSpec};
 use crate::process::{process_setup, write_file, write_run_outputs};
-use crate::source::folder::ImageKind;
+use crate::source::listing::{recording_kind, Listing};
+use crate::source::SourceError;
 use crate::timings::{self, Stage};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -57,6 +58,8 @@ pub struct RunArgs {
     /// drop. Changes no output.
     #[arg(long)]
     pub timings: bool,
+    #[command(flatten)]
+    pub recording: crate::cli_values::RecordingArgs,
 }
 
 /// Why the job could not run (a bad run is a row, not this).
@@ -88,6 +91,31 @@ pub enum BatchError {
     Lock(#[from] crate::lock::LockError),
     #[error(transparent)]
     Review(#[from] crate::review::decisions::ReviewError),
+    #[error(
+        "--threads {asked}: at most {max} on this machine (4 × its {cores} cores): more threads \
+         only share the cores, and each holds frames in memory"
+    )]
+    TooManyThreads {
+        asked: usize,
+        max: usize,
+        cores: usize,
+    },
+}
+
+/// `threads` refused when above [`max_threads`].
+pub fn check_threads(threads: Option<usize>) -> Result<(), BatchError> {
+    let (max, cores) = max_threads();
+    match threads.filter(|&n| n > max) {
+        Some(asked) => Err(BatchError::TooManyThreads { asked, max, cores }),
+        None => Ok(()),
+    }
+}
+
+/// Most worker threads a job takes: 4 × the machine's cores (at least 4),
+/// never more than 1024.
+pub fn max_threads() -> (usize, usize) {
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    (cores.saturating_mul(4).clamp(4, 1024), cores)
 }
 
 /// How the job runs (not what it computes: outputs do not depend on these).
@@ -142,6 +170,9 @@ pub struct JobSummary {
     /// The share of the runs this job took (`None`: all, and it assembled them).
     pub shard: Option<crate::shard::Shard>,
     pub collapse_warnings: Vec<String>,
+    /// Too few drops for the collapse's exponents and series: what they can
+    /// and cannot show (`fits.json`'s `few_drops`; not among the warnings).
+    pub collapse_note: Option<String>,
 }
 
 impl JobSummary {
@@ -155,48 +186,57 @@ impl JobSummary {
     }
 }
 
-fn is_frame_folder(dir: &Path) -> bool {
-    std::fs::read_dir(dir).is_ok_and(|entries| {
-        entries.flatten().any(|e| {
-            e.path()
-                .extension()
-                .and_then(|x| x.to_str())
-                .is_some_and(|x| {
-                    ImageKind::from_extension(x).is_some() || x.eq_ignore_ascii_case("xml")
-                })
-        })
-    })
+/// Whether `dir` is an output folder dropscope wrote (it holds its
+/// `provenance.json` or the ledger of its files).
+fn is_output_folder(dir: &Path) -> bool {
+    [crate::out_folder::LEDGER_FILE, "provenance.json"]
+        .iter()
+        .any(|f| dir.join(f).is_file())
 }
 
-fn is_cine(p: &Path) -> bool {
-    p.extension()
-        .and_then(|x| x.to_str())
-        .is_some_and(|x| x.eq_ignore_ascii_case("cine"))
+/// Whether `path`, inside an output folder, is one of the folders
+/// dropscope writes there (never searched for runs: `process DIR --out
+/// DIR` again would take `plots/overlays/` for a run).
+fn is_output_part(path: &Path) -> bool {
+    path.file_name()
+        .and_then(|n| n.to_str())
+        .is_some_and(|n| matches!(n, "plots" | "tracks" | "runs" | crate::lock::LOCK_DIR))
 }
 
 /// Deepest folder level searched under an input path (guards symlink loops).
 const MAX_SEARCH_DEPTH: usize = 16;
 
-/// Runs under the configured paths: a `.cine` or a folder of frames is one
-/// run; any other folder is searched, at any depth, for both (children in
-/// name order, so the runs' order does not depend on the file system).
+/// Runs under the configured paths: a recording file (`.cine`, `.mraw`) or
+/// a folder of frames is one run; any other folder is searched, at any
+/// depth, for both. A folder of frames is not searched further, but the
+/// recordings beside its frames are runs too (children in name order, so
+/// the runs' order does not depend on the file system).
 pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
     fn search(dir: &Path, depth: usize, out: &mut Vec<PathBuf>) -> Result<(), BatchError> {
-        let mut children: Vec<PathBuf> = std::fs::read_dir(dir)
-            .map_err(|source| BatchError::Io {
+        let listing = Listing::of(dir).map_err(|e| match e {
+            SourceError::Io { path, source } => BatchError::Io { path, source },
+            other => BatchError::Io {
                 path: dir.to_path_buf(),
-                source,
-            })?
-            .flatten()
-            .map(|e| e.path())
+                source: std::io::Error::other(other.to_string()),
+            },
+        })?;
+        let mut children: Vec<(PathBuf, bool)> = listing
+            .recordings()
+            .map(|r| (dir.join(r), false))
+            .chain(listing.dirs.iter().map(|d| (dir.join(d), true)))
             .collect();
         children.sort();
-        for c in children {
-            if is_cine(&c) {
+        let output_folder = is_output_folder(dir);
+        for (c, is_dir) in children {
+            if output_folder && is_output_part(&c) {
+                // dropscope's own figures, tracks and cache, not runs.
+                continue;
+            }
+            if !is_dir {
                 out.push(c);
-            } else if c.is_dir() {
-                if is_frame_folder(&c) {
-                    out.push(c);
+            } else if let Ok(sub) = Listing::of(&c) {
+                if sub.has_frames() {
+                    out.extend(sub.runs_here());
                 } else if depth < MAX_SEARCH_DEPTH {
                     search(&c, depth + 1, out)?;
                 }
@@ -206,8 +246,12 @@ pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
     }
     let mut out = Vec::new();
     for p in paths {
-        if is_cine(p) || (p.is_dir() && is_frame_folder(p)) {
+        if recording_kind(p).is_some() && !p.is_dir() {
             out.push(p.clone());
+            continue;
+        }
+        if let Some(l) = Listing::of(p).ok().filter(|l| l.has_frames()) {
+            out.extend(l.runs_here());
             continue;
         }
         let before = out.len();
@@ -219,15 +263,16 @@ pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
     Ok(out)
 }
 
-/// `dropscope process`'s inputs with every folder that holds no frames of
-/// its own replaced by the runs found under it ([`discover_runs`]); any
-/// other input (a run, a folder with nothing found under it) is kept, so
+/// `dropscope process`'s inputs with every folder replaced by the runs
+/// found in it ([`discover_runs`]: itself when it holds frames, the
+/// recordings beside them, or the runs under it); any other input (a
+/// recording, a folder with nothing found in it) is kept, so
 /// that it gets its own row and reason, and a path that is not there is
 /// kept for [`crate::process::runs_from_inputs`] to refuse.
 pub fn expand_inputs(inputs: &[PathBuf]) -> Vec<PathBuf> {
     let mut out = Vec::new();
     for p in inputs {
-        if p.is_dir() && !is_frame_folder(p) {
+        if p.is_dir() {
             if let Ok(found) = discover_runs(std::slice::from_ref(p)) {
                 out.extend(found);
                 continue;
@@ -300,7 +345,19 @@ fn run_setup(
             let hits: Vec<Entry> = members
                 .iter()
                 .zip(&keys)
-                .filter_map(|(r, k)| cache::lookup(out, &r.run, k.as_ref()?))
+                .filter_map(|(r, k)| match cache::check(out, &r.run, k.as_ref()?) {
+                    Ok(e) => Some(e),
+                    Err(cache::Miss::Altered(path)) => {
+                        events(RunEvent::Notice(&format!(
+                            "{}: changed since dropscope wrote it (its content no longer \
+                             matches its entry_sha256): run {} is measured again",
+                            path.display(),
+                            crate::text::terminal(&r.run)
+                        )));
+                        None
+                    }
+                    Err(_) => None,
+                })
                 .collect();
             if hits.len() == members.len() {
                 for e in &hits {
@@ -328,6 +385,9 @@ fn run_setup(
         .zip(fps)
         .zip(keys.into_iter().zip(members))
     {
+        for note in &o.notes {
+            events(RunEvent::Notice(&format!("warning: {}: {note}", r.run)));
+        }
         let writes = timings::start(Stage::Writes);
         let outputs = write_run_outputs(out, &o)?;
         let seconds = o.seconds;
@@ -343,6 +403,7 @@ fn run_setup(
             record: o.record,
             scene: o.scene,
             scene_key: fp.as_ref().map(|fp| cache::scene_key(cfg, r, fp)),
+            entry_sha256: String::new(),
         };
         if key.is_some() && crate::run_name::check(&r.run).is_ok() {
             cache::store(out, &entry).map_err(|source| BatchError::Io {
@@ -423,6 +484,9 @@ pub(crate) fn provenance_json(
         /// With the keys of pipeline.toml (`radius_mm`, `[surface.<name>]`),
         /// as check-config prints it.
         configuration: toml::Value,
+        /// `--fps`, `--mm-per-px`, `--surface-row-px` when given.
+        #[serde(skip_serializing_if = "crate::config::CommandLineValues::is_empty")]
+        command_line: crate::config::CommandLineValues,
         runs: Vec<RunProvenance<'a>>,
         /// The decisions of `dropscope review` the job applied, when any.
         #[serde(skip_serializing_if = "Option::is_none")]
@@ -438,6 +502,7 @@ pub(crate) fn provenance_json(
         dropscope_source_sha256: cache::SOURCE_SHA256,
         configuration_file: config_name,
         configuration: cfg.to_file_value(),
+        command_line: cfg.command_line,
         runs: entries
             .iter()
             .map(|e| RunProvenance {
@@ -508,8 +573,14 @@ pub struct Review {
 impl Review {
     /// The decisions for a job into `out` ([`crate::review::decisions::review_path`]).
     pub fn load(cfg: &PipelineConfig, out: &Path) -> Result<Review, BatchError> {
-        let path = crate::review::decisions::review_path(cfg.input.review.as_deref(), out);
-        let decisions = crate::review::decisions::Decisions::read(&path)?;
+        use crate::review::decisions::{review_path, Decisions, REVIEW_FILE};
+        let path = review_path(cfg.input.review.as_deref(), out);
+        // The output folder's own file is read through no link below it;
+        // a file the configuration names, as any input.
+        let decisions = match &cfg.input.review {
+            None => Decisions::read_in(out, REVIEW_FILE)?,
+            Some(named) => Decisions::read(named)?,
+        };
         Ok(Review { path, decisions })
     }
 
@@ -637,6 +708,7 @@ pub fn on_threads<R: Send>(
 ) -> Result<R, BatchError> {
     let in_pool =
         |n: usize| rayon::current_thread_index().is_some() && rayon::current_num_threads() == n;
+    check_threads(threads)?;
     match threads {
         Some(n) if !in_pool(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -720,6 +792,7 @@ fn job_on_pool(
             threads,
             collapsed: false,
             collapse_warnings: Vec::new(),
+            collapse_note: None,
             shard: options.shard,
         });
     }
@@ -733,8 +806,11 @@ fn job_on_pool(
     // earlier job's collapse wrote, so that no figure of a run that has
     // since failed or left the manifest survives (nor all of it when no
     // drop is measured now).
-    crate::collapse::remove_outputs(out).map_err(io(out))?;
-    let (collapsed, collapse_warnings) = if measured > 0 {
+    let mut ledger = crate::out_folder::Ledger::open(out);
+    crate::collapse::remove_outputs(&mut ledger)
+        .and_then(|()| ledger.save())
+        .map_err(io(out))?;
+    let (collapsed, collapse_warnings, collapse_note) = if measured > 0 {
         events(RunEvent::Collapsing);
         let args = CollapseArgs {
             drops: out.join("drops.csv"),
@@ -746,10 +822,18 @@ fn job_on_pool(
             no_plots: false,
         };
         let s = crate::collapse::run(&args, cfg, config_name)?;
-        (true, s.warnings)
+        let note = s.fits.few_drops.clone();
+        let warnings = s
+            .warnings
+            .into_iter()
+            .filter(|w| note.as_ref() != Some(w))
+            .collect();
+        (true, warnings, note)
     } else {
-        crate::collapse::per_drop::replace(out, Vec::new(), &mut Vec::new())?;
-        (false, Vec::new())
+        let replaced = crate::collapse::per_drop::replace(&mut ledger, Vec::new(), &mut Vec::new());
+        ledger.save().map_err(io(out))?;
+        replaced?;
+        (false, Vec::new(), None)
     };
     drop(collapse);
     timings::time(Stage::Report, || {
@@ -764,6 +848,7 @@ fn job_on_pool(
         threads,
         collapsed,
         collapse_warnings,
+        collapse_note,
         shard: None,
     })
 }

@@ -24,8 +24,10 @@ use std::path::{Path, PathBuf};
 use std::time::UNIX_EPOCH;
 
 /// Bump when the entry layout or anything it depends on changes meaning.
-/// 2: each output listed with its SHA-256.
-pub const CACHE_SCHEMA: u32 = 2;
+/// 2: each output listed with its SHA-256. 3: rows carry `fps` and
+/// `fps_source`. 4: the entry sealed with the SHA-256 of its own content
+/// (`entry_sha256`).
+pub const CACHE_SCHEMA: u32 = 4;
 
 /// SHA-256 (hex) of the sources this dropscope was built from: every file
 /// under `src/`, `Cargo.toml` and `Cargo.lock`, taken by `build.rs`. Any
@@ -97,6 +99,31 @@ pub struct Entry {
     pub scene: Option<SceneSignature>,
     #[serde(default)]
     pub scene_key: Option<String>,
+    /// SHA-256 (hex) of the entry's JSON with this field empty, set by
+    /// [`store`]: an entry changed by hand (a number in its record) no
+    /// longer matches it and is not reused ([`check`]).
+    #[serde(default)]
+    pub entry_sha256: String,
+}
+
+impl Entry {
+    /// The SHA-256 of the entry's content: its compact JSON with
+    /// `entry_sha256` empty.
+    fn content_sha256(&self) -> String {
+        let unsealed = Entry {
+            entry_sha256: String::new(),
+            ..self.clone()
+        };
+        // Serialising plain structs to JSON cannot fail.
+        hex(&Sha256::digest(
+            serde_json::to_vec(&unsealed).unwrap_or_default(),
+        ))
+    }
+
+    /// Whether the entry is as [`store`] wrote it.
+    pub fn is_sealed(&self) -> bool {
+        !self.entry_sha256.is_empty() && self.entry_sha256 == self.content_sha256()
+    }
 }
 
 /// One output file of a run and the SHA-256 (hex) of its bytes.
@@ -118,9 +145,7 @@ impl OutputFile {
 
     /// Whether the file is in `out` (and inside it) with the bytes it was written with.
     pub(crate) fn is_intact(&self, out: &Path) -> bool {
-        crate::io_util::inside(out, &self.path)
-            .and_then(|p| sha256_file(&p))
-            .is_ok_and(|h| h == self.sha256)
+        crate::out_folder::sha256(out, &self.path).is_ok_and(|h| h == self.sha256)
     }
 }
 
@@ -397,8 +422,7 @@ pub fn scene_key(cfg: &PipelineConfig, run: &RunSpec, fp: &Fingerprint) -> Strin
 /// written from the same input under the same configuration (its outputs
 /// need not be intact: the signature is not one of them).
 pub fn cached_scene(out: &Path, cfg: &PipelineConfig, run: &RunSpec) -> Option<SceneSignature> {
-    let bytes = std::fs::read(entry_path(out, &run.run).ok()?).ok()?;
-    let e: Entry = serde_json::from_slice(&bytes).ok()?;
+    let e = read_entry(out, &run.run).ok()?;
     let wanted = scene_key(cfg, run, &fingerprint(&run.path).ok()?);
     (e.schema == CACHE_SCHEMA && e.scene_key.as_deref() == Some(wanted.as_str()))
         .then_some(e.scene)
@@ -411,33 +435,84 @@ pub fn entry_path(out: &Path, run: &str) -> std::io::Result<PathBuf> {
     crate::io_util::inside(out, &format!("runs/{run}.json"))
 }
 
-/// The entry of `run`, if there is one computed under `key` and every file
-/// it lists is still in `out` with the SHA-256 it was written with.
-/// Anything else (no entry, another key, a damaged entry, a missing, empty
-/// or altered output) is a miss.
-pub fn lookup(out: &Path, run: &str, key: &str) -> Option<Entry> {
-    let bytes = std::fs::read(entry_path(out, run).ok()?).ok()?;
-    let e: Entry = serde_json::from_slice(&bytes).ok()?;
-    let valid = e.schema == CACHE_SCHEMA
-        && e.key == key
-        && e.record.run == run
-        && e.outputs.iter().all(|f| f.is_intact(out));
-    valid.then_some(e)
+/// An entry larger than this is not read (its record and a few file names).
+const ENTRY_MAX_BYTES: u64 = 16 << 20;
+
+/// Why a run's entry is not used.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Miss {
+    /// No entry, a damaged one, or one of another schema, key or run.
+    Absent,
+    /// The entry parses but its content is not what dropscope sealed: it
+    /// was changed since (by hand, or by another program).
+    Altered(PathBuf),
+    /// A file it lists is missing or no longer holds the bytes written.
+    OutputChanged,
 }
 
-/// Commit `entry`: written atomically, after the files it lists.
-pub fn store(out: &Path, entry: &Entry) -> std::io::Result<()> {
-    let path = entry_path(out, &entry.record.run)?;
-    if let Some(d) = path.parent() {
-        std::fs::create_dir_all(d)?;
+/// The entry of `run` in `out` as [`store`] wrote it: read through no link
+/// ([`crate::out_folder::read`]), parsed, and its seal checked.
+fn read_entry(out: &Path, run: &str) -> Result<Entry, Miss> {
+    let rel = format!("runs/{run}.json");
+    let bytes = crate::out_folder::read(out, &rel, ENTRY_MAX_BYTES)
+        .ok()
+        .flatten()
+        .ok_or(Miss::Absent)?;
+    let e: Entry = serde_json::from_slice(&bytes).map_err(|_| Miss::Absent)?;
+    if e.schema != CACHE_SCHEMA || e.record.run != run {
+        return Err(Miss::Absent);
     }
-    let mut bytes = serde_json::to_vec_pretty(entry).map_err(std::io::Error::other)?;
+    if !e.is_sealed() {
+        return Err(Miss::Altered(out.join(rel)));
+    }
+    Ok(e)
+}
+
+/// The files the entry of `run` in `out` lists (none when it has no valid
+/// entry): what an earlier job wrote for the run.
+pub fn listed_outputs(out: &Path, run: &str) -> Vec<OutputFile> {
+    read_entry(out, run).map(|e| e.outputs).unwrap_or_default()
+}
+
+/// The entry of `run`, if there is one computed under `key`, sealed as
+/// [`store`] wrote it, and every file it lists is still in `out` with the
+/// SHA-256 it was written with; else why not.
+pub fn check(out: &Path, run: &str, key: &str) -> Result<Entry, Miss> {
+    let e = read_entry(out, run)?;
+    if e.key != key {
+        return Err(Miss::Absent);
+    }
+    if !e.outputs.iter().all(|f| f.is_intact(out)) {
+        return Err(Miss::OutputChanged);
+    }
+    Ok(e)
+}
+
+/// [`check`] as an option: anything but a valid entry (no entry, another
+/// key, a damaged or altered entry, a missing, empty or altered output)
+/// is a miss.
+pub fn lookup(out: &Path, run: &str, key: &str) -> Option<Entry> {
+    check(out, run, key).ok()
+}
+
+/// Commit `entry`, sealed with the SHA-256 of its content: written
+/// atomically, after the files it lists.
+pub fn store(out: &Path, entry: &Entry) -> std::io::Result<()> {
+    let rel = format!("runs/{}.json", entry.record.run);
+    let sealed = Entry {
+        entry_sha256: entry.content_sha256(),
+        ..entry.clone()
+    };
+    let mut bytes = serde_json::to_vec_pretty(&sealed).map_err(std::io::Error::other)?;
     bytes.push(b'\n');
     // Unsynced, as the run's outputs: made durable with them before the
     // job's drops.csv (`process::sync_outputs`); an entry a crash left
     // short does not parse and is a miss, one whose outputs a crash left
     // short fails their SHA-256 and is a miss.
-    crate::io_util::write_atomic_unsynced(&path, &bytes)
+    crate::out_folder::write_as(out, &rel, crate::io_util::Durable::WithTheJob, |f| {
+        std::io::Write::write_all(f, &bytes)
+    })
+    .map(drop)
 }
 
 #[cfg(test)]
@@ -460,6 +535,7 @@ mod tests {
             sphere_density_kg_m3: None,
             setup: None,
             review: Default::default(),
+            number_digits: None,
         }
     }
 
@@ -620,7 +696,15 @@ mod tests {
             content_sha256: "00".into(),
         };
         store(out, &entry).unwrap();
-        assert_eq!(lookup(out, "a", "k1"), Some(entry.clone()));
+        let sealed = lookup(out, "a", "k1").unwrap();
+        assert!(sealed.is_sealed());
+        assert_eq!(
+            sealed,
+            Entry {
+                entry_sha256: sealed.entry_sha256.clone(),
+                ..entry.clone()
+            }
+        );
         assert_eq!(lookup(out, "a", "k2"), None);
         assert_eq!(lookup(out, "b", "k1"), None);
         // Emptied, or one byte altered: a miss.
@@ -641,5 +725,43 @@ mod tests {
         assert_eq!(lookup(out, "a", "k1"), None);
         std::fs::write(entry_path(out, "a").unwrap(), b"{ damaged").unwrap();
         assert_eq!(lookup(out, "a", "k1"), None);
+    }
+
+    /// A number of the record changed by hand in runs/<run>.json: the seal
+    /// no longer matches and the entry is not reused, saying so.
+    #[test]
+    fn an_entry_changed_by_hand_is_not_reused() {
+        let (_dir, out) = crate::test_support::out_with_tracks(&[("a.csv", b"frame\n1\n")]);
+        let mut entry = crate::test_support::cache_entry(
+            "a",
+            "k1",
+            vec![OutputFile::new("tracks/a.csv".into(), b"frame\n1\n")],
+        );
+        entry.record.v_impact_m_s = Some(1.5);
+        store(&out, &entry).unwrap();
+        assert!(check(&out, "a", "k1").is_ok());
+        let path = entry_path(&out, "a").unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("\"v_impact_m_s\": 1.5"), "{text}");
+        std::fs::write(
+            &path,
+            text.replace("\"v_impact_m_s\": 1.5", "\"v_impact_m_s\": 9.99"),
+        )
+        .unwrap();
+        assert_eq!(check(&out, "a", "k1"), Err(Miss::Altered(path.clone())));
+        assert!(listed_outputs(&out, "a").is_empty());
+        // Its seal blanked too: still not dropscope's.
+        let text = std::fs::read_to_string(&path).unwrap();
+        let blank = blank_seal(&text);
+        std::fs::write(&path, blank).unwrap();
+        assert!(matches!(check(&out, "a", "k1"), Err(Miss::Altered(_))));
+    }
+
+    /// `text` with the value of `entry_sha256` emptied.
+    fn blank_seal(text: &str) -> String {
+        let key = "\"entry_sha256\": \"";
+        let start = text.find(key).unwrap() + key.len();
+        let end = start + text[start..].find('"').unwrap();
+        format!("{}{}", &text[..start], &text[end..])
     }
 }

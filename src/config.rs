@@ -88,6 +88,10 @@ pub struct RawCamera {
     pub edge_offset_px: Option<f64>,
     /// Its one-sigma spread from drop to drop (px).
     pub edge_offset_spread_px: Option<f64>,
+    /// Apply the viewer flips a recording's header records (default true).
+    pub apply_flips: Option<bool>,
+    /// Measure P10 cines linearised to 12 bits (default true), else on their codes.
+    pub p10_linear: Option<bool>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -153,6 +157,111 @@ pub struct PipelineConfig {
     pub surfaces: BTreeMap<String, Surface>,
     pub detect: DetectConfig,
     pub output: OutputConfig,
+    /// Values given on the command line (`--fps`, `--mm-per-px`,
+    /// `--surface-row-px`), not in the file: in the cache key, printed by
+    /// neither `check-config` nor the file's keys in `provenance.json`
+    /// (which records them beside, as `command_line`).
+    #[serde(skip_serializing_if = "CommandLineValues::is_empty")]
+    pub command_line: CommandLineValues,
+}
+
+/// Values a job's command line gives for its runs (`process` and `run`
+/// take `--fps`, `--mm-per-px` and `--surface-row-px`). Each stands where
+/// the run's manifest row gives none, above the configuration's value:
+///
+/// - frame rate: the recording's own (PCC XML, cine header, …) > the
+///   manifest's `fps` > `--fps` > `camera.fps` > [`DEFAULT_FPS`]; a
+///   value given that disagrees with the recording's own is flagged
+///   `fps_mismatch` and the recording's is used;
+/// - scale: the manifest's `mm_per_px` > `--mm-per-px` > `camera.mm_per_px`
+///   > measured (free fall, else the sphere);
+/// - surface row: `--surface-row-px` > `detect.surface_row_px` > found in
+///   the images.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct CommandLineValues {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fps: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mm_per_px: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub surface_row_px: Option<f64>,
+}
+
+impl CommandLineValues {
+    /// None given.
+    pub fn is_empty(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// The frame rate of a recording that holds none, when neither its
+/// manifest row, `--fps` nor `camera.fps` gives one (frames/s): a guess,
+/// used so that the recording is still tracked, and said in its row
+/// (`fps_source` `default`, flag `fps_assumed`) and on the console.
+pub const DEFAULT_FPS: f64 = 10_000.0;
+
+/// Where a run's frame rate came from: the `fps_source` column of drops.csv.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FpsSource {
+    /// The recording's own record: its PCC XML side file (`xml`), its cine
+    /// header (`cine`), or another reader's header, named by its format.
+    Recording,
+    /// The manifest's `fps` column.
+    Manifest,
+    /// `--fps` on the command line.
+    Flag,
+    /// `camera.fps` of the configuration.
+    Config,
+    /// [`DEFAULT_FPS`]: nothing gave one.
+    Default,
+}
+
+impl FpsSource {
+    /// The word of the `fps_source` column; `recording` names the
+    /// recording's own record (`xml`, `cine`, …).
+    pub fn word(self, recording: &str) -> String {
+        match self {
+            FpsSource::Recording => recording,
+            FpsSource::Manifest => "manifest",
+            FpsSource::Flag => "flag",
+            FpsSource::Config => "config",
+            FpsSource::Default => "default",
+        }
+        .to_string()
+    }
+}
+
+impl PipelineConfig {
+    /// The frame rate for `run`'s recording should it hold none, and where
+    /// it comes from: the manifest's `fps`, else `--fps`, else
+    /// `camera.fps`, else [`DEFAULT_FPS`].
+    pub fn fps_fallback(&self, manifest_fps: Option<f64>) -> (f64, FpsSource) {
+        manifest_fps
+            .map(|f| (f, FpsSource::Manifest))
+            .or(self.command_line.fps.map(|f| (f, FpsSource::Flag)))
+            .or(self.camera.fps.map(|f| (f, FpsSource::Config)))
+            .unwrap_or((DEFAULT_FPS, FpsSource::Default))
+    }
+
+    /// The scale given for a run whose manifest row gives `manifest`: it,
+    /// else `--mm-per-px`, else `camera.mm_per_px`.
+    pub fn given_mm_per_px(&self, manifest: Option<f64>) -> Option<f64> {
+        manifest
+            .or(self.command_line.mm_per_px)
+            .or(self.camera.mm_per_px)
+    }
+
+    /// The detection settings, with `--surface-row-px` over
+    /// `detect.surface_row_px`.
+    pub fn detect_settings(&self) -> DetectConfig {
+        DetectConfig {
+            surface_row_px: self
+                .command_line
+                .surface_row_px
+                .or(self.detect.surface_row_px),
+            ..self.detect.clone()
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -184,6 +293,13 @@ pub struct CameraConfig {
     /// or measured on the job's runs ([`crate::scale::EdgeOffset`]).
     pub edge_offset_px: Option<f64>,
     pub edge_offset_spread_px: Option<f64>,
+    /// Runs are measured as Phantom Camera Control shows them: the viewer
+    /// flips a `.cine` (bFlipV, bFlipH) or a Photron header records are
+    /// applied to the frames; false measures the storage orientation.
+    pub apply_flips: bool,
+    /// P10 packed cines (log-encoded 10-bit codes) are measured linearised
+    /// to 12 bits through Vision Research's table; false measures the codes.
+    pub p10_linear: bool,
 }
 
 /// `camera.edge_offset_spread_px` when only the offset is given (px).
@@ -278,9 +394,18 @@ impl PipelineConfig {
     /// Read and validate a configuration file. Relative paths inside it are
     /// taken relative to the file's folder.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        // A named pipe or a device is refused before it is opened; a file
+        // of more than 16 MiB is no configuration.
+        let io = |source| ConfigError::Io {
             path: path.to_path_buf(),
             source,
+        };
+        let bytes = crate::io_util::read_input(path, 16 << 20).map_err(io)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("not UTF-8 text: {e}"),
+            ))
         })?;
         let base = path.parent().unwrap_or(Path::new("")).to_path_buf();
         Self::from_toml_str(&text, path, &base)
@@ -366,8 +491,38 @@ impl Checker<'_> {
         }
     }
 
-    fn positive_opt(&self, key: &str, v: Option<f64>) -> Result<Option<f64>, ConfigError> {
-        v.map(|v| self.positive(key, v)).transpose()
+    /// A number within its physical range ([`crate::ranges`]).
+    fn ranged(&self, key: &str, range: crate::ranges::Range, v: f64) -> Result<f64, ConfigError> {
+        let v = self.positive(key, v)?;
+        range
+            .check(v)
+            .map_err(|allowed| self.invalid(key, crate::ranges::show(v), &allowed))
+    }
+
+    fn ranged_opt(
+        &self,
+        key: &str,
+        range: crate::ranges::Range,
+        v: Option<f64>,
+    ) -> Result<Option<f64>, ConfigError> {
+        v.map(|v| self.ranged(key, range, v)).transpose()
+    }
+
+    /// A path without a control character (a newline in `[output] dir`
+    /// would reach a Slurm script as a command).
+    fn path(&self, key: &str, p: PathBuf) -> Result<PathBuf, ConfigError> {
+        let text = p.to_string_lossy();
+        if text
+            .chars()
+            .any(|c| c.is_control() || crate::text::is_format(c))
+        {
+            return Err(self.invalid(
+                key,
+                format!("{:?}", crate::text::one_line(&text)),
+                "must be a path without control or invisible format characters",
+            ));
+        }
+        Ok(p)
     }
 }
 
@@ -380,10 +535,11 @@ impl RawConfig {
         let mut surfaces = BTreeMap::new();
         for (name, s) in self.surface {
             let key = |k: &str| format!("surface.{name}.{k}");
-            let modulus_pa = c.positive(&key("modulus_pa"), s.modulus_pa)?;
-            let h = c.positive(&key("pillar_height_mm"), s.pillar_height_mm)?;
-            let b = c.positive(&key("pillar_width_mm"), s.pillar_width_mm)?;
-            let ch = c.positive(&key("channel_width_mm"), s.channel_width_mm)?;
+            use crate::ranges::{MODULUS_PA, PILLAR_MM};
+            let modulus_pa = c.ranged(&key("modulus_pa"), MODULUS_PA, s.modulus_pa)?;
+            let h = c.ranged(&key("pillar_height_mm"), PILLAR_MM, s.pillar_height_mm)?;
+            let b = c.ranged(&key("pillar_width_mm"), PILLAR_MM, s.pillar_width_mm)?;
+            let ch = c.ranged(&key("channel_width_mm"), PILLAR_MM, s.channel_width_mm)?;
             let phi = s.solid_fraction.unwrap_or(b / (b + ch));
             if !(phi.is_finite() && phi > 0.0 && phi <= 1.0) {
                 return Err(c.invalid(&key("solid_fraction"), phi, "must lie in (0, 1]"));
@@ -422,15 +578,17 @@ impl RawConfig {
             }
         };
 
-        let density = c.positive(
+        use crate::ranges::{DENSITY_KG_M3, FPS, MM_PER_PX, SPHERE_RADIUS_MM};
+        let density = c.ranged(
             "sphere.density_kg_m3",
+            DENSITY_KG_M3,
             self.sphere.density_kg_m3.unwrap_or(7800.0),
         )?;
         let radius_m = c
-            .positive_opt("sphere.radius_mm", self.sphere.radius_mm)?
+            .ranged_opt("sphere.radius_mm", SPHERE_RADIUS_MM, self.sphere.radius_mm)?
             .map(|r| r * 1e-3);
-        let fps = c.positive_opt("camera.fps", self.camera.fps)?;
-        let mm_per_px = c.positive_opt("camera.mm_per_px", self.camera.mm_per_px)?;
+        let fps = c.ranged_opt("camera.fps", FPS, self.camera.fps)?;
+        let mm_per_px = c.ranged_opt("camera.mm_per_px", MM_PER_PX, self.camera.mm_per_px)?;
         let distortion_k1_per_px2 = match self.camera.distortion_k1_per_px2 {
             // |k1| r² above 5 % at 1 000 px from the centre is no lens of
             // this experiment, and the one-term model would not hold.
@@ -539,12 +697,32 @@ impl RawConfig {
             }
         }
 
+        let manifest = self
+            .input
+            .manifest
+            .map(|p| c.path("input.manifest", p))
+            .transpose()?;
+        let paths = self
+            .input
+            .paths
+            .into_iter()
+            .map(|p| c.path("input.paths", p))
+            .collect::<Result<Vec<_>, _>>()?;
+        let review = self
+            .input
+            .review
+            .map(|p| c.path("input.review", p))
+            .transpose()?;
+        let dir = c.path(
+            "output.dir",
+            self.output.dir.unwrap_or_else(|| PathBuf::from("out")),
+        )?;
         Ok(PipelineConfig {
             input: InputConfig {
-                manifest: self.input.manifest.map(resolve),
-                paths: self.input.paths.into_iter().map(resolve).collect(),
+                manifest: manifest.map(resolve),
+                paths: paths.into_iter().map(resolve).collect(),
                 surface,
-                review: self.input.review.map(resolve),
+                review: review.map(resolve),
             },
             camera: CameraConfig {
                 fps,
@@ -554,6 +732,8 @@ impl RawConfig {
                 infer_setups: self.camera.infer_setups.unwrap_or(true),
                 edge_offset_px: self.camera.edge_offset_px,
                 edge_offset_spread_px,
+                apply_flips: self.camera.apply_flips.unwrap_or(true),
+                p10_linear: self.camera.p10_linear.unwrap_or(true),
             },
             sphere: SphereConfig {
                 density_kg_m3: density,
@@ -569,9 +749,10 @@ impl RawConfig {
                 edge_spacing_px,
             },
             output: OutputConfig {
-                dir: resolve(self.output.dir.unwrap_or_else(|| PathBuf::from("out"))),
+                dir: resolve(dir),
                 animation: self.output.animation.unwrap_or(true),
             },
+            command_line: CommandLineValues::default(),
         })
     }
 }

@@ -38,6 +38,8 @@ impl PipelineConfig {
         let Ok(Value::Table(mut t)) = Value::try_from(self) else {
             return Value::Table(Default::default());
         };
+        // The command line's values are no key of the file.
+        t.remove("command_line");
         if let Some(s) = t.remove("surfaces") {
             t.insert("surface".into(), s);
         }

@@ -16,6 +16,11 @@ pub enum DropStatus {
     Warning,
     /// Nothing measured; `reason` says why.
     Failed,
+    /// The sphere was tracked but never reached the surface (a calibration
+    /// drop, a clip cut before the impact): its track, overlay and free
+    /// flight (`v_last_m_s`, `g_fit_m_s2`, the scale) are kept, no impact;
+    /// `reason` says why, with any flags' sentences. Not in the collapse.
+    Tracked,
     /// Left out by a person in `dropscope review` (`review.csv`): measured
     /// as any other, its reason first, and left out of the collapse.
     Rejected,
@@ -32,15 +37,26 @@ impl DropStatus {
             DropStatus::Ok => "ok",
             DropStatus::Warning => "warning",
             DropStatus::Failed => "failed",
+            DropStatus::Tracked => "tracked",
             DropStatus::Rejected => "rejected",
             DropStatus::Accepted => "accepted",
         }
     }
 
+    /// Whether the run's impact was measured (`ok`, `warning`, and the
+    /// review's `accepted` and `rejected`, measured as any other): the rows
+    /// with values, tracks and per-drop figures.
+    pub fn measured(self) -> bool {
+        matches!(
+            self,
+            DropStatus::Ok | DropStatus::Warning | DropStatus::Accepted | DropStatus::Rejected
+        )
+    }
+
     /// Whether the drop's numbers enter the collapse: measured, and not
     /// rejected.
     pub fn collapses(self) -> bool {
-        !matches!(self, DropStatus::Failed | DropStatus::Rejected)
+        self.measured() && self != DropStatus::Rejected
     }
 }
 
@@ -48,7 +64,9 @@ impl DropStatus {
 /// columns. Measured fields are `None` (an empty CSV cell) when the run failed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DropRecord {
-    /// Run name (the manifest's `run` column, or the folder / file stem).
+    /// Run name (the manifest's `run` column, or the folder / file stem);
+    /// in the file as a text cell ([`crate::text::csv_cell`]).
+    #[serde(serialize_with = "text_out", deserialize_with = "text_in")]
     pub run: String,
     pub sphere_radius_mm: f64,
     #[serde(default = "default_density")]
@@ -64,6 +82,17 @@ pub struct DropRecord {
     /// resolved it.
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub path: String,
+    /// The frame rate the run was measured at (frames/s): the recording's
+    /// own, else the fallback `fps_source` names.
+    #[serde(default)]
+    pub fps: Option<f64>,
+    /// Where `fps` came from: `xml` (the PCC XML side file), `cine` (the
+    /// cine header), or another reader's format: the recording's own; else
+    /// `manifest`, `flag` (`--fps`), `config` (`camera.fps`) or `default`
+    /// ([`crate::config::DEFAULT_FPS`], nothing gave one). The last two are
+    /// flagged `fps_assumed`.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub fps_source: String,
     pub v_impact_m_s: Option<f64>,
     #[serde(default)]
     pub v_impact_m_s_err: Option<f64>,
@@ -121,22 +150,30 @@ pub struct DropRecord {
     /// `surface_row_px_err` and every error that depends on the line).
     #[serde(default)]
     pub surface_model_err_px: Option<f64>,
-    /// Where `surface_row_px` came from: `image` (the band's top edge),
-    /// `contact_law` (the trajectory fitted with F = K·δ² put it where the
-    /// image line is inconsistent with it) or `image+contact_law` (the two
-    /// agree and are averaged). See `measure::surface_from_law`.
+    /// Where `surface_row_px` came from: `image` (the band's top edge in
+    /// the frames before the impact) or `config` (`detect.surface_row_px`).
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub surface_source: String,
-    /// Offset (px, positive down) of the surface the contact law finds from
-    /// the image's line, whether used or not: a check on the image line.
+    /// Offset (px, positive down) from the image's line of the surface the
+    /// trajectory puts under the sphere when fitted with the contact law
+    /// and the surface free: a cross-check of the line, never used in its
+    /// place (`surface_law_disagreement` when beyond 3σ).
     #[serde(default)]
     pub surface_law_offset_px: Option<f64>,
     #[serde(default)]
     pub surface_law_offset_px_err: Option<f64>,
-    /// The lens's radial distortion k1 (1/px²) undone on the track, when
-    /// the configuration gives one (`camera.distortion_k1_per_px2`).
+    /// The lens's radial distortion k1 (1/px²) undone on the track: the
+    /// configuration's (`camera.distortion_k1_per_px2`) or the one the
+    /// surface line's bow measures; its error (measured only).
     #[serde(default)]
     pub distortion_k1_per_px2: Option<f64>,
+    #[serde(default)]
+    pub distortion_k1_per_px2_err: Option<f64>,
+    /// Where the lens came from: `config` (a calibration), `surface_bow`
+    /// (measured in the images; its error a systematic term), `bound` (not
+    /// measured: `camera.distortion_bound_px` a systematic term) or `none`.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub distortion_source: String,
     /// Without a calibrated k1: how far the distortion bound
     /// (`camera.distortion_bound_px` at the image corner) moves the scale,
     /// v_impact, δmax and τc; each enters its `_err` as a systematic term
@@ -161,6 +198,15 @@ pub struct DropRecord {
     pub g_fit_m_s2: Option<f64>,
     #[serde(default)]
     pub g_fit_m_s2_err: Option<f64>,
+    /// Status `tracked` only: the vertical velocity (positive downward) at
+    /// the last tracked frame, from its free flight ([`crate::flight`]).
+    #[serde(default)]
+    pub v_last_m_s: Option<f64>,
+    #[serde(default)]
+    pub v_last_m_s_err: Option<f64>,
+    /// Status `tracked` only: the time of that last tracked frame.
+    #[serde(default)]
+    pub t_last_s: Option<f64>,
     /// Contact law F = K·δⁿ fitted to the trajectory: K in SI units (N/mⁿ, δ in m).
     #[serde(default)]
     pub force_k_si: Option<f64>,
@@ -176,11 +222,30 @@ pub struct DropRecord {
     pub force_k2_n_m2: Option<f64>,
     #[serde(default)]
     pub force_k2_n_m2_err: Option<f64>,
-    /// Linear damping c of F = K·δⁿ + c·δ̇.
+    /// The contact model of the law's best fit: `linear` (F = K·δⁿ + c·δ̇),
+    /// `hunt_crossley` (F = K·δⁿ·(1 + α·δ̇)), each with `_no_pull` where the
+    /// force cannot pull (F ≥ 0). See `force::ContactModel`.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub force_model: String,
+    /// Linear damping c of F = K·δⁿ + c·δ̇ (when `force_model` is linear).
     #[serde(default)]
     pub damping_n_s_m: Option<f64>,
     #[serde(default)]
     pub damping_n_s_m_err: Option<f64>,
+    /// Hunt–Crossley damping α of F = K·δⁿ·(1 + α·δ̇) (when `force_model`
+    /// is hunt_crossley).
+    #[serde(default)]
+    pub hunt_crossley_alpha_s_m: Option<f64>,
+    #[serde(default)]
+    pub hunt_crossley_alpha_s_m_err: Option<f64>,
+    /// How the recording's stored samples became the grey picture measured,
+    /// space-separated words ([`crate::source::SourceMeta::reading`]):
+    /// `bayer_<pattern>_luminance` or `rgb_luminance` (colour read as grey),
+    /// `flip_v`, `flip_h` (recorded viewer flips applied),
+    /// `flips_not_applied`, `p10_linear` or `p10_codes`; empty (written `-`)
+    /// when the frames were measured as stored.
+    #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
+    pub reading: String,
     pub status: DropStatus,
     /// Quality flags, space-separated words ([`crate::quality::FLAGS`]);
     /// empty (written `-`) when nothing weakens the measurement. Any flag makes the
@@ -213,6 +278,8 @@ impl DropRecord {
             surface: String::new(),
             drop_height_cm: None,
             path: String::new(),
+            fps: None,
+            fps_source: String::new(),
             v_impact_m_s: None,
             v_impact_m_s_err: None,
             v_rebound_m_s: None,
@@ -246,6 +313,8 @@ impl DropRecord {
             surface_law_offset_px: None,
             surface_law_offset_px_err: None,
             distortion_k1_per_px2: None,
+            distortion_k1_per_px2_err: None,
+            distortion_source: String::new(),
             distortion_mm_per_px: None,
             distortion_v_impact_m_s: None,
             distortion_delta_max_mm: None,
@@ -254,19 +323,58 @@ impl DropRecord {
             second_contact_s: None,
             g_fit_m_s2: None,
             g_fit_m_s2_err: None,
+            v_last_m_s: None,
+            v_last_m_s_err: None,
+            t_last_s: None,
             force_k_si: None,
             force_k_si_err: None,
             force_exponent: None,
             force_exponent_err: None,
             force_k2_n_m2: None,
             force_k2_n_m2_err: None,
+            force_model: String::new(),
             damping_n_s_m: None,
             damping_n_s_m_err: None,
+            hunt_crossley_alpha_s_m: None,
+            hunt_crossley_alpha_s_m_err: None,
+            reading: String::new(),
             status: DropStatus::Failed,
             flags: String::new(),
             reason: reason.into(),
             review: String::new(),
         }
+    }
+}
+
+impl DropRecord {
+    /// The numeric columns whose value is not finite (`inf`, `NaN`): none
+    /// in a measured row ([`crate::process::process_setup`] fails the run).
+    pub fn non_finite_columns(&self) -> Vec<String> {
+        const TEXT: [&str; 9] = [
+            "run",
+            "surface",
+            "path",
+            "setup",
+            "scale_source",
+            "surface_source",
+            "status",
+            "flags",
+            "reason",
+        ];
+        let bytes = csv_bytes([self]);
+        let mut r = csv::Reader::from_reader(bytes.as_slice());
+        let Ok(header) = r.headers().cloned() else {
+            return Vec::new();
+        };
+        let Some(Ok(row)) = r.records().next() else {
+            return Vec::new();
+        };
+        header
+            .iter()
+            .zip(row.iter())
+            .filter(|(h, v)| !TEXT.contains(h) && v.parse::<f64>().is_ok_and(|x| !x.is_finite()))
+            .map(|(h, _)| h.to_string())
+            .collect()
     }
 }
 
@@ -296,6 +404,17 @@ pub struct TrackRow {
     /// One-sigma uncertainty of `z_px` from the fit's covariance.
     #[serde(default)]
     pub sigma_z_px: Option<f64>,
+    /// One-sigma uncertainty of `x_px` from the same fit.
+    #[serde(default)]
+    pub sigma_x_px: Option<f64>,
+    /// The frame's own circle with its radius free (the silhouette's
+    /// apparent radius, pass 1), where fitted; `r_px` is the radius held
+    /// for the run.
+    #[serde(default)]
+    pub r_free_px: Option<f64>,
+    /// One-sigma uncertainty of `r_free_px` from its fit's covariance.
+    #[serde(default)]
+    pub sigma_r_free_px: Option<f64>,
     /// Contact force F = m (g − z̈) from the smoothed trajectory, in contact only.
     #[serde(default)]
     pub force_n: Option<f64>,
@@ -306,14 +425,28 @@ pub struct TrackRow {
 }
 
 /// What a text column holds for none: in a track's `flags` a frame without
-/// flags; in drops.csv's `surface`, `path`, `setup`, `scale_source`,
-/// `surface_source`, `flags` and `reason` a row without one. A word, never
+/// flags; in drops.csv's `surface`, `path`, `fps_source`, `setup`, `scale_source`,
+/// `surface_source`, `distortion_source`, `force_model`, `flags` and
+/// `reason` a row without one. A word, never
 /// an empty field, so that a reader takes the column as text in every file
 /// (pandas read an all-empty column as float64, issue 17).
 pub const NO_TEXT: &str = "-";
 
+/// A text cell: no control or format character, and nothing a spreadsheet
+/// runs as a formula ([`crate::text::csv_cell`]).
+fn text_out<S: serde::Serializer>(text: &str, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(&crate::text::csv_cell(text))
+}
+
+/// A text cell back ([`crate::text::csv_cell_back`]).
+fn text_in<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
+    let text = String::deserialize(d)?;
+    Ok(crate::text::csv_cell_back(&text).to_string())
+}
+
+/// A text cell that may hold none ([`NO_TEXT`]).
 fn dash_out<S: serde::Serializer>(text: &str, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_str(if text.is_empty() { NO_TEXT } else { text })
+    text_out(if text.is_empty() { NO_TEXT } else { text }, s)
 }
 
 /// [`NO_TEXT`] (or an empty field, as written before) reads as none.
@@ -322,7 +455,7 @@ fn dash_in<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
     Ok(if text.trim() == NO_TEXT {
         String::new()
     } else {
-        text
+        crate::text::csv_cell_back(&text).to_string()
     })
 }
 
@@ -385,10 +518,12 @@ pub fn write_csv(path: &Path, records: &[DropRecord]) -> Result<(), DatasetError
 pub fn read_csv(path: &Path) -> Result<Vec<DropRecord>, DatasetError> {
     // Opened here, not by csv, so that a missing file is an I/O error on
     // the path rather than a CSV error in "row 0".
-    let bytes = std::fs::read(path).map_err(|source| DatasetError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::io_util::read_input(path, crate::io_util::TEXT_INPUT_MAX_BYTES).map_err(
+        |source| DatasetError::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+    )?;
     let mut rdr = csv::Reader::from_reader(bytes.as_slice());
     let mut out = Vec::new();
     for (i, rec) in rdr.deserialize().enumerate() {
@@ -451,9 +586,12 @@ mod tests {
         let text = [
             "surface",
             "path",
+            "fps_source",
             "setup",
             "scale_source",
             "surface_source",
+            "distortion_source",
+            "force_model",
             "flags",
             "reason",
         ];
@@ -495,6 +633,19 @@ mod tests {
         assert_eq!(r[0].tau_c_ms, Some(4.1));
         assert_eq!(r[0].t_contact_s, None);
         assert_eq!(r[0].sphere_density_kg_m3, 7800.0);
+    }
+
+    #[test]
+    fn non_finite_numbers_are_found_by_column_and_text_is_not() {
+        let mut r = DropRecord::failed("inf", 4.5, "NaN");
+        r.status = DropStatus::Ok;
+        r.v_impact_m_s = Some(1.0);
+        r.force_k_si = Some(f64::INFINITY);
+        r.restitution = Some(f64::NAN);
+        assert_eq!(r.non_finite_columns(), ["restitution", "force_k_si"]);
+        r.force_k_si = Some(1.0);
+        r.restitution = None;
+        assert!(r.non_finite_columns().is_empty());
     }
 
     #[test]

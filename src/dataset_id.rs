@@ -20,7 +20,10 @@ pub fn of_bytes(bytes: &[u8]) -> String {
 
 /// The id of the drops.csv at `path`.
 pub fn of_file(path: &Path) -> std::io::Result<String> {
-    Ok(of_bytes(&std::fs::read(path)?))
+    Ok(of_bytes(&crate::io_util::read_input(
+        path,
+        crate::io_util::TEXT_INPUT_MAX_BYTES,
+    )?))
 }
 
 const DESC_PREFIX: &str = "<desc>dropscope dataset_id ";

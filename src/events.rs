@@ -94,7 +94,7 @@ pub struct EventConfig {
     pub exposure_s: f64,
     /// The contact-law fit's work limit, in trajectories' worth of steps
     /// (default [`crate::force::FORCE_FIT_MAX_TRAJECTORIES`]; a clean drop
-    /// needs 113–259). The fit stops beyond it with a reason.
+    /// needs about 400). The fit stops beyond it with a reason.
     pub force_fit_max_trajectories: usize,
 }
 

@@ -80,6 +80,22 @@ pub fn read_bounded(path: &Path, limit: u64) -> io::Result<Option<Vec<u8>>> {
     Ok((bytes.len() as u64 <= limit).then_some(bytes))
 }
 
+/// Largest text input read whole (a manifest, a drops.csv): a million
+/// drops' rows fit.
+pub const TEXT_INPUT_MAX_BYTES: u64 = 1 << 30;
+
+/// The bytes of the text input `path` (a configuration, a manifest, a
+/// drops.csv): refused, without blocking or reading on, when it is not a
+/// regular file (a named pipe, `/dev/zero`) or holds more than `limit` bytes.
+pub fn read_input(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
+    read_bounded(path, limit)?.ok_or_else(|| {
+        io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("holds more than {limit} bytes: too large for this kind of file"),
+        )
+    })
+}
+
 /// This machine's host name (`gethostname`), or `"localhost"` when it has none.
 pub fn this_host() -> &'static str {
     static HOST: std::sync::OnceLock<String> = std::sync::OnceLock::new();
@@ -153,7 +169,7 @@ pub fn write_atomic_as(
     write: impl FnOnce(&mut fs::File) -> io::Result<()>,
 ) -> io::Result<()> {
     let tmp = temporary_path(path)?;
-    let written = fs::File::create(&tmp).and_then(|mut f| {
+    let written = create_temporary(&tmp).and_then(|mut f| {
         write(&mut f)?;
         match durable {
             Durable::Now => f.sync_all(),
@@ -165,6 +181,29 @@ pub fn write_atomic_as(
         .inspect_err(|_| {
             let _ = fs::remove_file(&tmp);
         })
+}
+
+/// Create the temporary `tmp` afresh: never through a link planted in its
+/// name (`O_EXCL`, `O_NOFOLLOW`), after removing one that a killed writer
+/// with this pid left (a link there is removed, not followed).
+fn create_temporary(tmp: &Path) -> io::Result<fs::File> {
+    let open = || {
+        let mut o = fs::OpenOptions::new();
+        o.write(true).create_new(true);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::OpenOptionsExt;
+            o.custom_flags(libc::O_NOFOLLOW);
+        }
+        o.open(tmp)
+    };
+    match open() {
+        Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {
+            remove_if_present(tmp)?;
+            open()
+        }
+        r => r,
+    }
 }
 
 /// Bytes made in order to be written out later ([`Spool::copy_to`]): held

@@ -24,6 +24,7 @@ use std::path::Path;
 use serde::Deserialize;
 
 use crate::cache::{self, Entry, OutputFile};
+use crate::out_folder::Ledger;
 
 /// The part of an earlier `provenance.json` read here.
 #[derive(Deserialize)]
@@ -69,14 +70,14 @@ impl Removed {
 /// provenance replaces the previous one. No previous provenance, or one that
 /// cannot be read, removes nothing.
 pub fn remove(out: &Path, current: &[Entry]) -> std::io::Result<Removed> {
-    let path = out.join("provenance.json");
-    let previous: Previous = match crate::io_util::read_bounded(&path, PROVENANCE_MAX_BYTES) {
-        Ok(Some(bytes)) => match serde_json::from_slice(&bytes) {
-            Ok(p) => p,
-            Err(_) => return Ok(Removed::default()),
-        },
-        _ => return Ok(Removed::default()),
-    };
+    let previous: Previous =
+        match crate::out_folder::read(out, "provenance.json", PROVENANCE_MAX_BYTES) {
+            Ok(Some(bytes)) => match serde_json::from_slice(&bytes) {
+                Ok(p) => p,
+                Err(_) => return Ok(Removed::default()),
+            },
+            _ => return Ok(Removed::default()),
+        };
     let runs_now: BTreeSet<&str> = current.iter().map(|e| e.record.run.as_str()).collect();
     let written: BTreeSet<&str> = current
         .iter()
@@ -88,43 +89,41 @@ pub fn remove(out: &Path, current: &[Entry]) -> std::io::Result<Removed> {
         let entry = cache::entry_path(out, &p.run).ok();
         let listed = match &p.outputs {
             Some(files) => files.clone(),
-            None if gone => entry
-                .as_deref()
-                .and_then(|e| std::fs::read(e).ok())
-                .and_then(|b| serde_json::from_slice::<Entry>(&b).ok())
-                .filter(|e| e.record.run == p.run)
-                .map(|e| e.outputs)
-                .unwrap_or_default(),
+            None if gone => cache::listed_outputs(out, &p.run),
             None => Vec::new(),
         };
         for f in listed.iter().filter(|f| !written.contains(f.path.as_str())) {
-            if f.is_intact(out) {
-                let file = crate::io_util::inside(out, &f.path)?;
-                crate::io_util::remove_if_present(&file)?;
+            // Only a plain path inside `out`, reached through no link,
+            // holding the bytes listed.
+            if crate::out_folder::remove_if_holds(out, &f.path, &f.sha256).unwrap_or(false) {
                 removed.files += 1;
             }
         }
         if gone {
             removed.runs += 1;
-            if let Some(e) = entry {
-                crate::io_util::remove_if_present(&e)?;
+            if entry.is_some() {
+                let rel = format!("runs/{}.json", p.run);
+                if let Ok(hash) = crate::out_folder::sha256(out, &rel) {
+                    crate::out_folder::remove_if_holds(out, &rel, &hash)?;
+                }
             }
         }
     }
     Ok(removed)
 }
 
-/// Remove the collapse files and report in `out` computed from another
-/// drops.csv than the dataset `id` ([`crate::dataset_id`]): `fits.json`,
-/// `collapse.csv`, the collapse figures' SVGs and `report.html` that carry
-/// another id, and the PNG twin of each figure removed (a PNG carries no
-/// id; one without its SVG goes when anything else went). A file that
-/// carries no id is not dropscope's and stays. Returns the paths removed,
-/// relative to `out`.
-pub fn remove_other_dataset(out: &Path, id: &str) -> std::io::Result<Vec<String>> {
-    let text = |rel: &str| String::from_utf8(std::fs::read(out.join(rel)).ok()?).ok();
-    let id_in = |rel: &str| -> Option<String> {
-        let t = text(rel)?;
+/// Remove the collapse files and report in the ledger's folder computed
+/// from another drops.csv than the dataset `id` ([`crate::dataset_id`]):
+/// `fits.json`, `collapse.csv`, the collapse figures' SVGs and
+/// `report.html` that dropscope wrote (the ledger lists them, unchanged)
+/// and that carry another id, and the PNG twin of each figure removed (a
+/// PNG carries no id; one without its SVG goes when anything else went). A
+/// file the ledger does not list is not dropscope's and stays. Returns the
+/// paths removed, relative to the folder.
+pub fn remove_other_dataset(ledger: &mut Ledger, id: &str) -> std::io::Result<Vec<String>> {
+    const MAX: u64 = 1 << 30;
+    let id_in = |ledger: &Ledger, rel: &str| -> Option<String> {
+        let t = String::from_utf8(ledger.read_owned(rel, MAX)?).ok()?;
         if rel == "fits.json" {
             let doc: serde_json::Value = serde_json::from_str(&t).ok()?;
             return Some(doc["provenance"]["dataset_id"].as_str()?.to_string());
@@ -149,16 +148,14 @@ pub fn remove_other_dataset(out: &Path, id: &str) -> std::io::Result<Vec<String>
         .chain(["report.html".to_string()]);
     let mut removed = Vec::new();
     for rel in tagged {
-        if id_in(&rel).is_some_and(|found| found != id) {
-            crate::io_util::remove_if_present(&out.join(&rel))?;
+        if id_in(ledger, &rel).is_some_and(|found| found != id) && ledger.remove(&rel)? {
             removed.push(rel);
         }
     }
     for stem in stems {
         let (svg, png) = (format!("plots/{stem}.svg"), format!("plots/{stem}.png"));
-        let orphan = !out.join(&svg).exists() && !removed.is_empty();
-        if (removed.contains(&svg) || orphan) && out.join(&png).is_file() {
-            crate::io_util::remove_if_present(&out.join(&png))?;
+        let orphan = !ledger.owns(&svg) && !removed.is_empty();
+        if (removed.contains(&svg) || orphan) && ledger.remove(&png)? {
             removed.push(png);
         }
     }
@@ -219,7 +216,7 @@ mod tests {
     fn only_files_of_another_dataset_are_removed() {
         let (_dir, out) = out_with_tracks(&[]);
         let tag = |id: &str| crate::dataset_id::tag_svg(b"<svg><g/></svg>".to_vec(), id);
-        std::fs::create_dir_all(out.join("plots")).unwrap();
+        let mut ledger = Ledger::open(&out);
         for (rel, bytes) in [
             (
                 "fits.json",
@@ -230,11 +227,18 @@ mod tests {
             ("plots/tau_vs_v.png", b"png".to_vec()),
             ("plots/pi_vs_eta.svg", tag("new")),
             ("plots/pi_vs_eta.png", b"png".to_vec()),
-            ("report.html", b"<p>my own page</p>".to_vec()),
+            ("report.html", b"<p>old page</p>".to_vec()),
         ] {
-            std::fs::write(out.join(rel), bytes).unwrap();
+            ledger
+                .write_as(rel, &bytes, crate::io_util::Durable::Now)
+                .unwrap();
         }
-        let removed = remove_other_dataset(&out, "new").unwrap();
+        ledger.save().unwrap();
+        // Files of yours, carrying another id or none: not dropscope's.
+        std::fs::write(out.join("plots/mine.svg"), tag("old")).unwrap();
+        std::fs::write(out.join("report.html"), b"<p>my own page</p>").unwrap();
+        let mut ledger = Ledger::open(&out);
+        let removed = remove_other_dataset(&mut ledger, "new").unwrap();
         assert_eq!(
             removed,
             [
@@ -244,9 +248,14 @@ mod tests {
                 "plots/tau_vs_v.png"
             ]
         );
-        for kept in ["plots/pi_vs_eta.svg", "plots/pi_vs_eta.png", "report.html"] {
+        for kept in [
+            "plots/pi_vs_eta.svg",
+            "plots/pi_vs_eta.png",
+            "report.html",
+            "plots/mine.svg",
+        ] {
             assert!(out.join(kept).is_file(), "{kept}");
         }
-        assert!(remove_other_dataset(&out, "new").unwrap().is_empty());
+        assert!(remove_other_dataset(&mut ledger, "new").unwrap().is_empty());
     }
 }

@@ -5,6 +5,7 @@
 //! | module | stage |
 //! | --- | --- |
 //! | [`config`] | `pipeline.toml` → validated [`config::PipelineConfig`] in SI units |
+//! | [`ranges`] | the physical range of every number where it enters |
 //! | [`cli_values`] | command-line flag values checked as they are parsed (`--fps`, `--radius-mm`, …) |
 //! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
@@ -16,6 +17,7 @@
 //! | [`scale`] | mm/px: given, from free fall (pooled per camera set-up), or from the radius |
 //! | [`lens`] | radial lens distortion: a known k1 undone on the track, or its bound as a systematic |
 //! | [`force`] | F(δ) table and the trajectory-fitted contact law |
+//! | [`flight`] | a run without a contact: its free flight (v at the last frame, g) |
 //! | [`measure`] | one drop from track to record |
 //! | [`quality`] | the quality flags of a measured drop (`flags` in drops.csv) |
 //! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
@@ -37,6 +39,8 @@
 //! | [`plot`] | SVG + PNG figures (collapse plots, per-drop diagnostics), embedded font |
 //! | [`run_name`] | run names that are file names, never paths |
 //! | [`lsq`], [`io_util`] | weighted least squares; atomic writes, paths kept inside the output folder |
+//! | [`text`], [`console`] | one sanitiser for text bound for a terminal or a CSV cell; printing that never panics |
+//! | [`out_folder`] | every write, read-back and removal inside the output folder: no link followed, only dropscope's own files removed |
 //!
 //! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
 //! column `x` grows to the right and row `z` grows downward. Quantities carry
@@ -49,10 +53,12 @@ pub mod cli_values;
 pub mod collapse;
 pub mod config;
 pub mod config_toml;
+pub mod console;
 pub mod dataset;
 pub mod dataset_id;
 pub mod detect;
 pub mod events;
+pub mod flight;
 pub mod force;
 pub mod io_util;
 pub mod kinematics;
@@ -62,12 +68,14 @@ pub mod lock;
 pub mod lsq;
 pub mod manifest;
 pub mod measure;
+pub mod out_folder;
 pub mod pictures;
 pub mod plot;
 pub mod process;
 pub mod process_job;
 pub mod progress;
 pub mod quality;
+pub mod ranges;
 pub mod records;
 pub mod render;
 pub mod report;
@@ -81,6 +89,7 @@ pub mod slurm;
 pub mod source;
 #[cfg(test)]
 mod test_support;
+pub mod text;
 pub mod timings;
 pub mod track;
 

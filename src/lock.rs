@@ -139,6 +139,8 @@ pub enum LockError {
 pub struct FolderLock {
     ticket: PathBuf,
     dir: PathBuf,
+    /// Its place among the tickets a signal releases.
+    slot: Option<usize>,
 }
 
 impl FolderLock {
@@ -150,9 +152,90 @@ impl FolderLock {
 
 impl Drop for FolderLock {
     fn drop(&mut self) {
+        on_signal::forget(self.slot);
         let _ = std::fs::remove_file(&self.ticket);
         // Fails while other holders' tickets are in it, as it should.
         let _ = std::fs::remove_dir(&self.dir);
+    }
+}
+
+/// SIGTERM (Slurm's cancel and time limit, `kill`) and SIGINT (Ctrl-C)
+/// release the folders this process holds before it ends: a handler
+/// removes their tickets and the lock folder if empty (`unlink`, `rmdir`:
+/// safe in a signal handler), then ends the process by the same signal.
+/// Every file the job wrote is whole (written atomically) and each run
+/// committed or not; the next job takes the folder at once, on any host.
+mod on_signal {
+    use std::ffi::CString;
+    use std::path::Path;
+    use std::sync::atomic::{AtomicPtr, Ordering};
+    use std::sync::Once;
+
+    const SLOTS: usize = 16;
+    static TICKETS: [AtomicPtr<libc::c_char>; SLOTS] =
+        [const { AtomicPtr::new(std::ptr::null_mut()) }; SLOTS];
+    static DIRS: [AtomicPtr<libc::c_char>; SLOTS] =
+        [const { AtomicPtr::new(std::ptr::null_mut()) }; SLOTS];
+    static INSTALL: Once = Once::new();
+
+    extern "C" fn release(signal: libc::c_int) {
+        for (t, d) in TICKETS.iter().zip(&DIRS) {
+            let (t, d) = (t.load(Ordering::SeqCst), d.load(Ordering::SeqCst));
+            // SAFETY: each pointer is null or a NUL-terminated path that is
+            // never freed; unlink, rmdir, signal and raise are
+            // async-signal-safe.
+            unsafe {
+                if !t.is_null() {
+                    libc::unlink(t);
+                }
+                if !d.is_null() {
+                    libc::rmdir(d);
+                }
+            }
+        }
+        // SAFETY: as above.
+        unsafe {
+            libc::signal(signal, libc::SIG_DFL);
+            libc::raise(signal);
+        }
+    }
+
+    fn leak(p: &Path) -> *mut libc::c_char {
+        use std::os::unix::ffi::OsStrExt;
+        CString::new(p.as_os_str().as_bytes()).map_or(std::ptr::null_mut(), CString::into_raw)
+    }
+
+    /// Remember `ticket` (in `dir`) for the handler, installing it once.
+    /// Returns its slot (`None`: all taken; the ticket is then left to the
+    /// next job's stale-ticket check).
+    pub fn remember(ticket: &Path, dir: &Path) -> Option<usize> {
+        INSTALL.call_once(|| {
+            for s in [libc::SIGTERM, libc::SIGINT] {
+                // SAFETY: installs a handler that only calls async-signal-safe functions.
+                unsafe {
+                    libc::signal(
+                        s,
+                        release as extern "C" fn(libc::c_int) as libc::sighandler_t,
+                    );
+                }
+            }
+        });
+        let slot = TICKETS
+            .iter()
+            .position(|t| t.load(Ordering::SeqCst).is_null())?;
+        // The paths are leaked, never freed: the handler may read them at
+        // any moment (a few bytes a lock taken).
+        DIRS[slot].store(leak(dir), Ordering::SeqCst);
+        TICKETS[slot].store(leak(ticket), Ordering::SeqCst);
+        Some(slot)
+    }
+
+    /// The ticket of `slot` is released: the handler no longer removes it.
+    pub fn forget(slot: Option<usize>) {
+        if let Some(s) = slot {
+            TICKETS[s].store(std::ptr::null_mut(), Ordering::SeqCst);
+            DIRS[s].store(std::ptr::null_mut(), Ordering::SeqCst);
+        }
     }
 }
 
@@ -260,8 +343,23 @@ fn blocker(
         if n == mine {
             continue;
         }
-        let Some(holder) = read_ticket(&path).map_err(io(&path))? else {
-            continue;
+        let holder = match read_ticket(&path) {
+            Ok(Some(h)) => h,
+            Ok(None) => continue,
+            // Tickets are written whole before they are linked in: an
+            // empty or damaged one is what a power cut or a full disk
+            // left, and names no process to wait for.
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
+                io_util::remove_if_present(&path).map_err(io(&path))?;
+                notify(&format!(
+                    "{}: took over the lock: its ticket {} was empty or damaged, as a power \
+                     cut or a full disk leaves it (removed)",
+                    out.display(),
+                    path.display()
+                ));
+                continue;
+            }
+            Err(e) => return Err(io(&path)(e)),
         };
         if holder.is_gone() {
             io_util::remove_if_present(&path).map_err(io(&path))?;
@@ -319,6 +417,16 @@ pub fn acquire_in(
         // sweep lists it (NotFound). Both mean: again. Only something that
         // is not a folder in its place is an error.
         let not_a_folder = || std::fs::symlink_metadata(&dir).is_ok_and(|m| !m.is_dir());
+        // A link planted in its place would take the tickets elsewhere.
+        if std::fs::symlink_metadata(&dir).is_ok_and(|m| m.file_type().is_symlink()) {
+            return Err(LockError::Io {
+                path: dir.clone(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    "is a symbolic link, not the lock folder dropscope makes; remove it",
+                ),
+            });
+        }
         match std::fs::create_dir_all(&dir) {
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && !not_a_folder() => continue,
             r => r.map_err(io(&dir))?,
@@ -353,7 +461,8 @@ pub fn acquire_in(
             let _ = std::fs::remove_file(&ticket);
         })?;
         let Some((holder, path)) = found else {
-            return Ok(FolderLock { ticket, dir });
+            let slot = on_signal::remember(&ticket, &dir);
+            return Ok(FolderLock { ticket, dir, slot });
         };
         io_util::remove_if_present(&ticket).map_err(io(&ticket))?;
         if !wait {
@@ -381,6 +490,31 @@ pub fn acquire_in(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An empty ticket (a power cut between its creation and its data
+    /// reaching the disk) names no process: taken over with a message.
+    #[test]
+    fn an_empty_or_damaged_ticket_is_taken_over_saying_so() {
+        for bytes in [&b""[..], b"{\"job\": \"x\""] {
+            let dir = tempfile::tempdir().unwrap();
+            let lock = dir.path().join(LOCK_DIR);
+            std::fs::create_dir(&lock).unwrap();
+            std::fs::write(lock.join("0000000001.json"), bytes).unwrap();
+            let said = std::sync::Mutex::new(Vec::new());
+            let held = acquire(dir.path(), &holder("aaa", None), false, &|m| {
+                said.lock().unwrap().push(m.to_string())
+            })
+            .unwrap();
+            let said = said.into_inner().unwrap().join("\n");
+            assert!(
+                said.contains("0000000001.json") && said.contains("empty or damaged"),
+                "{said}"
+            );
+            assert!(!lock.join("0000000001.json").exists());
+            drop(held);
+            assert!(!lock.exists());
+        }
+    }
 
     #[test]
     fn job_ids_are_shortened_on_character_boundaries() {

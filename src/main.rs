@@ -68,6 +68,13 @@ enum Command {
         wait: bool,
     },
     /// Measure drops: per-drop dataset (drops.csv), tracks and overlays.
+    ///
+    /// Each row's status: ok; warning (measured, with flags); tracked (the
+    /// sphere was followed but never reached the surface: its track,
+    /// overlay and free flight, v_last_m_s and g_fit_m_s2, no impact);
+    /// failed. Each row's fps_source says where its frame rate came from
+    /// (xml, cine, manifest, flag, config, default). Exit status 0 when no
+    /// run failed, 1 when some did, 2 when the command could not run.
     Process {
         #[command(flatten)]
         args: dropscope::process::ProcessArgs,
@@ -141,7 +148,7 @@ fn hold_folder(
     let me =
         dropscope::lock::Holder::this_process(&dropscope::cache::job_id(kind, cfg, runs), None);
     Ok(dropscope::lock::acquire(out, &me, wait, &|m| {
-        eprintln!("{m}")
+        dropscope::errln!("{m}")
     })?)
 }
 
@@ -149,10 +156,11 @@ fn hold_folder(
 fn job_counts(job: &dropscope::batch::JobSummary) -> String {
     use dropscope::dataset::DropStatus;
     format!(
-        "{}: {} measured, {} with warnings, {} failed{}, {} reused from the cache; {}",
+        "{}: {} measured, {} with warnings, {}{} failed{}, {} reused from the cache; {}",
         dropscope::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
+        tracked_count(job.count(DropStatus::Tracked)),
         job.failed(),
         reviewed(
             job.count(DropStatus::Accepted),
@@ -163,7 +171,7 @@ fn job_counts(job: &dropscope::batch::JobSummary) -> String {
     )
 }
 
-/// ", A accepted, R rejected in review" when a review decided any, else nothing.
+/// ", A accepted and R rejected in review" when a review decided any, else nothing.
 fn reviewed(accepted: usize, rejected: usize) -> String {
     if accepted + rejected == 0 {
         return String::new();
@@ -171,10 +179,23 @@ fn reviewed(accepted: usize, rejected: usize) -> String {
     format!(", {accepted} accepted and {rejected} rejected in review")
 }
 
+/// "N tracked without contact (…), " when some runs are, else nothing.
+fn tracked_count(n: usize) -> String {
+    if n == 0 {
+        return String::new();
+    }
+    format!(
+        "{n} tracked without contact (no impact: their tracks, overlays and free flights, \
+         status `tracked`), "
+    )
+}
+
 /// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
 fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
+    dropscope::batch::check_threads(args.threads.map(usize::from))?;
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
+    cfg.command_line = args.recording.values();
     if args.config.is_none() && name == dropscope::config::EMBEDDED_NAME {
         if let Some(m) = cfg.input.manifest.as_ref().filter(|m| !m.exists()) {
             anyhow::bail!(
@@ -219,22 +240,28 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         )
     });
     if let Some(shard) = job.shard {
-        eprintln!(
+        dropscope::errln!(
             "shard {shard}: {}; committed to {}. Once every shard is done, `dropscope run` on \
              that folder assembles drops.csv, the collapse and the report",
             job_counts(&job),
             out.display()
         );
-        timings.iter().for_each(|t| eprintln!("{t}"));
+        timings.iter().for_each(|t| dropscope::errln!("{t}"));
         // Failed runs are committed rows too: the shard did its work, and
         // the finishing run (started by Slurm only after every task
         // succeeded) reports them with exit status 1.
         return Ok(ExitCode::SUCCESS);
     }
-    for w in &job.collapse_warnings {
-        eprintln!("warning: {w}");
+    for w in dropscope::progress::closing_warnings(&job.records)
+        .iter()
+        .chain(&job.collapse_warnings)
+    {
+        dropscope::errln!("warning: {w}");
     }
-    eprintln!(
+    if let Some(note) = &job.collapse_note {
+        dropscope::errln!("note: {note}");
+    }
+    dropscope::errln!(
         "{}; collapse {}; {:.2} s in all; results in {} (open report.html there)",
         job_counts(&job),
         if job.collapsed {
@@ -245,7 +272,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         start.elapsed().as_secs_f64(),
         out.display()
     );
-    timings.iter().for_each(|t| eprintln!("{t}"));
+    timings.iter().for_each(|t| dropscope::errln!("{t}"));
     Ok(if job.failed() > 0 {
         ExitCode::from(1)
     } else {
@@ -260,8 +287,12 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     if args.timings {
         dropscope::timings::enable();
     }
+    dropscope::batch::check_threads(args.threads.map(usize::from))?;
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
+    cfg.camera.apply_flips &= !args.no_flips;
+    cfg.camera.p10_linear &= !args.p10_codes;
+    cfg.command_line = args.recording.values();
     let runs = match &args.manifest {
         Some(m) => dropscope::manifest::read_job_manifest(m)?,
         None => dropscope::process::runs_from_inputs(
@@ -290,16 +321,20 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     );
     progress.finish();
     let job = job?;
-    for w in &job.warnings {
-        eprintln!("warning: {w}");
+    for w in dropscope::progress::closing_warnings(&job.records)
+        .iter()
+        .chain(&job.warnings)
+    {
+        dropscope::errln!("warning: {w}");
     }
     let failed = job.count(DropStatus::Failed);
-    eprintln!(
-        "{}: {} measured, {} with warnings, {} failed{}, {} reused from the cache; {}; \
+    dropscope::errln!(
+        "{}: {} measured, {} with warnings, {}{} failed{}, {} reused from the cache; {}; \
          results in {}",
         dropscope::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
+        tracked_count(job.count(DropStatus::Tracked)),
         failed,
         reviewed(
             job.count(DropStatus::Accepted),
@@ -310,7 +345,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
         out.display()
     );
     if args.timings {
-        eprintln!(
+        dropscope::errln!(
             "{}",
             dropscope::timings::table(
                 job.records.len() - job.cached,
@@ -346,10 +381,13 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
     let _held = hold_folder(&args.out_dir(), "collapse", &cfg, &[], wait)?;
     let s = dropscope::collapse::run(args, &cfg, &name)?;
     for w in &s.warnings {
-        eprintln!("warning: {w}");
+        match &s.fits.few_drops {
+            Some(note) if note == w => dropscope::errln!("note: {w}"),
+            _ => dropscope::errln!("warning: {w}"),
+        }
     }
-    println!(
-        "collapse: {} used, {} skipped{}; {} files in {}",
+    say(format_args!(
+        "collapse: {} used, {} skipped{}; {} files in {}\n",
         dropscope::plural(s.n_used, "drop"),
         s.n_skipped,
         if s.n_rejected > 0 {
@@ -359,7 +397,7 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
         },
         s.files.len(),
         s.out_dir.display()
-    );
+    ))?;
     Ok(if s.n_skipped > 0 {
         ExitCode::from(1)
     } else {
@@ -371,15 +409,15 @@ fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow:
 fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> {
     let start = std::time::Instant::now();
     let report = dropscope::render::render_with_progress(args, &mut |done, total, run| {
-        eprintln!("[{}/{total}] {run}", done + 1);
+        dropscope::errln!("[{}/{total}] {run}", done + 1);
     })?;
     let secs = start.elapsed().as_secs_f64();
     for (run, reason) in &report.failures {
-        eprintln!("error: {reason}");
-        eprintln!("  (run {run} was not rendered)");
+        dropscope::errln!("error: {reason}");
+        dropscope::errln!("  (run {run} was not rendered)");
     }
     let frames = report.frames();
-    eprintln!(
+    dropscope::errln!(
         "rendered {}, {frames} frames into {} in {secs:.2} s ({:.0} frames/s){}",
         dropscope::plural(report.drops.len(), "drop"),
         args.out.display(),
@@ -413,7 +451,29 @@ fn run_report(
     };
     let records = dropscope::dataset::read_csv(&out.join("drops.csv"))?;
     let path = dropscope::report::write_report(&out, &name, &records)?;
-    println!("report: {}", path.display());
+    say(format_args!("report: {}\n", path.display()))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `dropscope export`: the frames, and a warning when their times are at a
+/// frame rate the input does not hold and `--fps` did not give (the
+/// configuration's camera.fps).
+fn run_export(args: &dropscope::source::cli::ExportArgs) -> anyhow::Result<ExitCode> {
+    let files = dropscope::source::cli::run_export(args)?;
+    dropscope::errln!("wrote {} frame(s) to {}", files.len(), args.out.display());
+    if args.source.fps.is_none() {
+        // Opened again (headers only) to learn where its frame rate came from.
+        if let (src, Some(origin)) = args.source.open_source(&args.input)? {
+            dropscope::errln!(
+                "warning: {} holds no frame rate: the time_s of {}_frames.csv are at {} \
+                 frames/s, from {origin}, an assumed value; pass --fps if that is not this \
+                 recording's",
+                args.input.display(),
+                dropscope::source::input_name(&args.input),
+                src.meta().fps
+            );
+        }
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -424,7 +484,7 @@ fn run_review(
     port: u16,
 ) -> anyhow::Result<ExitCode> {
     use dropscope::review::{decisions, server};
-    let (cfg, _name) = load_config(config)?;
+    let (cfg, name) = load_config(config)?;
     let out = dir.unwrap_or_else(|| cfg.output.dir.clone());
     let drops = out.join("drops.csv");
     if !drops.is_file() {
@@ -434,46 +494,55 @@ fn run_review(
             out.display()
         );
     }
-    let review_file = decisions::review_path(cfg.input.review.as_deref(), &out);
+    let review_rel = decisions::review_rel(cfg.input.review.as_deref(), &out)?;
+    let review_file = out.join(&review_rel);
     // Read now: a decisions file that cannot be read is said before the page opens.
-    decisions::Decisions::read(&review_file)?;
+    decisions::Decisions::read_in(&out, &review_rel)?;
     let me = dropscope::lock::Holder::this_process("dropscope review", None);
-    let _held =
-        match dropscope::lock::acquire_in(&out, REVIEW_LOCK, &me, false, &|m| eprintln!("{m}")) {
-            Ok(l) => l,
-            Err(dropscope::lock::LockError::Busy { holder, ticket, .. }) => anyhow::bail!(
-                "{} is already open for review (pid {} on host {}: `{}`): use the address it \
+    let _held = match dropscope::lock::acquire_in(&out, REVIEW_LOCK, &me, false, &|m| {
+        dropscope::errln!("{m}")
+    }) {
+        Ok(l) => l,
+        Err(dropscope::lock::LockError::Busy { holder, ticket, .. }) => anyhow::bail!(
+            "{} is already open for review (pid {} on host {}: `{}`): use the address it \
              printed, or stop it with Ctrl-C first. If that process is gone (another \
              machine), remove {} and try again",
-                out.display(),
-                holder.pid,
-                holder.host,
-                holder.command,
-                ticket.display()
-            ),
-            Err(e) => return Err(e.into()),
-        };
+            out.display(),
+            holder.pid,
+            holder.host,
+            holder.command,
+            ticket.display()
+        ),
+        Err(e) => return Err(e.into()),
+    };
+    // The manifest's frame numbering, where it gives one (a configuration
+    // whose runs cannot be listed now only loses that).
+    let number_digits = dropscope::batch::configured_runs(&cfg, &name)
+        .unwrap_or_default()
+        .into_iter()
+        .filter_map(|r| Some((r.run, r.number_digits?)))
+        .collect();
     let srv = server::Server::bind(server::ServeOptions {
         out: out.clone(),
-        review_file: review_file.clone(),
+        review_rel,
         cfg,
         port,
+        number_digits,
     })?;
     let stop = server::stop_on_signals();
-    {
-        use std::io::Write;
-        let mut so = std::io::stdout().lock();
-        writeln!(so, "review of {}: open {}", out.display(), srv.url())?;
-        so.flush()?;
-    }
+    say(format_args!(
+        "review of {}: open {}\n",
+        out.display(),
+        srv.url()
+    ))?;
     // The rest on stderr: stdout is the address alone, for a script that
     // reads one line and closes the pipe.
-    eprintln!(
+    dropscope::errln!(
         "(this machine only; decisions are saved at once in {}; Ctrl-C stops)",
         review_file.display()
     );
     srv.serve(stop)?;
-    eprintln!(
+    dropscope::errln!(
         "review stopped; the decisions are in {}: `dropscope run` (or `process`) into {} \
          applies them",
         review_file.display(),
@@ -497,14 +566,16 @@ fn run_check_config(config: Option<&std::path::Path>) -> anyhow::Result<ExitCode
         if name != dropscope::config::EMBEDDED_NAME {
             return Err(e.into());
         }
-        eprintln!(
+        dropscope::errln!(
             "warning: {e}; this built-in default names the sample drops of the dropscope \
              repository: to start your own, `dropscope check-config --default > pipeline.toml` \
              and set [input] manifest to your runs.csv"
         );
     }
-    println!("# {name}: valid; resolved (paths as dropscope will use them):");
-    print!("{}", cfg.to_toml());
+    say(format_args!(
+        "# {name}: valid; resolved (paths as dropscope will use them):\n{}",
+        cfg.to_toml()
+    ))?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -522,32 +593,57 @@ fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
         local.exists().then_some(local),
     )?;
     let scripts = slurm::write_scripts(args, &plan)?;
-    println!(
-        "{} runs in {} shards into {}; scripts {} and {}, logs in {}",
+    say(format_args!(
+        "{} runs in {} shards into {}; scripts {} and {}, logs in {}\n",
         runs.len(),
         args.array,
         plan.out.display(),
         scripts.array.display(),
         scripts.finish.display(),
         plan.scripts.join("logs").display()
-    );
+    ))?;
     if !args.submit {
-        println!(
-            "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}",
-            scripts.array.display(),
-            scripts.finish.display()
-        );
+        say(format_args!(
+            "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}\n",
+            slurm::quote(&scripts.array),
+            slurm::quote(&scripts.finish)
+        ))?;
         return Ok(ExitCode::SUCCESS);
     }
     let ids = slurm::submit(&scripts)?;
-    println!("array job {} ({} tasks)", ids.array_job, args.array);
-    println!(
-        "finishing job {} (starts when every task of {} has succeeded; then {} holds report.html)",
+    say(format_args!(
+        "array job {} ({} tasks)\nfinishing job {} (starts when every task of {} has \
+         succeeded; then {} holds report.html)\n",
+        ids.array_job,
+        args.array,
         ids.finish_job,
         ids.array_job,
         plan.out.display()
-    );
+    ))?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Stdout could not take all that was written (its reader closed it,
+/// `dropscope inspect X | head -1`, or `>/dev/full`): no error, the command
+/// stops there with exit status 0.
+#[derive(Debug, thiserror::Error)]
+#[error("stdout was closed by its reader")]
+struct StdoutClosed;
+
+/// Write `text` to stdout, made safe for a terminal
+/// ([`dropscope::text::terminal`]). A closed pipe is [`StdoutClosed`], not
+/// the panic of `print!`.
+fn say(text: impl std::fmt::Display) -> anyhow::Result<()> {
+    use std::io::Write;
+    let text = text.to_string();
+    let text = dropscope::text::terminal(&text);
+    let mut out = std::io::stdout().lock();
+    match write!(out, "{text}").and_then(|()| out.flush()) {
+        // A closed pipe, a full disk: what could be written was; the
+        // command stops there (exit 0), as console::out drops the rest.
+        Err(_) => Err(StdoutClosed.into()),
+        Ok(()) => Ok(()),
+    }
 }
 
 /// An error and its causes on one line, each cause only when the text so
@@ -591,10 +687,7 @@ fn main() -> ExitCode {
         Command::CheckConfig {
             default: true,
             config: _,
-        } => {
-            print!("{}", dropscope::config::EMBEDDED_DEFAULT);
-            Ok(ExitCode::SUCCESS)
-        }
+        } => say(dropscope::config::EMBEDDED_DEFAULT).map(|()| ExitCode::SUCCESS),
         Command::CheckConfig {
             config,
             default: false,
@@ -602,10 +695,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => {
             dropscope::source::cli::run_inspect(&args).map(|()| ExitCode::SUCCESS)
         }
-        Command::Export(args) => dropscope::source::cli::run_export(&args).map(|files| {
-            eprintln!("wrote {} frame(s) to {}", files.len(), args.out.display());
-            ExitCode::SUCCESS
-        }),
+        Command::Export(args) => run_export(&args),
         Command::Render(args) => run_render(&args),
         Command::Collapse { args, wait } => run_collapse(&args, wait),
         Command::Process { args, wait } => run_process(&args, wait),
@@ -620,8 +710,11 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(code) => code,
+        // The reader of stdout has gone (`dropscope inspect X | head -1`):
+        // what it wanted was written.
+        Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", error_text(&e));
+            dropscope::errln!("error: {}", error_text(&e));
             ExitCode::from(2)
         }
     }

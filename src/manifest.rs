@@ -2,7 +2,8 @@
 //!
 //! Required columns `run, path, sphere_radius_mm`; optional `drop_height_cm,
 //! fps, mm_per_px, surface, sphere_density_kg_m3, setup` (runs sharing one
-//! camera set-up: the same zoom and position). Paths are relative to the
+//! camera set-up: the same zoom and position), `number_digits` (the digits
+//! ending a frame file's name that are its number). Paths are relative to the
 //! manifest's folder. The header is checked first (every required column,
 //! no unknown or repeated one), then every value; an error names the file,
 //! the row (its line, as a spreadsheet shows it: header = row 1), the column
@@ -14,7 +15,7 @@ use std::path::{Path, PathBuf};
 
 /// The columns of a manifest: name, required, and what a value is (for
 /// messages). The same names, in the same order, as [`ManifestRow`]'s fields.
-pub const COLUMNS: [(&str, bool, &str); 9] = [
+pub const COLUMNS: [(&str, bool, &str); 10] = [
     ("run", true, "the run's name"),
     ("path", true, "the run's folder of frames or .cine file"),
     ("sphere_radius_mm", true, "mm"),
@@ -24,6 +25,11 @@ pub const COLUMNS: [(&str, bool, &str); 9] = [
     ("surface", false, "a [surface.<name>] of the configuration"),
     ("sphere_density_kg_m3", false, "kg/m³"),
     ("setup", false, "the camera set-up's name"),
+    (
+        "number_digits",
+        false,
+        "how many digits at the end of a frame file's name are its number (1‥18)",
+    ),
 ];
 
 /// One row as written in the file.
@@ -45,6 +51,8 @@ pub struct ManifestRow {
     pub sphere_density_kg_m3: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub setup: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub number_digits: Option<u32>,
 }
 
 /// A validated run: the path resolved against the manifest's folder.
@@ -67,6 +75,11 @@ pub struct RunSpec {
     /// the run's cache key, but only when there is something.
     #[serde(skip_serializing_if = "RunReview::is_empty")]
     pub review: RunReview,
+    /// A folder of frames: the digits at the end of a file's name that are
+    /// its number (the others are part of its name); `None`: all of them,
+    /// unless the names read two ways (`source::folder::number_split`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub number_digits: Option<usize>,
 }
 
 /// Why a manifest could not be read.
@@ -124,10 +137,12 @@ pub fn read_job_manifest(path: &Path) -> Result<Vec<RunSpec>, ManifestError> {
 
 /// Read and validate a manifest.
 pub fn read_manifest(path: &Path) -> Result<Vec<RunSpec>, ManifestError> {
-    let bytes = std::fs::read(path).map_err(|source| ManifestError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::io_util::read_input(path, crate::io_util::TEXT_INPUT_MAX_BYTES).map_err(
+        |source| ManifestError::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+    )?;
     parse_manifest(&bytes, path)
 }
 
@@ -166,20 +181,74 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
         if runs.iter().any(|x| x.run == r.run) {
             return Err(row_err(row, format!("run `{}` is listed twice", r.run)));
         }
-        let positive = |col: &str, v: Option<f64>| -> Result<Option<f64>, ManifestError> {
+        // Each number within its physical range ([`crate::ranges`]).
+        let ranged = |col: &str,
+                      range: crate::ranges::Range,
+                      v: Option<f64>|
+         -> Result<Option<f64>, ManifestError> {
             match v {
-                Some(x) if !(x.is_finite() && x > 0.0) => Err(row_err(
+                Some(x) if x.is_finite() && x <= 0.0 => Err(row_err(
                     row,
                     format!("column `{col}` = {x}: must be a number greater than 0"),
                 )),
-                _ => Ok(v),
+                Some(x) => match range.check(x) {
+                    Ok(_) => Ok(v),
+                    Err(allowed) => Err(row_err(
+                        row,
+                        format!("column `{col}` = {}: {allowed}", crate::ranges::show(x)),
+                    )),
+                },
+                None => Ok(v),
             }
         };
-        positive("sphere_radius_mm", Some(r.sphere_radius_mm))?;
-        let fps = positive("fps", r.fps)?;
-        let mm_per_px = positive("mm_per_px", r.mm_per_px)?;
-        let density = positive("sphere_density_kg_m3", r.sphere_density_kg_m3)?;
-        let height = positive("drop_height_cm", r.drop_height_cm)?;
+        use crate::ranges::{DENSITY_KG_M3, DROP_HEIGHT_CM, FPS, MM_PER_PX, SPHERE_RADIUS_MM};
+        ranged(
+            "sphere_radius_mm",
+            SPHERE_RADIUS_MM,
+            Some(r.sphere_radius_mm),
+        )?;
+        let fps = ranged("fps", FPS, r.fps)?;
+        let mm_per_px = ranged("mm_per_px", MM_PER_PX, r.mm_per_px)?;
+        let density = ranged(
+            "sphere_density_kg_m3",
+            DENSITY_KG_M3,
+            r.sphere_density_kg_m3,
+        )?;
+        let height = ranged("drop_height_cm", DROP_HEIGHT_CM, r.drop_height_cm)?;
+        if r.path
+            .as_os_str()
+            .to_string_lossy()
+            .chars()
+            .any(|c| c.is_control())
+        {
+            return Err(row_err(
+                row,
+                format!(
+                    "column `path` = {:?}: holds a control character",
+                    crate::text::one_line(&r.path.to_string_lossy())
+                ),
+            ));
+        }
+        for (col, v) in [("surface", &r.surface), ("setup", &r.setup)] {
+            if let Some(v) = v.as_deref().filter(|v| {
+                v.chars()
+                    .any(|c| c.is_control() || crate::text::is_format(c))
+            }) {
+                return Err(row_err(
+                    row,
+                    format!(
+                        "column `{col}` = {:?}: holds a control or invisible format character",
+                        crate::text::one_line(v)
+                    ),
+                ));
+            }
+        }
+        if let Some(d) = r.number_digits.filter(|d| !(1..=18).contains(d)) {
+            return Err(row_err(
+                row,
+                format!("column `number_digits` = {d}: must be a whole number from 1 to 18"),
+            ));
+        }
         let p = if r.path.is_absolute() {
             r.path.clone()
         } else {
@@ -196,6 +265,7 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
             sphere_density_kg_m3: density,
             setup: r.setup.filter(|s| !s.is_empty()),
             review: Default::default(),
+            number_digits: r.number_digits.map(|d| d as usize),
         });
     }
     if runs.is_empty() {
@@ -488,6 +558,7 @@ mod tests {
             surface: None,
             sphere_density_kg_m3: None,
             setup: Some("s".into()),
+            number_digits: Some(10),
         };
         let bytes = to_csv_bytes(&[row]);
         let header = String::from_utf8(bytes).unwrap();
@@ -507,6 +578,7 @@ mod tests {
             surface: Some("pdms".into()),
             sphere_density_kg_m3: None,
             setup: None,
+            number_digits: None,
         }];
         // A second row with other optional cells empty: every row keeps every column.
         rows.push(ManifestRow {

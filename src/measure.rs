@@ -3,7 +3,7 @@
 
 use crate::dataset::{DropRecord, DropStatus, TrackRow};
 use crate::events::{find_events, EventConfig, EventError, Geometry, TrackPoint};
-use crate::force::{fit_force_law, force_table, ForceFitError, ForceLaw};
+use crate::force::{fit_force_law, force_table, Damping, ForceFitError, ForceLaw};
 use crate::kinematics::{kinematics, Measured, SphereParams};
 use crate::quality;
 
@@ -153,6 +153,15 @@ pub fn measure_drop_with(
     let fitted_law = law.clone();
     let law = law.ok();
 
+    let damping_of = |kind: Damping| {
+        law.as_ref()
+            .filter(|l| l.model.damping == kind)
+            .map(|l| l.damping)
+    };
+    let (linear, hunt_crossley) = (
+        damping_of(Damping::Linear),
+        damping_of(Damping::HuntCrossley),
+    );
     let v = |m: Measured| (Some(m.value), Some(m.err));
     let mm = |m: Measured| (Some(m.value * 1e3), Some(m.err * 1e3));
     let (v_in, v_in_err) = v(kin.v_impact_m_s);
@@ -207,8 +216,13 @@ pub fn measure_drop_with(
         force_exponent_err: law.as_ref().map(|l| l.n.err),
         force_k2_n_m2: law.as_ref().map(|l| l.k_at_n2.value),
         force_k2_n_m2_err: law.as_ref().map(|l| l.k_at_n2.err),
-        damping_n_s_m: law.as_ref().map(|l| l.damping_n_s_m.value),
-        damping_n_s_m_err: law.as_ref().map(|l| l.damping_n_s_m.err),
+        force_model: law
+            .as_ref()
+            .map_or(String::new(), |l| l.model.name().to_string()),
+        damping_n_s_m: linear.map(|c| c.value),
+        damping_n_s_m_err: linear.map(|c| c.err),
+        hunt_crossley_alpha_s_m: hunt_crossley.map(|a| a.value),
+        hunt_crossley_alpha_s_m_err: hunt_crossley.map(|a| a.err),
         status: DropStatus::Ok,
         ..DropRecord::failed(&info.run, info.sphere_radius_mm, "")
     };
@@ -223,78 +237,34 @@ pub fn measure_drop_with(
     })
 }
 
-/// Systematic error (px) of the surface the contact law finds, beside its
-/// fit's own: on the 60 drops of the real preset (`render --campaign
-/// --preset real --repeats 2 --seed 7`) the law's surface is off the true
-/// one by a median 0.03 px, with 1-4 σ outliers of 0.1-0.2 px on the fastest
-/// drops (H = 50 cm, 7-8 px of travel per frame).
-pub const LAW_SURFACE_SYSTEMATIC_PX: f64 = 0.05;
-
-/// The band top's systematic in the image's line (px) at most, beyond its
-/// edge-model disagreement: a glossy strip or a pillar-top row narrower
-/// than the blur moves the flank fit and the area row alike (to first order
-/// a narrow strip is a shift of the step), so their disagreement — the
-/// line's model error — understates it. On 120 real-preset drops lines off
-/// by 0.14–0.18 px showed a disagreement of 0.03–0.08.
-pub const BAND_TOP_SYSTEMATIC_PX: f64 = 0.15;
-
-/// The band top's systematic per px of the line's edge-model disagreement
-/// ([`band_top_systematic_px`]).
-pub const BAND_TOP_PER_MODEL_ERR: f64 = 5.0;
-
-/// The band top's systematic (px) for a line whose flank fit and area row
-/// disagree by `model_err_px`: [`BAND_TOP_PER_MODEL_ERR`] times it, at most
-/// [`BAND_TOP_SYSTEMATIC_PX`]. A clean step (the `realistic` and `harsh`
-/// renders: disagreement ≤ 0.023 px, 45 drops) keeps most of its weight
-/// against the contact law's surface; a structured top (the real preset:
-/// median 0.22 px) carries the whole term. On the 120 real-preset drops
-/// the line's own error covered its true one at 2σ on 81, with this term
-/// on 91 (after the edge points' per-sample background).
-pub fn band_top_systematic_px(model_err_px: f64) -> f64 {
-    (BAND_TOP_PER_MODEL_ERR * model_err_px.abs()).min(BAND_TOP_SYSTEMATIC_PX)
-}
-
-/// Where the undeformed surface is, given the image's line (its error
-/// `image_err_px`, the edge model's systematic included) and the contact
-/// law's estimate: the offset (px, positive down) to add to the image's
-/// line, its error, and the `surface_source` word.
-///
-/// The law (F = K·δ² with damping, the paper's elastic foundation) pins the
-/// surface through the shape of the deceleration: from the first contact
-/// frames on, δ must follow the law from zero. The image's line is an edge
-/// model's reading of the band's top, which a glossy strip or a bright top
-/// row moves by up to 2 px without its model error showing it. So: when the
-/// two disagree beyond 3σ of their combined error the law's is taken;
-/// otherwise the two are averaged by their weights, the line's error with
-/// `band_top_px` in it ([`band_top_systematic_px`]), the mean's error scaled by √χ² of
-/// their disagreement when above 1. (The test of disagreement uses the
-/// line's own error: a line it passes still carries the systematic, and a
-/// line it fails is replaced by the law's surface, which covers the truth
-/// at 2σ on 114 of 120 real-preset drops.)
-pub fn surface_from_law(
-    law: &ForceLaw,
-    image_err_px: f64,
-    band_top_px: f64,
-) -> Option<(f64, f64, &'static str)> {
+/// The contact law's cross-check of the image's surface line: a flag
+/// and its sentence when the surface the trajectory puts under the sphere
+/// ([`ForceLaw::surface_offset_px`], n free) is more than 3σ of their
+/// combined error from the line (error `image_err_px`). The line is never
+/// replaced: the surface is measured in the image, the law is what the
+/// experiment measures.
+pub fn surface_law_check(law: &ForceLaw, image_err_px: f64) -> Option<(&'static str, String)> {
     let d = law.surface_offset_px?;
-    if !(d.value.is_finite() && d.err.is_finite() && d.err > 0.0) {
+    if !(d.value.is_finite() && d.err.is_finite()) {
         return None;
     }
-    let law_err = d.err.hypot(LAW_SURFACE_SYSTEMATIC_PX);
-    if law_rejects_line(d, image_err_px) {
-        return Some((d.value, law_err, "contact_law"));
-    }
-    // In the average the line carries the band top's systematic.
-    let image_err = image_err_px.hypot(band_top_px);
-    // The mean's error grows by √χ² when the two scatter more than their
-    // errors say (the scale factor of inconsistent measurements).
-    let (wi, wl) = (image_err.powi(-2), law_err.powi(-2));
-    let chi2 = d.value.powi(2) / (law_err.powi(2) + image_err.powi(2));
-    Some((
-        d.value * wl / (wi + wl),
-        (wi + wl).powf(-0.5) * chi2.sqrt().max(1.0),
-        "image+contact_law",
-    ))
+    let combined = d.err.hypot(image_err_px);
+    (d.value.abs() > 3.0 * combined).then(|| {
+        (
+            quality::SURFACE_LAW_DISAGREEMENT,
+            format!(
+                "the trajectory, fitted with a power-law contact ({}) and the surface free, \
+                 puts the undeformed surface {:.2} ± {:.2} px {} the image's line, whose \
+                 errors now include that disagreement: check the surface line in the overlay \
+                 (a reflection or a glossy band top moves it) and F(δ) in the drop's figure \
+                 (a contact that is no power law moves the fit)",
+                law.model.name(),
+                d.value.abs(),
+                combined,
+                if d.value > 0.0 { "below" } else { "above" },
+            ),
+        )
+    })
 }
 
 /// Flag a restitution above 1 by more than 3σ: the sphere cannot gain
@@ -311,15 +281,6 @@ pub fn flag_restitution_above_one(record: &mut DropRecord) {
             format!("restitution {e:.4} ± {err:.4} is above 1: the sphere cannot gain energy"),
         );
     }
-}
-
-/// Whether the contact law's surface, `offset` (px) from the image's line
-/// whose error is `image_err_px`, rejects that line: they disagree beyond
-/// 3σ of their combined error, the law's widened by
-/// [`LAW_SURFACE_SYSTEMATIC_PX`] ([`surface_from_law`]).
-pub fn law_rejects_line(offset: Measured, image_err_px: f64) -> bool {
-    let law_err = offset.err.hypot(LAW_SURFACE_SYSTEMATIC_PX);
-    offset.value.abs() > 3.0 * law_err.hypot(image_err_px.max(1e-6))
 }
 
 /// The flags of a contact law fit: none fitted, or a fit no physics allows
@@ -346,12 +307,16 @@ fn law_warnings(law: &Result<ForceLaw, ForceFitError>) -> Vec<(&'static str, Str
             ),
         ));
     }
-    let c = l.damping_n_s_m;
+    let c = l.damping;
     if c.value < -3.0 * c.err {
+        let unit = match l.model.damping {
+            Damping::Linear => "N·s/m",
+            Damping::HuntCrossley => "s/m",
+        };
         out.push((
             quality::NEGATIVE_DAMPING,
             format!(
-                "damping {:.4e} ± {:.1e} N·s/m is negative: the contact law fit is not credible",
+                "damping {:.4e} ± {:.1e} {unit} is negative: the contact law fit is not credible",
                 c.value, c.err
             ),
         ));
@@ -382,95 +347,51 @@ mod tests {
     use crate::kinematics::Measured;
     use crate::test_support::{geometry, track, Drop};
 
-    #[test]
-    fn the_laws_surface_replaces_an_image_line_it_contradicts_and_is_averaged_with_one_it_agrees_with(
-    ) {
-        let law = |offset: Option<(f64, f64)>| ForceLaw {
-            k: Measured {
-                value: 1e9,
-                err: 1e8,
-            },
-            n: Measured {
-                value: 2.0,
-                err: 0.1,
-            },
-            damping_n_s_m: Measured {
-                value: 0.0,
-                err: 0.01,
-            },
-            k_at_n2: Measured {
-                value: 8e8,
-                err: 1e6,
-            },
-            surface_offset_px: offset.map(|(value, err)| Measured { value, err }),
-            with_surface_free: None,
-            k_at_n2_on_law_surface: None,
+    /// A contact law with the given surface cross-check (offset, its σ).
+    fn law_with(n: f64, damping: f64, offset: Option<(f64, f64)>) -> ForceLaw {
+        let m = |value, err| Measured { value, err };
+        ForceLaw {
+            model: crate::force::ContactModel::ALL[0],
+            k: m(1e9, 1e8),
+            n: m(n, 0.5),
+            damping: m(damping, 0.01),
+            k_at_n2: m(8e8, 1e6),
+            surface_offset_px: offset.map(|(value, err)| m(value, err)),
             n_per_surface_px: 0.0,
             k_per_surface_px: 0.0,
             chi2_red: 1.0,
+            models: Vec::new(),
             n_frames: 60,
-        };
-        // The image's line 1 px off with a 0.1 px error: the law's wins,
-        // its error widened by the systematic.
-        let (o, e, src) =
-            surface_from_law(&law(Some((-1.0, 0.03))), 0.1, BAND_TOP_SYSTEMATIC_PX).unwrap();
-        assert_eq!((o, src), (-1.0, "contact_law"));
-        assert!((e - 0.03f64.hypot(LAW_SURFACE_SYSTEMATIC_PX)).abs() < 1e-12);
-        // Within their errors: the weighted mean, between the two, with a
-        // smaller error than either; in it the line carries the band top's
-        // systematic too.
-        let (o, e, src) =
-            surface_from_law(&law(Some((-0.1, 0.03))), 0.1, BAND_TOP_SYSTEMATIC_PX).unwrap();
-        assert_eq!(src, "image+contact_law");
-        assert!(o < 0.0 && o > -0.1, "{o}");
-        let image_err = 0.1f64.hypot(BAND_TOP_SYSTEMATIC_PX);
-        let law_err = 0.03f64.hypot(LAW_SURFACE_SYSTEMATIC_PX);
-        assert!(e < law_err && e < image_err);
-        let mean_err = (image_err.powi(-2) + law_err.powi(-2)).powf(-0.5);
-        assert!((e - mean_err).abs() < 1e-12, "χ² < 1: {e}");
-        let weight = law_err.powi(-2) / (image_err.powi(-2) + law_err.powi(-2));
-        assert!((o + 0.1 * weight).abs() < 1e-12, "{o}");
-        // 0.3 px apart, within 3σ of the line's own error and the law's
-        // (0.35 px): averaged, the error scaled by √χ² > 1.
-        let (_, e, src) =
-            surface_from_law(&law(Some((-0.3, 0.03))), 0.1, BAND_TOP_SYSTEMATIC_PX).unwrap();
-        assert_eq!(src, "image+contact_law");
-        let chi = 0.3 / law_err.hypot(image_err);
-        assert!(chi > 1.0 && (e / mean_err - chi).abs() < 1e-9, "{e}");
-        // No law's surface, or a degenerate one: the image's line stands.
-        assert_eq!(surface_from_law(&law(None), 0.1, 0.0), None);
+        }
+    }
+
+    #[test]
+    fn the_laws_surface_flags_an_image_line_it_contradicts_and_never_moves_it() {
+        // 1 px above a line of 0.1 px error, the law's σ 0.03: flagged, the
+        // sentence saying where and what to check.
+        let (word, why) = surface_law_check(&law_with(2.0, 0.0, Some((-1.0, 0.03))), 0.1).unwrap();
+        assert_eq!(word, "surface_law_disagreement");
+        assert!(
+            why.contains("1.00 ± 0.10 px above the image's line"),
+            "{why}"
+        );
+        assert!(why.contains("overlay"), "{why}");
+        // Within 3σ of their combined error: nothing to say.
         assert_eq!(
-            surface_from_law(&law(Some((0.2, f64::NAN))), 0.1, 0.0),
+            surface_law_check(&law_with(2.0, 0.0, Some((-0.3, 0.03))), 0.1),
+            None
+        );
+        // No law's surface, or a degenerate one: nothing.
+        assert_eq!(surface_law_check(&law_with(2.0, 0.0, None), 0.1), None);
+        assert_eq!(
+            surface_law_check(&law_with(2.0, 0.0, Some((0.2, f64::NAN))), 0.1),
             None
         );
     }
 
     #[test]
-    fn the_band_tops_systematic_follows_its_structure_up_to_a_cap() {
-        // A clean step: its flank and area rows within 0.01 px, a term of
-        // 0.05 px; a structured top carries the whole 0.15 px.
-        assert!((band_top_systematic_px(0.01) - 0.05).abs() < 1e-12);
-        assert!((band_top_systematic_px(-0.01) - 0.05).abs() < 1e-12);
-        assert_eq!(band_top_systematic_px(0.2), BAND_TOP_SYSTEMATIC_PX);
-        assert_eq!(band_top_systematic_px(0.0), 0.0);
-    }
-
-    #[test]
     fn an_impossible_contact_law_is_flagged_never_ok() {
-        let m = |value, err| Measured { value, err };
-        let law = |n, c| ForceLaw {
-            k: m(1e9, 1e8),
-            n: m(n, 0.5),
-            damping_n_s_m: m(c, 0.01),
-            k_at_n2: m(8e8, 1e6),
-            surface_offset_px: None,
-            with_surface_free: None,
-            k_at_n2_on_law_surface: None,
-            n_per_surface_px: 0.0,
-            k_per_surface_px: 0.0,
-            chi2_red: 1.0,
-            n_frames: 60,
-        };
+        let law = |n, c| law_with(n, c, None);
         let words = |l| -> Vec<&str> { law_warnings(&l).iter().map(|w| w.0).collect() };
         assert!(words(Ok(law(2.01, -0.02))).is_empty());
         assert_eq!(
@@ -600,7 +521,7 @@ mod tests {
         );
 
         // The configured work limit reaches the contact-law fit: these fits
-        // need 113–259 trajectories, 20 stop them, and the record says why
+        // need about 400 trajectories, 20 stop them, and the record says why
         // (a warning, never ok).
         let cfg = EventConfig {
             force_fit_max_trajectories: 20,

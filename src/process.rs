@@ -12,12 +12,12 @@ use crate::events::{EventConfig, Geometry, TrackPoint};
 use crate::io_util::{Durable, Spool};
 use crate::lens::{undistort_track, Lens};
 use crate::manifest::RunSpec;
-use crate::measure::{annotate_track, measure_drop, measure_drop_with, surface_from_law, DropInfo};
+use crate::measure::{annotate_track, measure_drop, measure_drop_with, DropInfo};
 use crate::quality;
 use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
 use crate::setup_infer::SceneSignature;
 use crate::shelf::{Shelf, ShelvedTrack};
-use crate::source::{open, OpenOptions};
+use crate::source::{open, OpenOptions, P10Mode};
 use crate::track::{track, FrameTrack, Track, TrackSettings};
 use rayon::prelude::*;
 use std::io::Write;
@@ -43,6 +43,8 @@ pub struct ProcessArgs {
     /// Sphere radius for INPUTs (default: the configuration's sphere.radius_mm).
     #[arg(long, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub radius_mm: Option<f64>,
+    #[command(flatten)]
+    pub recording: crate::cli_values::RecordingArgs,
     /// Also draw the overlay of these camera image numbers (comma-separated,
     /// e.g. `-5,0,12`) for every run: `plots/overlays/<run>_<number>.png`.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
@@ -58,6 +60,15 @@ pub struct ProcessArgs {
     /// drop): the configuration's `output.animation = false`.
     #[arg(long)]
     pub no_animation: bool,
+    /// Measure the frames in storage orientation, without the viewer flips
+    /// a .cine or Photron header records: the configuration's
+    /// `camera.apply_flips = false`.
+    #[arg(long)]
+    pub no_flips: bool,
+    /// Measure P10 cines on their log-encoded 10-bit codes, not linearised:
+    /// the configuration's `camera.p10_linear = false`.
+    #[arg(long)]
+    pub p10_codes: bool,
     /// After the job, print on stderr where its time went: wall and CPU
     /// seconds per stage (reading, tracking passes, force fits, pictures,
     /// writes, …) summed over runs, each stage's share and its mean per
@@ -87,6 +98,10 @@ pub struct RunOutcome {
     /// Seconds spent on this run (tracking and measuring), for the speed
     /// shown to the user; no output depends on it.
     pub seconds: f64,
+    /// What reading its input should say once as a warning (a colour input
+    /// read as grey, frame names read one of two ways:
+    /// [`crate::source::SourceMeta::reading_notes`]).
+    pub notes: Vec<String>,
 }
 
 /// The most bytes of a run's track CSV held in memory (~11 000 frames'
@@ -161,6 +176,7 @@ pub fn runs_from_inputs(
             sphere_density_kg_m3: None,
             setup: None,
             review: Default::default(),
+            number_digits: None,
         });
     }
     Ok(runs)
@@ -211,7 +227,7 @@ pub fn process_setup(
     mut kept: Vec<Option<KeptRun>>,
 ) -> Vec<RunOutcome> {
     kept.resize_with(runs.len(), || None);
-    let (tracked, track_s): (Vec<Result<Tracked, String>>, Vec<f64>) = runs
+    let (tracked, track_s): (Vec<Result<Tracked, RunFailure>>, Vec<f64>) = runs
         .par_iter()
         .zip(kept)
         .map(|(r, kept)| {
@@ -222,7 +238,8 @@ pub fn process_setup(
             (t, start.elapsed().as_secs_f64())
         })
         .unzip();
-    // A drop a person rejected is left out of its set-up's scale too.
+    // A drop a person rejected is left out of its set-up's scale and of
+    // the comparison of its apparent sizes.
     let pooled_in = |r: &&RunSpec| r.review.rejected.is_none();
     let curvatures: Vec<Curvature> = tracked
         .iter()
@@ -244,31 +261,124 @@ pub fn process_setup(
             .collect(),
     );
     let pooled = pool(curvatures);
-    runs.par_iter()
+    // The members' apparent sizes per mm, compared once all are measured.
+    let sizes: Vec<Option<crate::scale::ApparentSize>> = tracked
+        .iter()
+        .zip(runs)
+        .map(|(t, r)| {
+            let t = t.as_ref().ok().filter(|_| pooled_in(r))?;
+            Some(crate::scale::ApparentSize {
+                r_app_px: t.tr.radius_px,
+                r_app_err_px: t.tr.radius_err_px,
+                radius_mm: r.sphere_radius_mm,
+            })
+        })
+        .collect();
+    let mut outcomes: Vec<RunOutcome> = runs
+        .par_iter()
         .zip(tracked)
         .zip(track_s)
         .map(|((run, t), track_s)| {
             let start = std::time::Instant::now();
+            let recording = match &t {
+                Ok(t) => Some(t.recording()),
+                Err(f) => f.recording.clone(),
+            };
             let mut o = caught(run, || {
                 let _timed = crate::timings::start(crate::timings::Stage::Events);
-                measure_run(t?, run, cfg, [pooled, pooled_at_bound], overlay_frames)
+                measure_run(
+                    t.map_err(|f| f.reason)?,
+                    run,
+                    cfg,
+                    [pooled, pooled_at_bound],
+                    overlay_frames,
+                )
             })
-            .unwrap_or_else(|reason| failed_outcome(run, cfg, reason));
-            run.review.apply(&mut o.record);
+            .unwrap_or_else(|reason| failed_outcome(run, cfg, reason, recording.as_ref()));
+            if let Some(reason) = non_finite(&o.record) {
+                o = failed_outcome(run, cfg, reason, recording.as_ref());
+            }
             o.seconds = track_s + start.elapsed().as_secs_f64();
             o
         })
-        .collect()
+        .collect();
+    if runs.len() >= 2 {
+        let found = crate::scale::size_disagreements(&sizes, cfg.camera.edge_offset());
+        for ((o, run), d) in outcomes.iter_mut().zip(runs).zip(found) {
+            if let Some(d) = d {
+                let setup = run.setup.as_deref().unwrap_or("-");
+                quality::flag(
+                    &mut o.record,
+                    quality::RADIUS_DISAGREEMENT,
+                    d.sentence(setup),
+                );
+            }
+        }
+    }
+    // The review's decisions last, on the row with every flag.
+    for (o, run) in outcomes.iter_mut().zip(runs) {
+        run.review.apply(&mut o.record);
+    }
+    outcomes
+}
+
+/// Why a measured record cannot stand: a number in it that is not finite
+/// (an input value far out of range overflowed). `None` when all are.
+fn non_finite(record: &DropRecord) -> Option<String> {
+    if record.status == crate::dataset::DropStatus::Failed {
+        return None;
+    }
+    let columns = record.non_finite_columns();
+    (!columns.is_empty()).then(|| {
+        format!(
+            "the measurement gave a number that is not finite in {}: an input value (density, \
+             radius, frame rate, scale) is out of any physical range",
+            columns.join(", ")
+        )
+    })
 }
 
 /// Run `work` for `run`: its panic becomes an error naming the input.
-fn caught<T>(run: &RunSpec, work: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
+fn caught<T, E: From<String>>(run: &RunSpec, work: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(work))
-        .unwrap_or_else(|payload| Err(panic_reason(&run.path, payload.as_ref())))
+        .unwrap_or_else(|payload| Err(panic_reason(&run.path, payload.as_ref()).into()))
 }
 
-/// The `failed` outcome of `run`, with its reason.
-fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOutcome {
+/// Why a run could not be tracked, with what is known of its recording
+/// once it was opened.
+#[derive(Debug, Clone, PartialEq)]
+struct RunFailure {
+    reason: String,
+    recording: Option<Recording>,
+}
+
+impl From<String> for RunFailure {
+    fn from(reason: String) -> Self {
+        RunFailure {
+            reason,
+            recording: None,
+        }
+    }
+}
+
+/// What a run's row says of its recording, failed or not.
+#[derive(Debug, Clone, PartialEq)]
+struct Recording {
+    /// Its frames (the track's rows; the summary's frames read).
+    frames: usize,
+    fps: f64,
+    /// The `fps_source` word ([`open_run`]).
+    fps_source: String,
+}
+
+/// The `failed` outcome of `run`, with its reason and what is known of its
+/// recording.
+fn failed_outcome(
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+    reason: String,
+    recording: Option<&Recording>,
+) -> RunOutcome {
     let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, reason);
     record.surface = run
         .surface
@@ -278,15 +388,22 @@ fn failed_outcome(run: &RunSpec, cfg: &PipelineConfig, reason: String) -> RunOut
     record.setup = run.setup.clone().unwrap_or_default();
     record.drop_height_cm = run.drop_height_cm;
     record.path = run.path.display().to_string();
+    record.fps = recording.map(|r| r.fps);
+    record.fps_source = recording.map(|r| r.fps_source.clone()).unwrap_or_default();
+    // What its input says of itself (colour, flips, frame names) helps read
+    // why it failed: opened again for that (its header only).
+    let meta = open_run(run, cfg).ok().map(|(s, _)| s.meta().clone());
+    record.reading = meta.as_ref().map(|m| m.reading()).unwrap_or_default();
     RunOutcome {
         record,
         track_csv: Spool::new(0),
-        track_rows: 0,
+        track_rows: recording.map_or(0, |r| r.frames),
         overlay: None,
         frame_overlays: Vec::new(),
         impact: None,
         scene: None,
         seconds: 0.0,
+        notes: meta.map(|m| m.reading_notes()).unwrap_or_default(),
     }
 }
 
@@ -340,7 +457,7 @@ impl KeptRuns {
 }
 
 /// A run [`prepare`] tracked (see [`KeptRuns`]).
-pub struct KeptRun(Result<ShelvedRun, String>);
+pub struct KeptRun(Result<ShelvedRun, RunFailure>);
 
 /// A [`Tracked`] without its source (opened again: a job's runs are not
 /// all held open) and the distortion bound's track (made again from the
@@ -352,12 +469,13 @@ struct ShelvedRun {
     settings: TrackSettings,
     surface_name: String,
     curvature: Option<Curvature>,
+    fps_source: String,
 }
 
 impl KeptRun {
     /// What [`track_run`] gave, or `t`'s track put on `shelf`; `None` when
     /// it could not be put there.
-    fn new(t: Result<Tracked, String>, shelf: Option<&Arc<Shelf>>) -> Option<KeptRun> {
+    fn new(t: Result<Tracked, RunFailure>, shelf: Option<&Arc<Shelf>>) -> Option<KeptRun> {
         let t = match t {
             Ok(t) => t,
             Err(e) => return Some(KeptRun(Err(e))),
@@ -371,12 +489,13 @@ impl KeptRun {
             settings: t.settings,
             surface_name: t.surface_name,
             curvature: t.curvature,
+            fps_source: t.fps_source,
         })))
     }
 
     /// The run as [`track_run`] gave it; `None` when its track cannot be
     /// read back (the run is then tracked again).
-    fn restore(self, run: &RunSpec, cfg: &PipelineConfig) -> Option<Result<Tracked, String>> {
+    fn restore(self, run: &RunSpec, cfg: &PipelineConfig) -> Option<Result<Tracked, RunFailure>> {
         let s = match self.0 {
             Ok(s) => s,
             Err(e) => return Some(Err(e)),
@@ -384,7 +503,9 @@ impl KeptRun {
         let tr =
             crate::timings::time(crate::timings::Stage::Shelf, || s.shelf.take(s.track)).ok()?;
         Some(caught(run, || {
-            let source = open_run(run, cfg)?;
+            // The same recording, opened again: its frame rate is the one
+            // it was tracked at.
+            let (source, _) = open_run(run, cfg)?;
             let bounded = bounded_of(&tr, &s.meta, cfg);
             tr.frames
                 .check()
@@ -397,6 +518,7 @@ impl KeptRun {
                 surface_name: s.surface_name,
                 curvature: s.curvature,
                 bounded,
+                fps_source: s.fps_source,
             })
         }))
     }
@@ -506,9 +628,20 @@ struct Tracked {
     /// The track through a lens at `camera.distortion_bound_px`, when no
     /// k1 is given and the bound is not 0.
     bounded: Option<crate::lens::Bounded>,
+    /// Where `meta.fps` came from (the `fps_source` word, [`open_run`]).
+    fps_source: String,
 }
 
 impl Tracked {
+    /// What the run's row says of its recording.
+    fn recording(&self) -> Recording {
+        Recording {
+            frames: self.tr.frames.len(),
+            fps: self.meta.fps,
+            fps_source: self.fps_source.clone(),
+        }
+    }
+
     /// What the run's images say of its camera set-up.
     fn scene(&self, radius_mm: f64) -> SceneSignature {
         let g_m_s2 = EventConfig::default().g_m_s2;
@@ -550,30 +683,123 @@ fn panic_reason(input: &Path, payload: &(dyn std::any::Any + Send)) -> String {
     )
 }
 
-/// `run`'s frames, opened.
+/// `run`'s frames, opened, and where their frame rate came from (the
+/// `fps_source` column): the recording's own when it holds one, else the
+/// fallback [`PipelineConfig::fps_fallback`] names. A recording without a
+/// rate of its own is opened twice, the first time to learn that.
+/// How a run's recording is read under `cfg` (flips, P10), with the
+/// manifest's `number_digits` and the frame rate for an input without one.
+pub fn open_options(
+    cfg: &PipelineConfig,
+    number_digits: Option<usize>,
+    fps_fallback: Option<f64>,
+) -> OpenOptions {
+    OpenOptions {
+        fps_fallback,
+        apply_flips: cfg.camera.apply_flips,
+        p10: if cfg.camera.p10_linear {
+            P10Mode::Linear
+        } else {
+            P10Mode::Raw
+        },
+        number_digits,
+    }
+}
+
 fn open_run(
     run: &RunSpec,
     cfg: &PipelineConfig,
-) -> Result<Box<dyn crate::source::FrameSource>, String> {
-    let options = OpenOptions {
-        fps_fallback: run.fps.or(cfg.camera.fps),
-        ..OpenOptions::default()
+) -> Result<(Box<dyn crate::source::FrameSource>, String), String> {
+    use crate::config::FpsSource;
+    let open_with = |fps_fallback: Option<f64>| {
+        let options = open_options(cfg, run.number_digits, fps_fallback);
+        crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
     };
-    crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
-        .map_err(|e| e.to_string())
+    let has_fps = |m: &crate::source::SourceMeta| m.fps.is_finite() && m.fps > 0.0;
+    match open_with(None) {
+        Ok(src) if has_fps(src.meta()) => {
+            let word = FpsSource::Recording.word(&recording_fps_word(src.meta()));
+            return Ok((src, word));
+        }
+        Ok(_) | Err(crate::source::SourceError::NoFrameRate { .. }) => {}
+        Err(e) => return Err(e.to_string()),
+    }
+    let (fps, from) = cfg.fps_fallback(run.fps);
+    let src = open_with(Some(fps)).map_err(|e| e.to_string())?;
+    Ok((src, from.word("")))
+}
+
+/// The `fps_source` word of a recording's own frame rate: `cine` for a
+/// cine header, `xml` for a PCC XML side file, else the reader's format.
+fn recording_fps_word(meta: &crate::source::SourceMeta) -> String {
+    match meta.format.as_str() {
+        "cine" => "cine".into(),
+        _ if meta.details.side_file.is_some() => "xml".into(),
+        other => other.to_string(),
+    }
 }
 
 /// The track through a lens at `camera.distortion_bound_px`, when no k1 is
 /// given and the bound is not 0.
+/// The lens a run's track is seen through (see `lens.rs`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum LensUsed {
+    /// `camera.distortion_k1_per_px2`: the track is corrected with it.
+    Calibrated(f64),
+    /// Measured by the surface line's bow: the track is corrected with
+    /// `k1`, and `err` is a systematic term.
+    Measured { k1: f64, err: f64 },
+    /// Not measured: the distortion bound's lens is a systematic term.
+    Bound(Lens),
+    /// No distortion considered (`camera.distortion_bound_px = 0`).
+    None,
+}
+
+impl LensUsed {
+    /// The `k1` the track is corrected with, its error, and where it came
+    /// from (`drops.csv`'s `distortion_source`).
+    fn describe(&self) -> (Option<f64>, Option<f64>, &'static str) {
+        match *self {
+            LensUsed::Calibrated(k1) => (Some(k1), None, "config"),
+            LensUsed::Measured { k1, err } => (Some(k1), Some(err), "surface_bow"),
+            LensUsed::Bound(_) => (None, None, "bound"),
+            LensUsed::None => (None, None, "none"),
+        }
+    }
+}
+
+/// Which lens a track is seen through: the configuration's calibration;
+/// else the one its surface line's bow measures, where that is informative
+/// and tighter than the distortion bound; else the bound (or none).
+fn lens_of(tr: &Track, meta: &crate::source::SourceMeta, cfg: &PipelineConfig) -> LensUsed {
+    let camera = &cfg.camera;
+    if let Some(k1) = camera.distortion_k1_per_px2 {
+        return LensUsed::Calibrated(k1);
+    }
+    if camera.distortion_bound_px <= 0.0 {
+        return LensUsed::None;
+    }
+    let bound = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
+    match crate::lens::k1_from_bow(&tr.surface, meta.width, meta.height) {
+        Some((k1, err)) if err * 3f64.sqrt() < bound.k1_per_px2.abs() => {
+            LensUsed::Measured { k1, err }
+        }
+        _ => LensUsed::Bound(bound),
+    }
+}
+
 fn bounded_of(
     tr: &Track,
     meta: &crate::source::SourceMeta,
     cfg: &PipelineConfig,
 ) -> Option<crate::lens::Bounded> {
     use crate::timings::{time, Stage};
-    let camera = &cfg.camera;
-    (camera.distortion_k1_per_px2.is_none() && camera.distortion_bound_px > 0.0).then(|| {
-        let lens = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
+    let lens = match lens_of(tr, meta, cfg) {
+        LensUsed::Measured { err, .. } => Lens::new(-err * 3f64.sqrt(), meta.width, meta.height),
+        LensUsed::Bound(lens) => lens,
+        LensUsed::Calibrated(_) | LensUsed::None => return None,
+    };
+    Some({
         let (surface, radius_px, curvature) = time(Stage::Events, || {
             let (surface, radius_px) = crate::lens::undistorted_line(tr, &lens);
             let c = free_fall_curvature(
@@ -593,7 +819,7 @@ fn bounded_of(
     })
 }
 
-fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
+fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, RunFailure> {
     crate::run_name::check(&run.run)?;
     let surface_name = run
         .surface
@@ -603,20 +829,30 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         return Err(format!(
             "surface `{surface_name}` is not defined in pipeline.toml (known: {})",
             cfg.surfaces.keys().cloned().collect::<Vec<_>>().join(", ")
-        ));
+        )
+        .into());
     }
     use crate::timings::{time, Stage};
-    let mut source = open_run(run, cfg)?;
+    let (mut source, fps_source) = open_run(run, cfg)?;
     let meta = source.meta().clone();
-    let settings = TrackSettings::from_config(&cfg.detect);
-    let mut tr =
-        track(source.as_mut(), &settings).map_err(|e| format!("{}: {e}", run.path.display()))?;
-    let camera = &cfg.camera;
-    if let Some(k1) = camera.distortion_k1_per_px2 {
-        tr = undistort_track(tr, &Lens::new(k1, meta.width, meta.height))
-            .map_err(|e| format!("{}: {e}", run.path.display()))?;
+    // A failure from here on has a recording: its frames and frame rate
+    // are in the failed row.
+    let failed = |e: &dyn std::fmt::Display| RunFailure {
+        reason: format!("{}: {e}", run.path.display()),
+        recording: Some(Recording {
+            frames: meta.frame_count,
+            fps: meta.fps,
+            fps_source: fps_source.clone(),
+        }),
+    };
+    let settings = TrackSettings::from_config(&cfg.detect_settings());
+    let mut tr = track(source.as_mut(), &settings).map_err(|e| failed(&e))?;
+    let lens = lens_of(&tr, &meta, cfg);
+    if let LensUsed::Calibrated(k1) | LensUsed::Measured { k1, .. } = lens {
+        tr =
+            undistort_track(tr, &Lens::new(k1, meta.width, meta.height)).map_err(|e| failed(&e))?;
     }
-    exclude_frames(&mut tr, &run.review).map_err(|e| format!("{}: {e}", run.path.display()))?;
+    exclude_frames(&mut tr, &run.review).map_err(|e| failed(&e))?;
     // The free falls' curvature, and the track through the lens at the
     // distortion bound with its own: each on a thread.
     let (curvature, bounded) = rayon::join(
@@ -631,9 +867,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         },
         || bounded_of(&tr, &meta, cfg),
     );
-    tr.frames
-        .check()
-        .map_err(|e| format!("{}: {e}", run.path.display()))?;
+    tr.frames.check().map_err(|e| failed(&e))?;
     Ok(Tracked {
         source,
         meta,
@@ -642,6 +876,7 @@ fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, String> {
         surface_name,
         curvature,
         bounded,
+        fps_source,
     })
 }
 
@@ -661,6 +896,7 @@ fn measure_run(
         surface_name,
         curvature,
         bounded,
+        fps_source,
     } = t;
     let event_cfg = EventConfig {
         exposure_s: meta.exposure_s.unwrap_or(0.0),
@@ -671,7 +907,7 @@ fn measure_run(
     let inputs = ScaleInputs {
         radius_mm: run.sphere_radius_mm,
         g_m_s2: event_cfg.g_m_s2,
-        given_mm_per_px: run.mm_per_px.or(cfg.camera.mm_per_px),
+        given_mm_per_px: cfg.given_mm_per_px(run.mm_per_px),
         setup,
         own: curvature,
         r_app_px: tr.radius_px,
@@ -721,26 +957,57 @@ fn measure_run(
         surface: surface_name,
     };
     let failed = |e: crate::events::EventError| format!("{}: {e}", run.path.display());
-    let points = window(&geom, &geom).map_err(failed)?;
+    let points = match window(&geom, &geom) {
+        Err(e @ crate::events::EventError::NeverLands { .. }) => {
+            // Tracked, never landing: its free flight and files, no impact.
+            let row_of = |f: &FrameTrack| {
+                let mut row = track_row(f);
+                row.delta_mm = row
+                    .x_px
+                    .zip(row.z_px)
+                    .map(|(x, z)| geom.penetration_px(x, z) * geom.mm_per_px);
+                row
+            };
+            let files = Files {
+                recording: RecordingRow {
+                    run,
+                    cfg,
+                    meta: &meta,
+                    tr: &tr,
+                    sc: &sc,
+                    edge_offset,
+                    fps_source: &fps_source,
+                },
+                source: source.as_mut(),
+                settings: &settings,
+                row_of: &row_of,
+                still_at_s: None,
+                impact: None,
+                overlay_frames,
+                scene,
+            };
+            return tracked_only(failed(e), &info, &geom, event_cfg.g_m_s2, files);
+        }
+        points => points.map_err(failed)?,
+    };
     let mut m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
     drop(points);
-    // The surface: the image's line, checked against (and moved to) where
-    // the contact law puts it, unless the configuration gave the line.
-    // Without the law's surface, the image's line alone, with the band
-    // top's systematic in its error.
-    let band_top_px = crate::measure::band_top_systematic_px(tr.surface.model_err_px);
-    let by_law = Some(
-        m.law
-            .as_ref()
-            .ok()
-            .and_then(|law| surface_from_law(law, geom.surface_row_err_px, band_top_px))
-            .unwrap_or_else(|| (0.0, geom.surface_row_err_px.hypot(band_top_px), "image")),
-    );
+    // The surface is the image's line (or the configuration's), never the
+    // contact law's: the law is what the experiment measures. The law's
+    // surface only cross-checks the line: where they disagree beyond 3σ the
+    // drop is flagged, and the line's error takes in their disagreement
+    // (which of the two is off, the image cannot tell), so that every error
+    // resting on the line says so; the values stay the line's.
+    let mut surface_source = if tr.surface_from_config {
+        "config"
+    } else {
+        "image"
+    };
     let mut geom = geom;
-    let mut surface_source = "image";
     // A surface row set by hand in `dropscope review` replaces the line
     // found, wherever it came from: through the row given at the impact
-    // column, with the image's tilt.
+    // column, with the image's tilt. Like the configuration's, it is given,
+    // not cross-checked.
     let by_hand = run.review.surface_row_px.as_ref().map(|(row, _)| *row);
     let mut hand_offset_px = 0.0;
     if let Some(row_px) = by_hand {
@@ -751,13 +1018,20 @@ fn measure_run(
         surface_source = "review";
         let points = window(&geom, &geom).map_err(failed)?;
         m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;
-    } else if let (Some((offset_px, err_px, source)), false) = (by_law, tr.surface_from_config) {
-        geom.surface_row_px += offset_px;
-        geom.surface_row_err_px = err_px;
-        surface_source = source;
+    }
+    let disagreement = match &m.law {
+        Ok(law) if surface_source == "image" => {
+            crate::measure::surface_law_check(law, geom.surface_row_err_px)
+                .map(|flag| (flag, law.surface_offset_px.map_or(0.0, |d| d.value)))
+        }
+        _ => None,
+    };
+    if let Some((_, offset_px)) = disagreement {
+        geom.surface_row_err_px = geom.surface_row_err_px.hypot(offset_px);
         let points = window(&geom, &geom).map_err(failed)?;
         m = measure_drop_with(&info, &points, &geom, &event_cfg, Some(&m.law)).map_err(failed)?;
     }
+    let geom = geom;
     // A frame's row of the track CSV, with contact, δ and force: made
     // when written, one at a time (a long movie's rows, 168 bytes a frame,
     // were held beside its track).
@@ -768,36 +1042,27 @@ fn measure_run(
     };
     let law_offset = m.law.as_ref().ok().and_then(|l| l.surface_offset_px);
     let mut record = m.record.clone();
-    let moved_by_law = !matches!(surface_source, "image" | "review");
-    if let (Ok(law), Some(off), true) = (&m.law, law_offset, moved_by_law) {
-        // n and K (n free) were fitted on the image's line: the two
-        // surfaces' disagreement is an uncertainty of that line they carry.
-        // K at n = 2 is the law's own, on its surface.
+    if let (Some(((word, message), offset_px)), Ok(law)) = (disagreement, &m.law) {
+        quality::flag(&mut record, word, message);
+        // n and K were fitted on the line: its widened error reaches them
+        // through their response to the surface.
         let widen = |err: &mut Option<f64>, per_px: f64| {
-            *err = err.map(|e| e.hypot(per_px * off.value));
+            *err = err.map(|e| e.hypot(per_px * offset_px));
         };
         widen(&mut record.force_exponent_err, law.n_per_surface_px);
-        // Where the law rejected the image's line, K and n on that line are
-        // not measurements: they come from the fit with the surface free
-        // too (n not assumed, so the law's own n = 2 is not fed back).
-        if let (Some((k, n)), "contact_law") = (law.with_surface_free, surface_source) {
-            record.force_k_si = Some(k.value);
-            record.force_k_si_err = Some(k.err);
-            record.force_exponent = Some(n.value);
-            record.force_exponent_err = Some(n.err);
-        }
         widen(&mut record.force_k_si_err, law.k_per_surface_px);
-        if let Some(k2) = law.k_at_n2_on_law_surface {
-            record.force_k2_n_m2 = Some(k2.value);
-            record.force_k2_n_m2_err = Some(k2.err);
-        }
     }
     record.surface_source = surface_source.to_string();
     record.surface_law_offset_px = law_offset.map(|d| d.value);
     record.surface_law_offset_px_err = law_offset.map(|d| d.err);
     widen_a_max_err(&mut record, &geom, edge_offset.map_or(0.0, |(_, e)| e));
-    speeds_at_the_impact_scale(&mut record, &sc);
-    record.distortion_k1_per_px2 = cfg.camera.distortion_k1_per_px2;
+    let lens = lens_of(&tr, &meta, cfg);
+    let corrected = matches!(lens, LensUsed::Calibrated(_) | LensUsed::Measured { .. });
+    speeds_at_the_impact_scale(&mut record, &sc, corrected);
+    let (k1, k1_err, lens_source) = lens.describe();
+    record.distortion_k1_per_px2 = k1;
+    record.distortion_k1_per_px2_err = k1_err;
+    record.distortion_source = lens_source.to_string();
     if let Some(b) = &bounded {
         // The first look's points (their half-widths on the image's line)
         // and the lens's, each under the geometry measured on them.
@@ -815,7 +1080,7 @@ fn measure_run(
             geom.surface_row_px - tr.surface.row0_px,
             &info.sphere(),
             &event_cfg,
-            |sc| speed_factor(sc).0,
+            |sc| if corrected { 1.0 } else { speed_factor(sc).0 },
         );
         if let Some(shift) = shift {
             distortion_systematic(&mut record, &shift);
@@ -825,66 +1090,138 @@ fn measure_run(
     // The overlays draw the line used.
     let mut tr = tr;
     tr.surface.row0_px += hand_offset_px;
-    record.setup = run.setup.clone().unwrap_or_default();
-    record.drop_height_cm = run.drop_height_cm;
-    record.path = run.path.display().to_string();
-    record.scale_source = sc.source.name().to_string();
-    record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
-    record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);
-    record.edge_offset_px = edge_offset.map(|(o, _)| o);
-    record.edge_offset_px_err = edge_offset.map(|(_, e)| e);
-    record.surface_model_err_px = Some(tr.surface.model_err_px);
-    if let Some(w) = sc.warning {
-        quality::flag(&mut record, quality::SCALE_DISAGREEMENT, w);
-    }
-    if let Some(share) = saturated_share(&tr, meta.bit_depth) {
-        quality::flag(
-            &mut record,
-            quality::SATURATED,
-            format!(
-                "{:.1} % of the background near the sphere's path is clipped at the white level",
-                share * 100.0
-            ),
-        );
-    }
-    for w in &meta.details.warnings {
-        if w.starts_with(crate::source::validate::IRREGULAR_TIMES) {
-            quality::flag(&mut record, quality::TIME_IRREGULAR, w.clone());
-        } else if w.starts_with(crate::source::validate::TIMES_AND_RATE_DISAGREE) {
-            quality::flag(&mut record, quality::FPS_MISMATCH, w.clone());
+    let recording = RecordingRow {
+        run,
+        cfg,
+        meta: &meta,
+        tr: &tr,
+        sc: &sc,
+        edge_offset,
+        fps_source: &fps_source,
+    };
+    recording.describe(&mut record);
+    let impact = record
+        .t_contact_s
+        .filter(|_| cfg.output.animation)
+        .map(|t| (t, record.t_rebound_s));
+    // The overlay at the frame nearest the maximum penetration.
+    let still_at_s = record.t_max_s;
+    with_files(
+        record,
+        Files {
+            recording,
+            source: source.as_mut(),
+            settings: &settings,
+            row_of: &row_of,
+            still_at_s,
+            impact,
+            overlay_frames,
+            scene,
+        },
+    )
+}
+
+/// What a run's row says of its recording, its scale and its checks,
+/// whatever became of its impact.
+struct RecordingRow<'a> {
+    run: &'a RunSpec,
+    cfg: &'a PipelineConfig,
+    meta: &'a crate::source::SourceMeta,
+    tr: &'a Track,
+    sc: &'a crate::scale::Scale,
+    /// Apparent minus true radius and its error, px.
+    edge_offset: Option<(f64, f64)>,
+    fps_source: &'a str,
+}
+
+impl RecordingRow<'_> {
+    /// Fill `record`'s manifest, scale and frame-rate columns and flag what
+    /// weakens them (scale disagreement, saturation, frame times, an
+    /// assumed or disagreeing frame rate).
+    fn describe(&self, record: &mut DropRecord) {
+        let (run, sc, meta, tr) = (self.run, self.sc, self.meta, self.tr);
+        record.setup = run.setup.clone().unwrap_or_default();
+        record.drop_height_cm = run.drop_height_cm;
+        record.path = run.path.display().to_string();
+        record.reading = meta.reading();
+        record.scale_source = sc.source.name().to_string();
+        record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
+        record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);
+        record.edge_offset_px = self.edge_offset.map(|(o, _)| o);
+        record.edge_offset_px_err = self.edge_offset.map(|(_, e)| e);
+        record.surface_model_err_px = Some(tr.surface.model_err_px);
+        if let Some(w) = &sc.warning {
+            quality::flag(record, quality::SCALE_DISAGREEMENT, w.clone());
         }
-    }
-    if let Some(f) = run.fps {
-        if (f / meta.fps - 1.0).abs() > crate::source::validate::FPS_AGREEMENT {
+        if let Some(share) = saturated_share(tr, meta.bit_depth) {
             quality::flag(
-                &mut record,
-                quality::FPS_MISMATCH,
+                record,
+                quality::SATURATED,
                 format!(
-                    "the manifest's fps {f} disagrees with the file's frame rate {} frames/s; \
-                     the file's is used",
-                    meta.fps
+                    "{:.1} % of the background near the sphere's path is clipped at the white level",
+                    share * 100.0
                 ),
             );
         }
+        for w in &meta.details.warnings {
+            if w.starts_with(crate::source::validate::IRREGULAR_TIMES)
+                || w.starts_with(crate::source::validate::TIMES_INCOMPLETE)
+            {
+                quality::flag(record, quality::TIME_IRREGULAR, w.clone());
+            } else if w.starts_with(crate::source::validate::TIMES_AND_RATE_DISAGREE) {
+                quality::flag(record, quality::FPS_MISMATCH, w.clone());
+            }
+        }
+        frame_rate_checks(record, run, self.cfg, meta.fps, self.fps_source);
     }
+}
 
-    // The overlay at the frame nearest the maximum penetration, those asked
-    // for, and the animated impact; beside them, the track CSV.
+/// What a run's files are drawn and written from.
+struct Files<'a> {
+    recording: RecordingRow<'a>,
+    source: &'a mut dyn crate::source::FrameSource,
+    settings: &'a TrackSettings,
+    /// A frame's row of the track CSV.
+    row_of: &'a (dyn Fn(&FrameTrack) -> TrackRow + Sync),
+    /// The main overlay is the held frame nearest this time.
+    still_at_s: Option<f64>,
+    /// The animated impact's contact and rebound times.
+    impact: Option<(f64, Option<f64>)>,
+    overlay_frames: &'a [i64],
+    scene: SceneSignature,
+}
+
+/// The run's outcome: `record`, with its overlays, animated impact and
+/// track CSV (drawn and written beside each other).
+fn with_files(record: DropRecord, f: Files<'_>) -> Result<RunOutcome, String> {
+    let Files {
+        recording,
+        source,
+        settings,
+        row_of,
+        still_at_s,
+        impact,
+        overlay_frames,
+        scene,
+    } = f;
+    let RecordingRow {
+        run, meta, tr, sc, ..
+    } = recording;
     let pictures = || {
         let mut pictures = crate::pictures::Pictures {
-            source: source.as_mut(),
-            meta: &meta,
-            track: &tr,
-            settings: &settings,
+            source,
+            meta,
+            track: tr,
+            settings,
             delta_mm: &|f| row_of(f).delta_mm,
             mm_per_px: sc.mm_per_px,
         };
-        let overlay = record.t_max_s.and_then(|t_max| {
+        let overlay = still_at_s.and_then(|at| {
             let ft = tr
                 .frames
                 .iter()
                 .filter(|f| f.held.is_some() && !f.flags.contains(crate::track::Flag::Excluded))
-                .min_by(|a, b| (a.t_s - t_max).abs().total_cmp(&(b.t_s - t_max).abs()))?;
+                .min_by(|a, b| (a.t_s - at).abs().total_cmp(&(b.t_s - at).abs()))?;
             pictures.still(&ft)
         });
         let frame_overlays: Vec<(i64, Vec<u8>)> = overlay_frames
@@ -894,10 +1231,7 @@ fn measure_run(
                 pictures.still(&ft).map(|png| (n, png))
             })
             .collect();
-        let impact = record
-            .t_contact_s
-            .filter(|_| cfg.output.animation)
-            .and_then(|t| pictures.impact(t, record.t_rebound_s));
+        let impact = impact.and_then(|(t, rebound)| pictures.impact(t, rebound));
         (overlay, frame_overlays, impact)
     };
     let track_csv = || {
@@ -926,7 +1260,134 @@ fn measure_run(
         impact,
         scene: Some(scene),
         seconds: 0.0,
+        notes: meta.reading_notes(),
     })
+}
+
+/// The outcome of a run whose sphere was tracked but never reached the
+/// surface (`why`): status `tracked`, its free flight ([`crate::flight`]:
+/// v at the last tracked frame, g) at the run's scale, its scale and frame
+/// rate columns, its track (δ negative: the clearance) and the overlay of
+/// its last tracked frame, no impact.
+fn tracked_only(
+    why: String,
+    info: &DropInfo,
+    geom: &Geometry,
+    g_m_s2: f64,
+    f: Files<'_>,
+) -> Result<RunOutcome, String> {
+    let (run, tr, sc) = (f.recording.run, f.recording.tr, f.recording.sc);
+    let mut record = DropRecord::failed(&run.run, run.sphere_radius_mm, String::new());
+    record.status = crate::dataset::DropStatus::Tracked;
+    record.sphere_density_kg_m3 = info.sphere_density_kg_m3;
+    record.surface = info.surface.clone();
+    record.mm_per_px = Some(sc.mm_per_px);
+    record.mm_per_px_err = Some(sc.mm_per_px * sc.rel_err);
+    let points: Vec<TrackPoint> = held_points(tr, |_| (None, None)).collect();
+    record.surface_row_px = points
+        .last()
+        .map(|p| geom.surface_row_at(p.x_px))
+        .or(Some(geom.surface_row_px));
+    record.surface_row_px_err = Some(geom.surface_row_err_px);
+    record.surface_source = "image".into();
+    record.reason = match crate::flight::free_flight(&points, sc.mm_per_px, sc.rel_err, g_m_s2) {
+        Ok(ff) => {
+            // To the nanosecond, as the track's times.
+            record.t_last_s = Some((ff.t_last_s * 1e9).round() / 1e9);
+            record.v_last_m_s = Some(ff.v_last_m_s.value);
+            record.v_last_m_s_err = Some(ff.v_last_m_s.err);
+            record.g_fit_m_s2 = ff.g_fit_m_s2.map(|g| g.value);
+            record.g_fit_m_s2_err = ff.g_fit_m_s2.map(|g| g.err);
+            format!(
+                "{why}: tracked only, no impact measured: {} frames of free flight, v = \
+                 {:.4} ± {:.4} m/s at the last one",
+                ff.frames, ff.v_last_m_s.value, ff.v_last_m_s.err
+            )
+        }
+        Err(e) => format!("{why}: tracked only, no impact measured; no free-flight fit: {e}"),
+    };
+    if let Some(g) = record.g_fit_m_s2.zip(record.g_fit_m_s2_err) {
+        // As a drop's flight is checked (crate::measure).
+        let off = g.0 / g_m_s2 - 1.0;
+        if off.abs() > 0.02 && (g.0 - g_m_s2).abs() > 3.0 * g.1 {
+            quality::flag(
+                &mut record,
+                quality::GRAVITY_OFF,
+                format!(
+                    "free-flight gravity {:.3} ± {:.3} m/s² is {:+.1} % off {g_m_s2} m/s²: \
+                     check the frame rate and the scale",
+                    g.0,
+                    g.1,
+                    off * 100.0
+                ),
+            );
+        }
+    }
+    f.recording.describe(&mut record);
+    let still_at_s = points.last().map(|p| p.t_s);
+    with_files(
+        record,
+        Files {
+            still_at_s,
+            impact: None,
+            ..f
+        },
+    )
+}
+
+/// Fill the row's `fps` and `fps_source` and flag what is doubtful about
+/// them: a frame rate assumed (`camera.fps` or [`crate::config::DEFAULT_FPS`]:
+/// [`quality::FPS_ASSUMED`]), or one given (manifest, `--fps`) that
+/// disagrees with the recording's own, which is used
+/// ([`quality::FPS_MISMATCH`]).
+fn frame_rate_checks(
+    record: &mut DropRecord,
+    run: &RunSpec,
+    cfg: &PipelineConfig,
+    fps: f64,
+    fps_source: &str,
+) {
+    record.fps = Some(fps);
+    record.fps_source = fps_source.to_string();
+    match fps_source {
+        "config" => quality::flag(
+            record,
+            quality::FPS_ASSUMED,
+            format!(
+                "the recording holds no frame rate: measured at {fps} frames/s, camera.fps of \
+                 the configuration; if that is not this recording's, pass --fps (or the \
+                 manifest's fps column)"
+            ),
+        ),
+        "default" => quality::flag(
+            record,
+            quality::FPS_ASSUMED,
+            format!(
+                "the recording holds no frame rate and none was given: measured at {fps} \
+                 frames/s, dropscope's default, a guess; times and speeds scale with it: pass \
+                 --fps (or the manifest's fps column, or camera.fps)"
+            ),
+        ),
+        "manifest" | "flag" => {}
+        _ => {
+            let given = [
+                (run.fps, "the manifest's fps"),
+                (cfg.command_line.fps, "--fps"),
+            ];
+            if let Some((f, by)) = given.iter().find_map(|(f, by)| Some((f.as_ref()?, by))) {
+                if (f / fps - 1.0).abs() > crate::source::validate::FPS_AGREEMENT {
+                    quality::flag(
+                        record,
+                        quality::FPS_MISMATCH,
+                        format!(
+                            "{by} {f} disagrees with the recording's own frame rate {fps} \
+                             frames/s ({fps_source}); the recording's is used"
+                        ),
+                    );
+                }
+            }
+        }
+    }
 }
 
 /// The share of the background at the white level (within 1 % of
@@ -1006,28 +1467,37 @@ fn bounded_points<'a>(
 
 /// [`held_points`] of frames given with their held fits (the track's, or
 /// moved by a lens: [`crate::lens::undistort_held`]); a circle leaving the
-/// frame is no point.
+/// frame is no point, nor a frame the tracker found off its neighbours'
+/// flight ([`crate::track::Flag::Outlier`]), nor one a person excluded
+/// ([`crate::track::Flag::Excluded`]).
 fn points_of(
     held: impl Iterator<Item = (FrameTrack, crate::detect::CircleFit)>,
     half_width: impl Fn(&crate::detect::CircleFit) -> (Option<f64>, Option<f64>),
 ) -> impl Iterator<Item = TrackPoint> {
     use crate::track::Flag;
-    held.filter(|(f, _)| !f.flags.contains(Flag::Partial) && !f.flags.contains(Flag::Excluded))
-        .map(move |(f, h)| {
-            let (hw, hw_err) = f.free.as_ref().map_or((None, None), &half_width);
-            TrackPoint {
-                frame: f.frame,
-                t_s: f.t_s,
-                x_px: h.x_px,
-                z_px: h.z_px,
-                sigma_z_px: h.cov.sigma_z_px().max(1e-4),
-                half_width_px: hw,
-                sigma_half_width_px: hw_err,
-            }
-        })
+    held.filter(|(f, _)| {
+        ![Flag::Partial, Flag::Outlier, Flag::Excluded]
+            .into_iter()
+            .any(|flag| f.flags.contains(flag))
+    })
+    .map(move |(f, h)| {
+        let (hw, hw_err) = f.free.as_ref().map_or((None, None), &half_width);
+        TrackPoint {
+            frame: f.frame,
+            t_s: f.t_s,
+            x_px: h.x_px,
+            z_px: h.z_px,
+            sigma_z_px: h.cov.sigma_z_px().max(1e-4),
+            half_width_px: hw,
+            sigma_half_width_px: hw_err,
+        }
+    })
 }
 
-/// With a given scale, the speeds use [`crate::scale::Scale::for_speeds`]:
+/// With a given scale and a lens that is not corrected (`corrected`:
+/// calibrated or measured by the surface's bow, the track then in the
+/// scene's pixels, where the given scale holds at the impact as anywhere),
+/// the speeds use [`crate::scale::Scale::for_speeds`]:
 /// the magnification at the impact that free fall measures, where it is
 /// precise and disagrees with the given one. Where free fall is too
 /// imprecise to be used (one drop's own flight), its disagreement beyond
@@ -1035,7 +1505,10 @@ fn points_of(
 /// need not be the magnification at the impact. On the real preset with
 /// the true scale given, v_impact was 0.03 % high (barrel distortion) with
 /// the given scale alone.
-fn speeds_at_the_impact_scale(record: &mut DropRecord, sc: &crate::scale::Scale) {
+fn speeds_at_the_impact_scale(record: &mut DropRecord, sc: &crate::scale::Scale, corrected: bool) {
+    if corrected {
+        return;
+    }
     let (factor, rel) = speed_factor(sc);
     for (v, err) in [
         (&mut record.v_impact_m_s, &mut record.v_impact_m_s_err),
@@ -1097,10 +1570,12 @@ fn distortion_systematic(record: &mut DropRecord, shift: &crate::lens::Shift) {
 
 /// How far the silhouette's edge offset may differ between the flight,
 /// where it is measured, and the peak, where a_max uses it (motion smear,
-/// the lower outline hidden in contact), px. On the real preset's 60 drops
-/// a_max came out 0.1–0.35 % (0.1–0.3 px) high with the fits' errors alone,
-/// covering 26 of 60; this term is the radius error that explains it.
-pub const A_MAX_EDGE_SYSTEMATIC_PX: f64 = 0.1;
+/// the lower outline hidden in contact), px. With the half-width's peak
+/// fitted as the penetration's is, a_max is within 0.04 % of the truth on
+/// the `realistic` renders with contacts beyond the model (120 drops; the
+/// edge 0.003 px off at the median, 0.008 px at the 95th percentile) and
+/// within 0.07 % on the independent ones (12 drops).
+pub const A_MAX_EDGE_SYSTEMATIC_PX: f64 = 0.008;
 
 /// Add to a_max's error what is common to every frame of the peak and so
 /// not in its fit's: the surface row's error (∂a/∂y_s = (R − δ)/a) and the
@@ -1163,6 +1638,9 @@ fn track_row(f: &FrameTrack) -> TrackRow {
         in_contact: false,
         delta_mm: None,
         sigma_z_px: fit.map(|c| c.cov.sigma_z_px()),
+        sigma_x_px: fit.map(|c| c.cov.sigma_x_px()),
+        r_free_px: f.free.map(|c| c.r_px),
+        sigma_r_free_px: f.free.and_then(|c| c.cov.sigma_r_px()),
         force_n: None,
         flags: f.flags.text(),
     }
@@ -1230,15 +1708,12 @@ fn write_file_as(
     durable: Durable,
     write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
 ) -> Result<(), ProcessError> {
-    let path = output_path(out, rel)?;
-    if let Some(d) = path.parent() {
-        std::fs::create_dir_all(d).map_err(|source| ProcessError::Write {
-            path: d.to_path_buf(),
+    crate::out_folder::write_as(out, rel, durable, write)
+        .map(drop)
+        .map_err(|source| ProcessError::Write {
+            path: out.join(rel),
             source,
-        })?;
-    }
-    crate::io_util::write_atomic_as(&path, durable, write)
-        .map_err(|source| ProcessError::Write { path, source })
+        })
 }
 
 /// Make the files written by [`write_run_outputs`] (and the cache entries)
@@ -1256,8 +1731,10 @@ pub fn sync_outputs(out: &Path) -> Result<(), ProcessError> {
 /// (`plots/overlays/<run>[_<number>].png`) and animated impact
 /// (`plots/impacts/<run>.png`) into `out`, each atomically but unsynced:
 /// the job makes them durable at once ([`sync_outputs`]) before its
-/// drops.csv. A track or main overlay left by an earlier job for this run, which this
-/// outcome does not have (the run now fails), is removed. A run whose name
+/// drops.csv. A track, main overlay or animation that this run's previous
+/// cache entry lists, and that this outcome does not have (the run now
+/// fails), is removed while it holds the bytes written then
+/// ([`crate::out_folder::remove_if_holds`]). A run whose name
 /// is no file name writes and removes nothing. Returns the files written,
 /// relative to `out`, with the SHA-256 of their bytes.
 pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, ProcessError> {
@@ -1268,6 +1745,8 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, 
     }
     let track = format!("tracks/{run}.csv");
     let main_overlay = format!("plots/overlays/{run}.png");
+    let before = crate::cache::listed_outputs(out, run);
+    let remove_if_present = |out: &Path, rel: &str| remove_if_listed(out, rel, &before);
     let mut written = Vec::new();
     if o.track_csv.is_empty() {
         remove_if_present(out, &track)?;
@@ -1299,17 +1778,18 @@ pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, 
     Ok(written)
 }
 
-/// `out/rel`, refused unless it stays inside `out` ([`crate::io_util::inside`]).
-fn output_path(out: &Path, rel: &str) -> Result<PathBuf, ProcessError> {
-    crate::io_util::inside(out, rel).map_err(|source| ProcessError::Write {
-        path: out.join(rel),
-        source,
-    })
-}
-
-fn remove_if_present(out: &Path, rel: &str) -> Result<(), ProcessError> {
-    let path = output_path(out, rel)?;
-    crate::io_util::remove_if_present(&path).map_err(|source| ProcessError::Write { path, source })
+/// Remove `out/rel` if `listed` (what an earlier job wrote for the run)
+/// names it and it still holds the bytes listed there.
+fn remove_if_listed(out: &Path, rel: &str, listed: &[OutputFile]) -> Result<(), ProcessError> {
+    let Some(f) = listed.iter().find(|f| f.path == rel) else {
+        return Ok(());
+    };
+    crate::out_folder::remove_if_holds(out, rel, &f.sha256)
+        .map(drop)
+        .map_err(|source| ProcessError::Write {
+            path: out.join(rel),
+            source,
+        })
 }
 
 #[cfg(test)]
@@ -1334,9 +1814,10 @@ mod tests {
                 impact: None,
                 scene: None,
                 seconds: 0.0,
+                notes: Vec::new(),
             })
         })
-        .unwrap_or_else(|reason| failed_outcome(&runs[0], &cfg, reason));
+        .unwrap_or_else(|reason| failed_outcome(&runs[0], &cfg, reason, None));
         assert_eq!(o.record.status, crate::dataset::DropStatus::Failed);
         assert_eq!(o.record.run, "drop");
         assert!(

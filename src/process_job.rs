@@ -13,6 +13,7 @@ use crate::batch::{
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::RunSpec;
+use crate::out_folder::Ledger;
 use crate::process::write_file;
 use crate::timings::{time, Stage};
 
@@ -45,13 +46,14 @@ impl ProcessSummary {
 /// `id`), saying which ([`crate::leftovers::remove_other_dataset`]): a
 /// process job writes no collapse, and they would no longer match.
 fn remove_other_collapse(
-    out: &Path,
+    ledger: &mut Ledger,
     id: &str,
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<(), BatchError> {
+    let out = ledger.out().to_path_buf();
     let removed =
-        crate::leftovers::remove_other_dataset(out, id).map_err(|source| BatchError::Io {
-            path: out.to_path_buf(),
+        crate::leftovers::remove_other_dataset(ledger, id).map_err(|source| BatchError::Io {
+            path: out.clone(),
             source,
         })?;
     if !removed.is_empty() {
@@ -125,12 +127,14 @@ fn run_on_pool(
     // written after, as before. The syncs wait on the disk on a thread of
     // their own: on one of the pool's they held it, and a single drop's
     // figures (their SVG and PNG drawn at once) had one thread.
+    let mut ledger = Ledger::open(out);
     let (written, drawn) = std::thread::scope(|scope| {
+        let ledger = &mut ledger;
         let writer = scope.spawn(|| {
             crate::process::sync_outputs(out)?;
             time(Stage::Writes, || -> Result<(), BatchError> {
                 write_file(out, "drops.csv", &drops)?;
-                remove_other_collapse(out, &id, events)?;
+                remove_other_collapse(ledger, &id, events)?;
                 replace_provenance(out, cfg, config_name, &entries, &review, events)
             })
         });
@@ -142,11 +146,22 @@ fn run_on_pool(
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
         (written, drawn)
     });
-    written?;
+    let saved = |ledger: &mut Ledger| {
+        ledger.save().map_err(|source| BatchError::Io {
+            path: out.to_path_buf(),
+            source,
+        })
+    };
+    if let Err(e) = written {
+        saved(&mut ledger)?;
+        return Err(e);
+    }
     let (drawn, warnings) = drawn?;
-    time(Stage::Figures, || {
-        crate::collapse::per_drop::replace(out, drawn, &mut Vec::new())
-    })?;
+    let replaced = time(Stage::Figures, || {
+        crate::collapse::per_drop::replace(&mut ledger, drawn, &mut Vec::new())
+    });
+    saved(&mut ledger)?;
+    replaced?;
     Ok(ProcessSummary {
         records,
         cached,

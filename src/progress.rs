@@ -46,10 +46,87 @@ pub fn run_line(record: &DropRecord, frames: usize, seconds: Option<f64>) -> Str
             record.run, record.reason
         ),
         DropStatus::Ok => format!("{}: measured{from}", record.run),
+        DropStatus::Tracked => format!(
+            "{}: tracked{from}, no impact measured: {}",
+            record.run, record.reason
+        ),
         DropStatus::Rejected | DropStatus::Accepted => {
             format!("{}: measured{from}, {}", record.run, record.reason)
         }
     }
+}
+
+/// What the job says once at its end, whatever the terminal, of its runs'
+/// rows (cached ones too): the runs measured at a frame rate nobody gave
+/// (`fps_assumed`), by where it came from, and the runs whose frame rate
+/// given disagrees with their recording's (`fps_mismatch` from the manifest or
+/// `--fps`), and the runs whose apparent size per mm disagrees with their
+/// set-up's (`radius_disagreement`).
+pub fn closing_warnings(records: &[DropRecord]) -> Vec<String> {
+    fn flagged<'a>(
+        records: &'a [DropRecord],
+        word: &'a str,
+    ) -> impl Iterator<Item = &'a DropRecord> + 'a {
+        records
+            .iter()
+            .filter(move |r| r.flags.split(' ').any(|w| w == word))
+    }
+    let mut out = Vec::new();
+    for (source, from) in [
+        (
+            "default",
+            "dropscope's default, a guess: nothing gave one (pass --fps, or the manifest's \
+             fps column, or set camera.fps)",
+        ),
+        (
+            "config",
+            "camera.fps of the configuration (pass --fps, or the manifest's fps column, if \
+             that is not theirs)",
+        ),
+    ] {
+        let runs: Vec<&DropRecord> = flagged(records, crate::quality::FPS_ASSUMED)
+            .filter(|r| r.fps_source == source)
+            .collect();
+        if let Some(first) = runs.first() {
+            out.push(format!(
+                "frame rate assumed for {} holding none: {} frames/s (fps_source {source}), \
+                 {from}: {}",
+                crate::plural(runs.len(), "recording"),
+                first.fps.unwrap_or(f64::NAN),
+                names(&runs)
+            ));
+        }
+    }
+    for r in flagged(records, crate::quality::RADIUS_DISAGREEMENT) {
+        if let Some(s) = r
+            .reason
+            .split("; ")
+            .find(|s| s.contains("px per mm of sphere radius"))
+        {
+            out.push(format!("{} (set-up {}): {s}", r.run, r.setup));
+        }
+    }
+    for r in flagged(records, crate::quality::FPS_MISMATCH) {
+        if let Some(s) = r
+            .reason
+            .split("; ")
+            .find(|s| s.contains("disagrees with the recording's own frame rate"))
+        {
+            out.push(format!("{}: {s}", r.run));
+        }
+    }
+    out
+}
+
+/// Run names for a message: the first five, then how many more.
+fn names(runs: &[&DropRecord]) -> String {
+    let mut text: Vec<&str> = runs.iter().take(5).map(|r| r.run.as_str()).collect();
+    let more = runs.len().saturating_sub(5);
+    let more = format!("and {more} more");
+    if runs.len() > 5 {
+        text.push(&more);
+    }
+    text.join(", ")
 }
 
 impl JobProgress {
@@ -99,7 +176,7 @@ impl JobProgress {
                         ProgressStyle::with_template("  {spinner} {msg} {elapsed}")
                             .unwrap_or_else(|_| ProgressStyle::default_spinner()),
                     );
-                    s.set_message(run.to_string());
+                    s.set_message(crate::text::terminal(run).into_owned());
                     s.enable_steady_tick(Duration::from_millis(120));
                     if let Ok(mut m) = b.running.lock() {
                         m.insert(run.to_string(), s);
@@ -107,13 +184,13 @@ impl JobProgress {
                 }
             }
             RunEvent::Notice(message) => match &self.bars {
-                None => eprintln!("{message}"),
+                None => crate::errln!("{message}"),
                 Some(b) => {
-                    let _ = b.multi.println(message);
+                    let _ = b.multi.println(crate::text::terminal(message));
                 }
             },
             RunEvent::Collapsing => match &self.bars {
-                None => eprintln!("collapse …"),
+                None => crate::errln!("collapse …"),
                 Some(b) => b.overall.set_message("collapse …"),
             },
             RunEvent::Finished {
@@ -125,7 +202,7 @@ impl JobProgress {
                 let k = self.done.fetch_add(1, Ordering::Relaxed) + 1;
                 let n = self.total.load(Ordering::Relaxed);
                 match &self.bars {
-                    None => eprintln!("[{k}/{n}] {}", run_line(record, frames, seconds)),
+                    None => crate::errln!("[{k}/{n}] {}", run_line(record, frames, seconds)),
                     Some(b) => {
                         if let Some(s) = b
                             .running
@@ -141,7 +218,11 @@ impl JobProgress {
                         }
                         if record.status == DropStatus::Failed {
                             b.failed.fetch_add(1, Ordering::Relaxed);
-                            let _ = b.multi.println(run_line(record, frames, seconds));
+                        }
+                        if !record.status.measured() {
+                            let _ = b
+                                .multi
+                                .println(crate::text::terminal(&run_line(record, frames, seconds)));
                         }
                         b.overall.set_message(format!(
                             "({} failed, {} cached)",

@@ -27,12 +27,21 @@ pub const SCALE_DISAGREEMENT: &str = "scale_disagreement";
 /// Gravity fitted to the free flight is more than 2 % (and 3σ) off g:
 /// the frame rate or the scale is wrong.
 pub const GRAVITY_OFF: &str = "gravity_off";
-/// The manifest's `fps` or the file's frame times disagree with the
-/// file's frame rate.
+/// The manifest's `fps`, `--fps`, or the file's frame times disagree with
+/// the file's frame rate.
 pub const FPS_MISMATCH: &str = "fps_mismatch";
+/// The recording holds no frame rate and none was given for it (manifest
+/// `fps`, `--fps`): it was measured at `camera.fps` or at dropscope's
+/// default, a guess.
+pub const FPS_ASSUMED: &str = "fps_assumed";
 /// The file's frame times are off their regular spacing by more than 1 %
-/// of a frame interval (used as they are).
+/// of a frame interval (used as they are), or the side file's TIMEBLOCK
+/// lists no time for some frames (placed on the frame rate's grid).
 pub const TIME_IRREGULAR: &str = "time_irregular";
+/// The sphere's apparent size per mm of its radius disagrees with its
+/// set-up's other runs beyond their errors: a wrong `sphere_radius_mm`, or
+/// a run in the wrong set-up ([`crate::scale::size_disagreements`]).
+pub const RADIUS_DISAGREEMENT: &str = "radius_disagreement";
 /// The contact law could not be fitted (or its fit hit its limits).
 pub const NO_FORCE_LAW: &str = "no_force_law";
 /// The fitted exponent n lies outside [`FORCE_EXPONENT_RANGE`].
@@ -41,9 +50,14 @@ pub const FORCE_EXPONENT_IMPLAUSIBLE: &str = "force_exponent_implausible";
 pub const NEGATIVE_DAMPING: &str = "negative_damping";
 /// The restitution exceeds 1 by more than 3σ: the sphere cannot gain energy.
 pub const RESTITUTION_ABOVE_ONE: &str = "restitution_above_one";
+/// The trajectory, fitted with a power-law contact and the surface free,
+/// puts the undeformed surface more than 3σ away from the image's line:
+/// the line may be off (a reflection or a glossy band top moves it), or the
+/// contact is no power law. The image's line is kept.
+pub const SURFACE_LAW_DISAGREEMENT: &str = "surface_law_disagreement";
 
 /// Every flag with its meaning, in the order they are checked.
-pub const FLAGS: [(&str, &str); 13] = [
+pub const FLAGS: [(&str, &str); 16] = [
     (GAP_IN_CONTACT, "frames missing during the contact"),
     (GAP_AT_PEAK, "frames missing at the maximum penetration"),
     (
@@ -65,11 +79,19 @@ pub const FLAGS: [(&str, &str); 13] = [
     (GRAVITY_OFF, "free-flight gravity > 2 % off g"),
     (
         FPS_MISMATCH,
-        "manifest fps or frame times disagree with the file's frame rate",
+        "manifest fps, --fps or frame times disagree with the file's frame rate",
+    ),
+    (
+        FPS_ASSUMED,
+        "no frame rate in the recording nor given for it: camera.fps or the 10000 default",
     ),
     (
         TIME_IRREGULAR,
-        "frame times off their regular spacing by > 1 % of an interval",
+        "frame times off their regular spacing by > 1 % of an interval, or missing from the side file for some frames",
+    ),
+    (
+        RADIUS_DISAGREEMENT,
+        "apparent size per mm of radius disagrees with the set-up's other runs",
     ),
     (NO_FORCE_LAW, "the contact law could not be fitted"),
     (FORCE_EXPONENT_IMPLAUSIBLE, "force exponent n outside 1–4"),
@@ -80,6 +102,10 @@ pub const FLAGS: [(&str, &str); 13] = [
     (
         RESTITUTION_ABOVE_ONE,
         "restitution above 1 by more than 3 sigma",
+    ),
+    (
+        SURFACE_LAW_DISAGREEMENT,
+        "the contact law's surface is > 3 sigma off the image's line",
     ),
 ];
 
@@ -96,13 +122,16 @@ pub const FORCE_EXPONENT_RANGE: (f64, f64) = (1.0, 4.0);
 /// before the drop is flagged [`SATURATED`].
 pub const SATURATED_SHARE: f64 = 0.01;
 
-/// Add a flag and its sentence to a measured record (status `warning`). A
-/// flag already there is not repeated.
+/// Add a flag and its sentence to a measured record (status `warning`;
+/// a `tracked` one keeps its status). A flag already there is not
+/// repeated; a failed record takes none.
 pub fn flag(record: &mut DropRecord, word: &str, message: impl Into<String>) {
     if record.status == DropStatus::Failed || record.flags.split(' ').any(|w| w == word) {
         return;
     }
-    record.status = DropStatus::Warning;
+    if record.status == DropStatus::Ok {
+        record.status = DropStatus::Warning;
+    }
     if !record.flags.is_empty() {
         record.flags.push(' ');
     }

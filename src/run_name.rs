@@ -11,7 +11,8 @@ pub const MAX_RUN_NAME_BYTES: usize = 200;
 
 /// Why `name` cannot be a run name, or `Ok` when it can: not empty, at most
 /// [`MAX_RUN_NAME_BYTES`] bytes, no `/` or `\`, no control character, and
-/// not starting with `.` (which also rules out `.` and `..`).
+/// no Unicode format character (category Cf: zero-width, bidirectional
+/// overrides), and not starting with `.` (which also rules out `.` and `..`).
 pub fn check(name: &str) -> Result<(), String> {
     let why = if name.is_empty() {
         "is empty"
@@ -21,18 +22,26 @@ pub fn check(name: &str) -> Result<(), String> {
         "holds a path separator (a run name names files inside the output folder)"
     } else if name.chars().any(char::is_control) {
         "holds a control character"
+    } else if let Some(c) = name.chars().find(|&c| crate::text::is_format(c)) {
+        return Err(format!(
+            "run name {:?} holds the invisible format character U+{:04X} (a zero-width or \
+             text-direction character: it makes one name look like another); retype the name \
+             without it",
+            crate::text::one_line(name),
+            c as u32
+        ));
     } else if name.starts_with('.') {
         "starts with `.` (names like `..` or hidden files are not run names)"
     } else {
         return Ok(());
     };
-    Err(format!("run name {name:?} {why}"))
+    Err(format!("run name {:?} {why}", crate::text::one_line(name)))
 }
 
 /// The run name of an input given without a manifest: its folder's whole
 /// name, dots and all, or its `.cine` file's name without `.cine`
 /// ([`crate::source::input_name`]), made into a valid name:
-/// separators and control characters become `_`, a leading `.` gets a `_`
+/// separators, control and format characters become `_`, a leading `.` gets a `_`
 /// before it, and an over-long name is cut at a character boundary.
 pub fn from_input(path: &Path) -> String {
     // `..` or `/` have no name of their own: name them after where they lead.
@@ -41,7 +50,7 @@ pub fn from_input(path: &Path) -> String {
     let mut name: String = raw
         .chars()
         .map(|c| {
-            if c == '/' || c == '\\' || c.is_control() {
+            if c == '/' || c == '\\' || c.is_control() || crate::text::is_format(c) {
                 '_'
             } else {
                 c
@@ -78,6 +87,9 @@ mod tests {
             ("a\\b", "path separator"),
             ("a\tb", "control character"),
             ("a\u{7f}", "control character"),
+            ("r\u{200b}un", "U+200B"),
+            ("evil\u{202e}gnp.exe", "U+202E"),
+            ("\u{feff}run", "U+FEFF"),
         ] {
             let e = check(bad).unwrap_err();
             assert!(e.contains(why), "{bad:?}: {e}");

@@ -291,9 +291,21 @@ mod tests {
         std::fs::write(d.join("r.xml"), b"<chd/>").unwrap();
         assert_eq!(frame_count(&d), 12);
         assert_eq!(frame_count(&dir.path().join("missing")), 0);
-        // A real cine: 97 frames (phantom-samples README).
+        // A real cine: 97 frames (phantom-samples README), when the
+        // project's shared/ folder is beside the checkout.
         let cine = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../shared/data/phantom-samples/pims/cine_legacy.cine");
+        if !cine.is_file() && std::env::var("DROPSCOPE_REQUIRE_ALL").as_deref() != Ok("1") {
+            use std::io::Write;
+            let _ = writeln!(
+                std::io::stderr(),
+                "SKIPPED: shard::tests::frames_are_counted_without_decoding, its real cine: {} \
+                 is missing: the project's shared/ folder must sit beside the checkout (set \
+                 DROPSCOPE_REQUIRE_ALL=1 to fail instead)",
+                cine.display()
+            );
+            return;
+        }
         assert_eq!(frame_count(&cine), 97);
     }
 }

@@ -59,6 +59,118 @@ pub enum SlurmError {
     NoSbatch(std::io::Error),
     #[error("sbatch {script} failed: {message}")]
     Sbatch { script: PathBuf, message: String },
+    /// A value that would reach the scripts is outside its field's set.
+    #[error("{0}")]
+    Value(String),
+}
+
+/// A value of a field that reaches a script: refused unless every
+/// character is in `allowed` (a sentence for the message), as `ok` says.
+fn check_field(
+    field: &str,
+    value: &str,
+    allowed: &str,
+    ok: impl Fn(char) -> bool,
+) -> Result<(), SlurmError> {
+    match value.chars().find(|&c| !ok(c)) {
+        None if !value.is_empty() => Ok(()),
+        found => Err(SlurmError::Value(format!(
+            "{field} {:?}: {} (a value written into the Slurm scripts may hold only {allowed})",
+            crate::text::one_line(value),
+            match found {
+                Some(c) => format!(
+                    "the character {:?} is not allowed",
+                    crate::text::one_line(&c.to_string())
+                ),
+                None => "is empty".to_string(),
+            }
+        ))),
+    }
+}
+
+/// The characters a path in an `#SBATCH` line may hold (sbatch splits
+/// those lines at spaces and reads `%` as a pattern; a newline would end
+/// the comment and start a command): letters, digits and `_ . / - + , @ : = ~`.
+const SBATCH_PATH: &str =
+    "letters, digits and _ . / - + , @ : = ~ (no space, quote, $, %, \\ or control character)";
+
+fn sbatch_path_char(c: char) -> bool {
+    c.is_alphanumeric() && !crate::text::is_format(c) || "_./-+,@:=~".contains(c)
+}
+
+/// Check every value `args` and `plan` put into the scripts: `--partition`
+/// (letters, digits, `_ . , -`), `--time` (digits, `:` and `-`, or
+/// UNLIMITED), `--mem` (digits with an optional K, M, G or T), the working
+/// folder and the logs' folder (written into `#SBATCH` lines:
+/// [`SBATCH_PATH`]), and the binary, configuration and output folder
+/// (quoted in the command line: any character but a control or format one).
+pub fn check_values(args: &SlurmArgs, plan: &Plan) -> Result<(), SlurmError> {
+    if let Some(p) = &args.partition {
+        check_field("--partition", p, "letters, digits and _ . , -", |c| {
+            c.is_ascii_alphanumeric() || "_.,-".contains(c)
+        })?;
+    }
+    if let Some(t) = &args.time {
+        if !matches!(t.as_str(), "UNLIMITED" | "INFINITE") {
+            check_field(
+                "--time",
+                t,
+                "digits, : and - (minutes, H:MM:SS, D-HH:MM:SS) or UNLIMITED",
+                |c| c.is_ascii_digit() || ":-".contains(c),
+            )?;
+        }
+    }
+    if let Some(m) = &args.mem {
+        let digits = m.trim_end_matches(['K', 'M', 'G', 'T']);
+        let one_unit = m.len() - digits.len() <= 1;
+        check_field(
+            "--mem",
+            m,
+            "digits and one unit K, M, G or T (e.g. 4G)",
+            |c| c.is_ascii_digit() || "KMGT".contains(c),
+        )?;
+        if digits.is_empty() || !one_unit || !digits.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(SlurmError::Value(format!(
+                "--mem {m:?}: not a size (a value written into the Slurm scripts may hold only \
+                 digits and one unit K, M, G or T, e.g. 4G)"
+            )));
+        }
+    }
+    let logs = plan.scripts.join("logs");
+    for (field, path) in [
+        ("the working folder", &plan.workdir),
+        ("the scripts' folder (--scripts)", &logs),
+    ] {
+        check_field(
+            field,
+            &path.to_string_lossy(),
+            SBATCH_PATH,
+            sbatch_path_char,
+        )?;
+    }
+    let quoted = |c: char| !c.is_control() && !crate::text::is_format(c);
+    let allowed = "any character but a control or format character";
+    check_field(
+        "the output folder",
+        &plan.out.to_string_lossy(),
+        allowed,
+        quoted,
+    )?;
+    check_field(
+        "the dropscope binary's path",
+        &plan.exe.to_string_lossy(),
+        allowed,
+        quoted,
+    )?;
+    if let Some(c) = &plan.config {
+        check_field(
+            "the configuration's path",
+            &c.to_string_lossy(),
+            allowed,
+            quoted,
+        )?;
+    }
+    Ok(())
 }
 
 /// What to run where: absolute paths, so that the jobs do not depend on the
@@ -123,8 +235,10 @@ impl Plan {
     }
 }
 
-/// `s` quoted for a POSIX shell.
-fn quote(s: &Path) -> String {
+/// `s` quoted for a POSIX shell (safe to paste: no character of it is
+/// special inside single quotes, and [`check_values`] refused control
+/// characters).
+pub fn quote(s: &Path) -> String {
     format!("'{}'", s.to_string_lossy().replace('\'', r"'\''"))
 }
 
@@ -199,8 +313,10 @@ pub fn finish_script(args: &SlurmArgs, plan: &Plan) -> String {
     )
 }
 
-/// Write both scripts (and the logs folder) into `plan.scripts`.
+/// Write both scripts (and the logs folder) into `plan.scripts`, once
+/// every value they hold is checked ([`check_values`]).
 pub fn write_scripts(args: &SlurmArgs, plan: &Plan) -> Result<Scripts, SlurmError> {
+    check_values(args, plan)?;
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| SlurmError::Io { path, source }
@@ -327,6 +443,48 @@ mod tests {
             .output()
             .unwrap();
         assert_eq!(o.stdout, b"/a/it's b");
+    }
+
+    /// A newline in a value would end the `#SBATCH` comment and run the
+    /// rest as a command; each field is refused with what it may hold.
+    #[test]
+    fn values_that_would_run_in_the_scripts_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = plan();
+        p.scripts = dir.path().join("s");
+        type Edit = fn(&mut SlurmArgs, &mut Plan);
+        let cases: [(&str, Edit); 9] = [
+            ("--partition", |a, _| {
+                a.partition = Some("debug\ntouch /tmp/x".into())
+            }),
+            ("--partition", |a, _| a.partition = Some("a;b".into())),
+            ("--time", |a, _| a.time = Some("1:00:00\nrm -rf ~".into())),
+            ("--time", |a, _| a.time = Some("$(id)".into())),
+            ("--mem", |a, _| a.mem = Some("4G\necho".into())),
+            ("--mem", |a, _| a.mem = Some("4GG".into())),
+            ("working folder", |_, p| p.workdir = "/data/a b".into()),
+            ("output folder", |_, p| {
+                p.out = "/res\ntouch X; echo ".into()
+            }),
+            ("scripts' folder", |_, p| p.scripts = "/s/%x".into()),
+        ];
+        for (field, edit) in cases {
+            let (mut a, mut q) = (args(), p.clone());
+            edit(&mut a, &mut q);
+            let e = write_scripts(&a, &q).unwrap_err().to_string();
+            assert!(
+                e.contains(field) && e.contains("may hold only"),
+                "{field}: {e}"
+            );
+        }
+        assert!(!p.scripts.exists(), "a refused plan wrote its scripts");
+        let mut a = args();
+        (a.partition, a.mem, a.time) = (
+            Some("gpu,cpu".into()),
+            Some("512M".into()),
+            Some("2-00:00:00".into()),
+        );
+        write_scripts(&a, &p).unwrap();
     }
 
     #[test]

@@ -138,6 +138,7 @@ pub fn cache_entry(
         record: crate::dataset::DropRecord::failed(run, 4.5, "why"),
         scene: None,
         scene_key: None,
+        entry_sha256: String::new(),
     }
 }
 
@@ -173,6 +174,7 @@ pub fn run_spec(name: &str, setup: Option<&str>) -> crate::manifest::RunSpec {
         sphere_density_kg_m3: None,
         setup: setup.map(String::from),
         review: Default::default(),
+        number_digits: None,
     }
 }
 

@@ -38,14 +38,12 @@ pub enum Stage {
     /// Events, kinematics, scale and the force table: the measurement but
     /// for the force fits.
     Events,
-    /// The force law's first fit: n free.
+    /// The force law's fits with n free, one per contact model.
     ForceFree,
-    /// The second: n held at 2.
+    /// Under the best model, n held at 2.
     ForceN2,
-    /// The third: n held, the surface free.
+    /// Under the best model, n and the surface free (the line's cross-check).
     ForceSurface,
-    /// The fourth: n and the surface free.
-    ForceBoth,
     /// The overlay at the maximum penetration, and any asked for.
     Overlays,
     /// The animated impact (drawing and APNG encoding).
@@ -63,7 +61,7 @@ pub enum Stage {
 
 impl Stage {
     /// Every stage, in the table's order.
-    pub const ALL: [Stage; 19] = [
+    pub const ALL: [Stage; 18] = [
         Stage::Fingerprint,
         Stage::Open,
         Stage::Read,
@@ -76,7 +74,6 @@ impl Stage {
         Stage::ForceFree,
         Stage::ForceN2,
         Stage::ForceSurface,
-        Stage::ForceBoth,
         Stage::Overlays,
         Stage::Animation,
         Stage::Writes,
@@ -97,10 +94,9 @@ impl Stage {
             Stage::Pass2 => "tracking pass 2",
             Stage::Shelf => "tracks kept (temporary file)",
             Stage::Events => "events, kinematics, scale",
-            Stage::ForceFree => "force fit 1 (n free)",
-            Stage::ForceN2 => "force fit 2 (n = 2)",
-            Stage::ForceSurface => "force fit 3 (surface free)",
-            Stage::ForceBoth => "force fit 4 (n and surface free)",
+            Stage::ForceFree => "force fits (n free, 4 contact models)",
+            Stage::ForceN2 => "force fit (n = 2)",
+            Stage::ForceSurface => "force fit (n and surface free)",
             Stage::Overlays => "overlay stills",
             Stage::Animation => "animated impact (APNG)",
             Stage::Writes => "file writes (tracks, images, cache)",

@@ -79,6 +79,24 @@ fn no_argument_runs_the_main_job_on_the_local_pipeline_toml() {
     ] {
         assert!(results.join(f).is_file(), "{f} missing");
     }
+    // Three drops of three radii: said once, plainly, what they can and
+    // cannot show and where to see more, not nine warnings of fits that
+    // need more drops, and no empty fit tables in the report.
+    assert!(!err.contains("warning:"), "{err}");
+    assert_eq!(err.matches("note: ").count(), 1, "{err}");
+    assert!(
+        err.contains("note: 3 drops of 3 radii")
+            && err.contains("needs 3 drops of one radius")
+            && err.contains("dropscope render --campaign"),
+        "{err}"
+    );
+    let fits: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(results.join("fits.json")).unwrap()).unwrap();
+    assert!(fits["few_drops"].as_str().unwrap().starts_with("3 drops"));
+    assert_eq!(fits["warnings"].as_array().unwrap().len(), 1, "{fits}");
+    let report = std::fs::read_to_string(results.join("report.html")).unwrap();
+    assert!(report.contains("<p class=\"few-drops\">3 drops of 3 radii"));
+    assert!(!report.contains("not fitted") && !report.contains("Warnings of the collapse"));
 }
 
 /// A job started from another folder on the same configuration reuses the
@@ -244,9 +262,9 @@ fn json_fps(stdout: &str) -> f64 {
 }
 
 /// Without a PCC XML the frame rate comes from `--fps`, else camera.fps of
-/// `--config`, else of ./pipeline.toml, else of the embedded default — the
-/// rule `process` follows. The values are distinct, so each assertion can
-/// only pass if that source was used.
+/// `--config`, else of ./pipeline.toml; the embedded default sets none, so
+/// without either inspect asks for --fps. The values are distinct, so each
+/// assertion can only pass if that source was used.
 #[test]
 fn inspect_takes_a_folders_missing_fps_from_the_flag_or_the_configuration() {
     let dir = tempfile::tempdir().unwrap();
@@ -257,19 +275,21 @@ fn inspect_takes_a_folders_missing_fps_from_the_flag_or_the_configuration() {
     let work = dir.path().join("work");
     std::fs::create_dir(&work).unwrap();
 
-    // No ./pipeline.toml in `work`: the embedded default's camera.fps.
+    // No ./pipeline.toml in `work`: the embedded default, which assumes no
+    // frame rate.
     let embedded = dropscope::config::PipelineConfig::from_toml_str(
         dropscope::config::EMBEDDED_DEFAULT,
         std::path::Path::new("embedded"),
         std::path::Path::new(""),
     )
-    .unwrap()
-    .camera
-    .fps
     .unwrap();
-    let (code, out, err) = inspect(&work, &run, &[]);
-    assert_eq!(code, 0, "{err}");
-    assert_eq!(json_fps(&out), embedded);
+    assert_eq!(embedded.camera.fps, None);
+    let (code, _, err) = inspect(&work, &run, &[]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("no frame rate") && err.contains("--fps"),
+        "{err}"
+    );
 
     // --config FILE.
     let (code, out, err) = inspect(&work, &run, &["--config", cfg_arg]);

@@ -799,6 +799,9 @@ fn untracked_frames_change_neither_the_fits_nor_the_figure() {
         in_contact: false,
         delta_mm: None,
         sigma_z_px: None,
+        sigma_x_px: None,
+        r_free_px: None,
+        sigma_r_free_px: None,
         force_n: None,
         flags: "missing".into(),
     };

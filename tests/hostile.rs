@@ -114,6 +114,7 @@ fn spec(run: &str, path: &Path) -> RunSpec {
         sphere_density_kg_m3: None,
         setup: None,
         review: Default::default(),
+        number_digits: None,
     }
 }
 
@@ -505,11 +506,18 @@ fn weakened_measurements_are_flagged_warnings() {
             "saturated",
             "of the background near the sphere's path",
         ),
-        ("scale", "scale_disagreement", "scale"),
+        // A scale 5–7 % off also puts the contact law's surface 4 px from
+        // the image's line: the cross-check sees what a wrong scale does.
+        (
+            "scale",
+            "surface_law_disagreement scale_disagreement",
+            "puts the undeformed surface",
+        ),
         (
             "fps",
             "fps_mismatch",
-            "the manifest's fps 9000 disagrees with the file's frame rate 10000",
+            "the manifest's fps 9000 disagrees with the recording's own frame rate 10000 \
+             frames/s (xml)",
         ),
     ] {
         let r = by(&rows, run);
@@ -589,9 +597,10 @@ fn the_cache_recomputes_an_emptied_or_altered_output() {
 /// Found by the `folder_frame` fuzz target: a 1.9 kB RLE8 BMP whose header
 /// claims 3 072 × 45 319 pixels (its "end of bitmap" code fills the rest)
 /// took the decoder 16 s (at nice 19 on the shared machine) and 600 MB per
-/// read. A compressed frame claiming more than 4 096 pixels per byte of its
-/// file (here 1 080 bytes) is refused when the folder is opened, naming the
-/// file; the same frame at a camera's size reads.
+/// read. That size is beyond every reader's pixel cap (8192 × 4096); a
+/// compressed frame within the cap but claiming more than 4 096 pixels per
+/// byte of its file (3 072 × 4 000 in 1 080 bytes) is refused when the
+/// folder is opened, naming the file; the same frame at a camera's size reads.
 #[test]
 fn a_compressed_frame_claiming_an_absurd_size_is_refused_naming_it() {
     let dir = tempfile::tempdir().unwrap();
@@ -631,8 +640,16 @@ fn a_compressed_frame_claiming_an_absurd_size_is_refused_naming_it() {
     };
     let e = e.to_string();
     assert!(
-        e.contains("f_000003.bmp")
-            && e.contains("implausible size 3072×45319 for a 1080-byte file"),
+        e.contains("f_000003.bmp") && e.contains("implausible frame size 3072×45319"),
+        "{e}"
+    );
+    std::fs::write(huge.join("f_000003.bmp"), bmp_rle8(3072, 4000)).unwrap();
+    let Err(e) = dropscope::source::open(&huge, &opts) else {
+        panic!("a 3072×4000 frame in 1 080 bytes was opened");
+    };
+    let e = e.to_string();
+    assert!(
+        e.contains("f_000003.bmp") && e.contains("implausible size 3072×4000 for a 1080-byte file"),
         "{e}"
     );
     // The same file at a camera's size is a frame (all black).

@@ -1,9 +1,9 @@
-//! The PCC side file read as a stream (`pcc_xml::read`, session 16)
-//! against the tree reader it replaced, kept here as the reference: the
-//! same values, bit for bit, on every real and rendered side file, cut
-//! anywhere, split across buffers of any size, and on what a stream could
-//! read differently from a tree (entities, CDATA, comments, elements out
-//! of PCC's order, repeated elements).
+//! The PCC side file read as a stream (`pcc_xml::read`) against a tree
+//! reader kept here as the reference: the same values, bit for bit, on
+//! every real and rendered side file, cut anywhere, split across buffers
+//! of any size, and on what a stream could read differently from a tree
+//! (entities, CDATA, comments, elements out of PCC's order, repeated
+//! elements).
 
 use std::io::{BufReader, Read};
 use std::path::Path;
@@ -75,6 +75,7 @@ fn real_and_rendered() -> Vec<(String, String)> {
 
 #[test]
 fn real_and_rendered_side_files_read_as_the_tree_reader_read_them() {
+    need!(crate::Need::PhantomSamples);
     let mut files = real_and_rendered();
     // A long export as `dropscope render` writes it: 50 000 frames.
     files.push((
@@ -108,6 +109,7 @@ fn real_and_rendered_side_files_read_as_the_tree_reader_read_them() {
 /// frames; past the root's end it reads whole.
 #[test]
 fn a_side_file_cut_anywhere_is_refused_as_not_xml() {
+    need!(crate::Need::PhantomSamples);
     for (name, text) in real_and_rendered().iter().take(5) {
         let end = text.rfind("</chd>").unwrap() + "</chd>".len();
         for len in (0..text.len()).filter(|&l| text.is_char_boundary(l)) {
@@ -121,6 +123,7 @@ fn a_side_file_cut_anywhere_is_refused_as_not_xml() {
 
 #[test]
 fn what_a_stream_could_read_differently_reads_as_the_tree() {
+    need!(crate::Need::PhantomSamples);
     let real = std::fs::read_to_string(crate::phantom_sample("cinefiles-jl/cam_1.xml")).unwrap();
     let edits: Vec<(&str, String)> = vec![
         // References and CDATA in values and attributes.
@@ -132,7 +135,8 @@ fn what_a_stream_could_read_differently_reads_as_the_tree() {
         ("an entity", real.replace("</CameraSetup>", "<Description>&amp;&lt;&gt;&quot;&apos;</Description></CameraSetup>")),
         ("CDATA", real.replace(">7500<", "><![CDATA[75]]>0<![CDATA[0]]><")),
         ("CDATA in an Exp", real.replace(">63.853</Exp>", "><![CDATA[63.]]>853</Exp>")),
-        // A comment, a processing instruction or an element ends a value.
+        // A value runs on across a comment or a processing instruction; an
+        // element ends it.
         ("a comment before a value", real.replace(">12</RealBPP>", "><!-- x -->12</RealBPP>")),
         ("a comment inside a value", real.replace(">4064<", ">40<!-- x -->64<")),
         ("a PI inside a value", real.replace(">4064<", ">40<?pi x?>64<")),
@@ -143,14 +147,15 @@ fn what_a_stream_could_read_differently_reads_as_the_tree() {
         ("CR LF line ends", real.replace("><", ">\r\n<")),
         ("a byte-order mark", format!("\u{feff}{real}")),
         ("a namespace prefix", real.replace("<chd>", "<p:chd xmlns:p=\"urn:x\">").replace("</chd>", "</p:chd>")),
-        // Repeated elements: the first counts.
+        // Repeated elements: a value given twice alike, a header repeated
+        // with the same values; of the trigger and the blocks, the first counts.
         (
-            "two frame rates",
-            real.replace("<FrameRateDouble>", "<FrameRateDouble>1234</FrameRateDouble><FrameRateDouble>"),
+            "a frame rate given twice alike",
+            real.replace("<FrameRateDouble>7500</FrameRateDouble>", "<FrameRateDouble>7500</FrameRateDouble><FrameRateDouble> 7500 </FrameRateDouble>"),
         ),
         (
             "two headers",
-            real.replace("<CineFileHeader>", "<CineFileHeader><TriggerTime><Date>Mon Jan 01 2001</Date><Time>00:00:00.000 000.00</Time></TriggerTime><FirstImageNo>77</FirstImageNo></CineFileHeader><CineFileHeader>"),
+            real.replace("<CineFileHeader>", "<CineFileHeader><TriggerTime><Date>Mon Jan 01 2001</Date><Time>00:00:00.000 000.00</Time></TriggerTime></CineFileHeader><CineFileHeader>"),
         ),
         ("two trigger dates", real.replace("<TriggerTime><Date>", "<TriggerTime><Date>Mon Jan 01 2001</Date><Date>")),
         ("two TIMEBLOCKs", real.replace("<TIMEBLOCK>", "<TIMEBLOCK><Date frame=\"0\">Mon Jan 01 2001</Date><Time frame=\"0\">00:00:00.000 000.00</Time></TIMEBLOCK><TIMEBLOCK>")),
@@ -175,6 +180,21 @@ fn what_a_stream_could_read_differently_reads_as_the_tree() {
         as_the_tree(text, what).unwrap_or_else(|e| panic!("{what}: {e}"));
     }
     let refused: Vec<(&str, String)> = vec![
+        // A value given twice, differently: which holds is unknown.
+        (
+            "two frame rates",
+            real.replace(
+                "<FrameRateDouble>",
+                "<FrameRateDouble>1234</FrameRateDouble><FrameRateDouble>",
+            ),
+        ),
+        (
+            "two headers that disagree",
+            real.replace(
+                "<CineFileHeader>",
+                "<CineFileHeader><FirstImageNo>77</FirstImageNo></CineFileHeader><CineFileHeader>",
+            ),
+        ),
         (
             "a time before its date",
             real.replacen("<Date frame=\"0\">", "<Date frame=\"5\">", 1),
@@ -352,8 +372,10 @@ fn a_million_frame_side_file_reads_as_a_stream() {
 }
 
 /// The tree reader the stream replaced (src/source/pcc_xml.rs at ad11859,
-/// roxmltree), verbatim but for its size and depth checks made before
-/// parsing: the reference the stream is held to.
+/// roxmltree), but for its size and depth checks made before parsing, an
+/// element's value read across comments and processing instructions
+/// ([`reference::value`]) and a value given twice differently refused: the
+/// reference the stream is held to.
 mod reference {
     use dropscope::source::pcc_xml::{local_seconds, PccXml};
 
@@ -366,14 +388,33 @@ mod reference {
                 root.tag_name().name()
             ));
         }
-        let header = child(root, "CineFileHeader");
-        let bitmap = child(root, "BitmapInfoHeader");
-        let setup = child(root, "CameraSetup");
-        let text_of = |parent: Option<roxmltree::Node<'_, '_>>, name: &str| -> Option<String> {
-            parent
-                .and_then(|p| child(p, name))
-                .map(|n| n.text().unwrap_or("").trim().to_string())
+        // Every value of a field, in every block of its name: all alike.
+        for (block, name) in FIELDS {
+            let values: Vec<String> = root
+                .children()
+                .filter(|b| b.is_element() && b.tag_name().name() == block)
+                .flat_map(|b| {
+                    b.children()
+                        .filter(|n| n.is_element() && n.tag_name().name() == name)
+                })
+                .map(|n| value(n).trim().to_string())
+                .collect();
+            if let Some(other) = values.iter().find(|v| **v != values[0]) {
+                return Err(format!(
+                    "<{name}> is given twice, as {:?} and {other:?}: the side file contradicts \
+                     itself (which value holds is unknown); correct it",
+                    values[0]
+                ));
+            }
+        }
+        // A field's first element in any block of its name.
+        let text_of = |block: &str, name: &str| -> Option<String> {
+            root.children()
+                .filter(|b| b.is_element() && b.tag_name().name() == block)
+                .find_map(|b| child(b, name))
+                .map(|n| value(n).trim().to_string())
         };
+        let (bitmap, setup) = ("BitmapInfoHeader", "CameraSetup");
         fn num<T: std::str::FromStr>(v: Option<String>, name: &str) -> Result<Option<T>, String> {
             match v {
                 None => Ok(None),
@@ -409,28 +450,34 @@ mod reference {
             Some(ns) => Some(ns * 1e-9),
             None => positive("Shutter")?.map(|us| us * 1e-6),
         };
-        let trigger = header.and_then(|h| child(h, "TriggerTime")).map(|t| {
-            let d = child(t, "Date").and_then(|n| n.text()).unwrap_or("");
-            let tm = child(t, "Time").and_then(|n| n.text()).unwrap_or("");
-            local_seconds(d, tm)
-                .ok_or_else(|| format!("TriggerTime {d:?} {tm:?} is not a PCC date/time"))
-        });
+        let trigger = root
+            .children()
+            .filter(|b| b.is_element() && b.tag_name().name() == "CineFileHeader")
+            .find_map(|h| child(h, "TriggerTime"))
+            .map(|t| {
+                let d = child(t, "Date").map(value).unwrap_or_default();
+                let tm = child(t, "Time").map(value).unwrap_or_default();
+                let (d, tm) = (d.as_str(), tm.as_str());
+                local_seconds(d, tm)
+                    .ok_or_else(|| format!("TriggerTime {d:?} {tm:?} is not a PCC date/time"))
+            });
         let trigger = trigger.transpose()?;
         let mut instants = Vec::new();
         if let Some(block) = child(root, "TIMEBLOCK") {
             // Date and Time elements come in pairs sharing a frame attribute.
-            let mut date_of_frame: Vec<(i64, &str)> = Vec::new();
+            let mut date_of_frame: Vec<(i64, String)> = Vec::new();
             for n in block.children().filter(|n| n.is_element()) {
                 let frame = frame_attr(n)?;
-                let value = n.text().unwrap_or("");
+                let text = value(n);
+                let value = text.as_str();
                 match n.tag_name().name() {
-                    "Date" => date_of_frame.push((frame, value)),
+                    "Date" => date_of_frame.push((frame, text.clone())),
                     "Time" => {
                         let date = date_of_frame
                             .iter()
                             .rev()
                             .find(|(f, _)| *f == frame)
-                            .map(|(_, d)| *d)
+                            .map(|(_, d)| d.as_str())
                             .ok_or_else(|| format!("TIMEBLOCK Time frame={frame} has no Date"))?;
                         let t = local_seconds(date, value).ok_or_else(|| {
                             format!(
@@ -458,9 +505,7 @@ mod reference {
                 .filter(|n| n.is_element() && n.tag_name().name() == "Exp")
             {
                 let frame = frame_attr(n)?;
-                let us: f64 = n
-                    .text()
-                    .unwrap_or("")
+                let us: f64 = value(n)
                     .trim()
                     .parse()
                     .map_err(|_| format!("EXPOSUREBLOCK frame={frame} is not a number"))?;
@@ -468,8 +513,8 @@ mod reference {
             }
         }
         Ok(PccXml {
-            first_image_no: num(text_of(header, "FirstImageNo"), "FirstImageNo")?,
-            image_count: num(text_of(header, "ImageCount"), "ImageCount")?,
+            first_image_no: num(text_of("CineFileHeader", "FirstImageNo"), "FirstImageNo")?,
+            image_count: num(text_of("CineFileHeader", "ImageCount"), "ImageCount")?,
             width: num(text_of(bitmap, "biWidth"), "biWidth")?,
             height: num(text_of(bitmap, "biHeight"), "biHeight")?,
             bit_count: num(text_of(bitmap, "biBitCount"), "biBitCount")?,
@@ -483,6 +528,34 @@ mod reference {
             times,
             exposures,
         })
+    }
+
+    /// The fields read from the header, bitmap and set-up blocks.
+    const FIELDS: [(&str, &str); 14] = [
+        ("CineFileHeader", "FirstImageNo"),
+        ("CineFileHeader", "ImageCount"),
+        ("BitmapInfoHeader", "biWidth"),
+        ("BitmapInfoHeader", "biHeight"),
+        ("BitmapInfoHeader", "biBitCount"),
+        ("CameraSetup", "FrameRateDouble"),
+        ("CameraSetup", "FrameRate"),
+        ("CameraSetup", "ShutterNs"),
+        ("CameraSetup", "Shutter"),
+        ("CameraSetup", "RealBPP"),
+        ("CameraSetup", "BlackLevel"),
+        ("CameraSetup", "WhiteLevel"),
+        ("CameraSetup", "bFlipH"),
+        ("CameraSetup", "bFlipV"),
+    ];
+
+    /// An element's value: its text before its first child element,
+    /// comments and processing instructions skipped.
+    pub fn value(n: roxmltree::Node<'_, '_>) -> String {
+        n.children()
+            .take_while(|c| !c.is_element())
+            .filter(|c| c.is_text())
+            .filter_map(|c| c.text())
+            .collect()
     }
 
     fn child<'a, 'i>(

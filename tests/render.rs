@@ -461,6 +461,7 @@ fn element_paths(xml: &str) -> BTreeSet<String> {
 /// and its element tree is the real PCC files' tree.
 #[test]
 fn the_pcc_xml_parses_back_to_the_same_metadata() {
+    need!(crate::Need::PhantomSamples);
     let dir = tempfile::tempdir().unwrap();
     let report = small_render(
         dir.path(),

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 use dropscope::dataset::{read_csv, DropStatus};
 
-use crate::webdriver::{have, CHROMIUM};
+use crate::webdriver::CHROMIUM;
 
 /// A run name with every character HTML must escape.
 const BROKEN_RUN: &str = "broken<cine> & \"co\"";
@@ -93,12 +93,7 @@ fn copy_dir(from: &Path, to: &Path) {
 /// bytes (no date, no output path in the page).
 #[test]
 fn the_report_renders_in_chromium_and_lists_every_drop() {
-    if !have(
-        "report::the_report_renders_in_chromium_and_lists_every_drop",
-        &[CHROMIUM],
-    ) {
-        return;
-    }
+    need!(crate::Need::Chromium);
     let start = Instant::now();
     let dir = tempfile::tempdir().unwrap();
     let work = dir.path();
@@ -323,12 +318,7 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
 /// filter and sort work. The load time is measured and printed, not asserted.
 #[test]
 fn a_thousand_drop_report_stays_small_and_sorts_and_filters() {
-    if !have(
-        "report::a_thousand_drop_report_stays_small_and_sorts_and_filters",
-        &[CHROMIUM],
-    ) {
-        return;
-    }
+    need!(crate::Need::Chromium);
     let dir = tempfile::tempdir().unwrap();
     let work = dir.path();
     let base = work.join("base");

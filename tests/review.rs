@@ -5,7 +5,7 @@
 //! refusals of bad requests, its one-review-per-folder lock and its stop
 //! on Ctrl-C.
 
-use crate::webdriver::{have, http, Driver, CHROMEDRIVER, CHROMIUM};
+use crate::webdriver::{http, Driver};
 use dropscope::dataset::{read_csv, DropRecord, DropStatus, TrackRow};
 use dropscope::review::decisions::{Decisions, Frames, Kind};
 use std::io::BufRead;
@@ -235,12 +235,7 @@ type Said = (String, Kind, Option<Frames>, Option<f64>, String);
 /// three; the one after measures nothing.
 #[test]
 fn the_page_in_chromium_rejects_excludes_and_sets_a_surface_and_the_job_honours_them() {
-    if !have(
-        "review::the_page_in_chromium_rejects_excludes_and_sets_a_surface_and_the_job_honours_them",
-        &[CHROMIUM, CHROMEDRIVER],
-    ) {
-        return;
-    }
+    need!(crate::Need::Chromium, crate::Need::ChromeDriver);
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let render = dropscope(
@@ -893,12 +888,7 @@ fn bad_requests_are_refused_and_change_nothing_and_ctrl_c_stops_the_review() {
 /// page with its frames drawn as asked.
 #[test]
 fn a_folder_of_a_thousand_drops_is_listed_a_page_at_a_time_and_any_drop_opens() {
-    if !have(
-        "review::a_folder_of_a_thousand_drops_is_listed_a_page_at_a_time_and_any_drop_opens",
-        &[CHROMIUM, CHROMEDRIVER],
-    ) {
-        return;
-    }
+    need!(crate::Need::Chromium, crate::Need::ChromeDriver);
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     crate::run::fixture_manifest(d);

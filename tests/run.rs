@@ -94,7 +94,9 @@ pub(crate) fn stderr(o: &Output) -> String {
 /// A campaign with the good fixture drops and, mixed in, a truncated TIFF,
 /// a folder with no XML and no frame rate anywhere, a corrupt cine, a
 /// sphere that never lands and an empty folder: the good runs are measured,
-/// each bad one has a failed row that says what is wrong, the job exits 1.
+/// each bad one has a failed row that says what is wrong (the folder
+/// without a frame rate is measured at an assumed one, flagged; the sphere
+/// that never lands is `tracked`), the job exits 1.
 #[test]
 fn broken_runs_get_reasons_and_the_good_ones_finish() {
     let dir = tempfile::tempdir().unwrap();
@@ -169,9 +171,7 @@ fn broken_runs_get_reasons_and_the_good_ones_finish() {
     }
     for (run, says) in [
         ("truncated_tiff", "t_000010.tif"),
-        ("no_xml", "frame rate"),
         ("corrupt_cine", "corrupt.cine"),
-        ("never_lands", "never reaches the surface"),
         ("empty", "empty"),
     ] {
         let r = by(run);
@@ -185,6 +185,27 @@ fn broken_runs_get_reasons_and_the_good_ones_finish() {
         // Each reason is printed as the run fails, not only in drops.csv.
         assert!(stderr(&o).contains(&r.reason), "{run}");
     }
+    // Cut before the contact: tracked, with its free flight, no impact.
+    let r = by("never_lands");
+    assert_eq!(r.status, DropStatus::Tracked, "{}", r.reason);
+    assert!(
+        r.reason.contains("never reaches the surface"),
+        "{}",
+        r.reason
+    );
+    assert!(r.v_last_m_s.is_some() && r.delta_max_mm.is_none());
+    assert!(stderr(&o).contains(&r.reason));
+    // The frames without their XML: measured at the frame rate dropscope
+    // assumes (the fixture's own, 10 000 frames/s), and said so.
+    let r = by("no_xml");
+    assert_eq!(r.status, DropStatus::Warning, "{}", r.reason);
+    assert_eq!((r.fps, r.fps_source.as_str()), (Some(10_000.0), "default"));
+    assert_eq!(r.flags, "fps_assumed");
+    assert!(
+        stderr(&o).contains("frame rate assumed") && stderr(&o).contains("no_xml"),
+        "{}",
+        stderr(&o)
+    );
     assert!(d.join("out/plots/psi_vs_xi.svg").is_file(), "no collapse");
 }
 

@@ -2,7 +2,8 @@
 //! --submit` over a rendered campaign ends byte-identical to one machine,
 //! and a task cancelled half-way is redone by submitting again. They need a
 //! reachable Slurm — `.ci/slurm-up` starts a one-node cluster, and CI runs
-//! it — and fail, not skip, without one.
+//! it — and are skipped with a notice without one (failed under
+//! `DROPSCOPE_REQUIRE_ALL=1`, as CI runs them).
 
 use crate::run::{stderr, write_config};
 use crate::shards::{assert_same_as_one_machine, committed};
@@ -23,22 +24,6 @@ fn must(program: &str, args: &[&str]) -> String {
         .unwrap_or_else(|e| panic!("{program}: {e}"));
     assert!(o.status.success(), "{program} {args:?}: {}", stderr(&o));
     String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// Fail, saying how to start one, unless a Slurm node is up.
-fn need_slurm() {
-    let o = Command::new("sinfo").args(["-h", "-o", "%t"]).output();
-    let state = match &o {
-        Ok(o) if o.status.success() => String::from_utf8_lossy(&o.stdout).into_owned(),
-        Ok(o) => stderr(o),
-        Err(e) => e.to_string(),
-    };
-    assert!(
-        ["idle", "mix", "alloc"].iter().any(|s| state.contains(s)),
-        "no Slurm cluster reachable (sinfo: {}): start the one-node cluster of this machine \
-         with `apt-get install slurm-wlm munge && .ci/slurm-up` as root (CI's .ci/run does both)",
-        state.trim()
-    );
 }
 
 /// A small campaign rendered once for the tests of this module: 3 radii ×
@@ -186,7 +171,7 @@ fn runs_and_reused(line: &str) -> (usize, usize) {
 /// folder ends byte-identical to the whole job on one machine.
 #[test]
 fn a_slurm_array_ends_byte_identical_to_one_machine() {
-    need_slurm();
+    need!(crate::Need::Slurm);
     let dir = tempfile::tempdir().unwrap();
     let (cfg, out) = job_folder(dir.path());
     let (array, finish) = submit(dir.path(), &cfg, &out, 1);
@@ -209,7 +194,7 @@ fn a_slurm_array_ends_byte_identical_to_one_machine() {
 /// folder ends byte-identical to one machine's.
 #[test]
 fn a_cancelled_task_is_redone_by_submitting_again() {
-    need_slurm();
+    need!(crate::Need::Slurm);
     let dir = tempfile::tempdir().unwrap();
     let (cfg, out) = job_folder(dir.path());
     // Tasks as wide as the node: one runs at a time, so runs committed

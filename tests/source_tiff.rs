@@ -176,6 +176,7 @@ fn image_crate(path: &Path) -> Frame {
 /// reader's own path) reads exactly as the image crate decodes it.
 #[test]
 fn real_pcc_tiffs_read_exactly_as_the_image_crate_decodes_them() {
+    need!(crate::Need::PhantomSamples);
     let root = tempfile::tempdir().unwrap();
     for name in ["8bpp", "12bpp", "cam_1", "packed_10"] {
         let bytes = std::fs::read(sample(&format!("cinefiles-jl/{name}.tif"))).unwrap();
@@ -201,6 +202,7 @@ fn real_pcc_tiffs_read_exactly_as_the_image_crate_decodes_them() {
 /// back the exact pixels, whole and as bands crossing strip boundaries.
 #[test]
 fn own_path_and_image_crate_path_agree_bit_for_bit() {
+    need!(crate::Need::PhantomSamples);
     let root = tempfile::tempdir().unwrap();
     let real = image_crate(&sample("cinefiles-jl/cam_1.tif"));
     let eight = real.mapv(|v| v >> 8);
@@ -275,6 +277,7 @@ fn open_and_read_naming(file: &Path, what: &str) -> bool {
 /// image-crate path): no cut of it reads either.
 #[test]
 fn truncated_tiffs_are_errors_naming_the_file() {
+    need!(crate::Need::PhantomSamples);
     let root = tempfile::tempdir().unwrap();
     let frame = Frame::from_shape_fn((20, 6), |(r, c)| (r * 1000 + c * 7) as u16);
     let cases = [
@@ -317,6 +320,7 @@ fn truncated_tiffs_are_errors_naming_the_file() {
 /// with a message naming the file — never a panic.
 #[test]
 fn corrupted_tiff_fields_are_errors_naming_the_file() {
+    need!(crate::Need::PhantomSamples);
     let root = tempfile::tempdir().unwrap();
     let frame = Frame::from_shape_fn((9, 5), |(r, c)| (r * 300 + c) as u16);
     let cases = [

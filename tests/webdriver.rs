@@ -13,32 +13,6 @@ use std::time::{Duration, Instant};
 pub const CHROMIUM: &str = "/usr/bin/chromium";
 pub const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
 
-/// Whether the programs a browser test needs (`needs`: paths) are here.
-/// When one is not, the test is skipped: it says `SKIPPED` on stderr
-/// (written past the test harness's capture, so `cargo test` shows it)
-/// and returns false; with `DROPSCOPE_REQUIRE_ALL=1` (as CI runs) it fails.
-pub fn have(test: &str, needs: &[&str]) -> bool {
-    let missing: Vec<&str> = needs
-        .iter()
-        .copied()
-        .filter(|p| !Path::new(p).is_file())
-        .collect();
-    if missing.is_empty() {
-        return true;
-    }
-    let why = format!(
-        "{} not found (Debian: apt-get install chromium chromium-driver, as root; .ci/run \
-         installs them)",
-        missing.join(" and ")
-    );
-    assert!(
-        std::env::var("DROPSCOPE_REQUIRE_ALL").as_deref() != Ok("1"),
-        "{test}: {why}; DROPSCOPE_REQUIRE_ALL=1 requires every test to run"
-    );
-    let _ = writeln!(std::io::stderr().lock(), "SKIPPED {test}: {why}");
-    false
-}
-
 /// The key an element's id is returned under (W3C WebDriver §12).
 const ELEMENT: &str = "element-6066-11e4-a52e-4f735466cecf";
 
@@ -357,26 +331,4 @@ impl Drop for Driver {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
-}
-
-/// A test whose program is missing is skipped, saying so, unless every
-/// test is required to run: then it fails naming the program.
-#[test]
-fn a_missing_program_skips_a_test_unless_all_are_required() {
-    let missing = "/nonexistent/chromedriver";
-    let asked = std::panic::catch_unwind(|| have("webdriver::example", &[missing]));
-    if std::env::var("DROPSCOPE_REQUIRE_ALL").as_deref() == Ok("1") {
-        let e = asked.unwrap_err();
-        let message = e.downcast_ref::<String>().cloned().unwrap_or_default();
-        assert!(
-            message.contains(missing) && message.contains("DROPSCOPE_REQUIRE_ALL=1"),
-            "{message}"
-        );
-    } else {
-        assert!(!asked.unwrap());
-    }
-    assert!(have(
-        "webdriver::example",
-        &[env!("CARGO_BIN_EXE_dropscope")]
-    ));
 }

@@ -183,6 +183,10 @@ pub struct Fits {
     pub eq11: Option<AsymptoteFit>,
     pub exponents: Vec<ExponentFit>,
     pub warnings: Vec<String>,
+    /// When no exponent and no series could be fitted for lack of drops
+    /// (a radius needs 3, a series 4): what these drops can and cannot
+    /// show, and how to see more, said once instead of a warning per fit.
+    pub few_drops: Option<String>,
 }
 
 /// One regression point: x, y and their absolute sensitivity vectors
@@ -366,8 +370,10 @@ fn series(
     name: &str,
     settings: FitSettings,
     warnings: &mut Vec<String>,
+    few: &mut Vec<usize>,
 ) -> Option<(SeriesFit, Option<Estimate>)> {
     if obs.len() < 4 {
+        few.push(warnings.len());
         warnings.push(format!(
             "{}: {}, at least 4 are needed for three coefficients with errors",
             display_name(name),
@@ -488,6 +494,7 @@ fn exponents(
     groups: &[DropGroups],
     settings: FitSettings,
     warnings: &mut Vec<String>,
+    few: &mut Vec<usize>,
 ) -> Vec<ExponentFit> {
     // Radii keyed in whole micrometres: 4.5 and 4.500000001 are one sphere size.
     let mut by_r: BTreeMap<i64, Vec<&DropGroups>> = BTreeMap::new();
@@ -500,6 +507,7 @@ fn exponents(
     // The slope of one log–log fit with its bootstrap, or a warning saying why not.
     let mut exponent = |obs: &[Obs], what: &str, name: &str| -> Option<(Estimate, f64, bool)> {
         if obs.len() < 3 {
+            few.push(warnings.len());
             warnings.push(format!(
                 "{name}: {} {what}, need 3 for an exponent",
                 crate::plural(obs.len(), "drop")
@@ -602,6 +610,8 @@ fn regimes<'a>(
 /// Every fit of the collapse stage over the drops that have groups.
 pub fn fit_all(groups: &[DropGroups], settings: FitSettings) -> Fits {
     let mut warnings = Vec::new();
+    // Where the warnings that only say a fit had too few drops are.
+    let mut few = Vec::new();
     let psi_obs: Vec<Obs> = groups
         .iter()
         .map(|g| Obs::linear(&g.big_xi, &g.psi))
@@ -610,10 +620,11 @@ pub fn fit_all(groups: &[DropGroups], settings: FitSettings) -> Fits {
         .iter()
         .filter_map(|g| g.big_omega.map(|o| Obs::linear(&g.big_xi, &o)))
         .collect();
-    let (psi_series, crossover_xi) = match series(&psi_obs, "psi_series", settings, &mut warnings) {
-        Some((s, c)) => (Some(s), c),
-        None => (None, None),
-    };
+    let (psi_series, crossover_xi) =
+        match series(&psi_obs, "psi_series", settings, &mut warnings, &mut few) {
+            Some((s, c)) => (Some(s), c),
+            None => (None, None),
+        };
     if let Some(c) = &crossover_xi {
         if c.value <= 0.0 {
             warnings.push(format!(
@@ -623,8 +634,19 @@ pub fn fit_all(groups: &[DropGroups], settings: FitSettings) -> Fits {
             ));
         }
     }
-    let omega_series = series(&omega_obs, "omega_series", settings, &mut warnings).map(|s| s.0);
+    let omega_series = series(
+        &omega_obs,
+        "omega_series",
+        settings,
+        &mut warnings,
+        &mut few,
+    )
+    .map(|s| s.0);
 
+    if psi_series.is_none() && psi_obs.len() < 4 {
+        // No crossover for want of a series: the same lack of drops.
+        few.push(warnings.len());
+    }
     let (lo, hi, sel) = regimes(groups, crossover_xi.as_ref(), &mut warnings);
     let eq5_obs: Vec<Obs> = lo.iter().map(|g| log_ratio(&g.psi, None)).collect();
     let eq7_obs: Vec<Obs> = hi
@@ -672,7 +694,20 @@ pub fn fit_all(groups: &[DropGroups], settings: FitSettings) -> Fits {
         settings,
         &mut warnings,
     );
-    let exponents = exponents(groups, settings, &mut warnings);
+    let exponents = exponents(groups, settings, &mut warnings, &mut few);
+    let nothing_fitted = psi_series.is_none()
+        && omega_series.is_none()
+        && exponents.iter().all(|e| e.nu.is_none() && e.mu.is_none());
+    let few_drops = (nothing_fitted && !groups.is_empty() && !few.is_empty()).then(|| {
+        let mut k = 0;
+        warnings.retain(|_| {
+            k += 1;
+            !few.contains(&(k - 1))
+        });
+        let text = few_drops_text(groups);
+        warnings.insert(0, text.clone());
+        text
+    });
     Fits {
         psi_series,
         omega_series,
@@ -683,7 +718,35 @@ pub fn fit_all(groups: &[DropGroups], settings: FitSettings) -> Fits {
         eq11,
         exponents,
         warnings,
+        few_drops,
     }
+}
+
+/// What `groups`, too few for any exponent or series, can and cannot show
+/// ([`Fits::few_drops`]).
+fn few_drops_text(groups: &[DropGroups]) -> String {
+    let mut by_r: BTreeMap<i64, usize> = BTreeMap::new();
+    for g in groups {
+        *by_r
+            .entry((g.sphere_radius_mm * 1000.0).round() as i64)
+            .or_default() += 1;
+    }
+    let most = by_r.values().copied().max().unwrap_or(0);
+    format!(
+        "{} of {} ({} of one radius at most): each drop is measured (v, δ, a, τc, its \
+         contact law) and the fixed-exponent constants are fitted to them, but the \
+         collapse's fits need more drops: an exponent ν or μ needs 3 drops of one radius \
+         at different heights, the series Ψ(Ξ) and Ω(Ξ) need 4. To see them, render and \
+         measure a campaign: `dropscope render --campaign --repeats 2 --out campaign` \
+         (60 drops), then `dropscope process --manifest campaign/runs.csv --out \
+         campaign-results` and `dropscope collapse campaign-results/drops.csv`",
+        crate::plural(groups.len(), "drop"),
+        match by_r.len() {
+            1 => "1 radius".to_string(),
+            n => format!("{n} radii"),
+        },
+        most
+    )
 }
 
 #[cfg(test)]

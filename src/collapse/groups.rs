@@ -183,8 +183,23 @@ pub fn compute(
     if rec.status == DropStatus::Rejected {
         return Err(SkipReason(format!("status rejected ({})", rec.reason)));
     }
+    if rec.status == DropStatus::Tracked {
+        return Err(SkipReason(
+            "status tracked: no contact, so no impact to collapse".into(),
+        ));
+    }
     let r_mm = positive("sphere_radius_mm", Some(rec.sphere_radius_mm))?;
     let rho = positive("sphere_density_kg_m3", Some(rec.sphere_density_kg_m3))?;
+    // A hand-made drops.csv's radius and density within their physical
+    // ranges, so that every group below is a finite number.
+    for (name, range, x) in [
+        ("sphere_radius_mm", crate::ranges::SPHERE_RADIUS_MM, r_mm),
+        ("sphere_density_kg_m3", crate::ranges::DENSITY_KG_M3, rho),
+    ] {
+        range.check(x).map_err(|allowed| {
+            SkipReason(format!("{name} = {}: {allowed}", crate::ranges::show(x)))
+        })?;
+    }
     let v = positive("v_impact_m_s", rec.v_impact_m_s)?;
     let delta_mm = positive("delta_max_mm", rec.delta_max_mm)?;
     if delta_mm >= r_mm {
@@ -255,6 +270,28 @@ pub fn compute(
     let f6 = f3.sqrt();
     let tau = tau_ms.map(|t| t * 1e-3);
     let omega = tau.map(|t| t * v / r);
+
+    // Every group a finite number above 0 (Ψ = Ξ = 0 from an η that
+    // overflowed would sit on the plots as data).
+    let big_omega = omega.map(|w| w * f3);
+    for (name, x) in [
+        ("Pi", Some(pi)),
+        ("xi", Some(xi)),
+        ("eta", Some(eta)),
+        ("Psi", Some(pi * f3)),
+        ("Xi", Some(xi * f6)),
+        ("Omega", big_omega),
+    ] {
+        // Normal doubles only: a subnormal (below 2.2e-308) has lost its
+        // precision, and a log axis cannot reach it.
+        if let Some(x) = x.filter(|x| !(x.is_normal() && *x > 0.0)) {
+            return Err(SkipReason(format!(
+                "{name} = {} is not a finite positive number (a value of the row is out of \
+                 any physical range)",
+                crate::ranges::show(x)
+            )));
+        }
+    }
 
     Ok(DropGroups {
         run: rec.run.clone(),
@@ -346,5 +383,24 @@ mod tests {
             ContactRadius::Measured,
         );
         assert!(e.unwrap_err().0.contains("no sphere found"));
+        // A density that makes η overflow: skipped, never Ψ = Ξ = Ω = 0.
+        let mut rec = record();
+        rec.sphere_density_kg_m3 = 1e308;
+        let e = compute(
+            &rec,
+            "pdms",
+            &Surface::paper_pdms(),
+            ContactRadius::Measured,
+        );
+        assert!(e.unwrap_err().0.contains("sphere_density_kg_m3 = 1e308"));
+        let mut rec = record();
+        rec.v_impact_m_s = Some(1e-160);
+        let e = compute(
+            &rec,
+            "pdms",
+            &Surface::paper_pdms(),
+            ContactRadius::Measured,
+        );
+        assert!(e.unwrap_err().0.contains("not a finite positive number"));
     }
 }

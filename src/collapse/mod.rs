@@ -23,10 +23,10 @@ pub mod per_drop;
 pub mod stats;
 pub mod synthetic;
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::io_util::Durable;
+use crate::out_folder::Ledger;
 
 use crate::config::PipelineConfig;
 use crate::dataset::{self, DatasetError};
@@ -90,6 +90,16 @@ pub struct DropOutcome {
     pub sphere_radius_mm: f64,
     pub surface: String,
     pub groups: Result<DropGroups, SkipReason>,
+    /// False for a `tracked` run (no contact): not a drop, left out of the
+    /// collapse without being counted or listed as skipped.
+    pub candidate: bool,
+}
+
+impl DropOutcome {
+    /// A drop the collapse could have used and did not.
+    pub fn skipped(&self) -> bool {
+        self.candidate && self.groups.is_err()
+    }
 }
 
 /// What a run of the collapse produced (also written to disk).
@@ -109,36 +119,30 @@ pub struct CollapseSummary {
 }
 
 fn write(
-    out: &Path,
+    ledger: &mut Ledger,
     rel: &Path,
     bytes: &[u8],
     files: &mut Vec<PathBuf>,
 ) -> Result<(), CollapseError> {
-    write_as(out, rel, bytes, files, Durable::Now)
+    write_as(ledger, rel, bytes, files, Durable::Now)
 }
 
 /// [`write`], synced now or left for one [`crate::io_util::sync_file_system`]
-/// of them all ([`Durable`]).
+/// of them all ([`Durable`]): through the output folder's ledger
+/// ([`crate::out_folder`]), which lists it as dropscope's.
 fn write_as(
-    out: &Path,
+    ledger: &mut Ledger,
     rel: &Path,
     bytes: &[u8],
     files: &mut Vec<PathBuf>,
     durable: Durable,
 ) -> Result<(), CollapseError> {
-    let path = out.join(rel);
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent).map_err(|source| CollapseError::Write {
-            path: parent.to_path_buf(),
+    ledger
+        .write_as(&rel.to_string_lossy(), bytes, durable)
+        .map_err(|source| CollapseError::Write {
+            path: ledger.out().join(rel),
             source,
         })?;
-    }
-    crate::io_util::write_atomic_as(&path, durable, |f| f.write_all(bytes)).map_err(|source| {
-        CollapseError::Write {
-            path: path.clone(),
-            source,
-        }
-    })?;
     files.push(rel.to_path_buf());
     Ok(())
 }
@@ -175,6 +179,7 @@ pub fn compute_groups(
             sphere_radius_mm: rec.sphere_radius_mm,
             surface: name.clone(),
             groups: groups::compute(rec, &name, surface, choice),
+            candidate: rec.status != crate::dataset::DropStatus::Tracked,
         });
     }
     Ok(outcomes)
@@ -183,16 +188,18 @@ pub fn compute_groups(
 /// The tables [`run`] writes into the output folder: `collapse.csv`, `fits.json`.
 pub const TABLES: [&str; 2] = ["collapse.csv", "fits.json"];
 
-/// Remove what [`run`] writes into `out_dir` (its tables and the figures in
-/// `plots/`), so that a collapse redone, or not done, leaves nothing of an
-/// earlier one. Missing files are not an error. The per-drop figures in
-/// `plots/drops/` are replaced file by file ([`per_drop::replace`]).
-pub fn remove_outputs(out_dir: &Path) -> std::io::Result<()> {
+/// Remove what an earlier [`run`] wrote into the ledger's folder (its tables
+/// and the figures in `plots/`), so that a collapse redone, or not done,
+/// leaves nothing of an earlier one: only files the ledger lists with the
+/// bytes dropscope wrote ([`Ledger::remove`]); a file of yours of the same
+/// name stays. The per-drop figures in `plots/drops/` are replaced file by
+/// file ([`per_drop::replace`]).
+pub fn remove_outputs(ledger: &mut Ledger) -> std::io::Result<()> {
     let figures = crate::plot::FIGURE_STEMS
         .iter()
         .flat_map(|stem| ["svg", "png"].map(|ext| format!("plots/{stem}.{ext}")));
     for rel in TABLES.iter().map(|s| s.to_string()).chain(figures) {
-        crate::io_util::remove_if_present(&out_dir.join(rel))?;
+        ledger.remove(&rel)?;
     }
     Ok(())
 }
@@ -263,7 +270,13 @@ pub fn run(
         .iter()
         .filter(|r| r.status == dataset::DropStatus::Rejected)
         .count();
-    let n_skipped = outcomes.len() - used.len() - n_rejected;
+    // A rejected drop is listed under `skipped` with its reason, and said
+    // apart: a person's decision, not a problem of the row.
+    let n_skipped = outcomes
+        .iter()
+        .filter(|o| o.skipped())
+        .count()
+        .saturating_sub(n_rejected);
     if n_skipped > 0 {
         warnings.push(format!(
             "{n_skipped} of {} rows skipped (listed under `skipped`)",
@@ -315,39 +328,47 @@ pub fn run(
     };
 
     let out_dir = args.out_dir();
-    // Nothing of an earlier collapse in this folder (another dataset's, or
-    // figures a --no-plots run would not replace) survives this one.
-    remove_outputs(&out_dir).map_err(|source| CollapseError::Write {
+    let ledger = &mut Ledger::open(&out_dir);
+    let failed = |source| CollapseError::Write {
         path: out_dir.clone(),
         source,
-    })?;
+    };
+    // Nothing of an earlier collapse in this folder (another dataset's, or
+    // figures a --no-plots run would not replace) survives this one.
+    remove_outputs(ledger).map_err(failed)?;
     let mut files = Vec::new();
-    write(
-        &out_dir,
-        Path::new(TABLES[0]),
-        &output::collapse_csv(&outcomes, &dataset_id),
-        &mut files,
-    )?;
-    write(
-        &out_dir,
-        Path::new(TABLES[1]),
-        &output::fits_json(&prov, &outcomes, &fits, &force_laws, &warnings),
-        &mut files,
-    )?;
-    if !args.no_plots {
-        for (name, bytes) in crate::plot::collapse_figures(&used, &fits)? {
-            let rel = Path::new("plots").join(&name);
-            let bytes = if rel.extension().is_some_and(|e| e == "svg") {
-                crate::dataset_id::tag_svg(bytes, &dataset_id)
-            } else {
-                bytes
-            };
-            write(&out_dir, &rel, &bytes, &mut files)?;
+    let written = (|| {
+        write(
+            ledger,
+            Path::new(TABLES[0]),
+            &output::collapse_csv(&outcomes, &dataset_id),
+            &mut files,
+        )?;
+        write(
+            ledger,
+            Path::new(TABLES[1]),
+            &output::fits_json(&prov, &outcomes, &fits, &force_laws, &warnings),
+            &mut files,
+        )?;
+        if !args.no_plots {
+            for (name, bytes) in crate::plot::collapse_figures(&used, &fits)? {
+                let rel = Path::new("plots").join(&name);
+                let bytes = if rel.extension().is_some_and(|e| e == "svg") {
+                    crate::dataset_id::tag_svg(bytes, &dataset_id)
+                } else {
+                    bytes
+                };
+                write(ledger, &rel, &bytes, &mut files)?;
+            }
+            per_drop::replace(ledger, per_drop::figures(diags, &dataset_id)?, &mut files)
+        } else {
+            per_drop::replace(ledger, Vec::new(), &mut files)
         }
-        per_drop::replace(&out_dir, per_drop::figures(diags, &dataset_id)?, &mut files)?;
-    } else {
-        per_drop::replace(&out_dir, Vec::new(), &mut files)?;
-    }
+    })();
+    // What was written is listed, whether or not all of it was.
+    let saved = ledger.save().map_err(failed);
+    written?;
+    saved?;
     files.sort();
     Ok(CollapseSummary {
         out_dir,

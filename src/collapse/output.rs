@@ -62,14 +62,20 @@ pub fn collapse_csv(outcomes: &[DropOutcome], dataset_id: &str) -> Vec<u8> {
             Ok(_) => "",
             Err(reason) => reason.0.as_str(),
         };
+        // Text cells: nothing a spreadsheet runs ([`crate::text::csv_cell`]).
+        let (run, surface) = (
+            crate::text::csv_cell(&o.run),
+            crate::text::csv_cell(&o.surface),
+        );
+        let note = crate::text::csv_cell(note);
         let row = Row {
             row: o.row,
-            run: &o.run,
+            run: &run,
             sphere_radius_mm: o.sphere_radius_mm,
-            surface: &o.surface,
+            surface: &surface,
             used: g.is_some(),
             a_source: g.map_or("", |g| g.a_source.as_str()),
-            note,
+            note: &note,
             Pi: g.and_then(|g| v(&g.pi)),
             Pi_err: g.and_then(|g| g.pi.err()),
             xi: g.and_then(|g| v(&g.xi)),
@@ -212,6 +218,10 @@ struct FitsJson<'a> {
     theory: Theory,
     force_laws: &'a [ForceLaw],
     skipped: Vec<Skipped<'a>>,
+    /// Too few drops for any exponent or series: what they can and cannot
+    /// show (also the first warning).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    few_drops: Option<&'a str>,
     warnings: &'a [String],
 }
 
@@ -237,7 +247,7 @@ pub fn fits_json(
     let doc = FitsJson {
         provenance: prov,
         n_used: used.len(),
-        n_skipped: outcomes.len() - used.len(),
+        n_skipped: outcomes.iter().filter(|o| o.skipped()).count(),
         n_geometric_contact_radius: used.iter().filter(|g| g.a_source.is_geometric()).count(),
         psi_series: fits.psi_series.as_ref().map(|s| Psi {
             a1: &s.coef[0],
@@ -286,6 +296,7 @@ pub fn fits_json(
         force_laws,
         skipped: outcomes
             .iter()
+            .filter(|o| o.skipped())
             .filter_map(|o| {
                 o.groups.as_ref().err().map(|r| Skipped {
                     row: o.row,
@@ -294,6 +305,7 @@ pub fn fits_json(
                 })
             })
             .collect(),
+        few_drops: fits.few_drops.as_deref(),
         warnings,
     };
     let mut bytes = serde_json::to_vec_pretty(&doc).expect("fits serialise to JSON");

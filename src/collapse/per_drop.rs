@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 use super::diagnostics::{self, DropDiagnostics};
 use super::CollapseError;
 use crate::config::{PipelineConfig, Surface};
-use crate::dataset::{DropRecord, DropStatus};
+use crate::dataset::DropRecord;
 use crate::io_util::Durable;
+use crate::out_folder::Ledger;
 
 /// The diagnostics of the drops of `records` (the rows of `drops_csv`)
 /// that were measured and have a track beside it; `surface_of(i, record)`
@@ -25,12 +26,17 @@ pub fn diagnose_all<'a>(
     let (mut diags, mut warnings) = (Vec::new(), Vec::new());
     let mut todo = Vec::new();
     for (i, rec) in records.iter().enumerate() {
-        // A run name that is not a plain file name never reaches outside tracks/.
-        if crate::plot::file_stem(&rec.run) != rec.run || rec.status == DropStatus::Failed {
+        // A run name that is not a file name never reaches outside tracks/.
+        if crate::run_name::check(&rec.run).is_err() || !rec.status.measured() {
             continue;
         }
-        let p = tracks_dir.join(format!("{}.csv", rec.run));
-        let Some(surface) = surface_of(i, rec).filter(|_| p.is_file()) else {
+        let Some(p) = crate::out_folder::path(&tracks_dir, &format!("{}.csv", rec.run))
+            .ok()
+            .filter(|p| p.is_file())
+        else {
+            continue;
+        };
+        let Some(surface) = surface_of(i, rec) else {
             continue;
         };
         todo.push((rec, surface, p));
@@ -63,7 +69,19 @@ pub fn figures(
         .into_par_iter()
         .map(|d| {
             crate::timings::time(crate::timings::Stage::Figures, || {
-                crate::plot::drop_figures(&d)
+                // Named after the run, as its track and overlay are (spaces
+                // and non-ASCII letters included): its name passed
+                // `run_name::check` in `diagnose_all`.
+                let named = crate::plot::drop_figures(&d)?;
+                Ok::<_, CollapseError>(
+                    named
+                        .into_iter()
+                        .map(|(name, bytes)| {
+                            let ext = name.rsplit('.').next().unwrap_or_default();
+                            (format!("{}.{ext}", d.run), bytes)
+                        })
+                        .collect::<Vec<_>>(),
+                )
             })
         })
         .collect();
@@ -105,14 +123,15 @@ pub fn draw(
     Ok((figures(diags, dataset_id)?, warnings))
 }
 
-/// Write `figures` (paths under `plots/drops/`), each atomically (and all
-/// synced at once, [`crate::io_util::sync_file_system`]), adding
-/// them to `files`, then remove the other figures (`.svg`, `.png`) in
-/// `out_dir/plots/drops/`: those of drops no longer measured or no longer
-/// in the job. A reader sees the old figure or the new one, never none;
-/// any other file in the folder stays.
+/// Write `figures` (paths under `plots/drops/`) through the output
+/// folder's `ledger`, each atomically (and all synced at once,
+/// [`crate::io_util::sync_file_system`]), adding them to `files`, then
+/// remove the other per-drop figures an earlier job wrote (those the ledger
+/// lists, unchanged): those of drops no longer measured or no longer in
+/// the job. A reader sees the old figure or the new one, never none; any
+/// other file in the folder (a figure of yours) stays.
 pub fn replace(
-    out_dir: &Path,
+    ledger: &mut Ledger,
     figures: Vec<(PathBuf, Vec<u8>)>,
     files: &mut Vec<PathBuf>,
 ) -> Result<(), CollapseError> {
@@ -121,31 +140,24 @@ pub fn replace(
     // drop), before the old ones go.
     let any = !figures.is_empty();
     for (rel, bytes) in figures {
-        super::write_as(out_dir, &rel, &bytes, files, Durable::WithTheJob)?;
-        kept.insert(out_dir.join(rel));
+        super::write_as(ledger, &rel, &bytes, files, Durable::WithTheJob)?;
+        kept.insert(rel.to_string_lossy().into_owned());
     }
-    if any {
-        crate::io_util::sync_file_system(out_dir).map_err(|source| CollapseError::Write {
-            path: out_dir.join("plots").join("drops"),
-            source,
-        })?;
-    }
-    let dir = out_dir.join("plots").join("drops");
+    let out_dir = ledger.out().to_path_buf();
     let gone = |source| CollapseError::Write {
-        path: dir.clone(),
+        path: out_dir.join("plots").join("drops"),
         source,
     };
-    let entries = match std::fs::read_dir(&dir) {
-        Ok(e) => e,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(gone(e)),
-    };
-    for e in entries {
-        let path = e.map_err(gone)?.path();
-        let figure = path.extension().is_some_and(|x| x == "svg" || x == "png");
-        if figure && path.is_file() && !kept.contains(&path) {
-            crate::io_util::remove_if_present(&path).map_err(gone)?;
-        }
+    if any {
+        crate::io_util::sync_file_system(&out_dir).map_err(gone)?;
+    }
+    let earlier: Vec<String> = ledger
+        .listed()
+        .filter(|rel| rel.starts_with("plots/drops/") && !kept.contains(*rel))
+        .map(str::to_string)
+        .collect();
+    for rel in earlier {
+        ledger.remove(&rel).map_err(gone)?;
     }
     Ok(())
 }

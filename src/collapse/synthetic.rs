@@ -198,6 +198,9 @@ pub fn contact_track(
             in_contact: d > 0.0,
             delta_mm: Some(delta_mm),
             sigma_z_px: Some(0.02),
+            sigma_x_px: Some(0.02),
+            r_free_px: None,
+            sigma_r_free_px: None,
             force_n: (d > 0.0).then_some(k * d * d),
             flags: String::new(),
         });

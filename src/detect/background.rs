@@ -116,7 +116,9 @@ impl Background {
     ///    wherever the sphere uncovered the pixel at least once (biased up by
     ///    about two noise σ, harmless for a coarse threshold); pixels covered
     ///    in every frame (darker than half their row's 90th percentile,
-    ///    taken over every 4th pixel) are filled along their row;
+    ///    taken over every 4th pixel), and the ring around them that only
+    ///    the sphere's blurred edge uncovers ([`grow_unseen`]), are filled
+    ///    along their row;
     /// 2. in each frame, the sphere's coarse circle against that maximum
     ///    ([`super::coarse::detect_coarse`], above a preliminary surface
     ///    line fitted to it); the pixels within `r + pad_px` of it are
@@ -547,6 +549,7 @@ fn coarse_pass(
         }
     }
     let mut sorted = Vec::with_capacity(w.div_ceil(4));
+    let mut p90s = Vec::with_capacity(h);
     for row in max.chunks_exact_mut(w) {
         sorted.clear();
         sorted.extend(row.iter().step_by(4).copied());
@@ -559,6 +562,10 @@ fn coarse_pass(
                 *v = f32::NAN;
             }
         }
+        p90s.push(p90);
+    }
+    grow_unseen(&mut max, w, &p90s);
+    for row in max.chunks_exact_mut(w) {
         fill_row(row);
     }
     let bg = Background {
@@ -593,6 +600,58 @@ fn coarse_pass(
         })
         .collect::<Result<_, DetectError>>()?;
     Ok((circles, surface))
+}
+
+/// Steps (pixels of the frames passes 1 and 2 see) by which
+/// [`grow_unseen`] widens the region that no sample frame showed bare.
+const UNSEEN_GROW_STEPS: usize = 4;
+
+/// Level, as a fraction of its row's 90th percentile, below which a pixel
+/// next to the unseen region joins it ([`grow_unseen`]).
+const UNSEEN_GROW_LEVEL: f32 = 0.9;
+
+/// Widen the NaN region of the per-pixel maximum (pixels dark in every
+/// sample frame: the sphere covered them in all) by the ring around it
+/// whose maximum is still below [`UNSEEN_GROW_LEVEL`] of its row's 90th
+/// percentile (`p90s`), at most [`UNSEEN_GROW_STEPS`] pixels out.
+///
+/// Where the sphere is in view in every sample frame and moves less than
+/// its diameter between them, the pixels just outside that region are on
+/// the sphere's blurred edge in the frame that uncovers them most: their
+/// maximum is a fraction of the light (half of it at the region's border,
+/// where the threshold put it). Kept, they make a dark ring in the coarse
+/// background, and filling the region along its rows interpolates
+/// between those darkened borders: the sphere's pixels are then measured
+/// against half the light, and its coarse circle (which masks it out of
+/// the background) comes out pixels small and off centre. Filled from
+/// the light beyond that ring instead, the coarse background is the light.
+fn grow_unseen(max: &mut [f32], w: usize, p90s: &[f32]) {
+    let h = p90s.len();
+    let mut front: Vec<usize> = (0..max.len()).filter(|&k| max[k].is_nan()).collect();
+    let mut next = Vec::new();
+    for _ in 0..UNSEEN_GROW_STEPS {
+        next.clear();
+        for &k in &front {
+            let (i, j) = (k / w, k % w);
+            let neighbours = [
+                (i > 0).then(|| k - w),
+                (i + 1 < h).then(|| k + w),
+                (j > 0).then(|| k - 1),
+                (j + 1 < w).then(|| k + 1),
+            ];
+            for kk in neighbours.into_iter().flatten() {
+                let v = max[kk];
+                if v < UNSEEN_GROW_LEVEL * p90s[kk / w] {
+                    max[kk] = f32::NAN;
+                    next.push(kk);
+                }
+            }
+        }
+        if next.is_empty() {
+            break;
+        }
+        std::mem::swap(&mut front, &mut next);
+    }
 }
 
 /// "Above the line by `margin`", true without a line.

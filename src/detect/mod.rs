@@ -68,9 +68,9 @@ pub enum DetectError {
     NoBackgroundFrames,
     /// The flicker reference region holds no light (all zero), so no gain can be measured.
     #[error(
-        "the flicker reference region ({what}) is dark: the strips at the frames' left and \
-         right edges must show bright background (is the movie underexposed, or something \
-         dark standing at the frame's edges?)"
+        "the frames' {what} are dark, where the backlight's brightness is measured: dropscope \
+         needs a bright backlit background there (is the movie underexposed, or something dark \
+         standing at the frame's edges?)"
     )]
     DarkReference { what: String },
     /// Too few usable points for a fit.

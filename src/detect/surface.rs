@@ -57,6 +57,14 @@ pub struct SurfaceLine {
     /// near 0 for a clean step, the size of the bias a structured band top
     /// (a dark or bright top row, a glossy strip) can give. 0 when given.
     pub model_err_px: f64,
+    /// The line's bow: the coefficient c of `c·x²` fitted beside the line
+    /// to the same column edges (1/px; positive: the ends lower than the
+    /// middle), and its standard error. A straight surface seen through a
+    /// lens with radial distortion `k1` about a centre row `z_c` is bowed by
+    /// `c = k1·(row − z_c)`: the lens measured in the images
+    /// (`lens::k1_from_bow`). 0 when given.
+    pub bow_per_px2: f64,
+    pub bow_err_per_px2: f64,
 }
 
 impl SurfaceLine {
@@ -85,6 +93,8 @@ impl SurfaceLine {
             residual_px: 0.0,
             n_used: 0,
             model_err_px: 0.0,
+            bow_per_px2: 0.0,
+            bow_err_per_px2: 0.0,
         }
     }
 
@@ -201,16 +211,24 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
         let two = strip.and_then(|z2| {
             // A strip below the top (a glossy or pillar-top row): both edges.
             flank.extend((top..=z2 + 3).map(|i| bg.at(i, j) as f64));
-            two_step_edge_row(flank, top as f64, [zs as f64 + 0.5, z2 as f64 + 0.5])
+            two_step_edge_fit(flank, top as f64, [zs as f64 + 0.5, z2 as f64 + 0.5])
         });
-        let row_px = match two {
-            Some(row) => row,
+        let (row_px, sigma_px) = match two {
+            Some(fit) => fit,
             None => {
                 flank.clear();
                 flank.extend((top..=zs + 2).map(|i| bg.at(i, j) as f64));
-                step_edge_row(flank, top as f64, zs as f64 + 0.5)?
+                step_edge_fit(flank, top as f64, zs as f64 + 0.5)?
             }
         };
+        // A step blurred beyond these windows (a defocused band top): its
+        // derivative is wide and the flank fit's own blur says so. Then the
+        // whole step, on windows as wide as its blur.
+        if sigma_px >= WIDE_STEP_SIGMA_PX {
+            if let Some(sigma0) = wide_step_sigma(bg, j, best_row, best_step, (r_lo, r_hi)) {
+                return wide_step_edge(bg, j, best_row, sigma0.max(sigma_px), (r_lo, r_hi), params);
+            }
+        }
         Some(ColumnEdge {
             x_px: j as f64,
             row_px,
@@ -224,6 +242,94 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
         .collect();
     out.extend(edges.into_iter().flatten());
     out
+}
+
+/// The flank fit's blur σ (px) from which a column's step may be wider than
+/// the fit's window ([`wide_step_sigma`] decides).
+pub const WIDE_STEP_SIGMA_PX: f64 = 1.3;
+
+/// Full width at half maximum (rows) of a column's largest step down,
+/// `B(z) − B(z + 1)`, from which the band's top counts as blurred beyond
+/// the flank fit's window (`half_window` rows above, 2 below): a Gaussian
+/// blur of σ = FWHM / 2.355 ≥ 1.7 px, a defocused band top. The windows are
+/// then made as wide as the step ([`wide_step_edge`]).
+pub const WIDE_STEP_FWHM_ROWS: usize = 4;
+
+/// The blur σ (px) of column `j`'s largest step at `best_row` (`best` its
+/// size) when it is wide ([`WIDE_STEP_FWHM_ROWS`]): the rows around it whose
+/// steps are at least half of it, counted until one is not (within `rows`).
+fn wide_step_sigma(
+    bg: &Background,
+    j: usize,
+    best_row: usize,
+    best: f64,
+    (r_lo, r_hi): (usize, usize),
+) -> Option<f64> {
+    let step = |i: usize| bg.at(i, j) as f64 - bg.at(i + 1, j) as f64;
+    let half = 0.5 * best;
+    let up = (r_lo..best_row)
+        .rev()
+        .take_while(|&i| step(i) >= half)
+        .count();
+    let down = (best_row + 1..r_hi.saturating_sub(1))
+        .take_while(|&i| step(i) >= half)
+        .count();
+    let fwhm = 1 + up + down;
+    (fwhm >= WIDE_STEP_FWHM_ROWS).then(|| fwhm as f64 / 2.355)
+}
+
+/// The band's top in column `j` under a blur wider than the usual windows
+/// (σ ≈ `sigma0` px around `best_row`): one blurred step fitted to a window
+/// of ±(3σ + 2) rows about its row, the window moved and widened with the
+/// fit until it settles (three rounds at most); the area row over the same
+/// window. Structure inside the band's top (a strip, a top row) is not
+/// resolved under such a blur: the one step is the model.
+fn wide_step_edge(
+    bg: &Background,
+    j: usize,
+    best_row: usize,
+    sigma0: f64,
+    (r_lo, r_hi): (usize, usize),
+    params: &SurfaceParams,
+) -> Option<ColumnEdge> {
+    let (mut e, mut sigma) = (best_row as f64 + 0.5, sigma0);
+    let mut window = None;
+    for _ in 0..3 {
+        let half = (3.0 * sigma + 2.0).ceil().min(24.0) as usize;
+        let centre = e.round().max(0.0) as usize;
+        let (top, bot) = (centre.checked_sub(half)?, centre + half);
+        if top < r_lo || bot + 1 > r_hi {
+            return None;
+        }
+        if window == Some((top, bot)) {
+            break;
+        }
+        let v: Vec<f64> = (top..=bot).map(|i| bg.at(i, j) as f64).collect();
+        let (p, _) = fit_one_step(&v, top as f64, e)?;
+        let inside = p[0] > top as f64 && p[0] < bot as f64;
+        if !(p[0].is_finite() && p[2] > p[3] && inside) {
+            return None;
+        }
+        (e, sigma, window) = (p[0], p[1], Some((top, bot)));
+    }
+    let (top, bot) = window?;
+    let hi = 0.5 * (bg.at(top, j) as f64 + bg.at(top + 1, j) as f64);
+    let lo = 0.5 * (bg.at(bot, j) as f64 + bg.at(bot - 1, j) as f64);
+    if !(hi > 0.0 && (hi - lo) >= params.min_contrast * hi) {
+        return None;
+    }
+    let sum: f64 = (top..=bot)
+        .map(|i| (bg.at(i, j) as f64 - lo) / (hi - lo))
+        .sum();
+    Some(ColumnEdge {
+        x_px: j as f64,
+        row_px: if params.flank_fits {
+            e
+        } else {
+            top as f64 - 0.5 + sum
+        },
+        row_area_px: top as f64 - 0.5 + sum,
+    })
 }
 
 /// A step down of at least this fraction of a column's largest counts as the
@@ -331,10 +437,15 @@ fn int_cdf(u: f64) -> f64 {
 /// `hi − (hi − lo)·A(z; e, σ)` (module doc, step 2), started at `e0`.
 /// `None` when the fit does not end on a step inside the samples.
 pub fn step_edge_row(v: &[f64], first_row: f64, e0: f64) -> Option<f64> {
+    step_edge_fit(v, first_row, e0).map(|(row, _)| row)
+}
+
+/// [`step_edge_row`] with the fitted blur σ (px): `(row, σ)`.
+fn step_edge_fit(v: &[f64], first_row: f64, e0: f64) -> Option<(f64, f64)> {
     let n = v.len();
     let (p, _) = fit_one_step(v, first_row, e0)?;
     let inside = p[0] > first_row && p[0] < first_row + n as f64 - 1.0;
-    (p[0].is_finite() && p[2] > p[3] && inside).then_some(p[0])
+    (p[0].is_finite() && p[2] > p[3] && inside).then_some((p[0], p[1]))
 }
 
 /// [`step_edge_row`]'s fit: `(e, σ, hi, lo)` where it ended, and its cost
@@ -514,6 +625,11 @@ fn two_step_levels(
 /// last digit, only to reject them, was most of the surface line's cost.
 /// `first_row` is a row number (an integer).
 pub fn two_step_edge_row(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<f64> {
+    two_step_edge_fit(v, first_row, e0).map(|(row, _)| row)
+}
+
+/// [`two_step_edge_row`] with the fitted blur σ (px): `(row, σ)`.
+fn two_step_edge_fit(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<(f64, f64)> {
     let n = v.len();
     // The one-step fit on the same rows, fitted when first needed: by the
     // test, or by the two-step fit once it has settled.
@@ -531,7 +647,7 @@ pub fn two_step_edge_row(v: &[f64], first_row: f64, e0: [f64; 2]) -> Option<f64>
     if fit.gave_up || !ordered {
         return None;
     }
-    strip_is_resolved(one(), fit.cost, n).then_some(th[0])
+    strip_is_resolved(one(), fit.cost, n).then_some((th[0], th[2]))
 }
 
 /// Chance, at most, that noise alone lets the two-step model's two further
@@ -737,11 +853,41 @@ fn solve4(m: [[f64; 4]; 4], b: [f64; 4]) -> Option<[f64; 4]> {
 
 /// Disagreement (px) between the flank fit and the area method beyond which
 /// the band's top counts as structured and the flank fit's line is used.
-/// Below it the area method's is: it is exact for any blur kernel, where
-/// the flank fit assumes a Gaussian one (on the `realistic` renders the two
-/// differ by up to 0.03 px on clean band tops, the area method being the
-/// right one within 0.002 px; structured tops move them 0.1–0.5 px apart).
-pub const STRUCTURED_TOP_PX: f64 = 0.05;
+/// Below it the area method's is: it is exact for any blur kernel and any
+/// step height, where the flank fit assumes a Gaussian blur and flat levels
+/// over its short window. On clean band tops the flank fit alone is off by
+/// up to 0.053 px (120 `realistic` renders; the area row within 0.008 px),
+/// so a smaller disagreement is no evidence of structure; a glossy strip or
+/// a row of pillar tops moves the two 0.06–0.5 px apart (independent
+/// renders: the flank fit within 0.06 px of the truth there, the area row
+/// up to 0.19 px off).
+pub const STRUCTURED_TOP_PX: f64 = 0.06;
+
+/// The area row's systematic error (px) on a clean band top: 0.003 px
+/// root-mean-square off the truth on 60 `realistic` renders (within
+/// 0.008 px), up to 0.007 px on `harsh` ones.
+pub const AREA_SYSTEMATIC_PX: f64 = 0.005;
+
+/// The flank fit's systematic error (px) on a structured band top, at
+/// least: within 0.06 px of the truth on the independent renders (median
+/// 0.043 px), where its disagreement with the area row was 0.06–0.26 px.
+pub const FLANK_SYSTEMATIC_PX: f64 = 0.04;
+
+impl SurfaceLine {
+    /// The systematic error (px) of the edge model this line was taken
+    /// with: [`AREA_SYSTEMATIC_PX`] for a clean top (the area row), and for
+    /// a structured one (the flank fit) half the two models' disagreement,
+    /// at least [`FLANK_SYSTEMATIC_PX`]. 0 for a line given.
+    pub fn edge_model_sigma_px(&self) -> f64 {
+        if self.n_used == 0 {
+            0.0
+        } else if self.model_err_px < STRUCTURED_TOP_PX {
+            AREA_SYSTEMATIC_PX
+        } else {
+            (0.5 * self.model_err_px).max(FLANK_SYSTEMATIC_PX)
+        }
+    }
+}
 
 /// The surface line from the background image (see the module doc), with
 /// its edge-model error.
@@ -759,14 +905,79 @@ pub fn fit_surface(bg: &Background, params: &SurfaceParams) -> Result<SurfaceLin
     } else {
         median(&mut diff).abs()
     };
-    let mut line = if model_err_px < STRUCTURED_TOP_PX {
+    let (mut line, pts) = if model_err_px < STRUCTURED_TOP_PX {
         let pts: Vec<(f64, f64)> = edges.iter().map(|e| (e.x_px, e.row_area_px)).collect();
-        fit_line(&pts, params)?
+        (fit_line(&pts, params)?, pts)
     } else {
-        flank
+        (flank, pts)
     };
     line.model_err_px = model_err_px;
+    if let Some((c, c_err)) = bow(&pts, &line, params) {
+        line.bow_per_px2 = c;
+        line.bow_err_per_px2 = c_err;
+    }
     Ok(line)
+}
+
+/// Columns per block in [`bow`]: neighbouring columns' edges share their
+/// errors (the blur, a pillar's face), so the bow is fitted to block means,
+/// whose scatter gives an honest error.
+const BOW_BLOCK_COLUMNS: f64 = 16.0;
+
+/// The bow `c` of `row = a + b·x + c·x²` by least squares over the column
+/// edges within 4 of the line's residual scales of it (the robust line's
+/// inliers), averaged in blocks of [`BOW_BLOCK_COLUMNS`], with its standard
+/// error from the blocks' scatter: `(c, σ_c)`. `None` with fewer than 8
+/// blocks.
+fn bow(pts: &[(f64, f64)], line: &SurfaceLine, params: &SurfaceParams) -> Option<(f64, f64)> {
+    let scale = line.residual_px.max(params.min_scale_px);
+    let kept = pts
+        .iter()
+        .copied()
+        .filter(|&(x, z)| (z - line.row_at(x)).abs() <= 4.0 * scale);
+    let mut blocks: std::collections::BTreeMap<i64, (f64, f64, f64)> = Default::default();
+    for (x, z) in kept {
+        let b = blocks
+            .entry((x / BOW_BLOCK_COLUMNS).floor() as i64)
+            .or_insert((0.0, 0.0, 0.0));
+        *b = (b.0 + x, b.1 + z, b.2 + 1.0);
+    }
+    let means: Vec<(f64, f64)> = blocks
+        .values()
+        .filter(|b| b.2 >= 0.5 * BOW_BLOCK_COLUMNS)
+        .map(|b| (b.0 / b.2, b.1 / b.2))
+        .collect();
+    if means.len() < 8 {
+        return None;
+    }
+    let mid = means.iter().map(|p| p.0).sum::<f64>() / means.len() as f64;
+    let half = means
+        .iter()
+        .map(|p| (p.0 - mid).abs())
+        .fold(0.0, f64::max)
+        .max(1.0);
+    // In u = (x − mid)/half, for conditioning.
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atz = nalgebra::Vector3::<f64>::zeros();
+    for &(x, z) in &means {
+        let u = (x - mid) / half;
+        let row = nalgebra::Vector3::new(1.0, u, u * u);
+        ata += row * row.transpose();
+        atz += row * z;
+    }
+    let inv = ata.try_inverse()?;
+    let coef = inv * atz;
+    let ss: f64 = means
+        .iter()
+        .map(|&(x, z)| {
+            let u = (x - mid) / half;
+            (z - coef[0] - coef[1] * u - coef[2] * u * u).powi(2)
+        })
+        .sum();
+    let s2 = ss / (means.len() - 3) as f64;
+    let c = coef[2] / (half * half);
+    let c_err = (s2 * inv[(2, 2)]).max(0.0).sqrt() / (half * half);
+    (c.is_finite() && c_err.is_finite()).then_some((c, c_err))
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -863,6 +1074,8 @@ pub fn fit_line(pts: &[(f64, f64)], params: &SurfaceParams) -> Result<SurfaceLin
             residual_px: rms,
             n_used: used,
             model_err_px: 0.0,
+            bow_per_px2: 0.0,
+            bow_err_per_px2: 0.0,
         });
         if moved < 1e-10 {
             break;

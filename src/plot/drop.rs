@@ -386,6 +386,9 @@ mod tests {
             in_contact: false,
             delta_mm: None,
             sigma_z_px: None,
+            sigma_x_px: None,
+            r_free_px: None,
+            sigma_r_free_px: None,
             force_n: None,
             flags: String::new(),
         }

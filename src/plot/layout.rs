@@ -7,8 +7,27 @@ use plotters::prelude::SeriesLabelPosition;
 
 /// Tick values for a log axis over [lo, hi]: 1, 2, 5 × 10^k when that gives
 /// 4–12 labels, else every decade, else 1–9 × 10^k; and the minor grid 1–9 × 10^k.
+///
+/// Any finite range gives a bounded number of ticks: an end at or below 0,
+/// or not finite, is taken at the smallest positive double (a decade
+/// count then stays under 620); more than 12 decades are labelled every
+/// few, and more than 24 get no minor grid.
 pub(super) fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
+    let lo = if lo.is_finite() && lo > 0.0 {
+        lo
+    } else {
+        f64::MIN_POSITIVE
+    };
+    let hi = if hi.is_finite() && hi >= lo { hi } else { lo };
     let (k0, k1) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+    if k1 - k0 > 24 {
+        let decades: Vec<f64> = (k0..=k1)
+            .map(|k| 10f64.powi(k))
+            .filter(|v| *v >= lo && *v <= hi)
+            .collect();
+        let step = decades.len().div_ceil(12).max(1);
+        return (decades.into_iter().step_by(step).collect(), Vec::new());
+    }
     let pick = |mant: &[f64]| -> Vec<f64> {
         (k0..=k1)
             .flat_map(|k| mant.iter().map(move |m| m * 10f64.powi(k)))
@@ -45,9 +64,20 @@ fn linear_ticks(lo: f64, hi: f64) -> Vec<f64> {
         .map(|m| m * p)
         .find(|s| (hi - lo) / s <= 7.0)
         .unwrap_or(10.0 * p);
-    let first = (lo / step).ceil() as i64;
-    let last = (hi / step).floor() as i64;
-    (first..=last).map(|k| k as f64 * step).collect()
+    let first = (lo / step).ceil();
+    let last = (hi / step).floor();
+    // A step lost in the ends' precision (or none): the ends themselves.
+    let usable = step.is_finite()
+        && step > 0.0
+        && first.is_finite()
+        && last.is_finite()
+        && (0.0..=20.0).contains(&(last - first));
+    if !usable {
+        return vec![lo, hi];
+    }
+    (first as i64..=last as i64)
+        .map(|k| k as f64 * step)
+        .collect()
 }
 
 /// Points normalised to the plot area (log or linear axes).
@@ -106,7 +136,11 @@ pub(super) fn range(points: &[Pt], log: bool, extra: &[f64]) -> ([f64; 2], [f64;
         if log {
             let (a, b) = (r[0].ln(), r[1].ln());
             let m = ((b - a) * 0.08).max(0.05);
-            [(a - m).exp(), (b + m).exp()]
+            // Ends kept positive and finite (a value near 1e-300 padded
+            // below underflows to 0, where a log axis has no end).
+            let lo = (a - m).exp().max(f64::MIN_POSITIVE);
+            let hi = (b + m).exp().min(f64::MAX);
+            [lo, hi.max(lo * (1.0 + 1e-9))]
         } else {
             let m = ((r[1] - r[0]) * 0.08).max(1e-3 * r[1].abs().max(1e-9));
             [r[0] - m, r[1] + m]
@@ -296,6 +330,25 @@ mod tests {
         assert!(residuals(&pts, &|x| x - 2.0, true).len() == 1);
         let [lo, hi] = residual_range(&residuals(&pts, &line, false));
         assert!((hi - 1.15 * 0.8).abs() < 1e-12 && lo == -hi);
+    }
+
+    #[test]
+    fn any_finite_range_gives_few_ticks_at_once() {
+        for (lo, hi) in [
+            (1e-300, 1e-299),
+            (1e-308, 1.0),
+            (5e-324, 1e308),
+            (0.0, 1e-300),
+            (-1.0, 3.0),
+            (1.0, f64::INFINITY),
+            (f64::NAN, 2.0),
+            (1e300, 1e300 * (1.0 + 1e-15)),
+        ] {
+            let (major, minor) = log_ticks(lo, hi);
+            assert!(major.len() <= 21 && minor.len() <= 250, "{lo} {hi}");
+            assert!(!major.is_empty(), "{lo} {hi}");
+        }
+        assert!(linear_ticks(1e300, 1e300 * (1.0 + 1e-15)).len() <= 21);
     }
 
     #[test]

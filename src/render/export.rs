@@ -57,6 +57,21 @@ pub enum FrameFormat {
     Cine,
 }
 
+/// How a rendered `.cine` stores its samples (`--packing`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CinePackingChoice {
+    /// One byte a sample for 8-bit frames, a 16-bit container for 12-bit ones.
+    #[default]
+    Unpacked,
+    /// P10: the 12-bit values encoded to Vision Research's log-encoded
+    /// 10-bit codes (the nearest code of its linearisation table), packed
+    /// 4 samples in 5 bytes, as a Phantom saves "10-bit" cines.
+    P10,
+    /// P12L: the 12-bit values packed 2 samples in 3 bytes.
+    P12l,
+}
+
 impl FrameFormat {
     /// The file extension, without the dot.
     pub fn extension(self) -> &'static str {
@@ -152,23 +167,33 @@ pub trait FrameSink: Send {
 pub struct CineSink {
     path: PathBuf,
     writer: crate::source::cine_write::CineWriter,
+    /// P10: each 12-bit frame is written as its log-encoded codes (in `coded`).
+    p10: bool,
+    coded: Frame,
 }
 
 impl CineSink {
     /// Create `path` for the movie `header` describes: 8-bit samples, or
-    /// 16-bit containers for deeper data; time stamps n/fps from the trigger.
-    pub fn create(path: &Path, header: &PccHeader) -> Result<Self, ExportError> {
+    /// 16-bit containers for deeper data, or the packed layouts of
+    /// `packing` (12-bit data only); time stamps n/fps from the trigger.
+    pub fn create(
+        path: &Path,
+        header: &PccHeader,
+        packing: CinePackingChoice,
+    ) -> Result<Self, ExportError> {
         use crate::source::cine_write::{CinePacking, CineSpec, CineWriter};
+        let (packing, bit_depth) = match (packing, header.bit_depth) {
+            (CinePackingChoice::P10, _) => (CinePacking::P10, 10),
+            (CinePackingChoice::P12l, _) => (CinePacking::P12L, 12),
+            (CinePackingChoice::Unpacked, 8) => (CinePacking::Gray8, 8),
+            (CinePackingChoice::Unpacked, b) => (CinePacking::Gray16, b),
+        };
         let spec = CineSpec {
             width: header.width_px,
             height: header.height_px,
             frame_count: header.image_count,
-            packing: if header.bit_depth == 8 {
-                CinePacking::Gray8
-            } else {
-                CinePacking::Gray16
-            },
-            bit_depth: header.bit_depth,
+            packing,
+            bit_depth,
             fps: header.fps,
             exposure_s: header.exposure_s,
             first_image_no: header.first_image_no as i32,
@@ -184,6 +209,8 @@ impl CineSink {
         Ok(CineSink {
             path: path.to_path_buf(),
             writer,
+            p10: packing == CinePacking::P10,
+            coded: Frame::zeros((0, 0)),
         })
     }
 }
@@ -191,6 +218,17 @@ impl CineSink {
 impl FrameSink for CineSink {
     fn write_batch(&mut self, frames: &[(i64, Frame)]) -> Result<(), ExportError> {
         for (n, frame) in frames {
+            let frame = if self.p10 {
+                if self.coded.dim() != frame.dim() {
+                    self.coded = Frame::zeros(frame.dim());
+                }
+                self.coded.zip_mut_with(frame, |c, &v| {
+                    *c = crate::source::cine_write::p10_code_of_linear12(v)
+                });
+                &self.coded
+            } else {
+                frame
+            };
             self.writer
                 .write_frame(frame)
                 .map_err(|e| ExportError::Encode {

@@ -211,6 +211,7 @@ fn write_manifest(
                 surface: Some(args.surface_name.clone()),
                 sphere_density_kg_m3: Some(d.truth.sphere_density_kg_m3),
                 setup: None,
+                number_digits: None,
             })
             .collect();
         crate::manifest::to_csv_bytes(&rows)
@@ -501,7 +502,11 @@ pub fn render_drop(
             st.look.bit_depth,
             jpeg_quality.unwrap_or(95),
         )),
-        FrameFormat::Cine => Box::new(CineSink::create(&dir.join(format!("{run}.cine")), &header)?),
+        FrameFormat::Cine => Box::new(CineSink::create(
+            &dir.join(format!("{run}.cine")),
+            &header,
+            st.packing,
+        )?),
     };
     let missing: &[i64] = match &painter {
         Painter::Camera(c) => &c.optics().truth.missing_frames,

@@ -8,7 +8,7 @@ use serde::Serialize;
 
 use super::campaign::{self, DropSpec};
 use super::contact::{ContactMode, ContactSpec, DampingArg};
-use super::export::FrameFormat;
+use super::export::{CinePackingChoice, FrameFormat};
 use super::optics::{OpticsSpec, Strength};
 use super::physics::{self, Damping};
 use super::raster::Look;
@@ -159,6 +159,10 @@ pub struct RenderArgs {
     /// Frame files: tiff (uncompressed), png, jpeg (8-bit) or one cine.
     #[arg(long, value_enum, default_value_t = FrameFormat::Tiff)]
     pub format: FrameFormat,
+    /// How --format cine stores 12-bit frames: unpacked (16-bit containers),
+    /// p10 (log-encoded 10-bit codes, as Phantom's "10-bit" saves) or p12l.
+    #[arg(long, value_enum, default_value_t = CinePackingChoice::Unpacked)]
+    pub packing: CinePackingChoice,
 
     // ---- physics
     /// Sphere density, kg/m³.
@@ -352,6 +356,8 @@ pub struct RenderSettings {
     /// A real camera's effects (all off outside `--preset real` unless given).
     pub optics: OpticsSpec,
     pub format: FrameFormat,
+    /// How a `.cine` stores its samples.
+    pub packing: CinePackingChoice,
     /// JPEG quality: fixed, or drawn per drop in the range (`--preset real`).
     pub jpeg_quality: (u8, u8),
     pub seed: u64,
@@ -497,6 +503,26 @@ impl RenderArgs {
                 "JPEG frames hold 8 bits: add --bit-depth 8",
             ));
         }
+        if self.packing != CinePackingChoice::Unpacked {
+            let name = match self.packing {
+                CinePackingChoice::P10 => "p10",
+                _ => "p12l",
+            };
+            if self.format != FrameFormat::Cine {
+                return Err(invalid(
+                    "packing",
+                    name,
+                    "packs the samples of a .cine: add --format cine",
+                ));
+            }
+            if look.bit_depth != 12 {
+                return Err(invalid(
+                    "packing",
+                    name,
+                    "packs 12-bit frames: add --bit-depth 12",
+                ));
+            }
+        }
         let jpeg_quality = match (self.jpeg_quality, self.preset) {
             (Some(q), _) if !(1..=100).contains(&q) => {
                 return Err(invalid("jpeg-quality", q, "must lie in 1‥100"))
@@ -510,6 +536,7 @@ impl RenderArgs {
             look,
             optics,
             format: self.format,
+            packing: self.packing,
             jpeg_quality,
             seed: self.seed,
             fps,

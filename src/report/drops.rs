@@ -31,12 +31,18 @@ const THUMB_QUALITY: u8 = 75;
 /// could point outside `plots/`), the run was measured (a failed run's
 /// files, if any, are from an earlier job) and the file is there.
 fn figure(out_dir: &Path, rec: &DropRecord, sub: &str, ext: &str) -> Option<String> {
-    if rec.status == DropStatus::Failed || crate::plot::file_stem(&rec.run) != rec.run {
+    if rec.status == DropStatus::Failed || crate::run_name::check(&rec.run).is_err() {
         return None;
     }
     let rel = format!("plots/{sub}/{}.{ext}", rec.run);
-    out_dir.join(&rel).is_file().then_some(rel)
+    crate::out_folder::path(out_dir, &rel)
+        .is_ok_and(|p| p.is_file())
+        .then_some(rel)
 }
+
+/// An overlay larger than this is not made into a thumbnail (dropscope's
+/// are ~100 kB).
+const OVERLAY_MAX_BYTES: u64 = 64 << 20;
 
 /// A relative path as a URL path: every byte but the unreserved characters
 /// and `/` percent-encoded (run names may hold `#`, `?`, `%` or spaces).
@@ -54,7 +60,13 @@ pub fn url_path(rel: &str) -> String {
 
 /// The overlay at `rel` shrunk to [`THUMB_PX`] wide, as JPEG bytes.
 fn thumbnail(out_dir: &Path, rel: &str) -> Option<Vec<u8>> {
-    let img = image::open(out_dir.join(rel)).ok()?.to_rgb8();
+    // Read through no link, decoded within the frame readers' pixel cap.
+    let bytes = crate::out_folder::read(out_dir, rel, OVERLAY_MAX_BYTES).ok()??;
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .ok()?;
+    reader.limits(crate::source::decode_limits());
+    let img = reader.decode().ok()?.to_rgb8();
     let (w, h) = img.dimensions();
     let tw = THUMB_PX.min(w).max(1);
     let th = ((u64::from(h) * u64::from(tw)) / u64::from(w.max(1))).max(1) as u32;
@@ -78,6 +90,7 @@ fn status(rec: &DropRecord) -> (&'static str, &'static str) {
         DropStatus::Ok => ("ok", "ok"),
         DropStatus::Warning => ("warning", "warning"),
         DropStatus::Failed => ("failed", "FAILED"),
+        DropStatus::Tracked => ("tracked", "tracked"),
         DropStatus::Rejected => ("rejected", "rejected"),
         DropStatus::Accepted => ("accepted", "accepted"),
     }
@@ -121,7 +134,7 @@ fn controls(n: usize) -> String {
         "<div class=\"filter\"><label>filter <input id=\"drop-filter\" type=\"search\" \
          placeholder=\"run name or reason\"></label> <label>status <select id=\"drop-status\">\
          <option value=\"\">all</option><option>ok</option><option>warning</option>\
-         <option>failed</option><option>accepted</option><option>rejected</option></select></label> <span id=\"drop-count\">{n} of {n} drops\
+         <option>tracked</option><option>failed</option><option>accepted</option><option>rejected</option></select></label> <span id=\"drop-count\">{n} of {n} drops\
          </span> · click a column head to sort</div>"
     )
 }
@@ -150,7 +163,7 @@ pub fn drops_table(out_dir: &Path, records: &[DropRecord]) -> String {
     for ((i, rec), thumb) in records.iter().enumerate().zip(thumbs) {
         let (class, label) = status(rec);
         let run = escape(&rec.run);
-        let measured = rec.status != DropStatus::Failed;
+        let measured = rec.status.measured();
         let keys: String = [
             ("v", rec.v_impact_m_s),
             ("delta", rec.delta_max_mm),
@@ -190,24 +203,41 @@ pub fn drops_table(out_dir: &Path, records: &[DropRecord]) -> String {
             );
         }
         out.push_str("</td>");
-        if !measured {
+        let reason = if rec.reason.is_empty() {
+            "no reason recorded".into()
+        } else {
+            escape(&rec.reason)
+        };
+        if rec.status == DropStatus::Failed {
             let _ = write!(
                 out,
-                "<td colspan=\"{}\" class=\"reason\">{}</td>",
+                "<td colspan=\"{}\" class=\"reason\">{reason}</td>",
                 N_COLUMNS - 4,
-                if rec.reason.is_empty() {
-                    "no reason recorded".into()
-                } else {
-                    escape(&rec.reason)
-                }
             );
         } else {
-            out.push_str(&cell(rec.v_impact_m_s, rec.v_impact_m_s_err));
-            out.push_str(&cell(rec.delta_max_mm, rec.delta_max_mm_err));
-            out.push_str(&cell(rec.a_max_mm, rec.a_max_mm_err));
-            out.push_str(&cell(rec.tau_c_ms, rec.tau_c_ms_err));
-            out.push_str(&cell(rec.restitution, rec.restitution_err));
-            out.push_str(&cell(rec.v_rebound_m_s, rec.v_rebound_m_s_err));
+            if rec.status == DropStatus::Tracked {
+                // No impact: the free flight's velocity at its last frame.
+                let v = match (rec.v_last_m_s, rec.t_last_s) {
+                    (Some(v), Some(t)) => format!(
+                        "v = {} m/s at the last frame ({} ms): ",
+                        pm(v, rec.v_last_m_s_err),
+                        num(t * 1e3)
+                    ),
+                    _ => String::new(),
+                };
+                let _ = write!(
+                    out,
+                    "<td colspan=\"{}\" class=\"reason\">{v}{reason}</td>",
+                    N_COLUMNS - 5,
+                );
+            } else {
+                out.push_str(&cell(rec.v_impact_m_s, rec.v_impact_m_s_err));
+                out.push_str(&cell(rec.delta_max_mm, rec.delta_max_mm_err));
+                out.push_str(&cell(rec.a_max_mm, rec.a_max_mm_err));
+                out.push_str(&cell(rec.tau_c_ms, rec.tau_c_ms_err));
+                out.push_str(&cell(rec.restitution, rec.restitution_err));
+                out.push_str(&cell(rec.v_rebound_m_s, rec.v_rebound_m_s_err));
+            }
             match thumb {
                 Some((rel, jpeg)) => {
                     let _ = write!(

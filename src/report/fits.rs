@@ -370,7 +370,14 @@ fn notes(out: &mut String, doc: &Value) {
         }
         out.push_str("</ul>");
     }
-    let warnings = doc["warnings"].as_array().map_or(&[][..], |a| a.as_slice());
+    // The few-drops note is shown at the top, not among the warnings.
+    let few = doc.get("few_drops").and_then(Value::as_str);
+    let warnings: Vec<&Value> = doc["warnings"]
+        .as_array()
+        .map_or(&[][..], |a| a.as_slice())
+        .iter()
+        .filter(|w| few.is_none() || w.as_str() != few)
+        .collect();
     if !warnings.is_empty() {
         out.push_str("<h3>Warnings of the collapse</h3><ul class=\"warnings\">");
         for w in warnings {
@@ -391,9 +398,31 @@ pub fn fits_section(doc: &Value) -> String {
     let mut out = String::new();
     // What the data support first, the extrapolations last.
     provenance(&mut out, doc);
-    exponents(&mut out, doc);
-    asymptotes(&mut out, doc);
-    series(&mut out, doc);
+    match doc.get("few_drops").and_then(Value::as_str) {
+        // Too few drops for any exponent or series: that said once, in
+        // place of their empty tables.
+        Some(few) => {
+            // `commands` as code.
+            let text: String = escape(few)
+                .split('`')
+                .enumerate()
+                .map(|(i, part)| {
+                    if i % 2 == 1 {
+                        format!("<code>{part}</code>")
+                    } else {
+                        part.to_string()
+                    }
+                })
+                .collect();
+            let _ = write!(out, "<p class=\"few-drops\">{text}</p>");
+            asymptotes(&mut out, doc);
+        }
+        None => {
+            exponents(&mut out, doc);
+            asymptotes(&mut out, doc);
+            series(&mut out, doc);
+        }
+    }
     force_laws(&mut out, doc);
     notes(&mut out, doc);
     out

@@ -30,6 +30,7 @@ use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
 use crate::dataset::{DropRecord, DropStatus};
+use crate::out_folder::Ledger;
 use html::escape;
 
 /// Why report.html could not be written (missing or unreadable collapse
@@ -55,7 +56,9 @@ pub enum ReportError {
 
 /// Refuse a folder whose collapse files (`fits.json`, `collapse.csv`, the
 /// SVG figures) were computed from another drops.csv than the one in it
-/// ([`crate::dataset_id`]). A folder without fits.json has nothing to mix.
+/// ([`crate::dataset_id`]). A folder without fits.json has nothing to mix;
+/// an SVG that carries no dataset id is not dropscope's (a figure of
+/// yours) and not looked at.
 pub fn check_one_dataset(out_dir: &Path) -> Result<(), ReportError> {
     use crate::dataset_id::{check, of_svg};
     let fits_path = out_dir.join("fits.json");
@@ -84,23 +87,39 @@ pub fn check_one_dataset(out_dir: &Path) -> Result<(), ReportError> {
             check(&collapse, found.as_deref(), &drops, &expected)?;
         }
     }
-    for dir in [out_dir.join("plots"), out_dir.join("plots").join("drops")] {
+    // Any SVG that says it is one of dropscope's (carries a dataset id): a
+    // figure of another job copied in is refused; read through no link.
+    for sub in ["plots", "plots/drops"] {
+        let Ok(dir) = crate::out_folder::path(out_dir, sub) else {
+            continue;
+        };
         let Ok(entries) = std::fs::read_dir(&dir) else {
             continue;
         };
-        let mut svgs: Vec<PathBuf> = entries
+        let mut svgs: Vec<String> = entries
             .flatten()
-            .map(|e| e.path())
-            .filter(|p| p.extension().is_some_and(|x| x == "svg") && p.is_file())
+            .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+            .filter_map(|e| e.file_name().to_str().map(str::to_string))
+            .filter(|n| n.ends_with(".svg"))
             .collect();
         svgs.sort();
-        for svg in svgs {
-            let text = String::from_utf8_lossy(&read(&svg)?).into_owned();
-            check(&svg, of_svg(&text), &drops, &expected)?;
+        for name in svgs {
+            let rel = format!("{sub}/{name}");
+            let Ok(Some(bytes)) = crate::out_folder::read(out_dir, &rel, SVG_MAX_BYTES) else {
+                continue;
+            };
+            let text = String::from_utf8_lossy(&bytes);
+            if let Some(found) = of_svg(&text) {
+                check(&out_dir.join(&rel), Some(found), &drops, &expected)?;
+            }
         }
     }
     Ok(())
 }
+
+/// A figure larger than this is not read into the page (a long movie's
+/// per-drop figure is ~11 MB).
+const SVG_MAX_BYTES: u64 = 256 << 20;
 
 const STYLE: &str = include_str!("style.css");
 
@@ -183,38 +202,51 @@ const KNOWN_PLOTS: [(&str, &str); 4] = [
     ),
 ];
 
-/// The collapse figures found in `plots/`, as (stem, svg text).
-fn collapse_plots(out_dir: &Path) -> Vec<(String, String)> {
-    let dir = out_dir.join("plots");
-    let mut others: Vec<String> = std::fs::read_dir(&dir)
-        .map(|entries| {
-            entries
-                .flatten()
-                .filter_map(|e| {
-                    let name = e.file_name().to_str()?.to_string();
-                    let stem = name.strip_suffix(".svg")?;
-                    (e.path().is_file() && !KNOWN_PLOTS.iter().any(|(k, _)| *k == stem))
-                        .then(|| stem.to_string())
-                })
-                .collect()
+/// How a collapse figure enters the page.
+enum Plot {
+    /// Inline: an SVG this folder's ledger lists as dropscope's, unchanged.
+    Inline(String),
+    /// By reference (`<img>`, where a browser runs no script): an SVG of
+    /// the figure's name and this dataset that the ledger does not list
+    /// (written by an older dropscope, or by someone else).
+    Referenced(String),
+}
+
+/// The collapse figures of `plots/`, as (stem, how shown): the figures the
+/// collapse draws ([`KNOWN_PLOTS`]), then any other SVG the ledger lists
+/// in `plots/`, sorted by name. No other file is inlined: an SVG dropped
+/// into `plots/` never brings its script into the page.
+fn collapse_plots(out_dir: &Path, ledger: &Ledger, dataset: Option<&str>) -> Vec<(String, Plot)> {
+    let mut others: Vec<String> = ledger
+        .listed()
+        .filter_map(|rel| {
+            let stem = rel.strip_prefix("plots/")?.strip_suffix(".svg")?;
+            (!stem.contains('/') && !KNOWN_PLOTS.iter().any(|(k, _)| *k == stem))
+                .then(|| stem.to_string())
         })
-        .unwrap_or_default();
+        .collect();
     others.sort();
-    KNOWN_PLOTS
-        .iter()
-        .map(|(k, _)| k.to_string())
+    let known: Vec<String> = KNOWN_PLOTS.iter().map(|(k, _)| k.to_string()).collect();
+    known
+        .into_iter()
         .chain(others)
         .filter_map(|stem| {
-            let text = std::fs::read_to_string(dir.join(format!("{stem}.svg"))).ok()?;
-            // Only an SVG document is inlined; the namespace declaration is
-            // implied for <svg> inside HTML, so the page names no URL at all.
-            let text = text.trim_start();
-            text.starts_with("<svg").then(|| {
-                (
-                    stem,
-                    text.replacen(" xmlns=\"http://www.w3.org/2000/svg\"", "", 1),
-                )
-            })
+            let rel = format!("plots/{stem}.svg");
+            if let Some(bytes) = ledger.read_owned(&rel, SVG_MAX_BYTES) {
+                let text = String::from_utf8(bytes).ok()?;
+                // Only an SVG document is inlined; the namespace declaration is
+                // implied for <svg> inside HTML, so the page names no URL at all.
+                let text = text.trim_start();
+                return text.starts_with("<svg").then(|| {
+                    let svg = text.replacen(" xmlns=\"http://www.w3.org/2000/svg\"", "", 1);
+                    (stem, Plot::Inline(svg))
+                });
+            }
+            let bytes = crate::out_folder::read(out_dir, &rel, SVG_MAX_BYTES).ok()??;
+            let ours = dataset.is_some()
+                && crate::dataset_id::of_svg(&String::from_utf8_lossy(&bytes)) == dataset;
+            let known = KNOWN_PLOTS.iter().any(|(k, _)| *k == stem);
+            (ours && known).then(|| (stem.clone(), Plot::Referenced(rel)))
         })
         .collect()
 }
@@ -236,7 +268,8 @@ fn collapse_rows(out_dir: &Path) -> Option<Vec<(String, bool)>> {
     r.records()
         .map(|row| {
             let row = row.ok()?;
-            Some((row.get(run)?.to_string(), row.get(used)? == "true"))
+            let name = crate::text::csv_cell_back(row.get(run)?);
+            Some((name.to_string(), row.get(used)? == "true"))
         })
         .collect()
 }
@@ -252,11 +285,12 @@ fn collapse_matches(rows: &[(String, bool)], records: &[DropRecord]) -> bool {
             .all(|((run, used), r)| *run == r.run && (!*used || r.status.collapses()))
 }
 
-fn counts(records: &[DropRecord]) -> [usize; 5] {
+fn counts(records: &[DropRecord]) -> [usize; 6] {
     let n = |s: DropStatus| records.iter().filter(|r| r.status == s).count();
     [
         n(DropStatus::Ok),
         n(DropStatus::Warning),
+        n(DropStatus::Tracked),
         n(DropStatus::Failed),
         n(DropStatus::Accepted),
         n(DropStatus::Rejected),
@@ -303,7 +337,12 @@ fn review_section(out: &mut String, records: &[DropRecord]) {
 }
 
 fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRecord]) {
-    let [ok, warning, failed, accepted, rejected] = counts(records);
+    let [ok, warning, tracked, failed, accepted, rejected] = counts(records);
+    let tracked = if tracked > 0 {
+        format!(" <span class=\"count tracked\">{tracked} tracked without contact</span>")
+    } else {
+        String::new()
+    };
     let dataset = crate::dataset_id::of_file(&out_dir.join("drops.csv"))
         .map(|id| format!(" · dataset <code title=\"SHA-256 of drops.csv\">{id}</code>"))
         .unwrap_or_default();
@@ -312,7 +351,7 @@ fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRe
         "<header><h1>dropscope report</h1><p class=\"meta\">dropscope {version} · configuration \
          <code>{config}</code>{dataset}</p><p class=\"counts\"><span class=\"count\">{total} runs</span> \
          <span class=\"count ok\">{ok} measured</span> <span class=\"count warning\">{warning} \
-         measured with warnings</span> <span class=\"count failed\">{failed} failed</span>{review}</p></header>",
+         measured with warnings</span>{tracked} <span class=\"count failed\">{failed} failed</span>{review}</p></header>",
         version = env!("CARGO_PKG_VERSION"),
         config = escape(config_name),
         total = records.len(),
@@ -326,7 +365,10 @@ fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRe
          <span class=\"badge warning\">warning</span> measured, but read the note (e.g. the \
          fitted gravity off by more than 2 %: check the frame rate and scale); \
          <span class=\"badge failed\">FAILED</span> nothing measured, the reason says which \
-         file or frame and why. Failed rows are left out of the collapse. After \
+         file or frame and why; <span class=\"badge tracked\">tracked</span> the sphere was \
+         followed but never reached the surface (a calibration drop, a clip cut before the \
+         impact): its overlay, track and the velocity at its last frame, no impact. Failed and \
+         tracked rows are left out of the collapse. After \
          <code>dropscope review</code>: <span class=\"badge accepted\">accepted</span> a \
          warning a person checked and accepted; <span class=\"badge rejected\">rejected</span> \
          measured, but left out of the collapse by a person, who says why; the \
@@ -385,7 +427,8 @@ fn collapse_section(out: &mut String, out_dir: &Path, records: &[DropRecord]) {
     }
     // The collapse writes fits.json first: plots without it are an earlier job's.
     let plots = if fits_bytes.is_some() {
-        collapse_plots(out_dir)
+        let dataset = crate::dataset_id::of_file(&out_dir.join("drops.csv")).ok();
+        collapse_plots(out_dir, &Ledger::open(out_dir), dataset.as_deref())
     } else {
         Vec::new()
     };
@@ -395,10 +438,18 @@ fn collapse_section(out: &mut String, out_dir: &Path, records: &[DropRecord]) {
         }
     } else {
         out.push_str("<div class=\"plots\">");
-        for (stem, svg) in &plots {
+        for (stem, plot) in &plots {
+            let figure = match plot {
+                Plot::Inline(svg) => svg.clone(),
+                Plot::Referenced(rel) => format!(
+                    "<img src=\"{}\" alt=\"{}\">",
+                    drops::url_path(rel),
+                    escape(stem)
+                ),
+            };
             let _ = write!(
                 out,
-                "<figure id=\"plot-{id}\">{svg}<figcaption>{}</figcaption></figure>",
+                "<figure id=\"plot-{id}\">{figure}<figcaption>{}</figcaption></figure>",
                 caption(stem),
                 id = escape(stem)
             );
@@ -453,13 +504,16 @@ pub fn write_report(
     config_name: &str,
     records: &[DropRecord],
 ) -> Result<PathBuf, ReportError> {
+    let mut ledger = Ledger::open(out_dir);
     check_one_dataset(out_dir)?;
     let path = out_dir.join("report.html");
-    crate::io_util::write_atomic(&path, &render_report(out_dir, config_name, records)).map_err(
-        |source| ReportError::Write {
+    let bytes = render_report(out_dir, config_name, records);
+    ledger
+        .write_as("report.html", &bytes, crate::io_util::Durable::Now)
+        .and_then(|_| ledger.save())
+        .map_err(|source| ReportError::Write {
             path: path.clone(),
             source,
-        },
-    )?;
+        })?;
     Ok(path)
 }

@@ -148,6 +148,9 @@ mod tests {
             in_contact: frame >= 3,
             delta_mm: x.map(|_| 0.01 * frame as f64),
             sigma_z_px: None,
+            sigma_x_px: None,
+            r_free_px: None,
+            sigma_r_free_px: None,
             force_n: None,
             flags: if x.is_none() {
                 "missing".into()

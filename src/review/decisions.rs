@@ -21,8 +21,9 @@
 //! bytes out, the file written whole or not at all.
 
 use serde::Serialize;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+use crate::text::{csv_cell, csv_cell_back};
 
 /// The decisions file's name in an output folder.
 pub const REVIEW_FILE: &str = "review.csv";
@@ -255,8 +256,10 @@ impl RunReview {
     }
 
     /// `record` as the review leaves it: its `review` column; a rejected
-    /// drop's status `rejected` and its reason first; a flagged (`warning`)
-    /// drop accepted as `accepted`, its flags and their sentences kept.
+    /// drop's status `rejected` and its reason first (a run whose impact was
+    /// not measured, `failed` or `tracked`, keeps its status: it is in no
+    /// collapse to leave); a flagged (`warning`) drop accepted as
+    /// `accepted`, its flags and their sentences kept.
     pub fn apply(&self, record: &mut crate::dataset::DropRecord) {
         use crate::dataset::DropStatus;
         record.review = self.summary();
@@ -267,7 +270,7 @@ impl RunReview {
                 format!("{head}; {}", record.reason)
             };
         };
-        if let Some(why) = &self.rejected {
+        if let (Some(why), true) = (&self.rejected, record.status.measured()) {
             record.status = DropStatus::Rejected;
             prefix(record, format!("rejected in review: {why}"));
         } else if let (Some(why), DropStatus::Warning) = (&self.accepted, record.status) {
@@ -294,6 +297,12 @@ pub enum ReviewError {
     },
     #[error("{path}: larger than {MAX_FILE_BYTES} bytes: not a decisions file")]
     TooLarge { path: PathBuf },
+    #[error(
+        "input.review names {path}, outside the output folder {out}: `dropscope review` saves \
+         its decisions only inside the output folder it shows; name a file in that folder, or \
+         leave input.review out (review.csv there)"
+    )]
+    Outside { path: PathBuf, out: PathBuf },
 }
 
 /// The decisions of one file, in its order.
@@ -369,11 +378,11 @@ impl Decisions {
                 })?),
             };
             let d = Decision {
-                run: cell_back(cell(0)).to_string(),
+                run: csv_cell_back(cell(0)).to_string(),
                 decision,
                 frames,
                 value,
-                reason: cell_back(cell(4)).to_string(),
+                reason: csv_cell_back(cell(4)).to_string(),
                 time: cell(5).to_string(),
             };
             d.check().map_err(|m| err(line, m))?;
@@ -394,12 +403,12 @@ impl Decisions {
             let value = d.value.map(|v| format!("{v}")).unwrap_or_default();
             let frames = d.frames.map(|f| f.to_string()).unwrap_or_default();
             let _ = w.write_record([
-                csv_cell(&d.run).as_str(),
+                &*csv_cell(&d.run),
                 d.decision.word(),
                 &frames,
                 &value,
-                &csv_cell(&d.reason),
-                &csv_cell(&d.time),
+                &*csv_cell(&d.reason),
+                &*csv_cell(&d.time),
             ]);
         }
         w.into_inner().unwrap_or_default()
@@ -424,13 +433,29 @@ impl Decisions {
         Decisions::parse(&bytes, path)
     }
 
-    /// Write the decisions to `path` whole or not at all (a temporary
-    /// beside it, synced, renamed over it).
-    pub fn write(&self, path: &Path) -> Result<(), ReviewError> {
-        crate::io_util::write_atomic(path, &self.to_csv_bytes()).map_err(|source| ReviewError::Io {
-            path: path.to_path_buf(),
-            source,
-        })
+    /// The decisions in `out/rel`, read through no link below the output
+    /// folder `out` ([`crate::out_folder::read`]); none when there is no
+    /// such file.
+    pub fn read_in(out: &Path, rel: &str) -> Result<Decisions, ReviewError> {
+        let path = out.join(rel);
+        match crate::out_folder::read(out, rel, MAX_FILE_BYTES) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Decisions::default()),
+            Err(source) => Err(ReviewError::Io { path, source }),
+            Ok(None) => Err(ReviewError::TooLarge { path }),
+            Ok(Some(bytes)) => Decisions::parse(&bytes, &path),
+        }
+    }
+
+    /// Write the decisions to `out/rel`, inside the output folder `out`,
+    /// whole or not at all (a temporary beside it, synced, renamed over
+    /// it), through no link ([`crate::out_folder::write`]).
+    pub fn write_in(&self, out: &Path, rel: &str) -> Result<(), ReviewError> {
+        crate::out_folder::write(out, rel, &self.to_csv_bytes())
+            .map(|_| ())
+            .map_err(|source| ReviewError::Io {
+                path: out.join(rel),
+                source,
+            })
     }
 
     /// What the decisions say of `run`.
@@ -494,66 +519,32 @@ pub fn review_path(configured: Option<&Path>, out: &Path) -> PathBuf {
     configured.map_or_else(|| out.join(REVIEW_FILE), Path::to_path_buf)
 }
 
-/// The first characters that make a spreadsheet read a cell as a formula
-/// (OWASP, CSV injection), and the quote that marks one neutralised.
-const FORMULA_START: [char; 6] = ['=', '+', '-', '@', '\t', '\r'];
-const QUOTE: char = '\'';
-
-/// A text cell: on one line (control and format characters as `\u{…}`),
-/// with a `'` in front when it starts like a formula or with a `'`.
-pub fn csv_cell(s: &str) -> String {
-    let mut flat = String::with_capacity(s.len());
-    for c in s.chars() {
-        if c.is_control() || is_format(c) {
-            let _ = write!(flat, "\\u{{{:x}}}", c as u32);
-        } else {
-            flat.push(c);
-        }
-    }
-    let quote = flat
-        .chars()
-        .next()
-        .is_some_and(|c| c == QUOTE || FORMULA_START.contains(&c));
-    if quote {
-        format!("{QUOTE}{flat}")
-    } else {
-        flat
-    }
-}
-
-/// A text cell as [`csv_cell`] wrote it, back: the `'` it put in front removed.
-pub fn cell_back(s: &str) -> &str {
-    match s.strip_prefix(QUOTE) {
-        Some(rest)
-            if rest
-                .chars()
-                .next()
-                .is_some_and(|c| c == QUOTE || FORMULA_START.contains(&c)) =>
-        {
-            rest
-        }
-        _ => s,
-    }
-}
-
-/// Unicode format characters (category Cf) that can hide or reorder text:
-/// zero-width characters, bidirectional overrides and isolates, the
-/// byte-order mark, tags.
-fn is_format(c: char) -> bool {
-    matches!(
-        c as u32,
-        0x00AD
-            | 0x061C
-            | 0x180E
-            | 0x200B..=0x200F
-            | 0x202A..=0x202E
-            | 0x2060..=0x2064
-            | 0x2066..=0x206F
-            | 0xFEFF
-            | 0xFFF9..=0xFFFB
-            | 0xE0001
-            | 0xE0020..=0xE007F
-    )
+/// Where `dropscope review` keeps the decisions of output folder `out`:
+/// the path below `out` of the configuration's `input.review`, else
+/// [`REVIEW_FILE`]. A file outside the folder is refused
+/// ([`ReviewError::Outside`]): the page writes only inside the folder it
+/// shows.
+pub fn review_rel(configured: Option<&Path>, out: &Path) -> Result<String, ReviewError> {
+    let Some(path) = configured else {
+        return Ok(REVIEW_FILE.to_string());
+    };
+    let below = path
+        .strip_prefix(out)
+        .ok()
+        .map(Path::to_path_buf)
+        .or_else(|| {
+            // The same folder written two ways (relative, through a link).
+            let out = out.canonicalize().ok()?;
+            let parent = path.parent()?.canonicalize().ok()?;
+            Some(parent.strip_prefix(out).ok()?.join(path.file_name()?))
+        });
+    below
+        .and_then(|rel| rel.to_str().map(str::to_string))
+        .filter(|rel| crate::io_util::inside(out, rel).is_ok())
+        .ok_or_else(|| ReviewError::Outside {
+            path: path.to_path_buf(),
+            out: out.to_path_buf(),
+        })
 }
 
 /// The current time in UTC as `YYYY-MM-DDTHH:MM:SSZ`.
@@ -804,5 +795,18 @@ mod tests {
         assert!(r
             .reason
             .starts_with("rejected in review: two spheres in view; "));
+        // A run whose impact was not measured keeps its status (it is in
+        // no collapse to leave), its decision in its review column.
+        for status in [DropStatus::Failed, DropStatus::Tracked] {
+            let mut f = rec.clone();
+            f.status = status;
+            rejected.apply(&mut f);
+            assert_eq!(f.status, status);
+            assert!(
+                f.review.starts_with("rejected: two spheres in view"),
+                "{}",
+                f.review
+            );
+        }
     }
 }

@@ -77,23 +77,22 @@ pub struct RunView {
 }
 
 impl RunView {
-    /// Open `path` (a run's input) under `cfg`, and find its background and
-    /// surface line as the tracker does; `used_row_at_impact` and
-    /// `impact_column_px` place the line the measurement used.
+    /// Open `path` (a run's input) under `cfg` read as `options` say (as
+    /// the job read it: [`crate::process::open_options`]), and find its
+    /// background and surface line as the tracker does;
+    /// `used_row_at_impact` and `impact_column_px` place the line the
+    /// measurement used.
     pub fn open(
         path: &std::path::Path,
         cfg: &PipelineConfig,
+        options: &OpenOptions,
         used_row_at_impact: Option<f64>,
         impact_column_px: Option<f64>,
         mm_per_px: Option<f64>,
     ) -> Result<RunView, String> {
-        let options = OpenOptions {
-            fps_fallback: cfg.camera.fps,
-            ..OpenOptions::default()
-        };
-        let mut source = crate::source::open(path, &options).map_err(|e| e.to_string())?;
+        let mut source = crate::source::open(path, options).map_err(|e| e.to_string())?;
         let meta = source.meta().clone();
-        let settings = TrackSettings::from_config(&cfg.detect);
+        let settings = TrackSettings::from_config(&cfg.detect_settings());
         let found = crate::track::background_and_surface(source.as_mut(), &settings)
             .map(|(bg, line, _)| (bg, line))
             .map_err(|e| format!("{}: {e}", path.display()));
@@ -407,6 +406,9 @@ mod tests {
             in_contact: false,
             delta_mm: None,
             sigma_z_px: None,
+            sigma_x_px: None,
+            r_free_px: None,
+            sigma_r_free_px: None,
             force_n: None,
             flags: String::new(),
         }

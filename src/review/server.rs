@@ -54,13 +54,17 @@ const IO_TIMEOUT: Duration = Duration::from_secs(20);
 pub struct ServeOptions {
     /// The output folder (its drops.csv, tracks/ and the runs' inputs).
     pub out: PathBuf,
-    /// Where decisions are saved ([`super::decisions::review_path`]).
-    pub review_file: PathBuf,
+    /// Where decisions are saved, below `out`
+    /// ([`super::decisions::review_rel`]).
+    pub review_rel: String,
     /// The configuration: the detection settings the frames are drawn with,
     /// the frame rate for inputs that carry none.
     pub cfg: PipelineConfig,
     /// The port on 127.0.0.1; 0 for any free one.
     pub port: u16,
+    /// The manifest's `number_digits` of the runs that give one, so that
+    /// a folder's frames are numbered as the job numbered them.
+    pub number_digits: std::collections::BTreeMap<String, usize>,
 }
 
 /// Why the server could not start.
@@ -85,8 +89,11 @@ pub struct Server {
 /// What every worker shares.
 struct State {
     out: PathBuf,
-    review_file: PathBuf,
+    /// The decisions file below `out`, written only through
+    /// [`crate::out_folder`].
+    review_rel: String,
     cfg: PipelineConfig,
+    number_digits: std::collections::BTreeMap<String, usize>,
     token: String,
     port: u16,
     /// drops.csv as last read, with the stamp of the file read.
@@ -128,8 +135,9 @@ impl Server {
         let port = listener.local_addr()?.port();
         let state = State {
             out: opts.out,
-            review_file: opts.review_file,
+            review_rel: opts.review_rel,
             cfg: opts.cfg,
+            number_digits: opts.number_digits,
             token: new_token(),
             port,
             drops: Mutex::new(None),
@@ -328,15 +336,13 @@ fn handle(state: &State, req: &Request) -> Response {
     result.unwrap_or_else(|r| r)
 }
 
-/// `s` on one line and short, for a message.
+/// `s` on one line and short, for a message: control and format
+/// characters shown as `\u{…}` ([`crate::text::one_line`]).
 fn one_line(s: &str) -> String {
-    let flat: String = s
-        .chars()
-        .map(|c| if c.is_control() { '?' } else { c })
-        .collect();
+    let flat = crate::text::one_line(s);
     match flat.char_indices().nth(80) {
         Some((i, _)) => format!("{}…", &flat[..i]),
-        None => flat,
+        None => flat.into_owned(),
     }
 }
 
@@ -436,7 +442,7 @@ impl State {
 
     /// The decisions in the review file as it is now.
     fn decisions(&self) -> Result<Decisions, Response> {
-        Decisions::read(&self.review_file).map_err(|e| {
+        Decisions::read_in(&self.out, &self.review_rel).map_err(|e| {
             Response::error(
                 409,
                 format!("{e}: correct the file (or move it away) and reload the page"),
@@ -465,7 +471,8 @@ impl State {
     /// Run `rec` opened (its source, background and track), opened again
     /// when its track CSV changed; at most [`RUNS_OPEN`] held.
     fn opened(&self, rec: &DropRecord) -> Result<Arc<Mutex<Opened>>, Response> {
-        let track = crate::io_util::inside(&self.out, &format!("tracks/{}.csv", rec.run))
+        let track_rel = format!("tracks/{}.csv", rec.run);
+        let track = crate::io_util::inside(&self.out, &track_rel)
             .map_err(|e| Response::error(400, e.to_string()))?;
         let now = stamp(&track);
         {
@@ -477,12 +484,17 @@ impl State {
                 return Ok(opened);
             }
         }
-        let rows = read_track(&track);
+        let rows = read_track(&self.out, &track_rel);
         let path = self.input_path(&rec.path);
         let view = match path {
             Some(p) => RunView::open(
                 &p,
                 &self.cfg,
+                &crate::process::open_options(
+                    &self.cfg,
+                    self.number_digits.get(&rec.run).copied(),
+                    rec.fps.or(self.cfg.camera.fps),
+                ),
                 rec.surface_row_px,
                 impact_column(&rows, rec),
                 rec.mm_per_px,
@@ -537,9 +549,11 @@ fn check_run_name(run: &str) -> Result<(), Response> {
     crate::run_name::check(run).map_err(|e| Response::error(400, e))
 }
 
-/// The rows of a track CSV; none when it is not there or unreadable.
-fn read_track(path: &Path) -> Vec<TrackRow> {
-    let Ok(Some(bytes)) = crate::io_util::read_bounded(path, 1 << 30) else {
+/// The rows of the track CSV `out/rel`, read through no link below the
+/// output folder ([`crate::out_folder::read`]); none when it is not there
+/// or unreadable.
+fn read_track(out: &Path, rel: &str) -> Vec<TrackRow> {
+    let Ok(Some(bytes)) = crate::out_folder::read(out, rel, 1 << 30) else {
         return Vec::new();
     };
     csv::Reader::from_reader(bytes.as_slice())
@@ -553,7 +567,7 @@ fn api_drops(state: &State) -> Result<Response, Response> {
     let decisions = state.decisions()?;
     let mut j = drops_json(&records, &decisions);
     j["out"] = json!(state.out.display().to_string());
-    j["review_file"] = json!(state.review_file.display().to_string());
+    j["review_file"] = json!(state.out.join(&state.review_rel).display().to_string());
     j["decisions"] = json!(decisions.rows);
     Ok(Response::json(&j))
 }
@@ -738,7 +752,7 @@ fn api_decide(state: &State, req: &Request) -> Result<Response, Response> {
     let _one = state.writing.lock().map_err(|_| busy())?;
     let mut all = state.decisions()?;
     all.add(d);
-    all.write(&state.review_file)
+    all.write_in(&state.out, &state.review_rel)
         .map_err(|e| Response::error(500, format!("not saved: {e}")))?;
     Ok(run_decisions(&all, &rec.run))
 }
@@ -770,7 +784,7 @@ fn api_withdraw(state: &State, req: &Request) -> Result<Response, Response> {
             format!("no `{}` decision about run `{run}` to withdraw", k.word()),
         ));
     }
-    all.write(&state.review_file)
+    all.write_in(&state.out, &state.review_rel)
         .map_err(|e| Response::error(500, format!("not saved: {e}")))?;
     Ok(run_decisions(&all, run))
 }

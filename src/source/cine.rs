@@ -24,16 +24,17 @@ use std::sync::Arc;
 
 use ndarray::ArrayViewMut2;
 
+use super::colour::{self, Bayer};
 use super::index::{Stored, ValuesInFile};
 use super::p10_lut::P10_TO_LINEAR12;
 use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
 use super::{
-    check_band, fill_rows, for_cols, grown, FrameNumbers, FrameSource, FrameValues, OpenOptions,
-    P10Mode, SourceDetails, SourceError, SourceMeta,
+    check_band, fill_rows, for_cols, grown, ColourInput, FrameNumbers, FrameSource, FrameValues,
+    OpenOptions, P10Mode, SourceDetails, SourceError, SourceMeta,
 };
 
-/// Largest accepted frame (pixels); 16 k × 16 k is far beyond any Phantom.
-const MAX_PIXELS: u64 = 1 << 28;
+/// Largest accepted frame (pixels): the cap of every reader.
+const MAX_PIXELS: u64 = super::validate::MAX_FRAME_PIXELS;
 /// Largest accepted per-image annotation (bytes); 8 in every file seen.
 const MAX_ANNOTATION: u32 = 1 << 20;
 
@@ -57,16 +58,30 @@ pub enum CineStorage {
     P10,
     /// biCompression 1024: 12-bit MSB-first packed, rows top-down.
     P12L,
+    /// biBitCount 24: interpolated colour, B G R bytes per pixel, rows bottom-up.
+    Bgr24,
+    /// biBitCount 48: interpolated colour, B G R little-endian u16 per pixel, rows bottom-up.
+    Bgr48,
 }
 
 impl CineStorage {
-    /// Bits per stored sample.
+    /// Bits per stored pixel.
     pub fn bits(self) -> u32 {
         match self {
             CineStorage::Gray8 => 8,
             CineStorage::Gray16 => 16,
             CineStorage::P10 => 10,
             CineStorage::P12L => 12,
+            CineStorage::Bgr24 => 24,
+            CineStorage::Bgr48 => 48,
+        }
+    }
+    /// Bits of one sample (a colour pixel holds three).
+    pub fn sample_bits(self) -> u32 {
+        match self {
+            CineStorage::Bgr24 => 8,
+            CineStorage::Bgr48 => 16,
+            other => other.bits(),
         }
     }
     /// Packed layouts store rows top-down; unpacked ones bottom-up.
@@ -79,6 +94,8 @@ impl CineStorage {
             CineStorage::Gray16 => "16-bit unpacked, bottom-up",
             CineStorage::P10 => "P10 packed 10-bit, top-down",
             CineStorage::P12L => "P12L packed 12-bit, top-down",
+            CineStorage::Bgr24 => "24-bit BGR interpolated colour, bottom-up",
+            CineStorage::Bgr48 => "48-bit BGR interpolated colour, bottom-up",
         }
     }
 }
@@ -121,6 +138,9 @@ pub struct CineHeader {
     pub bi_compression: u32,
     pub size_image: u32,
     pub storage: CineStorage,
+    /// A raw colour cine's (Compression 2) Bayer pattern; `None`: one grey
+    /// sample a pixel, or interpolated colour ([`CineStorage::Bgr24`], [`CineStorage::Bgr48`]).
+    pub bayer: Option<Bayer>,
     /// SETUP.Length: how many SETUP bytes this file holds.
     pub setup_length: u16,
     pub frame_rate16: u16,
@@ -178,8 +198,16 @@ impl CineHeader {
     /// Significant bits: RealBPP when present and plausible, else the container's.
     pub fn bit_depth(&self) -> u8 {
         match self.real_bpp {
-            Some(b) if (1..=self.storage.bits()).contains(&b) => b as u8,
-            _ => self.storage.bits() as u8,
+            Some(b) if (1..=self.storage.sample_bits()).contains(&b) => b as u8,
+            _ => self.storage.sample_bits() as u8,
+        }
+    }
+    /// What a colour cine held, read as grey luminance; `None` for grey.
+    pub fn colour(&self) -> Option<ColourInput> {
+        match (self.bayer, self.storage) {
+            (Some(b), _) => Some(ColourInput::Bayer(b)),
+            (None, CineStorage::Bgr24 | CineStorage::Bgr48) => Some(ColourInput::Rgb),
+            _ => None,
         }
     }
     /// Bytes from one stored row to the next for the unpacked layouts:
@@ -428,40 +456,57 @@ pub fn parse_layout_at<R: ReadAt + ?Sized>(r: &R, file_len: u64) -> Result<CineL
         bytes: &setup_bytes,
     };
     let cfa = setup.u32(808);
-    let is_colour = compression == 2
-        || cfa.is_some_and(|c| c & 0xFF != 0)
-        || bit_count == 24
-        || bit_count == 48;
-    if is_colour {
-        let c = cfa.map(|c| c & 0xFF).unwrap_or(0);
-        let name = match c {
-            0 => "0 = gray, but colour container",
-            1 => "1 = VRI gbrg/rggb",
-            2 => "2 = VRIV6 bggr/grbg",
-            3 => "3 = BAYER gb/rg",
-            4 => "4 = BAYERFLIP rg/gb",
-            5 => "5 = BAYERFLIPB gr/bg",
-            6 => "6 = BAYERFLIPH bg/gr",
-            _ => "unknown pattern",
-        };
-        return Err(format!(
-            "unsupported: colour cine (CFA {name}; Compression {compression}, biBitCount {bit_count}); \
-             dropscope reads grey recordings only — re-save it as grey in PCC"
-        ));
-    }
-    if compression != 0 {
-        return Err(format!(
-            "unsupported: cine Compression {compression} (1 = JPEG .cci); only uncompressed grey is read"
-        ));
-    }
-    let storage = match (bit_count, bi_compression) {
-        (8, 0) => CineStorage::Gray8,
-        (16, 0) => CineStorage::Gray16,
-        (_, 256) => CineStorage::P10,
-        (_, 1024) => CineStorage::P12L,
-        (b, c) => {
+    let cfa_name = |c: u32| match c {
+        0 => "0 = gray",
+        1 => "1 = VRI gbrg/rggb",
+        2 => "2 = VRIV6 bggr/grbg",
+        3 => "3 = BAYER gb/rg",
+        4 => "4 = BAYERFLIP rg/gb",
+        5 => "5 = BAYERFLIPB gr/bg",
+        6 => "6 = BAYERFLIPH bg/gr",
+        _ => "unknown pattern",
+    };
+    let cfa_low = cfa.map_or(0, |c| c & 0xFF);
+    // Raw colour (Compression 2): a Bayer mosaic, one sample a pixel, its
+    // pattern from CFA as ffmpeg maps it (phantom.md §8.3).
+    let bayer = match compression {
+        2 => Some(match cfa_low {
+            3 => Bayer::Gbrg,
+            4 => Bayer::Rggb,
+            5 => Bayer::Grbg,
+            6 => Bayer::Bggr,
+            c => {
+                return Err(format!(
+                    "unsupported: raw colour cine with CFA {} (Compression 2); dropscope reads \
+                     the Bayer patterns CFA 3–6 (GBRG, RGGB, GRBG, BGGR) and interpolated \
+                     colour — re-save it as interpolated colour or grey in PCC",
+                    cfa_name(c)
+                ))
+            }
+        }),
+        0 => None,
+        c => {
             return Err(format!(
-                "unsupported: biBitCount {b} with biCompression {c}"
+                "unsupported: cine Compression {c} (1 = JPEG .cci); dropscope reads \
+                 uncompressed grey, interpolated colour and raw Bayer cines"
+            ))
+        }
+    };
+    let storage = match (bit_count, bi_compression, bayer.is_some()) {
+        (8, 0, _) => CineStorage::Gray8,
+        (16, 0, _) => CineStorage::Gray16,
+        (24, 0, false) => CineStorage::Bgr24,
+        (48, 0, false) => CineStorage::Bgr48,
+        (_, 256, _) => CineStorage::P10,
+        (_, 1024, _) => CineStorage::P12L,
+        (b, c, _) => {
+            return Err(format!(
+                "unsupported: biBitCount {b} with biCompression {c}{}",
+                if bayer.is_some() {
+                    " in a raw colour cine"
+                } else {
+                    ""
+                }
             ))
         }
     };
@@ -485,6 +530,7 @@ pub fn parse_layout_at<R: ReadAt + ?Sized>(r: &R, file_len: u64) -> Result<CineL
         bi_compression,
         size_image,
         storage,
+        bayer,
         setup_length,
         frame_rate16: u16_at(setup.bytes, 0).unwrap_or(0),
         shutter16_us: u16_at(setup.bytes, 2).unwrap_or(0),
@@ -614,6 +660,9 @@ pub struct CineSource {
     offsets: OffsetsBlock,
     bytes: Vec<u8>,
     row_scratch: Vec<u16>,
+    /// A raw colour cine's mosaic rows, and a row of their luminance.
+    mosaic: Vec<u16>,
+    luma_row: Vec<u16>,
 }
 
 impl CineSource {
@@ -650,6 +699,8 @@ impl CineSource {
             offsets: OffsetsBlock::default(),
             bytes: Vec::new(),
             row_scratch: Vec::new(),
+            mosaic: Vec::new(),
+            luma_row: Vec::new(),
         };
         src.cross_check_sizes()?;
         Ok(src)
@@ -795,6 +846,13 @@ fn build_meta(
         fps = options.fps_fallback.unwrap_or(f64::NAN);
     }
     let linear = h.storage == CineStorage::P10 && options.p10 == P10Mode::Linear;
+    if h.colour().is_none() && h.cfa.is_some_and(|c| c & 0xFF != 0) {
+        warnings.push(format!(
+            "SETUP.CFA {} names a colour sensor, but the images hold one sample a pixel: \
+             read as grey",
+            h.cfa.unwrap_or(0) & 0xFF
+        ));
+    }
     let flip_h = h.flip_h.unwrap_or(false);
     let flip_v = h.flip_v.unwrap_or(false);
     Ok(SourceMeta {
@@ -812,8 +870,12 @@ fn build_meta(
         timestamps_s,
         details: SourceDetails {
             container: format!(
-                "{}{}",
+                "{}{}{}",
                 h.storage.describe(),
+                match h.bayer {
+                    Some(b) => format!(", raw Bayer {}", b.name()),
+                    None => String::new(),
+                },
                 if linear {
                     ", P10 linearised to 12 bit"
                 } else {
@@ -840,6 +902,9 @@ fn build_meta(
             setup_length: Some(h.setup_length),
             side_file: None,
             warnings,
+            colour: h.colour(),
+            frame_names: None,
+            p10: (h.storage == CineStorage::P10).then_some(options.p10),
         },
     })
 }
@@ -861,6 +926,8 @@ impl FrameSource for CineSource {
             offsets: OffsetsBlock::default(),
             bytes: Vec::new(),
             row_scratch: Vec::new(),
+            mosaic: Vec::new(),
+            luma_row: Vec::new(),
         }))
     }
 
@@ -894,17 +961,87 @@ impl CineSource {
         out: &mut ArrayViewMut2<u16>,
     ) -> Result<(), SourceError> {
         check_band(&self.meta, index, row0, out)?;
-        let n = out.nrows();
-        if n == 0 {
+        if out.nrows() == 0 {
             return Ok(());
         }
+        let flip_v = self.options.apply_flips && self.meta.details.flip_v;
+        let flip_h = self.options.apply_flips && self.meta.details.flip_h;
+        match self.layout.header.bayer {
+            Some(pattern) => self.read_bayer(index, row0, out, pattern, flip_v, flip_h),
+            None => self.read_stored(index, row0, cols, out, flip_v, flip_h),
+        }
+    }
+
+    /// Rows of a raw colour frame as grey luminance ([`colour::bayer_luma`]):
+    /// the band's mosaic rows and one more on each side, demosaicked in
+    /// storage orientation, then flipped as asked.
+    fn read_bayer(
+        &mut self,
+        index: usize,
+        row0: usize,
+        out: &mut ArrayViewMut2<u16>,
+        pattern: Bayer,
+        flip_v: bool,
+        flip_h: bool,
+    ) -> Result<(), SourceError> {
+        let hdr = &self.layout.header;
+        let (h, w) = (hdr.height as usize, hdr.width as usize);
+        let n = out.nrows();
+        let a = if flip_v { h - row0 - n } else { row0 };
+        let (lo, hi) = (a.saturating_sub(1), (a + n + 1).min(h));
+        let mut mosaic = std::mem::take(&mut self.mosaic);
+        mosaic.resize((hi - lo) * w, 0);
+        let read = {
+            let mut view = ArrayViewMut2::from_shape((hi - lo, w), &mut mosaic[..])
+                .expect("the buffer was sized to the rows");
+            self.read_stored(index, lo, None, &mut view, false, false)
+        };
+        if let Err(e) = read {
+            self.mosaic = mosaic;
+            return Err(e);
+        }
+        let max = ((1u32 << self.meta.bit_depth) - 1).min(u32::from(u16::MAX)) as u16;
+        let mut row = std::mem::take(&mut self.luma_row);
+        let raw = ndarray::ArrayView2::from_shape((hi - lo, w), &mosaic[..])
+            .expect("the buffer was sized to the rows");
+        let mosaic_rows = colour::Mosaic {
+            rows: raw,
+            row0: lo,
+            height: h,
+            pattern,
+        };
+        colour::bayer_luma(&mosaic_rows, a..a + n, max, &mut row, |j, values| {
+            let mut dst = out.row_mut(if flip_v { n - 1 - j } else { j });
+            if flip_h {
+                dst.iter_mut()
+                    .zip(values.iter().rev())
+                    .for_each(|(d, v)| *d = *v);
+            } else {
+                dst.iter_mut().zip(values).for_each(|(d, v)| *d = *v);
+            }
+        });
+        self.mosaic = mosaic;
+        self.luma_row = row;
+        Ok(())
+    }
+
+    /// Rows of a frame as stored (grey samples, or the luminance of
+    /// interpolated colour; a raw colour frame's mosaic), flipped as asked.
+    fn read_stored(
+        &mut self,
+        index: usize,
+        row0: usize,
+        cols: Option<&[std::ops::Range<usize>]>,
+        out: &mut ArrayViewMut2<u16>,
+        flip_v: bool,
+        flip_h: bool,
+    ) -> Result<(), SourceError> {
+        let n = out.nrows();
         let pixels = self.pixel_offset(index)?;
         let hdr = &self.layout.header;
         let (h, w) = (hdr.height as usize, hdr.width as usize);
         let storage = hdr.storage;
         let stride = hdr.row_stride() as usize;
-        let flip_v = self.options.apply_flips && self.meta.details.flip_v;
-        let flip_h = self.options.apply_flips && self.meta.details.flip_h;
         // Output row j ↦ stored row: ascending from `lo` or descending.
         // Unpacked rows are stored bottom-up, packed ones top-down; a
         // requested vertical flip inverts that.
@@ -952,6 +1089,20 @@ impl CineSource {
                     }),
                     CineStorage::Gray8 => unpack_u8(&bytes[k * stride..], dst),
                     CineStorage::Gray16 => unpack_u16le(&bytes[k * stride..], dst),
+                    CineStorage::Bgr24 => {
+                        let px = bytes[k * stride..].chunks_exact(3);
+                        for (d, p) in dst.iter_mut().zip(px) {
+                            let bgr = [p[2], p[1], p[0]].map(f32::from);
+                            *d = colour::luma(bgr, 255);
+                        }
+                    }
+                    CineStorage::Bgr48 => {
+                        let px = bytes[k * stride..].chunks_exact(6);
+                        for (d, p) in dst.iter_mut().zip(px) {
+                            let v = |i: usize| f32::from(u16::from_le_bytes([p[i], p[i + 1]]));
+                            *d = colour::luma([v(4), v(2), v(0)], u16::MAX);
+                        }
+                    }
                     CineStorage::P10 | CineStorage::P12L => {
                         let b = start_bit % 8 + k as u64 * row_bits;
                         unpack_msb(

@@ -23,8 +23,34 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
+use super::p10_lut::P10_TO_LINEAR12;
 use super::packing::{pack_msb, packed_span};
 use super::Frame;
+
+/// The P10 code whose linear value in Vision Research's table is nearest
+/// the 12-bit value `v` (ties: the smaller code; values above 4095 as
+/// 4095): what a camera saving P10 stores for `v`. Read back linearised
+/// (`P10Mode::Linear`), a code gives its table value, within half a step
+/// of `v` (1 count in the darks, up to 16 near white).
+pub fn p10_code_of_linear12(v: u16) -> u16 {
+    static TABLE: std::sync::OnceLock<Vec<u16>> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        (0..4096u16)
+            .map(|v| {
+                let lut = &P10_TO_LINEAR12;
+                let i = lut.partition_point(|&x| x < v);
+                let dist = |c: usize| lut[c].abs_diff(v);
+                match (i.checked_sub(1), (i < lut.len()).then_some(i)) {
+                    (Some(a), Some(b)) if dist(a) <= dist(b) => a as u16,
+                    (_, Some(b)) => b as u16,
+                    (Some(a), None) => a as u16,
+                    (None, None) => 0,
+                }
+            })
+            .collect()
+    });
+    table[usize::from(v.min(4095))]
+}
 
 /// SETUP.Length of the "modern" layout written (software 771, through SensorMode).
 pub const SETUP_LENGTH: u16 = 10412;

@@ -27,6 +27,11 @@ pub struct SourceArgs {
     /// P10 packed cines: return linearised 12-bit values instead of the raw 10-bit codes.
     #[arg(long)]
     pub p10_linear: bool,
+    /// Folders of frames: read the last N digits of a file's name as its
+    /// number, the digits before them as part of the name (as the
+    /// manifest's number_digits column).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=18))]
+    pub number_digits: Option<u8>,
 }
 
 impl SourceArgs {
@@ -88,6 +93,7 @@ impl SourceArgs {
             } else {
                 P10Mode::Raw
             },
+            number_digits: self.number_digits.map(usize::from),
         }
     }
 }
@@ -130,7 +136,7 @@ pub struct ExportArgs {
     pub source: SourceArgs,
 }
 
-/// Run `inspect`: print the report on stdout.
+/// Run `inspect`: the report, for stdout.
 pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
     let (src, fps_origin) = args.source.open_source(&args.input)?;
     let mut meta = src.meta().clone();
@@ -140,7 +146,14 @@ pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
             meta.fps
         ));
     }
-    println!("{}", inspect_report(&meta, args.json)?);
+    let report = inspect_report(&meta, args.json)?;
+    // Text from the file (a cine's camera name, file names) never reaches
+    // the terminal as escape sequences; a closed pipe is no panic.
+    if args.json {
+        crate::console::out_raw(&format!("{report}\n"));
+    } else {
+        crate::outln!("{report}");
+    }
     Ok(())
 }
 
@@ -181,10 +194,18 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, super::Sourc
         "has_timestamps": times.is_some(),
         "first_time_s": first_time,
         "last_time_s": last_time,
+        "name_prefix": d.frame_names.as_ref().map(|n| n.prefix.clone()),
+        "number_digits": d.frame_names.as_ref().map(|n| n.number_digits),
+        "colour": d.colour.as_ref().map(|c| c.name()),
+        "bayer": match &d.colour {
+            Some(super::ColourInput::Bayer(b)) => Some(b.name()),
+            _ => None,
+        },
         "warnings": d.warnings,
     });
     if json {
-        return Ok(serde_json::to_string_pretty(&value).unwrap_or_default());
+        let doc = serde_json::to_string_pretty(&value).unwrap_or_default();
+        return Ok(crate::text::json(&doc).into_owned());
     }
     let opt = |v: Option<String>| v.unwrap_or_else(|| "—".into());
     let mut lines = vec![
@@ -257,14 +278,26 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, super::Sourc
         ),
     ];
     if let Some(c) = &d.camera {
-        lines.push(format!(
-            "camera        {c}, software {}, SETUP length {}",
-            opt(d.software_version.map(|v| v.to_string())),
-            opt(d.setup_length.map(|v| v.to_string()))
-        ));
+        let mut line = format!("camera        {c}");
+        if let Some(v) = d.software_version {
+            line.push_str(&format!(", software {v}"));
+        }
+        if let Some(v) = d.setup_length {
+            line.push_str(&format!(", SETUP length {v}"));
+        }
+        lines.push(line);
     }
     if let Some(s) = &d.side_file {
         lines.push(format!("side file     {}", s.display()));
+    }
+    if let Some(n) = &d.frame_names {
+        lines.push(format!(
+            "frame names   {:?} + {}-digit number",
+            n.prefix, n.number_digits
+        ));
+    }
+    if let Some(c) = &d.colour {
+        lines.push(format!("colour        {}", c.describe()));
     }
     for w in &d.warnings {
         lines.push(format!("warning       {w}"));

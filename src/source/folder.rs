@@ -29,10 +29,11 @@ use std::path::{Path, PathBuf};
 use ndarray::ArrayViewMut2;
 
 use super::frame_decode::{format_err, io_err, FrameDecoder, Probe, Shape};
+use super::listing::Listing;
 use super::pcc_xml::{self, PccXml};
 use super::{
-    check_band, Frame, FrameNumbers, FrameSource, OpenOptions, SourceDetails, SourceError,
-    SourceMeta,
+    check_band, ColourInput, Frame, FrameNames, FrameNumbers, FrameSource, OpenOptions,
+    SourceDetails, SourceError, SourceMeta,
 };
 
 /// Image file kinds a folder may hold.
@@ -68,18 +69,26 @@ impl ImageKind {
 /// Split a file name into `(prefix, number, kind)`, or `None` when it is not
 /// a numbered image (see the module documentation for the sign rule).
 pub fn parse_frame_name(name: &str) -> Option<(String, i64, ImageKind)> {
+    parse_frame_name_split(name, None)
+}
+
+/// [`parse_frame_name`] reading at most the last `number_digits` digits of
+/// the name as its number (the manifest's `number_digits`), the digits
+/// before them as part of the prefix; `None`: every digit before the
+/// extension.
+pub fn parse_frame_name_split(
+    name: &str,
+    number_digits: Option<usize>,
+) -> Option<(String, i64, ImageKind)> {
     let (stem, ext) = name.rsplit_once('.')?;
     let kind = ImageKind::from_extension(ext)?;
-    let digits_start = stem
-        .char_indices()
-        .rev()
-        .take_while(|(_, c)| c.is_ascii_digit())
-        .last()
-        .map(|(i, _)| i)?;
-    let digits = &stem[digits_start..];
-    if digits.len() > 18 {
+    let run = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+    let take = number_digits.map_or(run, |n| run.min(n));
+    if take == 0 || take > 18 {
         return None;
     }
+    let digits_start = stem.len() - take;
+    let digits = &stem[digits_start..];
     let value: i64 = digits.parse().ok()?;
     let before = &stem[..digits_start];
     let negative = before.strip_suffix('-').is_some_and(|rest| {
@@ -92,6 +101,46 @@ pub fn parse_frame_name(name: &str) -> Option<(String, i64, ImageKind)> {
     } else {
         Some((before.to_string(), value, kind))
     }
+}
+
+/// How the digits at the end of a sequence's names divide into the end of
+/// the name and the frame number, when they can be read two ways: every
+/// name has the same number of digits, they begin alike with a digit other
+/// than 0 followed by zeros (`E_0094_2` + `0000000169` or `E_0094_` +
+/// `20000000169`), and the names differ further on. Returns (the digits
+/// read as the number, the other reading's), or `None` when the names
+/// allow one reading only. The shorter number is chosen when the common
+/// zeros are 3 or more, the zero padding of a counter after a name
+/// ending in a digit; else all the digits.
+pub fn number_split(digit_runs: &[&str]) -> Option<(usize, usize)> {
+    let first = *digit_runs.first()?;
+    let len = first.len();
+    if digit_runs.len() < 2 || digit_runs.iter().any(|d| d.len() != len) {
+        return None;
+    }
+    let common = digit_runs.iter().fold(len, |n, d| {
+        first
+            .bytes()
+            .zip(d.bytes())
+            .take(n)
+            .take_while(|(a, b)| a == b)
+            .count()
+    });
+    let c = &first.as_bytes()[..common];
+    if common == len || c.first().is_none_or(|&b| b == b'0') {
+        return None;
+    }
+    let z = c.iter().position(|&b| b == b'0')?;
+    let zeros = c[z..].iter().take_while(|&&b| b == b'0').count();
+    if zeros < 2 {
+        return None;
+    }
+    let short = len - z;
+    Some(if zeros >= 3 {
+        (short, len)
+    } else {
+        (len, short)
+    })
 }
 
 /// The files of a sequence: `<prefix><number>.<ext>` with the number
@@ -107,17 +156,24 @@ pub struct FrameFiles {
     digits: usize,
     /// `(frame index, file name)` of the files not named by the pattern.
     others: Vec<(usize, String)>,
+    /// Image number minus the number in the file's name: not 0 when the
+    /// files were renumbered (from 0, as `dropscope export` names them)
+    /// and the side file says which images they are ([`align_side_file`]).
+    renumbered: i64,
 }
 
 impl FrameFiles {
-    /// The files `(number, name)` of a sequence in `dir`, in index order.
-    fn new(dir: &Path, frames: &[(i64, String)]) -> Self {
+    /// The files `(number, name)` of a sequence in `dir`, in index order,
+    /// their numbers the last `number_digits` digits of their names (all
+    /// the digits: `None`).
+    fn new(dir: &Path, frames: &[(i64, String)], number_digits: Option<usize>) -> Self {
         let (prefix, ext, digits) = frames
             .first()
             .and_then(|(_, name)| {
-                let (prefix, _, _) = parse_frame_name(name)?;
+                let (prefix, _, _) = parse_frame_name_split(name, number_digits)?;
                 let (stem, ext) = name.rsplit_once('.')?;
-                let digits = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+                let run = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+                let digits = number_digits.map_or(run, |n| run.min(n));
                 Some((prefix, ext.to_string(), digits))
             })
             .unwrap_or_default();
@@ -127,6 +183,7 @@ impl FrameFiles {
             ext,
             digits,
             others: Vec::new(),
+            renumbered: 0,
         };
         for (i, (number, name)) in frames.iter().enumerate() {
             if files.named(*number) != *name {
@@ -147,7 +204,7 @@ impl FrameFiles {
     pub fn path(&self, index: usize, number: i64) -> PathBuf {
         match self.others.binary_search_by_key(&index, |o| o.0) {
             Ok(k) => self.dir.join(&self.others[k].1),
-            Err(_) => self.dir.join(self.named(number)),
+            Err(_) => self.dir.join(self.named(number - self.renumbered)),
         }
     }
 
@@ -186,37 +243,30 @@ impl FolderSource {
     /// List `dir`, pick its frame sequence, read its first file's header and
     /// the PCC XML side file if there is one.
     pub fn open(dir: &Path, options: &OpenOptions) -> Result<Self, SourceError> {
-        let entries = std::fs::read_dir(dir).map_err(io_err(dir))?;
-        let mut names = Vec::new();
-        // Named pipes, sockets and devices are never opened (a pipe would
-        // block `open` for ever); links are followed to what they name.
-        let mut not_files = Vec::new();
-        for e in entries {
-            let e = e.map_err(io_err(dir))?;
-            let Some(name) = e.file_name().to_str().map(str::to_string) else {
-                continue;
-            };
-            // The entry's own type costs no system call; only a link is
-            // followed to see what it names.
-            let (is_dir, is_file) = match e.file_type() {
-                Ok(t) if !t.is_symlink() => (t.is_dir(), t.is_file()),
-                _ => match std::fs::metadata(e.path()) {
-                    Ok(m) => (m.is_dir(), m.is_file()),
-                    Err(_) => (false, false),
-                },
-            };
-            if is_file {
-                names.push(name);
-            } else if !is_dir {
-                not_files.push(name);
-            }
-        }
-        names.sort();
-        not_files.sort();
+        Self::open_listed(Listing::of(dir)?, options)
+    }
+
+    /// [`FolderSource::open`] on a folder already listed. Frame files and
+    /// XMLs named like a recording beside them (its PCC export) are left
+    /// out; recordings beside the sequence are named in a warning.
+    pub fn open_listed(mut listing: Listing, options: &OpenOptions) -> Result<Self, SourceError> {
+        let recordings = listing.recordings_text();
+        let has_dirs = !listing.dirs.is_empty();
+        // The names are moved, not copied (a long movie's are megabytes).
+        let names: Vec<String> = if listing.recordings.is_empty() {
+            listing.files
+        } else {
+            let (files, l) = (std::mem::take(&mut listing.files), &listing);
+            files
+                .into_iter()
+                .filter(|n| !l.is_export(n) && !l.recordings.contains(n))
+                .collect()
+        };
+        let Listing { dir, not_files, .. } = listing;
+        let dir = dir.as_path();
         // Group numbered images by (prefix, kind); pick the largest group.
         let mut groups: std::collections::BTreeMap<(String, ImageKind), Vec<(i64, String)>> =
             Default::default();
-        // The names are moved, not copied (a long movie's are megabytes).
         let xmls: Vec<String> = names
             .iter()
             .filter(|n| n.to_ascii_lowercase().ends_with(".xml"))
@@ -224,8 +274,9 @@ impl FolderSource {
             .collect();
         let lone = lone_export(&names, &xmls);
         let mut others = Vec::new();
+        let given_digits = options.number_digits;
         for name in names {
-            if let Some((prefix, number, kind)) = parse_frame_name(&name) {
+            if let Some((prefix, number, kind)) = parse_frame_name_split(&name, given_digits) {
                 groups
                     .entry((prefix, kind))
                     .or_default()
@@ -241,18 +292,24 @@ impl FolderSource {
             others.retain(|o| o != name);
         }
         let Some(best) = groups.values().map(Vec::len).max() else {
-            let has_folders = std::fs::read_dir(dir)
-                .is_ok_and(|entries| entries.flatten().any(|e| e.path().is_dir()));
-            return Err(format_err(
-                dir,
-                if has_folders {
+            let what = if let Some(r) = &recordings {
+                format!(
                     "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder, \
-                     only sub-folders: give the run folders themselves, or list them in a \
-                     runs.csv and use --manifest"
-                } else {
-                    "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder"
-                },
-            ));
+                     but {r}: give the one to read as the input (or list them in a runs.csv)"
+                )
+            } else if has_dirs {
+                "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder, \
+                 only sub-folders: give the run folders themselves, or list them in a \
+                 runs.csv and use --manifest"
+                    .to_string()
+            } else {
+                format!(
+                    "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder; \
+                     dropscope reads {}",
+                    super::SUPPORTED_INPUTS
+                )
+            };
+            return Err(format_err(dir, what));
         };
         let mut tied = groups.iter().filter(|(_, v)| v.len() == best);
         let ((prefix, kind), _) = tied.next().expect("a largest group exists");
@@ -287,6 +344,12 @@ impl FolderSource {
                 if others.len() > 5 { ", …" } else { "" }
             ));
         }
+        if let Some(r) = &recordings {
+            warnings.push(format!(
+                "this folder also holds {r}, not read with its frame sequence: give each \
+                 as an input of its own"
+            ));
+        }
         if !not_files.is_empty() {
             warnings.push(format!(
                 "ignored {} entries that are not regular files (named pipes, sockets, \
@@ -296,6 +359,53 @@ impl FolderSource {
             ));
         }
         let mut frames = groups.remove(&(prefix.clone(), kind)).unwrap_or_default();
+        // Digits that can be read two ways: the split chosen, said.
+        let mut prefix = prefix;
+        let mut number_digits = given_digits;
+        let mut names_note = None;
+        let split = match (given_digits, &lone) {
+            (None, None) if frames.iter().all(|(n, _)| *n >= 0) => {
+                let runs: Vec<&str> = frames
+                    .iter()
+                    .filter_map(|(_, name)| {
+                        let stem = name.rsplit_once('.')?.0;
+                        let run = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+                        Some(&stem[stem.len() - run..])
+                    })
+                    .collect();
+                number_split(&runs)
+            }
+            _ => None,
+        };
+        if let Some((chosen, other)) = split {
+            let example = frames[0].1.clone();
+            let all = example.rsplit_once('.').map_or(0, |(stem, _)| {
+                stem.bytes().rev().take_while(u8::is_ascii_digit).count()
+            });
+            if chosen < all {
+                for f in frames.iter_mut() {
+                    if let Some((p, n, _)) = parse_frame_name_split(&f.1, Some(chosen)) {
+                        f.0 = n;
+                        prefix = p;
+                    }
+                }
+                number_digits = Some(chosen);
+            }
+            let reading = |d: usize| {
+                let a = if matches!(d, 8 | 11 | 18) { "an" } else { "a" };
+                match parse_frame_name_split(&example, Some(d)) {
+                    Some((p, n, _)) => format!("name {p:?} and {a} {d}-digit frame number ({n} …)"),
+                    None => format!("{a} {d}-digit frame number"),
+                }
+            };
+            names_note = Some(format!(
+                "the frame names ({example} …) end in {all} digits that read two ways: taken \
+                 as {}, not as {}; set number_digits = {other} in the run's manifest row to \
+                 read them the other way",
+                reading(chosen),
+                reading(other)
+            ));
+        }
         frames.sort();
         if let Some(w) = frames.windows(2).find(|w| w[0].0 == w[1].0) {
             return Err(format_err(
@@ -303,7 +413,10 @@ impl FolderSource {
                 format!("frame number {} also belongs to {}", w[0].0, w[0].1),
             ));
         }
-        let files = FrameFiles::new(dir, &frames);
+        let mut files = FrameFiles::new(dir, &frames, number_digits);
+        if let Some(note) = &names_note {
+            warnings.push(note.clone());
+        }
         let mut frame_numbers: FrameNumbers = frames.iter().map(|(n, _)| *n).collect();
         let gaps = gaps_of(&frame_numbers);
         let file = |i: usize| files.path(i, frames[i].0);
@@ -365,26 +478,20 @@ impl FolderSource {
                  not numbered): read as image {number}, {why}"
             ));
         }
-        let timestamps_s = xml
-            .as_ref()
-            .and_then(|x| per_frame(&x.times, &frame_numbers));
+        if let (Some(x), Some(path), None) = (&xml, &xml_path, &lone) {
+            files.renumbered = align_side_file(x, path, &mut frame_numbers, &mut warnings)?;
+        }
+        let timestamps_s = xml.as_ref().and_then(|x| {
+            let (times, note) = times_per_frame(&x.times, &frame_numbers, fps);
+            warnings.extend(note);
+            times
+        });
         let exposures_s = xml
             .as_ref()
             .and_then(|x| per_frame(&x.exposures, &frame_numbers));
         if let Some(x) = &mut xml {
             // Each frame's values are in the two tables now.
             (x.times, x.exposures) = (Vec::new(), Vec::new());
-        }
-        if let Some(x) = &xml {
-            if let Some(f0) = x.first_image_no {
-                let n0 = frame_numbers.first().unwrap_or_default();
-                if x.image_count == Some(frame_numbers.len() as u64) && f0 != n0 {
-                    warnings.push(format!(
-                        "XML FirstImageNo {f0} differs from the first file number {n0}; \
-                         file numbers are used"
-                    ));
-                }
-            }
         }
         let meta = SourceMeta {
             path: dir.to_path_buf(),
@@ -415,6 +522,13 @@ impl FolderSource {
                 setup_length: None,
                 side_file: xml_path,
                 warnings,
+                colour: first.colour.then_some(ColourInput::Rgb),
+                frame_names: Some(FrameNames {
+                    prefix: prefix.clone(),
+                    number_digits: files.digits,
+                    note: names_note,
+                }),
+                p10: None,
             },
         };
         drop(frames);
@@ -524,6 +638,149 @@ fn per_frame(by_number: &[(i64, f64)], numbers: &FrameNumbers) -> Option<Vec<f64
                 .map(|i| sorted[i].1)
         })
         .collect()
+}
+
+/// Check that the side file at `path` describes the frames beside it:
+/// the images it names (`FirstImageNo` and `ImageCount`, else its
+/// TIMEBLOCK's first and last frame) must hold the files' numbers. Files
+/// numbered otherwise but as many and in a row (from 0, as `dropscope
+/// export` names them) are those images renumbered: `numbers` become the
+/// side file's, with a warning, and the shift from the names is returned.
+/// A side file describing other images is refused naming both ranges: its
+/// times, rate and exposure would be applied to frames they do not belong to.
+fn align_side_file(
+    x: &PccXml,
+    path: &Path,
+    numbers: &mut FrameNumbers,
+    warnings: &mut Vec<String>,
+) -> Result<i64, SourceError> {
+    let (Some(n0), Some(n1)) = (numbers.first(), numbers.last()) else {
+        return Ok(0);
+    };
+    let n = numbers.len() as u64;
+    let described = match (x.first_image_no, x.image_count) {
+        (Some(f0), Some(c)) if c > 0 => Some((f0, c, "its FirstImageNo and ImageCount")),
+        _ => {
+            let lo = x.times.iter().map(|t| t.0).min();
+            let hi = x.times.iter().map(|t| t.0).max();
+            lo.zip(hi)
+                .map(|(lo, hi)| (lo, hi.abs_diff(lo) + 1, "its TIMEBLOCK"))
+        }
+    };
+    let Some((f0, c, by)) = described else {
+        return Ok(0);
+    };
+    let f1 = f0.saturating_add(i64::try_from(c - 1).unwrap_or(i64::MAX));
+    if n0 >= f0 && n1 <= f1 {
+        return Ok(0);
+    }
+    let in_a_row = n1.abs_diff(n0) + 1 == n;
+    if in_a_row && n == c {
+        let shift = f0 - n0;
+        *numbers = FrameNumbers::consecutive(f0, numbers.len());
+        warnings.push(format!(
+            "the {n} files are numbered {n0}…{n1}, the side file {} describes images {f0}…{f1} \
+             ({by}): the same frames renumbered (as `dropscope export` names them), read as \
+             images {f0}…{f1}",
+            path.display()
+        ));
+        return Ok(shift);
+    }
+    Err(format_err(
+        path,
+        format!(
+            "this side file describes images {f0}…{f1} ({c} frames, {by}) but the frame files \
+             beside it are numbered {n0}…{n1} ({n} files): it is not their side file, and its \
+             frame rate and times are not applied to them. Put the sequence's own side file \
+             there, or remove this one and give the frame rate (--fps, or the manifest's fps)"
+        ),
+    ))
+}
+
+/// The frame times of `numbers` from the side file's TIMEBLOCK (frame,
+/// seconds), and a warning when it lists none for some of them: those are
+/// placed on the frame rate's grid from the nearest frame it lists, and
+/// the warning (starting [`super::validate::TIMES_INCOMPLETE`]) says how
+/// many, so that the run is flagged. A block listing none of the frames
+/// is not used, with a warning.
+fn times_per_frame(
+    by_number: &[(i64, f64)],
+    numbers: &FrameNumbers,
+    fps: f64,
+) -> (Option<Vec<f64>>, Option<String>) {
+    if by_number.is_empty() {
+        return (None, None);
+    }
+    let mut sorted = by_number.to_vec();
+    sorted.sort_by_key(|t| t.0);
+    let listed: Vec<Option<f64>> = numbers
+        .iter()
+        .map(|n| {
+            sorted
+                .binary_search_by_key(&n, |t| t.0)
+                .ok()
+                .map(|i| sorted[i].1)
+        })
+        .collect();
+    let missing: Vec<i64> = numbers
+        .iter()
+        .zip(&listed)
+        .filter(|(_, t)| t.is_none())
+        .map(|(n, _)| n)
+        .collect();
+    if missing.is_empty() {
+        return (Some(listed.into_iter().flatten().collect()), None);
+    }
+    let anchors: Vec<(i64, f64)> = numbers
+        .iter()
+        .zip(&listed)
+        .filter_map(|(n, t)| t.map(|t| (n, t)))
+        .collect();
+    let example = missing
+        .iter()
+        .take(3)
+        .map(|n| n.to_string())
+        .collect::<Vec<_>>();
+    if anchors.is_empty() {
+        return (
+            None,
+            Some(format!(
+                "{}: the side file's TIMEBLOCK lists none of the {} frames (frames {}…): its \
+                 times are not used, frame times are frame number / fps",
+                super::validate::TIMES_INCOMPLETE,
+                numbers.len(),
+                example.join(", ")
+            )),
+        );
+    }
+    let filled = numbers
+        .iter()
+        .zip(&listed)
+        .map(|(n, t)| {
+            t.unwrap_or_else(|| {
+                let k = anchors.partition_point(|a| a.0 < n);
+                let near = match (k.checked_sub(1).map(|i| anchors[i]), anchors.get(k)) {
+                    (Some(a), Some(b)) if n - a.0 <= b.0 - n => a,
+                    (Some(a), None) => a,
+                    (_, Some(b)) => *b,
+                    (None, None) => unreachable!("anchors is not empty"),
+                };
+                near.1 + (n - near.0) as f64 / fps
+            })
+        })
+        .collect();
+    (
+        Some(filled),
+        Some(format!(
+            "{}: the side file's TIMEBLOCK has no time for {} of the {} frames (frame {}{}); \
+             theirs are placed on the frame rate's grid from the nearest listed frame",
+            super::validate::TIMES_INCOMPLETE,
+            missing.len(),
+            numbers.len(),
+            example.join(", "),
+            if missing.len() > 3 { ", …" } else { "" }
+        )),
+    )
 }
 
 /// The folder's PCC XML: the one named like the sequence prefix, else the

@@ -30,6 +30,8 @@ pub(super) struct Probe {
     pub(super) height: usize,
     /// Container bits per sample: 8 or 16.
     pub(super) bits: u8,
+    /// The file holds colour (RGB, RGBA, a colour palette): read as its luminance.
+    pub(super) colour: bool,
     layout: Layout,
 }
 
@@ -377,9 +379,13 @@ impl FrameDecoder {
                 bytes.clear();
                 file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
                 file.read_to_end(bytes).map_err(io_err(path))?;
-                let img = image::ImageReader::new(Cursor::new(&bytes[..]))
+                let mut reader = image::ImageReader::new(Cursor::new(&bytes[..]))
                     .with_guessed_format()
-                    .map_err(io_err(path))?
+                    .map_err(io_err(path))?;
+                // A frame the caps admit, decoded within a memory bound: a
+                // failed allocation is this frame's error, not an abort.
+                reader.limits(super::decode_limits());
+                let img = reader
                     .decode()
                     .map_err(|e| frame_err(format!("cannot decode: {e}")))?;
                 self.u16_scratch.clear();
@@ -412,6 +418,17 @@ fn probe<F: FrameBytes>(
     kind: ImageKind,
     scratch: &mut Scratch,
 ) -> Result<Probe, SourceError> {
+    if len > super::validate::MAX_DECODE_BYTES {
+        return Err(format_err(
+            path,
+            format!(
+                "{len} bytes is more than a frame file may hold ({} bytes: a frame of at most \
+                 {} pixels)",
+                super::validate::MAX_DECODE_BYTES,
+                super::MAX_FRAME_PIXELS
+            ),
+        ));
+    }
     let bytes = &mut scratch.bytes;
     match kind {
         ImageKind::Tiff => {
@@ -429,7 +446,9 @@ fn probe<F: FrameBytes>(
             // opening reads only as far as the header chunks.
             let info = if scratch.read_whole {
                 bytes.clear();
-                bytes.reserve(len as usize);
+                bytes
+                    .try_reserve(len as usize)
+                    .map_err(|e| format_err(path, format!("no memory for its {len} bytes: {e}")))?;
                 file.read_to_end(bytes).map_err(io_err(path))?;
                 png_info(Cursor::new(&bytes[..]))
             } else {
@@ -442,9 +461,10 @@ fn probe<F: FrameBytes>(
     }
     // Generic: dimensions and depth from the image crate's header reader.
     file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
-    let reader = image::ImageReader::new(std::io::BufReader::new(&mut *file))
+    let mut reader = image::ImageReader::new(std::io::BufReader::new(&mut *file))
         .with_guessed_format()
         .map_err(io_err(path))?;
+    reader.limits(super::decode_limits());
     let dec = reader
         .into_decoder()
         .map_err(|e| format_err(path, format!("not a readable image: {e}")))?;
@@ -461,6 +481,7 @@ fn probe<F: FrameBytes>(
             width: w as usize,
             height: h as usize,
             bits,
+            colour: dec.color_type().has_color(),
             layout: Layout::Generic,
         },
         len,
@@ -478,6 +499,9 @@ const MAX_PIXELS_PER_BYTE: u64 = 4096;
 /// `probe` for a frame the decoders decompress: refused when its size is
 /// implausible for its file's (see [`MAX_PIXELS_PER_BYTE`]).
 fn check_compressed_size(path: &Path, p: Probe, len: u64) -> Result<Probe, SourceError> {
+    if let Some(why) = super::frame_too_large(p.width as u64, p.height as u64) {
+        return Err(format_err(path, why));
+    }
     let pixels = p.width as u64 * p.height as u64;
     if pixels > len.saturating_mul(MAX_PIXELS_PER_BYTE) {
         return Err(format_err(
@@ -506,10 +530,19 @@ fn png_info<R: std::io::BufRead + Seek>(r: R) -> Result<Probe, png::DecodingErro
             png::BitDepth::Eight | png::BitDepth::Sixteen
         )
         && !info.interlaced;
+    let colour = match info.color_type {
+        png::ColorType::Rgb | png::ColorType::Rgba => true,
+        png::ColorType::Indexed => !info
+            .palette
+            .as_ref()
+            .is_some_and(|p| p.chunks_exact(3).all(|c| c[0] == c[1] && c[1] == c[2])),
+        png::ColorType::Grayscale | png::ColorType::GrayscaleAlpha => false,
+    };
     Ok(Probe {
         width: info.width as usize,
         height: info.height as usize,
         bits,
+        colour,
         layout: if grey {
             Layout::PngGrey
         } else {
@@ -612,8 +645,28 @@ fn probe_tiff<F: FrameBytes>(
     let sample_format = scalar(tag(339)).unwrap_or(1);
     let predictor = scalar(tag(317)).unwrap_or(1);
     let tiled = tag(322).is_some();
-    if width == 0 || height == 0 || (width as u64) * (height as u64) > 1 << 28 {
-        return Err(format!("implausible TIFF size {width}×{height}"));
+    // The stored rows are read top row first, as PCC writes them: a frame
+    // whose Orientation tag says it is to be shown flipped or turned
+    // would be measured upside down or mirrored without a word.
+    match scalar(tag(274)) {
+        None | Some(1) => {}
+        Some(o) => {
+            let how = match o {
+                2 => "mirrored left to right",
+                3 => "turned 180°",
+                4 => "flipped top to bottom",
+                5..=8 => "turned by 90° (rows and columns swapped)",
+                _ => "in an orientation TIFF does not define",
+            };
+            return Err(format!(
+                "TIFF Orientation tag {o}: the picture is to be shown {how}, which dropscope \
+                 does not undo (it reads the rows as stored, top row first); save the frames \
+                 without an Orientation tag (or with 1), as PCC exports them"
+            ));
+        }
+    }
+    if let Some(why) = super::frame_too_large(width as u64, height as u64) {
+        return Err(format!("TIFF: {why}"));
     }
     let simple = compression == 1
         && photometric == 1
@@ -679,6 +732,7 @@ fn probe_tiff<F: FrameBytes>(
         width,
         height,
         bits: bits as u8,
+        colour: false,
         layout: Layout::TiffRaw {
             big_endian,
             rows_per_strip: rps,
@@ -711,8 +765,8 @@ fn probe_bmp<F: FrameBytes>(
         return Ok(None);
     }
     let (w, hh) = (width as usize, height.unsigned_abs() as usize);
-    if (w as u64) * (hh as u64) > 1 << 28 {
-        return Err(format!("implausible BMP size {w}×{hh}"));
+    if let Some(why) = super::frame_too_large(w as u64, hh as u64) {
+        return Err(format!("BMP: {why}"));
     }
     let n_pal = if colours == 0 {
         256
@@ -744,6 +798,7 @@ fn probe_bmp<F: FrameBytes>(
         width: w,
         height: hh,
         bits: 8,
+        colour: false,
         layout: Layout::Bmp8 {
             data_offset,
             stride,

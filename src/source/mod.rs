@@ -10,41 +10,40 @@
 use ndarray::{Array2, ArrayViewMut1, ArrayViewMut2};
 use std::path::{Path, PathBuf};
 
+pub use colour::ColourInput;
 pub use index::{FrameNumbers, FrameValues};
+pub use validate::{decode_limits, frame_too_large, MAX_FRAME_PIXELS};
 
 pub mod cine;
 pub mod cine_write;
 pub mod cli;
+pub mod colour;
 pub mod folder;
 pub mod frame_decode;
 pub mod index;
+pub mod listing;
 pub mod memory;
 mod p10_lut;
 mod packing;
 pub mod pcc_xml;
+pub mod photron;
 pub mod validate;
 mod widen;
 
 /// The name of an input, for run names and file names: its whole name
 /// (run folders such as `R4.5mm_H12cm_01` hold dots that are no extension),
-/// less the extension of a `.cine` file (`drop_07.cine` → `drop_07`), the
-/// one extension a file that is a run has. A path that is not there is
-/// named the same way, as a folder unless it ends in `.cine`.
+/// less the extension of a recording file (`drop_07.cine` → `drop_07`,
+/// `ball.mraw` or `ball.cihx` → `ball`), the one extension a file that is a
+/// run has. A path that is not there is named the same way, as a folder
+/// unless it ends in one of those extensions.
 pub fn input_name(path: &Path) -> String {
-    let name = if is_cine_name(path) && !path.is_dir() {
+    let name = if listing::recording_kind(path).is_some() && !path.is_dir() {
         path.file_stem()
     } else {
         path.file_name()
     };
     name.map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| path.display().to_string())
-}
-
-/// Whether `path`'s name ends in `.cine` (any case).
-fn is_cine_name(path: &Path) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("cine"))
 }
 
 /// One grey frame, shape `(height, width)`, rows top-down, values as stored.
@@ -114,6 +113,26 @@ pub struct SourceDetails {
     pub side_file: Option<PathBuf>,
     /// Non-fatal oddities found while opening (e.g. a corrupt ImageSize field).
     pub warnings: Vec<String>,
+    /// A colour input read as grey luminance ([`colour`]); `None`: grey.
+    pub colour: Option<ColourInput>,
+    /// How a folder's frame files are named; `None` for a recording file.
+    pub frame_names: Option<FrameNames>,
+    /// A P10 packed cine: how its codes are returned; `None` for any other
+    /// storage.
+    pub p10: Option<P10Mode>,
+}
+
+/// How a folder's frame files are named: `<prefix><number>.<ext>`.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct FrameNames {
+    /// What comes before the number (its sign aside).
+    pub prefix: String,
+    /// Digits of the number, zero-padded to this width (the manifest's
+    /// `number_digits` when it gives one; the digits of the first name else).
+    pub number_digits: usize,
+    /// When the digits at the end of the names read two ways: which was
+    /// taken, and how to take the other.
+    pub note: Option<String>,
 }
 
 /// How the P10 packed 10-bit codes of a `.cine` are returned.
@@ -140,21 +159,31 @@ pub struct OpenOptions {
     pub apply_flips: bool,
     /// P10 packed cines: raw codes (default) or linearised.
     pub p10: P10Mode,
+    /// Folders of frames: how many digits at the end of a file's name are
+    /// its number (the manifest's `number_digits`); `None`: all of them,
+    /// unless the names can be read two ways ([`folder::number_split`]).
+    pub number_digits: Option<usize>,
 }
 
 /// What kind of input a path is ([`input_kind`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum InputKind {
-    /// A directory: one PCC-style image sequence.
+    /// A directory: one PCC-style image sequence, or the one recording file in it.
     Folder,
     /// A regular file named `.cine` (any case) or starting with the cine magic.
     Cine,
+    /// A Photron `.mraw`, or its `.cihx` / `.cih` header.
+    Photron,
 }
 
-/// What kind of input `path` is, from its metadata and, for a file not
-/// named `.cine`, its first bytes; no frame is read. An error when it is
+/// What dropscope reads, for messages refusing something else.
+pub const SUPPORTED_INPUTS: &str = "a folder of numbered TIFF/PNG/BMP/JPEG frames (as Phantom \
+     Camera Control exports them), a Phantom .cine, or a Photron .mraw with its .cihx/.cih";
+
+/// What kind of input `path` is, from its metadata and, for a file with no
+/// recording's extension, its first bytes; no frame is read. An error when it is
 /// not there (the `Io` error of `NotFound`), cannot be looked at, or is
-/// neither a folder nor a cine: what [`open`] refuses before reading.
+/// none of [`SUPPORTED_INPUTS`]: what [`open`] refuses before reading.
 pub fn input_kind(path: &Path) -> Result<InputKind, SourceError> {
     let md = std::fs::metadata(path).map_err(|source| SourceError::Io {
         path: path.to_path_buf(),
@@ -166,28 +195,54 @@ pub fn input_kind(path: &Path) -> Result<InputKind, SourceError> {
     if !md.is_file() {
         return Err(SourceError::Unsupported {
             path: path.to_path_buf(),
-            reason: "not a regular file (a named pipe, socket or device): give a folder or a .cine"
-                .into(),
+            reason: format!(
+                "not a regular file (a named pipe, socket or device); dropscope reads {SUPPORTED_INPUTS}"
+            ),
         });
     }
-    if is_cine_name(path) || cine::has_cine_magic(path) {
+    if let Some(kind) = listing::recording_kind(path) {
+        return Ok(kind);
+    }
+    if cine::has_cine_magic(path) {
         return Ok(InputKind::Cine);
     }
+    let what = match path.extension().and_then(|e| e.to_str()) {
+        Some(e) if folder::ImageKind::from_extension(e).is_some() => format!(
+            "one frame file, give the folder that holds its sequence ({})",
+            path.parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .map_or_else(|| ".".into(), |p| p.display().to_string())
+        ),
+        Some(e) => format!("a .{e} file"),
+        None => "a file without extension or cine header".to_string(),
+    };
     Err(SourceError::Unsupported {
         path: path.to_path_buf(),
-        reason: "not a folder of frames nor a .cine file (give a folder or a .cine)".into(),
+        reason: format!(
+            "not a folder of frames nor a recording ({what}); dropscope reads {SUPPORTED_INPUTS}"
+        ),
     })
 }
 
-/// Open a folder of frames or a `.cine` file.
+/// Open a folder of frames, a `.cine`, or a Photron `.mraw` (or its header).
 ///
-/// A directory is read as one PCC-style image sequence ([`folder::FolderSource`]);
-/// a file whose name ends in `.cine` (any case) or that starts with the cine
-/// magic `"CI"` is read by [`cine::CineSource`] ([`input_kind`]).
+/// A directory is read as one PCC-style image sequence
+/// ([`folder::FolderSource`]), unless it holds no frames of its own and one
+/// recording file, which is then opened ([`listing::Listing`]); a
+/// file whose name ends in `.cine` (any case) or that starts with the cine
+/// magic `"CI"` is read by [`cine::CineSource`]; a `.mraw`, `.cihx` or
+/// `.cih` by [`photron::PhotronSource`] ([`input_kind`]).
 pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn FrameSource>, SourceError> {
     Ok(match input_kind(path)? {
-        InputKind::Folder => Box::new(folder::FolderSource::open(path, options)?),
+        InputKind::Folder => {
+            let listing = listing::Listing::of(path)?;
+            match listing.lone_recording() {
+                Some(file) => open(&file, options)?,
+                None => Box::new(folder::FolderSource::open_listed(listing, options)?),
+            }
+        }
         InputKind::Cine => Box::new(cine::CineSource::open(path, options)?),
+        InputKind::Photron => Box::new(photron::PhotronSource::open(path, options)?),
     })
 }
 
@@ -329,6 +384,53 @@ impl SourceMeta {
                 .exposures_s
                 .as_ref()
                 .map_or(0, FrameValues::heap_bytes)
+    }
+
+    /// What a run read from this input should say once, as a warning: a
+    /// colour input read as grey, frame names whose number could be read
+    /// another way.
+    pub fn reading_notes(&self) -> Vec<String> {
+        let d = &self.details;
+        d.colour
+            .iter()
+            .map(|c| format!("the frames are {}", c.describe()))
+            .chain(d.frame_names.iter().filter_map(|n| n.note.clone()))
+            .collect()
+    }
+
+    /// How the stored samples became the grey picture returned, as
+    /// space-separated words (drops.csv's `reading` column); empty when
+    /// the frames are returned as stored: `bayer_<pattern>_luminance` or
+    /// `rgb_luminance` (a colour input read as grey luminance), `flip_v`
+    /// and `flip_h` (the viewer flips the header records, applied),
+    /// `flips_not_applied` (a recording file's, not applied: storage
+    /// orientation),
+    /// `p10_linear` or `p10_codes` (a P10 cine's log-encoded codes
+    /// linearised to 12 bits, or returned as stored).
+    pub fn reading(&self) -> String {
+        let d = &self.details;
+        let mut words: Vec<String> = Vec::new();
+        match d.colour {
+            Some(ColourInput::Bayer(b)) => {
+                words.push(format!("bayer_{}_luminance", b.name().to_lowercase()))
+            }
+            Some(ColourInput::Rgb) => words.push("rgb_luminance".into()),
+            None => {}
+        }
+        if d.flips_applied {
+            words.extend(d.flip_v.then(|| "flip_v".to_string()));
+            words.extend(d.flip_h.then(|| "flip_h".to_string()));
+        } else if (d.flip_v || d.flip_h) && d.frame_names.is_none() {
+            // Frame files are exported as the viewer shows them: a flip
+            // their side file records is no difference from what is read.
+            words.push("flips_not_applied".into());
+        }
+        match d.p10 {
+            Some(P10Mode::Linear) => words.push("p10_linear".into()),
+            Some(P10Mode::Raw) => words.push("p10_codes".into()),
+            None => {}
+        }
+        words.join(" ")
     }
 
     /// The camera image number of frame `index` (the index itself past the

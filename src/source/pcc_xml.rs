@@ -79,9 +79,13 @@ pub fn parse(text: &str) -> Result<PccXml, String> {
 /// the root, the values in [`PccXml`]'s order with the trigger and the two
 /// blocks before the plain numbers.
 ///
-/// It reads what a DOM reader would: an element's text is its first text
-/// (text, entities, CDATA) before any child element, comment or
-/// processing instruction; of several elements of one name, the first.
+/// An element's text is all its text (text, entities, CDATA) before its
+/// first child element, across comments and processing instructions
+/// (`<ShutterNs>50<!---->000</ShutterNs>` is 50000 ns, not 50). A value
+/// given twice (in one block, or in a repeated `CineFileHeader`,
+/// `BitmapInfoHeader` or `CameraSetup`) must be the same both times: a
+/// side file that contradicts itself is refused naming the element. Of the
+/// trigger and of a repeated TIMEBLOCK or EXPOSUREBLOCK, the first counts.
 pub fn read(input: impl BufRead) -> Result<PccXml, String> {
     read_limited(input, MAX_XML_FRAMES)
 }
@@ -205,6 +209,8 @@ enum Role {
     Block(Block),
     /// `FIELDS[i]`.
     Field(usize),
+    /// `FIELDS[i]` again: its text must be the first's.
+    Repeat(usize),
     /// `CineFileHeader/TriggerTime`, its `Date` and its `Time`.
     Trigger,
     TriggerDate,
@@ -310,6 +316,8 @@ struct Walk {
     blocks_seen: [bool; 5],
     /// The text of each of [`FIELDS`], trimmed; `Some` from its start.
     fields: [Option<String>; 14],
+    /// A second value of a field that differs from the first, by field.
+    conflicts: [Option<String>; 14],
     trigger_seen: bool,
     trigger_date: Option<String>,
     trigger_clock: Option<String>,
@@ -335,6 +343,7 @@ impl Walk {
             seen_decl_or_other: false,
             blocks_seen: [false; 5],
             fields: Default::default(),
+            conflicts: Default::default(),
             trigger_seen: false,
             trigger_date: None,
             trigger_clock: None,
@@ -396,7 +405,8 @@ impl Walk {
                 };
                 self.text(s, at)?;
             }
-            Event::Comment(_) | Event::PI(_) => self.end_text(),
+            // A value runs on across a comment or a processing instruction.
+            Event::Comment(_) | Event::PI(_) => {}
             Event::Decl(_) if first => {}
             Event::Decl(_) => return Err(invalid("an XML declaration not at the start")),
             Event::DocType(_) => {
@@ -485,7 +495,7 @@ impl Walk {
         let field = |fields: &mut [Option<String>; 14], block| {
             let i = FIELDS.iter().position(|f| *f == (block, name))?;
             if fields[i].is_some() {
-                return None;
+                return Some(Role::Repeat(i));
             }
             fields[i] = Some(String::new());
             Some(Role::Field(i))
@@ -495,10 +505,16 @@ impl Walk {
                 let Some(i) = BLOCKS.iter().position(|b| b.1 == name) else {
                     return Role::Other;
                 };
-                if std::mem::replace(&mut self.blocks_seen[i], true) {
+                let block = BLOCKS[i].0;
+                // A repeated header or set-up is read again, its values
+                // held to the first's; a repeated time or exposure block
+                // is not read.
+                if std::mem::replace(&mut self.blocks_seen[i], true)
+                    && matches!(block, Block::Times | Block::Exposures)
+                {
                     return Role::Other;
                 }
-                Role::Block(BLOCKS[i].0)
+                Role::Block(block)
             }
             Role::Block(Block::Header) if name == "TriggerTime" => {
                 if std::mem::replace(&mut self.trigger_seen, true) {
@@ -552,6 +568,17 @@ impl Walk {
         match level.role {
             Role::Block(Block::Header) => self.header_done = true,
             Role::Field(i) => self.fields[i] = Some(text.trim().to_string()),
+            Role::Repeat(i) => {
+                let first = self.fields[i].as_deref().unwrap_or("");
+                if text.trim() != first && self.conflicts[i].is_none() {
+                    self.conflicts[i] = Some(format!(
+                        "<{}> is given twice, as {first:?} and {:?}: the side file contradicts \
+                         itself (which value holds is unknown); correct it",
+                        FIELDS[i].1,
+                        text.trim()
+                    ));
+                }
+            }
             Role::TriggerDate => self.trigger_date = Some(text),
             Role::TriggerClock => self.trigger_clock = Some(text),
             Role::Trigger => {
@@ -630,6 +657,9 @@ impl Walk {
         };
         if root != "chd" {
             return Err(format!("root element is <{root}>, not PCC's <chd>"));
+        }
+        if let Some(c) = self.conflicts.iter().flatten().next() {
+            return Err(c.clone());
         }
         let text_of = |name: &str| -> Option<String> {
             FIELDS

@@ -34,8 +34,45 @@ pub const FPS_AGREEMENT: f64 = 1e-3;
 /// How the warning about frame times a little off their grid starts.
 pub const IRREGULAR_TIMES: &str = "frame times are not evenly spaced";
 
+/// How the warning about a time block that lists no time for some frames starts.
+pub const TIMES_INCOMPLETE: &str = "frame times incomplete";
+
 /// How the warning about frame times spaced otherwise than the frame rate says starts.
 pub const TIMES_AND_RATE_DISAGREE: &str = "the frame times are";
+
+/// Largest frame any reader accepts, in pixels, checked from its header
+/// before anything is allocated: 8192 × 4096, over three times the largest
+/// Phantom sensor (4096 × 2304). A 16-bit frame of this size is 64 MB; a
+/// worker holds a few.
+pub const MAX_FRAME_PIXELS: u64 = 1 << 25;
+
+/// Most bytes a general-purpose decoder (the `image` crate: colour PNG,
+/// JPEG, compressed TIFF) may allocate for one frame: its largest frame as
+/// 16-bit RGBA is 256 MB.
+pub const MAX_DECODE_BYTES: u64 = 256 << 20;
+
+/// The limits every `image` decoder runs under ([`MAX_FRAME_PIXELS`],
+/// [`MAX_DECODE_BYTES`]): a frame beyond them is an error, not an
+/// allocation that aborts the job.
+pub fn decode_limits() -> image::Limits {
+    let mut l = image::Limits::default();
+    l.max_image_width = Some(MAX_FRAME_PIXELS as u32);
+    l.max_image_height = Some(MAX_FRAME_PIXELS as u32);
+    l.max_alloc = Some(MAX_DECODE_BYTES);
+    l
+}
+
+/// Why a frame of `width` × `height` is refused before it is decoded, or
+/// `None` when it is within [`MAX_FRAME_PIXELS`].
+pub fn frame_too_large(width: u64, height: u64) -> Option<String> {
+    let pixels = width.saturating_mul(height);
+    (width == 0 || height == 0 || pixels > MAX_FRAME_PIXELS).then(|| {
+        format!(
+            "implausible frame size {width}×{height} ({pixels} pixels; a frame may hold 1 to \
+             {MAX_FRAME_PIXELS}, 8192 × 4096): corrupt or forged header"
+        )
+    })
+}
 
 /// A number as a person reads it: plain when moderate, else in e-notation
 /// (Rust prints 1e300 with all its 301 digits).

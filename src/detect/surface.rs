@@ -190,15 +190,7 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
         // Window rows zs − w ..= zs + 1 + w.
         let top = zs - w;
         let bot = zs + 1 + w;
-        let hi = 0.5 * (bg.at(top, j) as f64 + bg.at(top + 1, j) as f64);
-        let lo = 0.5 * (bg.at(bot, j) as f64 + bg.at(bot - 1, j) as f64);
-        if !(hi > 0.0 && (hi - lo) >= params.min_contrast * hi) {
-            return None;
-        }
-        let sum: f64 = (top..=bot)
-            .map(|i| (bg.at(i, j) as f64 - lo) / (hi - lo))
-            .sum();
-        let row_area_px = top as f64 - 0.5 + sum;
+        let row_area_px = area_row(bg, j, (top, bot), params)?;
         if !params.flank_fits {
             return Some(ColumnEdge {
                 x_px: j as f64,
@@ -313,6 +305,24 @@ fn wide_step_edge(
         (e, sigma, window) = (p[0], p[1], Some((top, bot)));
     }
     let (top, bot) = window?;
+    let row_area_px = area_row(bg, j, (top, bot), params)?;
+    Some(ColumnEdge {
+        x_px: j as f64,
+        row_px: if params.flank_fits { e } else { row_area_px },
+        row_area_px,
+    })
+}
+
+/// The area (coverage-sum) row of column `j`'s step over rows `top..=bot`:
+/// the levels from the window's two end pairs of rows, each row's share of
+/// the upper level summed. `None` where the step's contrast is below
+/// [`SurfaceParams::min_contrast`].
+fn area_row(
+    bg: &Background,
+    j: usize,
+    (top, bot): (usize, usize),
+    params: &SurfaceParams,
+) -> Option<f64> {
     let hi = 0.5 * (bg.at(top, j) as f64 + bg.at(top + 1, j) as f64);
     let lo = 0.5 * (bg.at(bot, j) as f64 + bg.at(bot - 1, j) as f64);
     if !(hi > 0.0 && (hi - lo) >= params.min_contrast * hi) {
@@ -321,15 +331,7 @@ fn wide_step_edge(
     let sum: f64 = (top..=bot)
         .map(|i| (bg.at(i, j) as f64 - lo) / (hi - lo))
         .sum();
-    Some(ColumnEdge {
-        x_px: j as f64,
-        row_px: if params.flank_fits {
-            e
-        } else {
-            top as f64 - 0.5 + sum
-        },
-        row_area_px: top as f64 - 0.5 + sum,
-    })
+    Some(top as f64 - 0.5 + sum)
 }
 
 /// A step down of at least this fraction of a column's largest counts as the

@@ -1,4 +1,4 @@
-//! The main job on a real Slurm cluster (issue 15): `dropscope slurm
+//! The main job on a real Slurm cluster: `dropscope slurm
 //! --submit` over a rendered campaign ends byte-identical to one machine,
 //! and a task cancelled half-way is redone by submitting again. They need a
 //! reachable Slurm — `.ci/slurm-up` starts a one-node cluster, and CI runs

@@ -265,10 +265,10 @@ pub fn kinematics(
         // one, L/√12, goes into a_max's error.
         a_max_m: hw_fit.as_ref().map(|_| {
             let mut a = m(8);
-            let smear_m = ev.peak.poly.deriv2(base[9]).abs() * exposure_s * exposure_s / 8.0
-                / 12f64.sqrt()
-                * geom.mm_per_px
-                * 1e-3;
+            let smear_m =
+                ev.peak.poly.deriv2(base[9]).abs() * exposure_s * exposure_s / 8.0 / 12f64.sqrt()
+                    * geom.mm_per_px
+                    * 1e-3;
             a.err = a.err.hypot(smear_m);
             a
         }),

@@ -8,6 +8,7 @@
 use std::fs::File;
 
 use crate::detect::{CircleFit, Covariance};
+use crate::io_util::{read_at, write_at};
 use crate::track::{FrameFlags, FrameTrack};
 
 /// A record of a fixed number of bytes in the file.
@@ -224,34 +225,6 @@ impl<T: Record> Records<T> {
             )?;
         }
         Ok(())
-    }
-}
-
-pub(crate) fn read_at(file: &File, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Read, Seek, SeekFrom};
-        let mut f = file;
-        f.seek(SeekFrom::Start(offset))?;
-        f.read_exact(buf)
-    }
-}
-
-pub(crate) fn write_at(file: &File, offset: u64, buf: &[u8]) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::write_all_at(file, buf, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Seek, SeekFrom, Write};
-        let mut f = file;
-        f.seek(SeekFrom::Start(offset))?;
-        f.write_all(buf)
     }
 }
 

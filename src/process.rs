@@ -303,7 +303,10 @@ pub fn process_setup(
         })
         .collect();
     if runs.len() >= 2 {
-        let found = crate::scale::size_disagreements(&sizes, cfg.camera.edge_offset());
+        let found = crate::scale::size_disagreements(
+            &sizes,
+            crate::scale::EdgeOffset::from_config(&cfg.camera),
+        );
         for ((o, run), d) in outcomes.iter_mut().zip(runs).zip(found) {
             if let Some(d) = d {
                 let setup = run.setup.as_deref().unwrap_or("-");
@@ -912,7 +915,7 @@ fn measure_run(
         own: curvature,
         r_app_px: tr.radius_px,
         r_app_err_px: tr.radius_err_px,
-        edge_offset: cfg.camera.edge_offset(),
+        edge_offset: crate::scale::EdgeOffset::from_config(&cfg.camera),
         setup_at_bound,
         own_at_bound: bounded.as_ref().and_then(|b| b.curvature),
     };

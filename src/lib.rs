@@ -10,6 +10,7 @@
 //! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
 //! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
+//! | [`detect_settings`] | `[detect]` of the configuration → the detector's and the tracker's own settings |
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
 //! | [`records`] | a run's per-frame records, in a temporary file past a budget |
 //! | [`events`] | contact onset, peak and loss of contact from the track |
@@ -57,6 +58,7 @@ pub mod console;
 pub mod dataset;
 pub mod dataset_id;
 pub mod detect;
+pub mod detect_settings;
 pub mod events;
 pub mod flight;
 pub mod force;

@@ -162,24 +162,6 @@ const CHUNKS_PER_THREAD: usize = 4;
 /// records (256 bytes a frame) and 1.8 MB of pass 1's (56).
 pub const FRAMES_IN_MEMORY_MAX: usize = 32_768;
 
-impl TrackSettings {
-    pub fn from_config(cfg: &crate::config::DetectConfig) -> Self {
-        TrackSettings {
-            background_frames: cfg.background_frames.max(3),
-            edge: EdgeParams::from_config(cfg),
-            coarse: CoarseParams::default(),
-            surface: SurfaceParams::default(),
-            surface_override: SurfaceLine::from_config(cfg),
-            band_margin_px: 6.0,
-            kept_points_max: KEPT_POINTS_MAX,
-            chunk_frames_max: CHUNK_FRAMES_MAX,
-            frames_in_memory_max: FRAMES_IN_MEMORY_MAX,
-            skip_away: true,
-            probe_searches: true,
-        }
-    }
-}
-
 /// A tracked run.
 #[derive(Debug)]
 pub struct Track {

@@ -138,18 +138,6 @@ struct NormalSums {
     q_out: f64,
 }
 
-impl EdgeParams {
-    /// The settings of `[detect]` in pipeline.toml, defaults for the rest.
-    pub fn from_config(cfg: &crate::config::DetectConfig) -> Self {
-        EdgeParams {
-            spacing_px: cfg.edge_spacing_px,
-            half_window: cfg.edge_half_window_px,
-            surface_margin_px: cfg.contact_margin_px,
-            ..EdgeParams::default()
-        }
-    }
-}
-
 /// A normal ready to be sampled: its window's start and step in 16.16
 /// fixed point (column, and row within the band), and `1/g` at its inner
 /// end with its change per sample.

@@ -34,8 +34,6 @@
 //! The uncertainty is that of the weighted least-squares line,
 //! `σ̂²(XᵀWX)⁻¹`, with `σ̂²` the weighted residual variance.
 
-use crate::config::DetectConfig;
-
 use super::background::Background;
 use super::DetectError;
 
@@ -96,13 +94,6 @@ impl SurfaceLine {
             bow_per_px2: 0.0,
             bow_err_per_px2: 0.0,
         }
-    }
-
-    /// The line fixed by the configuration (`detect.surface_row_px`,
-    /// `detect.surface_slope`), if it sets one.
-    pub fn from_config(cfg: &DetectConfig) -> Option<Self> {
-        cfg.surface_row_px
-            .map(|row0_px| SurfaceLine::given(row0_px, cfg.surface_slope))
     }
 }
 

@@ -1,0 +1,50 @@
+//! The tracker's and the detector's own settings from `[detect]` of
+//! pipeline.toml ([`crate::config::DetectConfig`]): the configuration keeps
+//! plain numbers, detection and tracking take their own parameters
+//! ([`EdgeParams`], [`SurfaceLine`], [`TrackSettings`]), and this file,
+//! above the three, joins them.
+
+use crate::config::DetectConfig;
+use crate::detect::coarse::CoarseParams;
+use crate::detect::surface::SurfaceParams;
+use crate::detect::{EdgeParams, SurfaceLine};
+use crate::track::{TrackSettings, CHUNK_FRAMES_MAX, FRAMES_IN_MEMORY_MAX, KEPT_POINTS_MAX};
+
+impl TrackSettings {
+    pub fn from_config(cfg: &DetectConfig) -> Self {
+        TrackSettings {
+            background_frames: cfg.background_frames.max(3),
+            edge: EdgeParams::from_config(cfg),
+            coarse: CoarseParams::default(),
+            surface: SurfaceParams::default(),
+            surface_override: SurfaceLine::from_config(cfg),
+            band_margin_px: 6.0,
+            kept_points_max: KEPT_POINTS_MAX,
+            chunk_frames_max: CHUNK_FRAMES_MAX,
+            frames_in_memory_max: FRAMES_IN_MEMORY_MAX,
+            skip_away: true,
+            probe_searches: true,
+        }
+    }
+}
+
+impl EdgeParams {
+    /// The settings of `[detect]` in pipeline.toml, defaults for the rest.
+    pub fn from_config(cfg: &DetectConfig) -> Self {
+        EdgeParams {
+            spacing_px: cfg.edge_spacing_px,
+            half_window: cfg.edge_half_window_px,
+            surface_margin_px: cfg.contact_margin_px,
+            ..EdgeParams::default()
+        }
+    }
+}
+
+impl SurfaceLine {
+    /// The line fixed by the configuration (`detect.surface_row_px`,
+    /// `detect.surface_slope`), if it sets one.
+    pub fn from_config(cfg: &DetectConfig) -> Option<Self> {
+        cfg.surface_row_px
+            .map(|row0_px| SurfaceLine::given(row0_px, cfg.surface_slope))
+    }
+}

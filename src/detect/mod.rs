@@ -129,8 +129,9 @@ impl<'a> Band<'a> {
         })
     }
 
-    /// The whole frame as a band starting at row 0.
-    pub fn frame(frame: &'a crate::source::Frame) -> Result<Self, DetectError> {
+    /// The whole frame (a [`crate::source::Frame`]) as a band starting at
+    /// row 0.
+    pub fn frame(frame: &'a ndarray::Array2<u16>) -> Result<Self, DetectError> {
         Self::new(frame.view(), 0)
     }
 

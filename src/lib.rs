@@ -9,8 +9,8 @@
 //! | [`cli_values`] | command-line flag values checked as they are parsed (`--fps`, `--radius-mm`, …) |
 //! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
+//! | [`stage_settings`] | the stages' own settings from the configuration: how a recording is opened, detected and tracked |
 //! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
-//! | [`detect_settings`] | `[detect]` of the configuration → the detector's and the tracker's own settings |
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
 //! | [`records`] | a run's per-frame records, in a temporary file past a budget |
 //! | [`events`] | contact onset, peak and loss of contact from the track |
@@ -58,7 +58,6 @@ pub mod console;
 pub mod dataset;
 pub mod dataset_id;
 pub mod detect;
-pub mod detect_settings;
 pub mod events;
 pub mod flight;
 pub mod force;
@@ -89,6 +88,7 @@ pub mod shard;
 pub mod shelf;
 pub mod slurm;
 pub mod source;
+pub mod stage_settings;
 #[cfg(test)]
 mod test_support;
 pub mod text;

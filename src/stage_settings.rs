@@ -1,14 +1,35 @@
-//! The tracker's and the detector's own settings from `[detect]` of
-//! pipeline.toml ([`crate::config::DetectConfig`]): the configuration keeps
-//! plain numbers, detection and tracking take their own parameters
-//! ([`EdgeParams`], [`SurfaceLine`], [`TrackSettings`]), and this file,
-//! above the three, joins them.
+//! The stages' own settings from the configuration: how a run's recording
+//! is opened ([`open_options`]), and the tracker's and the detector's
+//! settings from `[detect]` ([`crate::config::DetectConfig`]). The
+//! configuration keeps plain numbers, the stages take their own parameters
+//! ([`OpenOptions`], [`EdgeParams`], [`SurfaceLine`], [`TrackSettings`]),
+//! and this file, above them, joins the two.
 
-use crate::config::DetectConfig;
+use crate::config::{DetectConfig, PipelineConfig};
 use crate::detect::coarse::CoarseParams;
 use crate::detect::surface::SurfaceParams;
 use crate::detect::{EdgeParams, SurfaceLine};
+use crate::source::{OpenOptions, P10Mode};
 use crate::track::{TrackSettings, CHUNK_FRAMES_MAX, FRAMES_IN_MEMORY_MAX, KEPT_POINTS_MAX};
+
+/// How a run's recording is read under `cfg` (flips, P10), with the
+/// manifest's `number_digits` and the frame rate for an input without one.
+pub fn open_options(
+    cfg: &PipelineConfig,
+    number_digits: Option<usize>,
+    fps_fallback: Option<f64>,
+) -> OpenOptions {
+    OpenOptions {
+        fps_fallback,
+        apply_flips: cfg.camera.apply_flips,
+        p10: if cfg.camera.p10_linear {
+            P10Mode::Linear
+        } else {
+            P10Mode::Raw
+        },
+        number_digits,
+    }
+}
 
 impl TrackSettings {
     pub fn from_config(cfg: &DetectConfig) -> Self {

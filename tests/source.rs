@@ -7,8 +7,8 @@ use std::process::Command;
 
 use dropscope::source::cine::{self, CineSource};
 use dropscope::source::cine_write::{CinePacking, CineSpec, CineWriter};
-use dropscope::source::folder::{FolderSource, ImageKind};
-use dropscope::source::frame_decode::FrameDecoder;
+use dropscope::source::folder::FolderSource;
+use dropscope::source::frame_decode::{FrameDecoder, ImageKind};
 use dropscope::source::{
     open, pcc_xml, Frame, FrameSource, FrameValues, OpenOptions, P10Mode, SourceError, SourceMeta,
 };
@@ -1541,7 +1541,7 @@ fn cine_tables(bytes: &[u8], layout: &cine::CineLayout) -> (Vec<f64>, Vec<f64>) 
     );
     let times = (0..n)
         .map(|i| {
-            cine::Time64 {
+            dropscope::source::index::Time64 {
                 fractions: u32_at(t + 8 * i),
                 seconds: u32_at(t + 8 * i + 4),
             }

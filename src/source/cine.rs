@@ -25,7 +25,7 @@ use std::sync::Arc;
 use ndarray::ArrayViewMut2;
 
 use super::colour::{self, Bayer};
-use super::index::{Stored, ValuesInFile};
+use super::index::{Stored, Time64, ValuesInFile};
 use super::p10_lut::P10_TO_LINEAR12;
 use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
 use crate::io_util::read_at;
@@ -99,24 +99,6 @@ impl CineStorage {
             CineStorage::Bgr24 => "24-bit BGR interpolated colour, bottom-up",
             CineStorage::Bgr48 => "48-bit BGR interpolated colour, bottom-up",
         }
-    }
-}
-
-/// TIME64: seconds since 1970-01-01 UTC in 32.32 fixed point (phantom.md §10).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Time64 {
-    pub fractions: u32,
-    pub seconds: u32,
-}
-
-impl Time64 {
-    /// `seconds<<32 | fractions` with the two flag bits of `fractions` cleared.
-    pub fn ticks(self) -> i128 {
-        (i128::from(self.seconds) << 32) | i128::from(self.fractions & !3)
-    }
-    /// `self − other` in seconds.
-    pub fn seconds_since(self, other: Time64) -> f64 {
-        (self.ticks() - other.ticks()) as f64 / 4_294_967_296.0
     }
 }
 

@@ -207,7 +207,7 @@ pub fn input_kind(path: &Path) -> Result<InputKind, SourceError> {
         return Ok(InputKind::Cine);
     }
     let what = match path.extension().and_then(|e| e.to_str()) {
-        Some(e) if folder::ImageKind::from_extension(e).is_some() => format!(
+        Some(e) if frame_decode::ImageKind::from_extension(e).is_some() => format!(
             "one frame file, give the folder that holds its sequence ({})",
             path.parent()
                 .filter(|p| !p.as_os_str().is_empty())

@@ -62,7 +62,7 @@ enum Command {
     /// Dimensionless groups, Ψ(Ξ) and Ω(Ξ) fits, exponents and plots from a drops.csv.
     Collapse {
         #[command(flatten)]
-        args: dropscope::collapse::CollapseArgs,
+        args: dropscope::collapse_job::CollapseArgs,
         /// When another job holds the output folder, wait for it to end.
         #[arg(long)]
         wait: bool,
@@ -376,10 +376,13 @@ fn speed(frames: usize, secs: f64, threads: usize) -> String {
 }
 
 /// `dropscope collapse`: groups, fits and plots; exit 1 when rows were skipped.
-fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow::Result<ExitCode> {
+fn run_collapse(
+    args: &dropscope::collapse_job::CollapseArgs,
+    wait: bool,
+) -> anyhow::Result<ExitCode> {
     let (cfg, name) = load_config(args.config.as_deref())?;
     let _held = hold_folder(&args.out_dir(), "collapse", &cfg, &[], wait)?;
-    let s = dropscope::collapse::run(args, &cfg, &name)?;
+    let s = dropscope::collapse_job::run(args, &cfg, &name)?;
     for w in &s.warnings {
         match &s.fits.few_drops {
             Some(note) if note == w => dropscope::errln!("note: {w}"),

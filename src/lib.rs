@@ -9,6 +9,7 @@
 //! | [`cli_values`] | command-line flag values checked as they are parsed (`--fps`, `--radius-mm`, …) |
 //! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
+//! | [`inspect`] | `dropscope inspect` and `dropscope export`: what an input holds, its frames as 16-bit PNG |
 //! | [`stage_settings`] | the stages' own settings from the configuration: how a recording is opened, detected and tracked |
 //! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
@@ -66,6 +67,7 @@ pub mod events;
 pub mod figures;
 pub mod flight;
 pub mod force;
+pub mod inspect;
 pub mod io_util;
 pub mod kinematics;
 pub mod leftovers;

@@ -9,6 +9,8 @@
 //! | [`diagnostics`] | per-drop flight parabolas and F = K δⁿ from `tracks/<run>.csv` |
 //! | [`output`] | `collapse.csv` and `fits.json` as bytes |
 //! | [`synthetic`] | drops with known laws (Eq. (8), pure power laws) for tests |
+//! | `types` | [`DropOutcome`]: one input row and what became of it |
+//! | `error` | [`CollapseError`] |
 //!
 //! The whole `dropscope collapse` command, which reads drops.csv and writes
 //! `collapse.csv`, `fits.json` and the figures into the output folder, is
@@ -16,59 +18,22 @@
 //! [`crate::per_drop`]'s.
 
 pub mod diagnostics;
+mod error;
 pub mod fit;
 pub mod groups;
 pub mod output;
 pub mod stats;
 pub mod synthetic;
+mod types;
 
-use std::path::{Path, PathBuf};
+pub use error::CollapseError;
+pub use types::DropOutcome;
+
+use std::path::Path;
 
 use crate::config::PipelineConfig;
-use crate::dataset::{self, DatasetError};
-use groups::{ContactRadius, DropGroups, SkipReason};
-
-/// Why the collapse could not run.
-#[derive(Debug, thiserror::Error)]
-pub enum CollapseError {
-    #[error(transparent)]
-    Dataset(#[from] DatasetError),
-    /// A row names a surface that the configuration does not define; the
-    /// message names the file, row, run, surface, configuration and known names.
-    #[error("{0}")]
-    UnknownSurface(String),
-    #[error("{path}: no drops in the file")]
-    Empty { path: PathBuf },
-    #[error("{path}: cannot write: {source}")]
-    Write {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error(transparent)]
-    Plot(#[from] crate::plot::PlotError),
-}
-
-/// One input row and what became of it.
-#[derive(Debug, Clone)]
-pub struct DropOutcome {
-    /// Line number in drops.csv (the header is line 1).
-    pub row: u64,
-    pub run: String,
-    pub sphere_radius_mm: f64,
-    pub surface: String,
-    pub groups: Result<DropGroups, SkipReason>,
-    /// False for a `tracked` run (no contact): not a drop, left out of the
-    /// collapse without being counted or listed as skipped.
-    pub candidate: bool,
-}
-
-impl DropOutcome {
-    /// A drop the collapse could have used and did not.
-    pub fn skipped(&self) -> bool {
-        self.candidate && self.groups.is_err()
-    }
-}
+use crate::dataset;
+use groups::ContactRadius;
 
 /// Compute the groups of every record (hard error only for an unknown surface).
 pub fn compute_groups(

@@ -71,19 +71,9 @@
 
 use super::background::{Background, FrameGain};
 use super::circle::{fit_circle, Circle, CircleFit, FitOptions, FitScratch};
-use super::surface::SurfaceLine;
+pub use super::types::EdgePoint;
+use super::types::SurfaceLine;
 use super::{Band, DetectError};
-
-/// One sub-pixel edge point of the silhouette, in frame pixels.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EdgePoint {
-    /// Column (px).
-    pub x_px: f64,
-    /// Row (px, grows downward).
-    pub z_px: f64,
-    /// Relative weight in fits (> 0; 0 excludes the point).
-    pub weight: f64,
-}
 
 /// Settings of [`edge_points`] and [`measure_circle`].
 #[derive(Debug, Clone, Copy, PartialEq)]

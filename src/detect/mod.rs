@@ -16,7 +16,7 @@
 //! | [`calibrate`] | R_px from the full-circle frames; the scale and its check against the manifest |
 //! | [`overlay`] | a picture of one frame's detection (frame, edge points, circle, surface line) |
 //! | [`synth`] | exact anti-aliased test scenes (disk, tilted pillar band) with known truth |
-//! | `types` | [`Band`]: the rows of a frame that detection reads |
+//! | `types` | what the stages hand each other: [`Band`], [`EdgePoint`], [`SurfaceLine`] |
 //! | `error` | [`DetectError`] |
 //!
 //! # Pixel convention
@@ -47,7 +47,6 @@ mod types;
 
 pub use background::Background;
 pub use circle::{fit_circle, hyper_fit, Circle, CircleFit, Covariance, FitOptions};
-pub use edges::{edge_points, measure_circle, EdgeParams, EdgePoint, EdgeScratch};
+pub use edges::{edge_points, measure_circle, EdgeParams, EdgeScratch};
 pub use error::DetectError;
-pub use surface::SurfaceLine;
-pub use types::Band;
+pub use types::{Band, EdgePoint, SurfaceLine};

@@ -13,8 +13,8 @@
 use image::RgbImage;
 
 use super::circle::Circle;
-use super::edges::EdgePoint;
-use super::surface::SurfaceLine;
+use super::types::EdgePoint;
+use super::types::SurfaceLine;
 use super::Band;
 
 /// Colours: fitted circle, edge points, surface line.

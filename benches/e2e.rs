@@ -1,4 +1,4 @@
-//! End to end (issue 16): frames/s of `dropscope process` — every output
+//! End to end: frames/s of `dropscope process` — every output
 //! written: `drops.csv`, `tracks/`, the overlays — beside the plain decode
 //! rate of the same frames in the same run, for one long 8-bit TIFF movie,
 //! a campaign of short drops, a 10 000-frame `.cine`, a 31 000-frame

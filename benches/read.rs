@@ -1,12 +1,12 @@
-//! Frame-reading speed (issue 3): a 2 000-frame 512×384 8-bit TIFF folder,
+//! Frame-reading speed: a 2 000-frame 512×384 8-bit TIFF folder,
 //! the same frames as PNG, and a 16-bit `.cine`, in frames/s on 1 and 2
 //! threads, beside a plain memory copy of the same bytes in the same run
 //! and, for PNG, the `image` crate's own decoder. Every rate is given by
 //! the wall clock and per CPU second of the threads that did the work (the
 //! machine is shared: the CPU figure is what an unshared core delivers).
 //! Sources are opened before the clock starts, like the copy's buffer; the
-//! time to open each input (a folder reads every file's header) is printed
-//! on its own.
+//! time to open each input (a folder lists its files and reads the first
+//! frame's header) is printed on its own.
 //!
 //!     cargo bench --bench read            (DROPSCOPE_BENCH_FRAMES=N to change 2000)
 //!
@@ -165,7 +165,7 @@ fn time_source(path: &Path, n: usize, threads: usize) -> Rate {
     )
 }
 
-/// Seconds to open `path` (a folder reads every file's header).
+/// Seconds to open `path` (a folder lists its files and reads the first frame's header).
 fn time_open(path: &Path) -> f64 {
     let t0 = Instant::now();
     let src = open(path, &bench_options()).expect("open");

@@ -1,4 +1,4 @@
-//! Speed of detect + track (issue 4, stage 7) on 512×384 8-bit frames
+//! Speed of detect + track on 512×384 8-bit frames
 //! already in memory, 1 and 2 threads.
 //!
 //!     cargo bench --bench track

@@ -1,5 +1,5 @@
 //! Why the coarse detector labels its own connected components instead of
-//! calling `imageproc` (issue 17 item 9): times `detect_coarse` whole
+//! calling `imageproc`: times `detect_coarse` whole
 //! (threshold against the background, largest 4-connected group, outline,
 //! robust circle fit) against `imageproc`'s thresholding plus
 //! `connected_components` alone on the same 512 × 384 8-bit frame, which

@@ -11,7 +11,7 @@
 //! and of the surface, and a second pass fits the centre with R_px held.
 //! Prints per-run and pooled statistics of the centre-row error in free
 //! flight and in contact, the radius and surface errors and the σ coverage.
-//! (A stand-in for the tracker of issue 4 stage 7: no FrameSource, no
+//! (A stand-in for the tracker in `track.rs`: no FrameSource, no
 //! ballistic prediction beyond constant velocity.)
 
 use dropscope::detect::background::{Background, GainRegion};

@@ -1,5 +1,5 @@
 //! Why the overlay drawing and the renderer's Gaussian blur are hand-written
-//! instead of calling `imageproc` (issue 17 item 9; the coarse detector's
+//! instead of calling `imageproc` (the coarse detector's
 //! labelling is compared in `coarse_vs_imageproc.rs`).
 //!
 //! Overlay: a 512 × 384 8-bit frame enlarged 3× with a fitted circle, a

@@ -15,7 +15,7 @@ t=$1
 runs=${2:-10000000}
 shift; [ $# -gt 0 ] && shift
 case $t in
-  pcc_xml) len=1048576 ;;     # room for 100 000 nested elements (issue 14)
+  pcc_xml) len=1048576 ;;     # room for 100 000 nested elements
   cine_header) len=32768 ;;   # the seeds are small whole cines of 11 kB
   photron) len=32768 ;;       # a .cihx is 5–60 kB; the seeds are 1–2 kB
   folder_frame) len=65536 ;;

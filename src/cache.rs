@@ -1,4 +1,4 @@
-//! The main job's per-run result cache (issue 7).
+//! The main job's per-run result cache.
 //!
 //! Each finished run leaves `<out>/runs/<run>.json`: its `drops.csv` record,
 //! the output files it wrote and the key it was computed under. The key is

@@ -307,7 +307,7 @@ pub const DEFAULT_EDGE_OFFSET_SPREAD_PX: f64 = 0.1;
 
 /// The default `camera.distortion_bound_px`: the barrel distortion of the
 /// macro lenses this experiment is filmed with reaches about half a pixel
-/// at the corners of a 512 × 384 frame (issue 13's realistic footage).
+/// at the corners of a 512 × 384 frame (realistic footage).
 pub const DEFAULT_DISTORTION_BOUND_PX: f64 = 0.5;
 
 #[derive(Debug, Clone, PartialEq, Serialize)]

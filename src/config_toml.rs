@@ -57,8 +57,8 @@ mod tests {
     use crate::config::{PipelineConfig, EMBEDDED_DEFAULT};
     use std::path::Path;
 
-    /// Issue 17 item 8: check-config printed a Rust debug dump whose names
-    /// (`radius_m`, `surfaces`) were not the file's keys.
+    /// check-config prints TOML with the file's keys, not a Rust debug
+    /// dump whose names (`radius_m`, `surfaces`) are not the file's keys.
     #[test]
     fn the_printed_toml_reads_back_as_the_same_configuration() {
         let text = EMBEDDED_DEFAULT.replace("# radius_mm = 4.5", "radius_mm = 4.5");

@@ -429,7 +429,7 @@ pub struct TrackRow {
 /// `surface_source`, `distortion_source`, `force_model`, `flags` and
 /// `reason` a row without one. A word, never
 /// an empty field, so that a reader takes the column as text in every file
-/// (pandas read an all-empty column as float64, issue 17).
+/// (pandas reads an all-empty column as float64).
 pub const NO_TEXT: &str = "-";
 
 /// A text cell: no control or format character, and nothing a spreadsheet
@@ -540,7 +540,7 @@ pub fn read_csv(path: &Path) -> Result<Vec<DropRecord>, DatasetError> {
 mod tests {
     use super::*;
 
-    /// Issue 17 item 4: `collapse missing.csv` said "row 0: ...".
+    /// `collapse missing.csv` names the file, not a "row 0".
     #[test]
     fn a_missing_file_is_named_without_a_row() {
         let e = read_csv(Path::new("no/such/drops.csv"))

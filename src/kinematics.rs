@@ -260,10 +260,13 @@ pub fn kinematics(
         a_geom_m: m(7),
         // The free-radius circle at the peak fits a silhouette smeared over
         // the positions of the exposure, |z̈|·T²/8 apart; the radius absorbs
-        // up to that range, which is added to a_max's error as a systematic term.
+        // some part of that range, unknown between none and all of it: a
+        // systematic term of the range's standard deviation as a uniform
+        // one, L/√12, goes into a_max's error.
         a_max_m: hw_fit.as_ref().map(|_| {
             let mut a = m(8);
             let smear_m = ev.peak.poly.deriv2(base[9]).abs() * exposure_s * exposure_s / 8.0
+                / 12f64.sqrt()
                 * geom.mm_per_px
                 * 1e-3;
             a.err = a.err.hypot(smear_m);

@@ -1,4 +1,4 @@
-//! An earlier job's leftovers in the output folder (issue 17): when a job
+//! An earlier job's leftovers in the output folder: when a job
 //! into a folder has fewer runs than the one before it (or a run now writes
 //! fewer files: it failed, or no `--overlay-frames`), the earlier job's
 //! tracks, overlays and animations of those runs would stay beside the new

@@ -1,5 +1,4 @@
-//! One job at a time per output folder (issue 14), shards of one job
-//! together (issue 15).
+//! One job at a time per output folder, shards of one job together.
 //!
 //! A command that writes into an output folder first takes a ticket in
 //! `<out>/.dropscope.lock/`: a file `NNNNNNNNNN.json` holding the holder's

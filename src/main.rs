@@ -669,8 +669,8 @@ fn error_text(e: &anyhow::Error) -> String {
 /// figures' pixels) get their own mapping, returned to the system when
 /// freed. glibc's default threshold rises as large blocks are freed, after
 /// which they come from its heaps and their pages stay resident: a
-/// 62 166-frame movie peaked at 56–62 MB instead of 49 (docs/performance.md,
-/// session 11). Smaller blocks, frames at 512 × 384 among them, stay in the
+/// 62 166-frame movie peaks at 56–62 MB instead of 49 without this.
+/// Smaller blocks, frames at 512 × 384 among them, stay in the
 /// heaps and are reused (at 128 kB the campaign's system time doubled).
 fn map_large_blocks() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]

@@ -448,9 +448,8 @@ mod tests {
         assert!(e.contains("no run"), "{e}");
     }
 
-    /// The new-user audit's cases: each message names the file, the row,
-    /// the column and the text found (it said "row 2: invalid float
-    /// literal", the same for every column).
+    /// Each message names the file, the row, the column and the text found
+    /// (not "row 2: invalid float literal", the same for every column).
     #[test]
     fn bad_values_name_the_column_and_the_text() {
         for (text, want) in [

@@ -1553,14 +1553,13 @@ fn distortion_systematic(record: &mut DropRecord, shift: &crate::lens::Shift) {
     record.distortion_tau_c_ms = Some(shift.tau_c_ms);
 }
 
-/// How far the silhouette's edge offset may differ between the flight,
-/// where it is measured, and the peak, where a_max uses it (motion smear,
-/// the lower outline hidden in contact), px. With the half-width's peak
-/// fitted as the penetration's is, a_max is within 0.04 % of the truth on
-/// the `realistic` renders with contacts beyond the model (120 drops; the
-/// edge 0.003 px off at the median, 0.008 px at the 95th percentile) and
-/// within 0.07 % on the independent ones (12 drops).
-pub const A_MAX_EDGE_SYSTEMATIC_PX: f64 = 0.008;
+/// The standard deviation of the difference between the silhouette's edge
+/// offset in the flight, where it is measured, and at the peak, where a_max
+/// uses it (motion smear, the lower outline hidden in contact), px. On the
+/// `realistic` renders with contacts beyond the model (120 drops) that
+/// difference is 0.003 px at the median and 0.008 px at the 95th
+/// percentile: a normal spread of 0.0045 px gives both (0.67σ and 1.96σ).
+pub const A_MAX_EDGE_SYSTEMATIC_PX: f64 = 0.0045;
 
 /// Add to a_max's error what is common to every frame of the peak and so
 /// not in its fit's: the surface row's error (∂a/∂y_s = (R − δ)/a) and the

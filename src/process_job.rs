@@ -124,9 +124,9 @@ fn run_on_pool(
     let id = crate::dataset_id::of_bytes(&drops);
     // The per-drop figures are drawn from the tracks while the runs' files
     // are synced and drops.csv and provenance.json written; they are
-    // written after, as before. The syncs wait on the disk on a thread of
-    // their own: on one of the pool's they held it, and a single drop's
-    // figures (their SVG and PNG drawn at once) had one thread.
+    // written after drops.csv. The syncs wait on the disk on a thread of
+    // their own: on one of the pool's they would hold it, and a single
+    // drop's figures (their SVG and PNG drawn at once) would have one thread.
     let mut ledger = Ledger::open(out);
     let (written, drawn) = std::thread::scope(|scope| {
         let ledger = &mut ledger;

@@ -1,6 +1,6 @@
 //! A run's per-frame records, held in memory up to a budget and past it in
 //! an unnamed temporary file, so that what a long movie's tracker holds
-//! does not grow with its length (issue 16). Records are appended in the
+//! does not grow with its length. Records are appended in the
 //! frames' order, then read back a block at a time: walked in order,
 //! updated block by block, or one at a time. A record is stored as the bits
 //! of its fields, so what is read back is the same value; each kind of

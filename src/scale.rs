@@ -862,7 +862,7 @@ mod tests {
             "{rows:?}"
         );
         assert!(rows.rel_err() < 1e-4, "{rows:?}");
-        // A small track takes the dense fit: the same bits as before.
+        // A small track takes the dense fit: the same bits as the dense QR.
         let short = bounces(g_px, 2, 300);
         let segments = flight_segments(short.iter().copied(), row_at, 40.0);
         assert_eq!(

@@ -45,7 +45,7 @@ pub const SURFACE_SLOPE_TOL: f64 = 2.5e-3;
 
 /// The silhouette's edge offset (a polished ball's light rim and halo)
 /// differs between drops of one set-up by up to this (px): 0.1–0.5 px small
-/// on issue 13's footage, 0.46 px at most between two drops of one set-up
+/// on realistic footage, 0.46 px at most between two drops of one set-up
 /// on 120 `--preset real` drops.
 pub const EDGE_SPREAD_PX: f64 = 0.5;
 

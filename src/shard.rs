@@ -1,4 +1,4 @@
-//! One job split over many processes (issue 15): `dropscope run --shard K/N`
+//! One job split over many processes: `dropscope run --shard K/N`
 //! takes the K-th of N shares of the configured runs.
 //!
 //! The shares are balanced by frame count and depend only on the run list
@@ -14,7 +14,8 @@ use std::path::Path;
 
 /// Frames a run is counted for on top of its frames: its fixed cost
 /// (background, surface line, fits, figures) weighs about as much as 100
-/// frames of a rendered drop (README, tracking speed).
+/// frames of a rendered drop (docs/performance.md, the `track` bench's
+/// fixed cost a run against its cost a frame).
 pub const FIXED_COST_FRAMES: u64 = 100;
 
 /// The K-th (`index`, from 0) of `count` shares.

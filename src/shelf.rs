@@ -1,4 +1,4 @@
-//! Tracks kept on a shelf between a job's two looks at its runs (issue 16).
+//! Tracks kept on a shelf between a job's two looks at its runs.
 //!
 //! With `camera.infer_setups`, [`crate::process::prepare`] tracks every run
 //! without a `setup` to read its scene; the runs are then processed by

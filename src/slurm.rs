@@ -1,4 +1,4 @@
-//! `dropscope slurm`: the main job on a Slurm cluster (issue 15) — an
+//! `dropscope slurm`: the main job on a Slurm cluster — an
 //! array job whose tasks are the shards (`run --shard slurm`, see
 //! [`crate::shard`]), and a finishing job (`run`) that Slurm starts only
 //! after every task succeeded (`--dependency=afterok`), which finds every

@@ -1,4 +1,4 @@
-//! `--timings` (issue 16): where a job's time goes, stage by stage. Each
+//! `--timings`: where a job's time goes, stage by stage. Each
 //! stage's work is wrapped in [`time`]; with timings on ([`enable`]), its
 //! wall time and its thread's CPU time are summed over every run and
 //! thread, and [`table`] prints them after the job. With timings off,

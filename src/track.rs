@@ -1,4 +1,4 @@
-//! Tracking: from a frame source to the sphere's trajectory (issue 4, stage 7).
+//! Tracking: from a frame source to the sphere's trajectory.
 //!
 //! 1. The background and flicker reference from frames spread evenly over the
 //!    movie (the sphere may be in view in some or all of them: it moves, so
@@ -2628,7 +2628,7 @@ mod tests {
         assert_eq!(kept.reread_frames, 0);
         // recentre_px = 0 sends every frame of pass 2 back to the frame
         // (measured afresh around its free circle with the radius held),
-        // as before the points were kept.
+        // as without kept points.
         let fresh_st = TrackSettings {
             edge: EdgeParams {
                 recentre_px: 0.0,
@@ -2663,7 +2663,7 @@ mod tests {
              σ_z {:.5}..{:.5} px",
             worst.0, worst.1, worst.2, worst.3, sigma_z.0, sigma_z.1
         );
-        // Both well within the issue's free-flight 95th percentile (0.06
+        // Both well within the free-flight 95th-percentile target (0.06
         // px; measured max 0.015 px for either, x or z), and alike: the
         // schemes sample the same frame, with windows placed up to ~0.5 px
         // apart along the normals, which the estimator does not see, so
@@ -2799,8 +2799,8 @@ mod tests {
     #[test]
     fn a_frames_record_stays_within_its_bytes() {
         // A long movie's track holds one record a frame, pass 1 one `Kept`:
-        // most of what its memory grows by (docs/performance.md, session
-        // 11: 256 + 56 bytes a frame; 336 + 56 before).
+        // most of what its memory grows by (docs/performance.md: 256 + 56
+        // bytes a frame).
         let (record, kept) = (
             std::mem::size_of::<FrameTrack>(),
             std::mem::size_of::<Option<Kept>>(),

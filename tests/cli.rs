@@ -158,7 +158,7 @@ fn a_job_started_from_another_folder_reuses_the_cached_runs() {
 }
 
 /// `dropscope` alone takes `run`'s options, as the README shows them
-/// (issue 17 item 3: `dropscope --force` said "unexpected argument").
+/// (`dropscope --force` is not an "unexpected argument").
 #[test]
 fn the_main_job_takes_runs_options_without_the_subcommand() {
     let dir = tempfile::tempdir().unwrap();
@@ -404,8 +404,8 @@ fn inspect_and_export_without_any_fps_say_where_to_set_it() {
     assert!(dir.path().join("out/run_0.png").is_file());
 }
 
-/// Issue 17 item 4: outside the checkout, `dropscope` said
-/// "fixtures/runs.csv: No such file … (os error 2): No such file … (os error 2)".
+/// Outside the checkout, `dropscope` says what to do, and says it once,
+/// not "fixtures/runs.csv: No such file … (os error 2): No such file … (os error 2)".
 #[test]
 fn outside_the_checkout_the_errors_say_what_to_do_once() {
     let dir = tempfile::tempdir().unwrap();
@@ -505,7 +505,7 @@ fn the_advice_outside_the_checkout_saves_a_configuration_to_start_from() {
     assert_eq!(out.status.code(), Some(2));
 }
 
-/// `--radii-mm 3 5 7` as `render --help` shows its default (issue 17 item 8).
+/// `--radii-mm 3 5 7` as `render --help` shows its default.
 #[test]
 fn list_options_take_spaces_as_well_as_commas() {
     let dir = tempfile::tempdir().unwrap();
@@ -530,8 +530,8 @@ fn list_options_take_spaces_as_well_as_commas() {
 }
 
 /// The grid's options without `--campaign`, or a single drop's beside
-/// `--drop`, were silently ignored (`render --radii-mm 3 5 7 --out D`
-/// rendered the one default 4.5 mm drop): now refused, naming the option.
+/// `--drop`, are refused, naming the option, rather than silently ignored
+/// (`render --radii-mm 3 5 7 --out D` rendering the one default 4.5 mm drop).
 /// One drop is "1 drop", not "1 drops".
 #[test]
 fn render_refuses_options_it_would_ignore() {
@@ -583,8 +583,8 @@ fn process_help_says_a_folder_of_runs_is_an_input() {
     );
 }
 
-/// `process` on a folder of run folders finds the runs (issue 17 item 7:
-/// it said "no numbered frames"), and counts "with warnings" apart.
+/// `process` on a folder of run folders finds the runs (rather than
+/// saying "no numbered frames"), and counts "with warnings" apart.
 #[test]
 fn process_finds_the_runs_in_a_folder_of_run_folders() {
     let dir = tempfile::tempdir().unwrap();
@@ -758,9 +758,9 @@ fn a_missing_requirement_names_its_alternatives() {
 }
 
 /// A configuration whose `input.manifest` is not there: `check-config`
-/// said "valid", and the main job then said only
-/// "fixtures/runs.csv: No such file or directory". Both now name the key,
-/// the path as resolved and the configuration file, exit 2. The built-in
+/// and the main job both name the key, the path as resolved and the
+/// configuration file, exit 2 (not "valid", nor only
+/// "fixtures/runs.csv: No such file or directory"). The built-in
 /// default outside the checkout gets a warning saying how to start a
 /// configuration, and is still printed.
 #[test]

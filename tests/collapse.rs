@@ -481,10 +481,10 @@ fn fan(svg: &str) -> Fan {
     }
 }
 
-/// Issue 17: the guide slopes looked bent (drawn through 21 points rounded
-/// to pixels, each dash kinked where it crossed one: up to 1.0 px off a
-/// straight line), and with no corner free the legend, in a band above the
-/// data, covered the guides' start. On a campaign-like dataset (five
+/// The guide slopes must not look bent (drawn through 21 points rounded
+/// to pixels, each dash kinks where it crosses one: up to 1.0 px off a
+/// straight line), nor the legend, in a band above the data when no corner
+/// is free, cover the guides' start. On a campaign-like dataset (five
 /// radii whose points fill both lower corners): every guide is a straight
 /// dashed line (each dash two points, all within 0.71 px of one line), and
 /// no dash nor label is under the legend.
@@ -564,8 +564,8 @@ fn guide_slopes_are_straight_and_clear_of_the_legend() {
 }
 
 /// The legend keeps clear of the error bars, not only of the markers: on
-/// the fixtures' three drops the Ω(Ξ) legend lay over the 3 mm drop's
-/// one-sigma bar (issue 17, the report's first screen).
+/// the fixtures' three drops the Ω(Ξ) legend could lie over the 3 mm
+/// drop's one-sigma bar (the report's first screen).
 #[test]
 fn the_legend_keeps_clear_of_the_error_bars() {
     let dir = tempfile::tempdir().unwrap();
@@ -781,8 +781,8 @@ fn flight_parabolas_of_a_track_have_free_fall_curvature() {
 }
 
 /// The figure and fits keep only a track's frames with a centre, a
-/// penetration or contact (issue 16: a long movie's whole track read back
-/// was its peak memory): frames without any — before the sphere enters,
+/// penetration or contact (a long movie's whole track read back would be
+/// its peak memory): frames without any — before the sphere enters,
 /// after it leaves, missed in between — change neither its fits nor a byte
 /// of its figure.
 #[test]
@@ -842,7 +842,7 @@ fn untracked_frames_change_neither_the_fits_nor_the_figure() {
     assert_eq!(bare, with_gaps);
 }
 
-/// Issue 17 item 1: `collapse` writes beside its drops.csv, and the report
+/// `collapse` writes beside its drops.csv, and the report
 /// refuses a folder holding two datasets' files instead of mixing them.
 #[test]
 fn outputs_of_two_datasets_cannot_be_mixed() {
@@ -910,7 +910,7 @@ fn outputs_of_two_datasets_cannot_be_mixed() {
     assert_eq!(code, Some(0), "{text}");
 }
 
-/// Issue 17 item 2: a series fitted far from Ξ = 0 reads its constant term
+/// A series fitted far from Ξ = 0 reads its constant term
 /// by extrapolation; fits.json, the report's fits section and the figure
 /// say so, and lead with the exponents and fixed-exponent constants.
 #[test]
@@ -955,7 +955,7 @@ fn a_series_far_from_zero_is_called_an_extrapolation() {
     assert!(!svg.contains("EXTRAPOLATED"));
 }
 
-/// Issue 17 item 5: with no drop to show, a figure says so instead of
+/// With no drop to show, a figure says so instead of
 /// drawing axes over nothing.
 #[test]
 fn figures_without_data_say_so() {

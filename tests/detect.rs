@@ -9,10 +9,10 @@
 //! frames; the prediction handed to the measurement is the truth moved by up
 //! to ±1.5 px in each coordinate (and ±1 px in radius).
 //!
-//! Tolerances: the accuracy tests assert the issue's targets (centre row
+//! Tolerances: the accuracy tests assert the detector's targets (centre row
 //! median ≤ 0.02 px and 95th percentile ≤ 0.06 px in free flight, 0.03 /
 //! 0.08 px on the arc above the surface, R error ≤ 0.02 px, |e| ≤ 2σ in
-//! ≥ 90 % of frames). Measured values are 3–5× better (see the README), so
+//! ≥ 90 % of frames). Measured values are 3–5× better (docs/accuracy.md), so
 //! a failure means a real regression, not an unlucky seed.
 
 use dropscope::detect::background::{Background, GainRegion};
@@ -308,7 +308,7 @@ fn centre_uncertainty_is_honest() {
         100.0 * frac,
         t.len()
     );
-    // ≥ 90 % (a Gaussian gives 95.4 %) — the issue's requirement; and σ
+    // ≥ 90 % (a Gaussian gives 95.4 %) — the coverage target; and σ
     // neither understated nor inflated: the rms of e/σ within [0.7, 1.4]
     // (measured ≈ 1.0).
     assert!(frac >= 0.90, "{frac}");
@@ -391,7 +391,7 @@ fn surface_line_with_tilt_is_found_to_003_px() {
                 line.sigma_row_at(x),
                 line.n_used
             );
-            // 0.03 px: the issue's target for the surface row.
+            // 0.03 px: the target for the surface row.
             assert!(err.abs() <= 0.03, "{err}");
         }
         assert!(
@@ -747,7 +747,8 @@ fn rendered_drop_meets_the_issue_targets() {
     // static dust), everything found from the images: background with the
     // sphere in view from the first frame, surface line, coarse circle,
     // per-frame sub-pixel circle, R_px from the full-circle frames, then
-    // the centre with R_px held. Targets of issue 4.
+    // the centre with R_px held. The tolerances below are the detector's
+    // accuracy targets.
     let dir = tempfile::tempdir().unwrap();
     let status = std::process::Command::new(env!("CARGO_BIN_EXE_dropscope"))
         .args([
@@ -803,7 +804,7 @@ fn rendered_drop_meets_the_issue_targets() {
     let surface = fit_surface(&bg, &SurfaceParams::default()).unwrap();
     let xi = truth.impact_column_px;
     let s_err = surface.row_at(xi) - (truth.surface_row_px + truth.surface_slope * xi);
-    // Surface row at the impact column: the issue's 0.03 px (measured ~0.002).
+    // Surface row at the impact column: the 0.03 px target (measured ~0.002).
     assert!(s_err.abs() <= 0.03, "surface error {s_err}");
 
     let params = EdgeParams::default();
@@ -831,7 +832,7 @@ fn rendered_drop_meets_the_issue_targets() {
         dropscope::detect::calibrate::calibrate_radius(&free, w, h, Some(&surface), &params, 5)
             .expect("at least 5 full-circle frames");
     let r_px = cal.r_px;
-    // R_px: the issue's 0.02 px (measured ~0.001).
+    // R_px: the 0.02 px target (measured ~0.001).
     assert!(
         (r_px - truth.radius_px).abs() <= 0.02,
         "R_px {r_px} vs {}",
@@ -975,11 +976,11 @@ fn a_column_window_measures_what_whole_rows_do() {
 
 /// A sensor's column fixed pattern — a gain per column, here 3 % rms — is in
 /// every frame and in the background alike and cancels pixel by pixel: the
-/// edge points divide each sample by its own background. (With `1/B`
-/// interpolated linearly between a window's ends it stayed in every sample of
-/// a window crossing columns: the edge points moved by 0.17 px rms, 0.37 px
-/// at worst, on this disk; now 0.002 px rms, 0.005 at worst, the 12-bit
-/// rounding of the patterned frames.) Noise-free frames, blur σ = 1 px.
+/// edge points divide each sample by its own background: 0.002 px rms, 0.005
+/// at worst, the 12-bit rounding of the patterned frames. (With `1/B`
+/// interpolated linearly between a window's ends it would stay in every
+/// sample of a window crossing columns: the edge points move by 0.17 px rms,
+/// 0.37 px at worst, on this disk.) Noise-free frames, blur σ = 1 px.
 #[test]
 fn a_column_gain_pattern_cancels_in_the_edge_points() {
     let look = Look {

@@ -1,4 +1,4 @@
-//! Hostile and damaged input (issue 14): each case is made here from a
+//! Hostile and damaged input: each case is made here from a
 //! fixture drop or written from scratch, and must give a clear error, a
 //! warning with its flag, or a failed row — never a panic, a hang, a
 //! write outside the output folder, or a wrong number marked ok.
@@ -158,8 +158,8 @@ fn by<'a>(rows: &'a [DropRecord], run: &str) -> &'a DropRecord {
 
 /// Corrupt frame times, frame rates and exposures, in PCC folders and in
 /// cines: each run fails with the file and the problem named, beside a
-/// good run that is measured. Before issue 14 the reversed times panicked
-/// (`f64::clamp`, exit 101, no drops.csv) and the exposures gave
+/// good run that is measured. Unchecked, the reversed times panic
+/// (`f64::clamp`, exit 101, no drops.csv) and the exposures give
 /// δmax = 1.7e6 mm with status ok.
 #[test]
 fn corrupt_times_rates_and_exposures_fail_their_run_only() {
@@ -327,7 +327,7 @@ fn a_run_name_with_dot_dot_writes_nothing_outside_the_output_folder() {
     let d = dir.path();
     let work = d.join("a/b");
     std::fs::create_dir_all(&work).unwrap();
-    // What a failing run named ../../x used to delete: <out>/tracks/../../x.csv.
+    // What a failing run named ../../x must not delete: <out>/tracks/../../x.csv.
     let victim = work.join("x.csv");
     std::fs::write(&victim, b"keep me").unwrap();
     let manifest = work.join("runs.csv");
@@ -436,7 +436,7 @@ fn named_pipes_are_not_opened() {
 
 /// What weakens a measurement is flagged, with status `warning` and a
 /// reason, never `ok`: frames 10–19 of a drop deleted (the contact's middle:
-/// δmax came out 0.8 % off, marked ok, before issue 14), a movie starting
+/// δmax comes out 0.8 % off, which must not pass as ok), a movie starting
 /// 7 frames before contact, a background clipped at white, a manifest
 /// scale 5 % off and a manifest fps that contradicts the file. An
 /// unrelated non-UTF-8 `notes.xml` beside the frames changes nothing.

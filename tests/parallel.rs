@@ -1,4 +1,4 @@
-//! One movie on several threads (issue 16): chunks of a long movie are
+//! One movie on several threads: chunks of a long movie are
 //! tracked ahead by other threads and stitched to the track that one thread
 //! makes, so the track and every output file are the same bytes whatever
 //! the number of threads.

@@ -371,11 +371,10 @@ fn a_million_frame_side_file_reads_as_a_stream() {
     as_the_tree(&small, "3 000 generated frames").unwrap();
 }
 
-/// The tree reader the stream replaced (src/source/pcc_xml.rs at ad11859,
-/// roxmltree), but for its size and depth checks made before parsing, an
-/// element's value read across comments and processing instructions
-/// ([`reference::value`]) and a value given twice differently refused: the
-/// reference the stream is held to.
+/// A tree reader over roxmltree, the reference the stream is held to: it
+/// checks size and depth before parsing, reads an element's value across
+/// comments and processing instructions ([`reference::value`]) and refuses
+/// a value given twice differently.
 mod reference {
     use dropscope::source::pcc_xml::{local_seconds, PccXml};
 

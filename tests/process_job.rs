@@ -1,4 +1,4 @@
-//! `dropscope process` as a user runs it (issue 17 item 7): the result
+//! `dropscope process` as a user runs it: the result
 //! cache and `--force`, `--threads`, one line per run with its own speed
 //! off a terminal and bars on one, "with warnings" counted apart, and the
 //! per-drop figures written without a collapse.
@@ -157,8 +157,8 @@ fn process_draws_the_per_drop_figures_without_a_collapse() {
             .unwrap()
             .to_rgb8();
         assert!(png.width() > 1000, "{run}");
-        // Nothing runs off the figure's right edge: the F(δ) legend was
-        // clipped there ("K = 4.04 N" of "K = 4.04 N/mm^n", issue 17).
+        // Nothing runs off the figure's right edge, where a long F(δ)
+        // legend would be clipped ("K = 4.04 N" of "K = 4.04 N/mm^n").
         let (w, h) = png.dimensions();
         let inked = (w - 6..w)
             .flat_map(|x| (0..h).map(move |y| (x, y)))
@@ -173,8 +173,7 @@ fn process_draws_the_per_drop_figures_without_a_collapse() {
 }
 
 /// The overlay at δmax carries its caption band with a scale bar of the
-/// drop's own scale, and the animated impact covers the whole contact
-/// (issue 17 item 5 and "What to build").
+/// drop's own scale, and the animated impact covers the whole contact.
 #[test]
 fn overlays_have_a_scale_bar_and_the_impact_is_animated() {
     let dir = tempfile::tempdir().unwrap();
@@ -224,7 +223,7 @@ fn overlays_have_a_scale_bar_and_the_impact_is_animated() {
 }
 
 /// `render` of one drop writes its runs.csv too, and drops.csv keeps the
-/// manifest's drop height and the run's input path (issue 17 item 8).
+/// manifest's drop height and the run's input path.
 #[test]
 fn one_rendered_drop_has_a_manifest_and_drops_csv_keeps_height_and_path() {
     let dir = tempfile::tempdir().unwrap();
@@ -383,10 +382,9 @@ fn a_rerun_with_fewer_runs_leaves_no_file_of_the_earlier_job() {
     succeeded(dropscope().arg("report").arg(&out));
 }
 
-/// Issue 17 item 8: a track whose frames have no flag wrote an empty
-/// `flags` column, which pandas reads as float (text in the other files).
-/// Every frame's field is now a word — `-` for none — and reads back as no
-/// flag.
+/// A track whose frames have no flag must not write an empty `flags`
+/// column, which pandas reads as float (text in the other files): every
+/// frame's field is a word — `-` for none — and reads back as no flag.
 #[test]
 fn the_tracks_flags_column_is_text_in_every_file() {
     let dir = tempfile::tempdir().unwrap();
@@ -431,7 +429,7 @@ fn the_tracks_flags_column_is_text_in_every_file() {
 /// The animated impact can be turned off, by `--no-animation` (process
 /// and the main job) or by `output.animation = false`: no
 /// `plots/impacts/<run>.png` (an earlier job's is removed), the still
-/// overlay as before, and no "▶ impact" link in the report.
+/// overlay unchanged, and no "▶ impact" link in the report.
 #[test]
 fn the_animation_can_be_turned_off() {
     let dir = tempfile::tempdir().unwrap();
@@ -509,10 +507,10 @@ fn snapshot(dir: &Path) -> std::collections::BTreeMap<PathBuf, Option<Vec<u8>>> 
     all
 }
 
-/// The audit's typo: `process d1/R4.5mm_H12cm_01_typo --out wipe` into a
-/// folder holding a finished process and collapse removed those results
-/// and wrote a drops.csv of one failed row (exit 1). An INPUT that does not
-/// exist, or cannot be a run, is now refused before the output folder is
+/// A typo such as `process d1/R4.5mm_H12cm_01_typo --out wipe` into a
+/// folder holding a finished process and collapse must not remove those
+/// results for a drops.csv of one failed row. An INPUT that does not
+/// exist, or cannot be a run, is refused before the output folder is
 /// touched: exit 2, the path named, every file of the folder as it was —
 /// also beside a good INPUT, and into a folder not yet there (not made).
 #[test]
@@ -571,8 +569,8 @@ fn a_mistyped_input_stops_before_the_output_folder_is_touched() {
 /// A manifest none of whose inputs is there (its drive not mounted, or it
 /// was moved without its runs) stops `process` and the main job with exit
 /// 2 before the output folder is touched: a job that measured nothing
-/// replaced the earlier results with rows of failures and removed their
-/// collapse. One input missing among others is still that run's failed row.
+/// would replace the earlier results with rows of failures and remove
+/// their collapse. One input missing among others is still that run's failed row.
 #[test]
 fn a_manifest_whose_inputs_are_all_missing_touches_nothing() {
     let dir = tempfile::tempdir().unwrap();
@@ -645,9 +643,9 @@ fn a_manifest_whose_inputs_are_all_missing_touches_nothing() {
 }
 
 /// A run is named after its folder, dots and all, or its `.cine` file less
-/// `.cine`: a cine saved without that extension (found by its magic) was
-/// cut at its first dot, `R4.5mm_H12cm_02` named `R4`, as was a path that
-/// is not there (`R4.5mm_H12cm_01_typo` was `R4`; now refused).
+/// `.cine`: a cine saved without that extension (found by its magic) is
+/// not cut at its first dot (`R4.5mm_H12cm_02`, not `R4`), and a path that
+/// is not there (`R4.5mm_H12cm_01_typo`) is refused.
 #[test]
 fn runs_are_named_after_their_whole_folder_name() {
     let dir = tempfile::tempdir().unwrap();

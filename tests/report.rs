@@ -209,7 +209,7 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
         );
     }
 
-    // Issue 17 item 5, in a 1400 px window as a user opens it: every text
+    // In a 1400 px window as a user opens it: every text
     // of the inline plots (tick labels are the smallest) renders at 11 px
     // or more, and every plotted point has a hover text (SVG <title>)
     // naming its run.
@@ -311,7 +311,7 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
     assert!(std::fs::read(&page).unwrap() == std::fs::read(copy.join("report.html")).unwrap());
 }
 
-/// Issue 17: a report for an archive. 1 000 drops (the three fixture drops'
+/// A report for an archive. 1 000 drops (the three fixture drops'
 /// rows and pictures repeated under new names, every 50th failed, every
 /// 7th with a warning) give a page of a few MB (inline thumbnails, the
 /// full pictures as files beside it) that Chromium renders whole; its

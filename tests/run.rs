@@ -1,4 +1,4 @@
-//! The main job as users run it (`dropscope run`, issue 7): bad runs mixed
+//! The main job as users run it (`dropscope run`): bad runs mixed
 //! into a campaign, the result cache, kill-and-resume, and byte-identical
 //! outputs across repeats and thread counts.
 

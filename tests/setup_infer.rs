@@ -1,4 +1,4 @@
-//! Camera set-ups found from the images (`camera.infer_setups`, issue 13):
+//! Camera set-ups found from the images (`camera.infer_setups`):
 //! a manifest without a `setup` column, as independent footage comes, still
 //! gets each set-up's pooled free-fall scale.
 

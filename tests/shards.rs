@@ -1,4 +1,4 @@
-//! Output folders shared by several processes (issues 14 and 15): a second
+//! Output folders shared by several processes: a second
 //! job into a busy folder is refused (or waits), shards of one job started
 //! side by side end byte-identical to one machine, and a killed shard loses
 //! nothing it had committed.
@@ -88,7 +88,7 @@ pub(crate) fn assert_same_as_one_machine(cfg: &Path, out: &Path, what: &str) {
     assert_same_tree(out, &moved, what);
 }
 
-/// Issue 14, 7: while a job writes into a folder, the same job started
+/// While a job writes into a folder, the same job started
 /// again and another configuration's job are refused with a message naming
 /// the holder and --wait; a job with --wait starts once the first is done;
 /// the first's output is complete, byte for byte that of a job alone.
@@ -139,7 +139,7 @@ fn a_second_job_into_a_busy_folder_is_refused_and_the_first_completes() {
     assert_same_as_one_machine(&cfg, &out, "the first job's output");
 }
 
-/// Issue 15: three shards started side by side, and four run one after the
+/// Three shards started side by side, and four run one after the
 /// other in reverse order, each into one folder, then the whole job there:
 /// it reuses every run, and the folder is byte-identical to one machine's.
 #[test]

@@ -1,4 +1,4 @@
-//! The main job on a real Slurm cluster (issue 15): `dropscope slurm
+//! The main job on a real Slurm cluster: `dropscope slurm
 //! --submit` over a rendered campaign ends byte-identical to one machine,
 //! and a task cancelled half-way is redone by submitting again. They need a
 //! reachable Slurm — `.ci/slurm-up` starts a one-node cluster, and CI runs
@@ -9,7 +9,7 @@ use crate::run::{stderr, write_config};
 use crate::shards::{assert_same_as_one_machine, committed};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use std::sync::OnceLock;
+use std::sync::{Mutex, MutexGuard, OnceLock};
 use std::time::{Duration, Instant};
 
 fn dropscope() -> Command {
@@ -24,6 +24,14 @@ fn must(program: &str, args: &[&str]) -> String {
         .unwrap_or_else(|e| panic!("{program}: {e}"));
     assert!(o.status.success(), "{program} {args:?}: {}", stderr(&o));
     String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The one-node cluster, held by one test at a time: a job cancelled by
+/// one test leaves the node completing while the other would look at it,
+/// and the tests' timing assumes the node is theirs.
+fn cluster() -> MutexGuard<'static, ()> {
+    static CLUSTER: Mutex<()> = Mutex::new(());
+    CLUSTER.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// A small campaign rendered once for the tests of this module: 3 radii ×
@@ -171,6 +179,7 @@ fn runs_and_reused(line: &str) -> (usize, usize) {
 /// folder ends byte-identical to the whole job on one machine.
 #[test]
 fn a_slurm_array_ends_byte_identical_to_one_machine() {
+    let _cluster = cluster();
     need!(crate::Need::Slurm);
     let dir = tempfile::tempdir().unwrap();
     let (cfg, out) = job_folder(dir.path());
@@ -194,6 +203,7 @@ fn a_slurm_array_ends_byte_identical_to_one_machine() {
 /// folder ends byte-identical to one machine's.
 #[test]
 fn a_cancelled_task_is_redone_by_submitting_again() {
+    let _cluster = cluster();
     need!(crate::Need::Slurm);
     let dir = tempfile::tempdir().unwrap();
     let (cfg, out) = job_folder(dir.path());

@@ -1189,9 +1189,9 @@ fn export_writes_stored_values_as_16_bit_png_named_by_frame_index() {
     assert_eq!(back.meta().frame_numbers, (2..4).collect());
 }
 
-/// Issue 17 item 1 (of what remained): names sort in frame order in a plain
-/// listing. 12bpp.cine's camera numbers run -100 … 101: named by them,
-/// `12bpp_-098.png` sorted before `12bpp_-100.png`. A second export into the
+/// Names sort in frame order in a plain listing. 12bpp.cine's camera
+/// numbers run -100 … 101: named by them, `12bpp_-098.png` comes before
+/// `12bpp_-100.png` by name, after it in frame order. A second export into the
 /// folder adds its rows to the side file.
 #[test]
 fn exported_names_sort_in_frame_order_with_negative_camera_numbers() {
@@ -1232,7 +1232,7 @@ fn exported_names_sort_in_frame_order_with_negative_camera_numbers() {
     assert!(rows.windows(2).all(|w| w[0].time_s < w[1].time_s));
 }
 
-/// Issue 17 item 6: camera-number ranges as in the file names, a single
+/// Camera-number ranges as in the file names, a single
 /// frame, and 12-bit data scaled to fill 16 bits on request.
 #[test]
 fn export_takes_camera_numbers_single_frames_and_scales_to_16_bits() {
@@ -1464,10 +1464,10 @@ fn a_folder_holding_a_real_pcc_export_reads_its_xml() {
     }
 }
 
-/// Issue 17 item 8: PCC names a single-image export after its cine, not
-/// numbered (`cam_1.tif`, `12bpp.tif`, beside `cam_1.xml`, `12bpp.xml`).
-/// `cam_1.tif` was read as image 1 with image 1's time and no warning, and
-/// `12bpp.tif` refused. Each is now the XML's FirstImageNo, with that
+/// PCC names a single-image export after its cine, not numbered
+/// (`cam_1.tif`, `12bpp.tif`, beside `cam_1.xml`, `12bpp.xml`): `cam_1.tif`
+/// is not image 1 by its name, nor is `12bpp.tif` refused for having no
+/// number; each is the XML's FirstImageNo, with that
 /// image's time (equal to the cine's own time stamp of it) and a warning.
 #[test]
 fn a_single_image_pcc_export_is_the_image_its_xml_names() {
@@ -1528,7 +1528,7 @@ fn reading_into_a_non_contiguous_view_gives_the_same_rows() {
     }
 }
 
-// ---------------------------------------------- a long movie's index (issue 16)
+// ---------------------------------------------- a long movie's index
 
 /// The tag-1002 time (s after the trigger) and tag-1003 exposure (s) of
 /// every frame of a cine, decoded from its bytes as the tables were.

@@ -63,8 +63,39 @@ pub enum Need {
     Chromium,
     /// Debian's chromedriver at `/usr/bin/chromedriver` (WebDriver for Chromium).
     ChromeDriver,
-    /// A reachable Slurm cluster with an idle node.
+    /// A reachable Slurm cluster with a node that can take jobs.
     Slurm,
+}
+
+/// Whether a node state printed by `sinfo -o %t` can take jobs now.
+fn usable_slurm_state(state: &str) -> bool {
+    state
+        .split_whitespace()
+        .any(|s| matches!(s.trim_end_matches('-'), "idle" | "mix" | "alloc"))
+}
+
+/// The node states `sinfo` prints, waited for up to a minute while they
+/// are passing ones (`comp` after a cancelled job, a node coming back):
+/// the empty string when `sinfo` cannot run or fails.
+fn slurm_node_state() -> String {
+    let read = || {
+        std::process::Command::new("sinfo")
+            .args(["-h", "-o", "%t"])
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
+    };
+    let start = std::time::Instant::now();
+    loop {
+        let Some(state) = read() else {
+            return String::new();
+        };
+        if usable_slurm_state(&state) || start.elapsed() > std::time::Duration::from_secs(60) {
+            return state;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(500));
+    }
 }
 
 /// The project's `shared/` folder beside the checkout.
@@ -112,16 +143,13 @@ fn available_with(need: Need, require_all: bool, notice: &mut dyn Write) -> bool
             "as root: apt-get install chromium chromium-driver (.ci/run does it)".to_string(),
         ),
         Need::Slurm => {
-            let state = std::process::Command::new("sinfo")
-                .args(["-h", "-o", "%t"])
-                .output()
-                .ok()
-                .filter(|o| o.status.success())
-                .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
-                .unwrap_or_default();
+            let state = slurm_node_state();
             (
-                ["idle", "mix", "alloc"].iter().any(|s| state.contains(s)),
-                "a Slurm cluster (sinfo shows no idle node)".to_string(),
+                usable_slurm_state(&state),
+                format!(
+                    "a Slurm cluster with a usable node (sinfo shows {:?})",
+                    state.trim()
+                ),
                 "as root: apt-get install slurm-wlm munge && .ci/slurm-up (a one-node cluster on \
                  this machine; .ci/run does both)"
                     .to_string(),
@@ -212,5 +240,19 @@ fn a_missing_need_skips_out_loud_or_fails_when_every_test_is_required() {
     assert!(Path::new(env!("CARGO_MANIFEST_DIR")).is_dir());
     if shared().is_dir() {
         assert!(available_with(Need::SharedData("."), true, &mut Vec::new()));
+    }
+}
+
+/// A node that is taking jobs counts, whatever its load; one completing a
+/// cancelled job, down, drained or not responding does not (yet).
+#[test]
+fn a_slurm_node_counts_when_it_can_take_jobs() {
+    for state in ["idle\n", "mix\n", "alloc\n", "idle-\n", "comp\nidle\n"] {
+        assert!(usable_slurm_state(state), "{state:?}");
+    }
+    for state in [
+        "", "comp\n", "idle*\n", "down\n", "drain\n", "drng\n", "unk*\n",
+    ] {
+        assert!(!usable_slurm_state(state), "{state:?}");
     }
 }

@@ -1,4 +1,4 @@
-//! `--timings` (issue 16): `process` and the main job print where their
+//! `--timings`: `process` and the main job print where their
 //! time went, stage by stage, and write the same bytes as without it.
 
 use crate::run::{assert_same_tree, fixture_manifest, run, stderr, tree, write_config};

@@ -1,4 +1,4 @@
-//! A wide frame costs its sphere, not its sensor (issue 16): the background
+//! A wide frame costs its sphere, not its sensor: the background
 //! and the surface line of a 1280 × 800 frame are taken in the columns
 //! near the sphere only, and the same drop is measured the same as at
 //! 512 × 384, where they are taken over the whole frame.

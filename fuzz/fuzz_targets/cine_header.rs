@@ -1,7 +1,7 @@
 //! Fuzz the cine header parser and, when it accepts the input, the frame
 //! reader on the same bytes: any input must give Ok or Err, never a panic.
 //!
-//! Cost per execution (issue 14 asks for 10 million): the file lives in
+//! Cost per execution (a campaign is 10 million of them): the file lives in
 //! memory (`/dev/shm`, one name per fuzzing process, overwritten), and a
 //! frame is read whole only when it fits the input's own bytes (a header
 //! claiming 2 000 × 2 000 pixels in a 10 kB file would otherwise zero 8 MB

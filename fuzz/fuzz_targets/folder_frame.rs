@@ -9,7 +9,7 @@
 //! file (its parser has `pcc_xml`) and the file checks (regular file,
 //! bounded reads), which `tests/hostile.rs` and `tests/source.rs` cover.
 //!
-//! Cost per execution (issue 14 asks for 10 million): frames are decoded
+//! Cost per execution (a campaign is 10 million of them): frames are decoded
 //! only when they have at most 2^18 pixels (a 512 × 384 camera frame has
 //! 196 608): a larger one fits in a 64 kB input only compressed (PNG, JPEG,
 //! compressed TIFF), and decoding millions of pixels in the `image` crate

@@ -10,7 +10,7 @@
 //!   moved), so that the fits themselves are reached.
 //! Any input must give a record or an error, never a panic.
 //!
-//! Cost per execution (issue 14 asks for 10 million): the contact-law fit
+//! Cost per execution (a campaign is 10 million of them): the contact-law fit
 //! integrates a trajectory over the contact frames for every step of its
 //! search, 2–16 ms an execution with 40-frame contacts and the product's
 //! work limit (1 000 trajectories), 82 % of the time in its integrator.

@@ -1,4 +1,4 @@
-//! The collapse fits (issue 6; SPEC §3), each with a standard error and a
+//! The collapse fits (SPEC §3), each with a standard error and a
 //! seeded 95 % bootstrap interval:
 //!
 //! - per sphere radius, the local exponents ν of Π ∝ η^ν and μ of τc ∝ v^μ

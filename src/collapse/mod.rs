@@ -1,4 +1,4 @@
-//! The collapse stage (SPEC §3, issue 6): drops.csv → the dimensionless
+//! The collapse stage (SPEC §3): drops.csv → the dimensionless
 //! groups of every drop and the scaling fits.
 //!
 //! | file | does |

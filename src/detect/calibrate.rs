@@ -1,4 +1,4 @@
-//! Calibration (issue 4, stage 6): the sphere's radius in pixels from the
+//! Calibration: the sphere's radius in pixels from the
 //! free-flight frames where its whole circle is visible, and the scale.
 //!
 //! `R_px` is the median radius of the radius-free fits whose circle, widened

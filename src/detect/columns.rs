@@ -1,6 +1,6 @@
 //! Which columns of a wide frame the background and the surface line look
 //! at: those within reach of the sphere's path, so that what a frame costs
-//! follows the sphere and not the sensor (issue 16).
+//! follows the sphere and not the sensor.
 //!
 //! The background's per-pixel median and the surface line's fit per column
 //! are taken over [`near_columns`]: the columns from [`REACH_RADII`] sphere

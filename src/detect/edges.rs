@@ -14,9 +14,9 @@
 //! divided by its own background: `I_j/B_j`. (The background is not smooth
 //! across columns: a sensor's column fixed pattern — a gain and an offset per
 //! column — is in every frame and in `B` alike, and cancels only pixel by
-//! pixel. Interpolating `1/B` linearly between the window's ends, as before,
-//! left it in every sample of a window that crosses columns: at the real
-//! preset's strongest pattern (1.5 %) the contact law's surface came out
+//! pixel. Interpolating `1/B` linearly between the window's ends would
+//! leave it in every sample of a window that crosses columns: at the real
+//! preset's strongest pattern (1.5 %) the contact law's surface comes out
 //! 0.1 px off.) `1/g` is interpolated linearly between the window's ends
 //! (the flicker gain varies linearly across the frame). `τ` is the trimmed mean of
 //! `I/(g·B)` over ~256 pixels of the upper half of a ring inside `r − 2w`,

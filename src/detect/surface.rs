@@ -544,11 +544,10 @@ fn two_step_levels(
 /// Jacobian (Golub and Pereyra's), from the steps' analytic derivatives.
 /// `None` when the fit does not end on two ordered steps inside the
 /// samples (the model is symmetric in its steps, and a fit can end with
-/// them swapped: then the caller's one-step fit is used, as before the
-/// analytic Jacobian — taking the swapped fit's upper step instead moved
-/// one of 120 real-preset drops' δmax from 8e-4 to 7e-3 off by hiding its
-/// band top's disagreement). `None` too when the strip is not told from
-/// noise: the two-step model must explain the samples better than one
+/// them swapped: then the caller's one-step fit is used — taking the
+/// swapped fit's upper step instead moves one of 120 real-preset drops'
+/// δmax from 8e-4 to 7e-3 off by hiding its band top's disagreement).
+/// `None` too when the strip is not told from noise: the two-step model must explain the samples better than one
 /// step does on the same rows by more than its two further parameters
 /// would by chance ([`strip_is_resolved`]); else noise below the top makes
 /// the strip search try columns with none, and the two-step fit splits
@@ -742,10 +741,10 @@ fn fit_two_steps(
 /// equations gives `∂c = −(AᵀA)⁻¹(Aᵀ G + W)`, so that
 /// `∂r/∂θ = G − A(AᵀA)⁻¹(AᵀG + W)`, with `G = (∂A/∂θ) c` the model's
 /// derivative at fixed levels and `W`'s columns `(∂A/∂θ)ᵀ r`; row k is
-/// `gₖ − (AᵀG + W)ᵀ(AᵀA)⁻¹ bₖ`, `bₖ = (1, a₁ₖ, a₂ₖ)`. (Until session 16
-/// the `W` term had the opposite sign: a Jacobian off by O(r), which the
-/// noiseless tests cannot see; on the 60 real-preset drops the fix moved
-/// the surface line by at most 0.0004 px.)
+/// `gₖ − (AᵀG + W)ᵀ(AᵀA)⁻¹ bₖ`, `bₖ = (1, a₁ₖ, a₂ₖ)`. (The noiseless
+/// tests cannot see `W`'s sign, since `r` is 0 there: with it flipped the
+/// Jacobian is off by O(r), and on the 60 real-preset drops the surface
+/// line moves by up to 0.0004 px.)
 fn two_step_jacobian(
     [s1, s2]: [&UnitStep; 2],
     levels: &nalgebra::Vector3<f64>,

@@ -174,7 +174,7 @@ pub(crate) fn guide_lines(
     // Every guide stays inside the axes, 5 % from their edges: the fan is
     // shortened when it would be taller than the y range, and its start
     // moved so that neither the steepest rising nor the steepest falling
-    // guide leaves the plot (they used to run off and be clipped).
+    // guide leaves the plot (where it would be clipped).
     let (top, bottom) = (ly1 - 0.05 * (ly1 - ly0), ly0 + 0.05 * (ly1 - ly0));
     let up = slopes.iter().map(|s| s.0).fold(0.0, f64::max);
     let down = slopes.iter().map(|s| s.0).fold(0.0, f64::min);
@@ -364,14 +364,15 @@ mod tests {
         let (major, _) = log_ticks(1.5, 6.5);
         assert_eq!(major, vec![2.0, 3.0, 4.0, 5.0, 6.0]);
         // Narrower still (the fixtures' τc, 2.5–3.3 ms): several round
-        // values, not the single "3" of issue 17.
+        // values, not a single "3".
         let (major, _) = log_ticks(2.5, 3.3);
         assert!(major.len() >= 3, "{major:?}");
         assert!(major.iter().all(|v| (2.5..=3.3).contains(v)), "{major:?}");
     }
 
-    /// Issue 17 item 5: the τc–v guides (slopes −1/3, −2/3) ran off the
-    /// bottom of a narrow y axis and were clipped into a line along it.
+    /// The τc–v guides (slopes −1/3, −2/3) stay inside a narrow y axis
+    /// instead of running off its bottom and being clipped into a line
+    /// along it.
     #[test]
     fn guide_slopes_stay_inside_the_axes() {
         for (xr, yr, slopes) in [

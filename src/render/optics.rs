@@ -172,7 +172,7 @@ impl OpticsSpec {
     }
 
     /// Whether any effect is on (else the plain renderer draws the drop,
-    /// byte for byte as before these effects existed).
+    /// byte for byte as without these effects).
     pub fn active(&self) -> bool {
         [
             self.rim,

@@ -226,8 +226,8 @@ impl CineHeader {
 
 /// Everything located in the header region: the header, where the
 /// per-frame times and exposures are (tagged blocks), and where the image
-/// offsets are. The per-frame values stay in the file (issue 16: a long
-/// movie's index would be 36 bytes a frame in memory).
+/// offsets are. The per-frame values stay in the file (a long movie's
+/// index would be 36 bytes a frame in memory).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CineLayout {
     pub header: CineHeader,

@@ -521,8 +521,8 @@ fn probe<F: FrameBytes>(
 /// cannot do better than ~1 032:1 (a black 8-bit PNG), a flat JPEG or LZW
 /// TIFF ~200:1, so no camera frame comes near; but a BMP's RLE8 "end of
 /// bitmap" or a forged header can claim any size in a few bytes, and the
-/// decoder then spends seconds and hundreds of MB on it (issue 14's
-/// fuzzing: a 1.9 kB BMP claiming 3 072 × 45 319 took 16 s per read).
+/// decoder then spends seconds and hundreds of MB on it (found by fuzzing:
+/// a 1.9 kB BMP claiming 3 072 × 45 319 takes 16 s per read).
 const MAX_PIXELS_PER_BYTE: u64 = 4096;
 
 /// `probe` for a frame the decoders decompress: refused when its size is

@@ -1,5 +1,5 @@
 //! A movie's per-frame index — camera image numbers, times, exposures — in
-//! memory that does not grow with the movie's length (issue 16): the
+//! memory that does not grow with the movie's length: the
 //! numbers as runs of consecutive ones (O(gaps)), a `.cine`'s times and
 //! exposures read from the file itself a block at a time when asked for.
 //! Lookups give exactly the values a table would hold.

@@ -869,7 +869,7 @@ mod tests {
 
     #[test]
     fn deep_nesting_is_refused_as_it_is_read() {
-        // 100 000 levels overflowed the stack of the tree parser once (issue 14).
+        // 100 000 levels would overflow the stack of a tree parser.
         let deep = format!(
             "<chd>{}{}</chd>",
             "<a>".repeat(100_000),

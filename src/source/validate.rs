@@ -1,5 +1,5 @@
-//! What a file says about its frames, checked before anything uses it
-//! (issue 14): a frame rate that a camera can have, an exposure that fits
+//! What a file says about its frames, checked before anything uses it:
+//! a frame rate that a camera can have, an exposure that fits
 //! in a frame interval, and frame times that are finite, strictly
 //! increasing and on the frame rate's grid. A file that breaks one of these
 //! is an error naming it (and the frame); a small disagreement is a warning

@@ -12,7 +12,7 @@
 
 use crate::cache::{self, Entry};
 use crate::collapse::groups::ContactRadius;
-use crate::collapse::CollapseArgs;
+use crate::collapse_job::CollapseArgs;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::{read_job_manifest, RunSpec};
@@ -807,7 +807,7 @@ fn job_on_pool(
     // since failed or left the manifest survives (nor all of it when no
     // drop is measured now).
     let mut ledger = crate::out_folder::Ledger::open(out);
-    crate::collapse::remove_outputs(&mut ledger)
+    crate::collapse_job::remove_outputs(&mut ledger)
         .and_then(|()| ledger.save())
         .map_err(io(out))?;
     let (collapsed, collapse_warnings, collapse_note) = if measured > 0 {
@@ -821,7 +821,7 @@ fn job_on_pool(
             seed: 20190614,
             no_plots: false,
         };
-        let s = crate::collapse::run(&args, cfg, config_name)?;
+        let s = crate::collapse_job::run(&args, cfg, config_name)?;
         let note = s.fits.few_drops.clone();
         let warnings = s
             .warnings
@@ -830,7 +830,7 @@ fn job_on_pool(
             .collect();
         (true, warnings, note)
     } else {
-        let replaced = crate::collapse::per_drop::replace(&mut ledger, Vec::new(), &mut Vec::new());
+        let replaced = crate::per_drop::replace(&mut ledger, Vec::new(), &mut Vec::new());
         ledger.save().map_err(io(out))?;
         replaced?;
         (false, Vec::new(), None)

@@ -305,18 +305,6 @@ pub struct CameraConfig {
 /// `camera.edge_offset_spread_px` when only the offset is given (px).
 pub const DEFAULT_EDGE_OFFSET_SPREAD_PX: f64 = 0.1;
 
-impl CameraConfig {
-    /// The edge offset runs scaled by their apparent radius are corrected by.
-    pub fn edge_offset(&self) -> Option<crate::scale::EdgeOffset> {
-        self.edge_offset_px.map(|o| crate::scale::EdgeOffset {
-            offset_px: o,
-            spread_px: self
-                .edge_offset_spread_px
-                .unwrap_or(DEFAULT_EDGE_OFFSET_SPREAD_PX),
-        })
-    }
-}
-
 /// The default `camera.distortion_bound_px`: the barrel distortion of the
 /// macro lenses this experiment is filmed with reaches about half a pixel
 /// at the corners of a 512 × 384 frame (realistic footage).

@@ -93,7 +93,7 @@ pub struct EventConfig {
     /// corrected by that term (0 switches the correction off).
     pub exposure_s: f64,
     /// The contact-law fit's work limit, in trajectories' worth of steps
-    /// (default [`crate::force::FORCE_FIT_MAX_TRAJECTORIES`]; a clean drop
+    /// (default [`FORCE_FIT_MAX_TRAJECTORIES`]; a clean drop
     /// needs about 400). The fit stops beyond it with a reason.
     pub force_fit_max_trajectories: usize,
 }
@@ -106,10 +106,22 @@ impl Default for EventConfig {
             min_flight_frames: 5,
             peak_fraction: 0.75,
             exposure_s: 0.0,
-            force_fit_max_trajectories: crate::force::FORCE_FIT_MAX_TRAJECTORIES,
+            force_fit_max_trajectories: FORCE_FIT_MAX_TRAJECTORIES,
         }
     }
 }
+
+/// Flight frames on either side of the contact used by [`crate::force::fit_force_law`].
+pub const FLIGHT_FRAMES: usize = 12;
+
+/// The trajectory fit's work limit, in trajectories' worth of steps (a
+/// trajectory at its usual cost: `CONTACT_STEPS_PER_FRAME` (20) RK4 steps per
+/// frame interval of the contact, one step per time asked for): a clean
+/// drop's six fits (four contact models, n = 2, the surface free)
+/// integrate about 400 trajectories (the unit tests' drop), so this is
+/// reached only by a fit that wanders (frame times off their grid, a track
+/// that is no bounce), which it stops within a second or so.
+pub const FORCE_FIT_MAX_TRAJECTORIES: usize = 2_500;
 
 /// Why events could not be found.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -327,7 +339,7 @@ fn check_point(p: &TrackPoint, prev_t_s: Option<f64>) -> Result<(), EventError> 
 /// from its events (kinematics, the contact law, the force table, the
 /// quality checks) use, under `geom`: the first points up to the second
 /// contact (the first point past the post-contact flight) and at least
-/// [`crate::force::FLIGHT_FRAMES`] past the contact, or the whole track
+/// [`FLIGHT_FRAMES`] past the contact, or the whole track
 /// when it has no second contact. On them every result and every error
 /// is the same as on the whole track; an error is returned as
 /// [`find_events`] would return it, without the points. Walked once, in
@@ -364,7 +376,7 @@ pub fn first_contact_window(
                 (Some(_), Some(c1)) if pen > 0.0 => {
                     // The second contact: the window ends past it and
                     // past the contact law's flight frames.
-                    end = Some((i + 1).max(c1 + crate::force::FLIGHT_FRAMES + 1));
+                    end = Some((i + 1).max(c1 + FLIGHT_FRAMES + 1));
                 }
                 _ => {}
             }

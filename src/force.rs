@@ -28,7 +28,7 @@
 //!   frames' own scatter does not show. Each enters through the fit's
 //!   linear response, `Δθ = −(JᵀJ)⁻¹Jᵀ ∂r/∂q · Δq`.
 
-use crate::events::{Events, Geometry, TrackPoint};
+use crate::events::{Events, Geometry, TrackPoint, FLIGHT_FRAMES};
 use crate::kinematics::{Measured, SphereParams};
 use crate::lsq::PolyFit;
 use nalgebra::{DMatrix, DVector};
@@ -79,9 +79,6 @@ pub fn force_table(
     }
     out
 }
-
-/// Flight frames on either side of the contact used by [`fit_force_law`].
-pub const FLIGHT_FRAMES: usize = 12;
 
 /// The damping term of a contact law.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -326,15 +323,6 @@ pub enum ForceFitError {
     #[error("the trajectory fit stopped at its limit of {0}")]
     Limit(String),
 }
-
-/// The trajectory fit's work limit, in trajectories' worth of steps (a
-/// trajectory at its usual cost: `CONTACT_STEPS_PER_FRAME` (20) RK4 steps per
-/// frame interval of the contact, one step per time asked for): a clean
-/// drop's six fits (four contact models, n = 2, the surface free)
-/// integrate about 400 trajectories (the unit tests' drop), so this is
-/// reached only by a fit that wanders (frame times off their grid, a track
-/// that is no bounce), which it stops within a second or so.
-pub const FORCE_FIT_MAX_TRAJECTORIES: usize = 2_500;
 
 /// The trajectory fit's time limit, in seconds, a guard beside the work
 /// limit (a clean drop's two fits take 6–54 ms here).
@@ -854,6 +842,7 @@ fn levenberg_marquardt(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::events::FORCE_FIT_MAX_TRAJECTORIES;
 
     /// The product's fit: [`fit_force_law`] on the test sphere at g = 9.81
     /// with the default work limit.

@@ -140,8 +140,8 @@ pub fn remove_other_dataset(ledger: &mut Ledger, id: &str) -> std::io::Result<Ve
         }
         crate::dataset_id::of_svg(&t).map(str::to_string)
     };
-    let stems = crate::plot::FIGURE_STEMS;
-    let tagged = crate::collapse::TABLES
+    let stems = crate::figures::FIGURE_STEMS;
+    let tagged = crate::collapse_job::TABLES
         .iter()
         .map(|s| s.to_string())
         .chain(stems.iter().map(|s| format!("plots/{s}.svg")))

@@ -9,6 +9,8 @@
 //! | [`cli_values`] | command-line flag values checked as they are parsed (`--fps`, `--radius-mm`, …) |
 //! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
+//! | [`inspect`] | `dropscope inspect` and `dropscope export`: what an input holds, its frames as 16-bit PNG |
+//! | [`stage_settings`] | the stages' own settings from the configuration: how a recording is opened, detected and tracked |
 //! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
 //! | [`records`] | a run's per-frame records, in a temporary file past a budget |
@@ -25,7 +27,10 @@
 //! | [`process`] | one run (or camera set-up) → record, track, overlays; runs in parallel |
 //! | [`process_job`] | `dropscope process`: the runs through the main job's cache → drops.csv, per-drop figures |
 //! | [`progress`] | the main job's progress bars, or plain lines off a terminal |
-//! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits (`dropscope collapse`) |
+//! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits |
+//! | [`figures`] | the domain's figures as bytes: the collapse's, each drop's |
+//! | [`collapse_job`] | `dropscope collapse`: drops.csv → the collapse's tables and figures in the output folder |
+//! | [`per_drop`] | the per-drop figures drawn from the tracks beside a drops.csv, written into the output folder |
 //! | [`batch`] | the main job (`dropscope run`): process then collapse, with progress |
 //! | [`cache`] | the main job's per-run result cache: input fingerprints and keys |
 //! | [`leftovers`] | an earlier job's files in the output folder that this job did not write again |
@@ -36,7 +41,7 @@
 //! | [`report`] | `report.html`: counts, collapse plots, fits and every drop on one self-contained page |
 //! | [`review`] | `dropscope review`: every frame of a drop in a local web page, and `review.csv`, the decisions `process` and `run` apply |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
-//! | [`plot`] | SVG + PNG figures (collapse plots, per-drop diagnostics), embedded font |
+//! | [`plot`] | the drawing kit: SVG + PNG bytes from plain data, embedded font |
 //! | [`run_name`] | run names that are file names, never paths |
 //! | [`lsq`], [`io_util`] | weighted least squares; atomic writes, paths kept inside the output folder |
 //! | [`text`], [`console`] | one sanitiser for text bound for a terminal or a CSV cell; printing that never panics |
@@ -51,6 +56,7 @@ pub mod batch;
 pub mod cache;
 pub mod cli_values;
 pub mod collapse;
+pub mod collapse_job;
 pub mod config;
 pub mod config_toml;
 pub mod console;
@@ -58,8 +64,10 @@ pub mod dataset;
 pub mod dataset_id;
 pub mod detect;
 pub mod events;
+pub mod figures;
 pub mod flight;
 pub mod force;
+pub mod inspect;
 pub mod io_util;
 pub mod kinematics;
 pub mod leftovers;
@@ -69,6 +77,7 @@ pub mod lsq;
 pub mod manifest;
 pub mod measure;
 pub mod out_folder;
+pub mod per_drop;
 pub mod pictures;
 pub mod plot;
 pub mod process;
@@ -87,6 +96,7 @@ pub mod shard;
 pub mod shelf;
 pub mod slurm;
 pub mod source;
+pub mod stage_settings;
 #[cfg(test)]
 mod test_support;
 pub mod text;

@@ -51,18 +51,18 @@ enum Command {
         default: bool,
     },
     /// What a folder of frames or a .cine holds (frames, size, fps, bit depth, gaps…).
-    Inspect(dropscope::source::cli::InspectArgs),
+    Inspect(dropscope::inspect::InspectArgs),
     /// Write frames exactly as read, as 16-bit PNG `<input>_<index>.png`.
     ///
     /// The index counts from 0, zero-padded to the movie's last;
     /// `<input>_frames.csv` gives each file's camera number and time.
-    Export(dropscope::source::cli::ExportArgs),
+    Export(dropscope::inspect::ExportArgs),
     /// Render synthetic drops with exact truth, as PCC-style frame folders.
     Render(Box<dropscope::render::RenderArgs>),
     /// Dimensionless groups, Ψ(Ξ) and Ω(Ξ) fits, exponents and plots from a drops.csv.
     Collapse {
         #[command(flatten)]
-        args: dropscope::collapse::CollapseArgs,
+        args: dropscope::collapse_job::CollapseArgs,
         /// When another job holds the output folder, wait for it to end.
         #[arg(long)]
         wait: bool,
@@ -376,10 +376,13 @@ fn speed(frames: usize, secs: f64, threads: usize) -> String {
 }
 
 /// `dropscope collapse`: groups, fits and plots; exit 1 when rows were skipped.
-fn run_collapse(args: &dropscope::collapse::CollapseArgs, wait: bool) -> anyhow::Result<ExitCode> {
+fn run_collapse(
+    args: &dropscope::collapse_job::CollapseArgs,
+    wait: bool,
+) -> anyhow::Result<ExitCode> {
     let (cfg, name) = load_config(args.config.as_deref())?;
     let _held = hold_folder(&args.out_dir(), "collapse", &cfg, &[], wait)?;
-    let s = dropscope::collapse::run(args, &cfg, &name)?;
+    let s = dropscope::collapse_job::run(args, &cfg, &name)?;
     for w in &s.warnings {
         match &s.fits.few_drops {
             Some(note) if note == w => dropscope::errln!("note: {w}"),
@@ -458,8 +461,8 @@ fn run_report(
 /// `dropscope export`: the frames, and a warning when their times are at a
 /// frame rate the input does not hold and `--fps` did not give (the
 /// configuration's camera.fps).
-fn run_export(args: &dropscope::source::cli::ExportArgs) -> anyhow::Result<ExitCode> {
-    let files = dropscope::source::cli::run_export(args)?;
+fn run_export(args: &dropscope::inspect::ExportArgs) -> anyhow::Result<ExitCode> {
+    let files = dropscope::inspect::run_export(args)?;
     dropscope::errln!("wrote {} frame(s) to {}", files.len(), args.out.display());
     if args.source.fps.is_none() {
         // Opened again (headers only) to learn where its frame rate came from.
@@ -693,7 +696,7 @@ fn main() -> ExitCode {
             default: false,
         } => run_check_config(config.as_deref()),
         Command::Inspect(args) => {
-            dropscope::source::cli::run_inspect(&args).map(|()| ExitCode::SUCCESS)
+            dropscope::inspect::run_inspect(&args).map(|()| ExitCode::SUCCESS)
         }
         Command::Export(args) => run_export(&args),
         Command::Render(args) => run_render(&args),

@@ -446,7 +446,7 @@ mod tests {
         // second contact's first frame and the contact law's flight frames.
         assert_eq!(w, window(&short).unwrap());
         assert!(
-            w.len() <= first.len() + crate::force::FLIGHT_FRAMES,
+            w.len() <= first.len() + crate::events::FLIGHT_FRAMES,
             "{}",
             w.len()
         );

@@ -17,7 +17,8 @@ use crate::quality;
 use crate::scale::{free_fall_curvature, Curvature, ScaleInputs};
 use crate::setup_infer::SceneSignature;
 use crate::shelf::{Shelf, ShelvedTrack};
-use crate::source::{open, OpenOptions, P10Mode};
+use crate::source::open;
+use crate::stage_settings::open_options;
 use crate::track::{track, FrameTrack, Track, TrackSettings};
 use rayon::prelude::*;
 use std::io::Write;
@@ -303,7 +304,10 @@ pub fn process_setup(
         })
         .collect();
     if runs.len() >= 2 {
-        let found = crate::scale::size_disagreements(&sizes, cfg.camera.edge_offset());
+        let found = crate::scale::size_disagreements(
+            &sizes,
+            crate::scale::EdgeOffset::from_config(&cfg.camera),
+        );
         for ((o, run), d) in outcomes.iter_mut().zip(runs).zip(found) {
             if let Some(d) = d {
                 let setup = run.setup.as_deref().unwrap_or("-");
@@ -687,25 +691,6 @@ fn panic_reason(input: &Path, payload: &(dyn std::any::Any + Send)) -> String {
 /// `fps_source` column): the recording's own when it holds one, else the
 /// fallback [`PipelineConfig::fps_fallback`] names. A recording without a
 /// rate of its own is opened twice, the first time to learn that.
-/// How a run's recording is read under `cfg` (flips, P10), with the
-/// manifest's `number_digits` and the frame rate for an input without one.
-pub fn open_options(
-    cfg: &PipelineConfig,
-    number_digits: Option<usize>,
-    fps_fallback: Option<f64>,
-) -> OpenOptions {
-    OpenOptions {
-        fps_fallback,
-        apply_flips: cfg.camera.apply_flips,
-        p10: if cfg.camera.p10_linear {
-            P10Mode::Linear
-        } else {
-            P10Mode::Raw
-        },
-        number_digits,
-    }
-}
-
 fn open_run(
     run: &RunSpec,
     cfg: &PipelineConfig,
@@ -912,7 +897,7 @@ fn measure_run(
         own: curvature,
         r_app_px: tr.radius_px,
         r_app_err_px: tr.radius_err_px,
-        edge_offset: cfg.camera.edge_offset(),
+        edge_offset: crate::scale::EdgeOffset::from_config(&cfg.camera),
         setup_at_bound,
         own_at_bound: bounded.as_ref().and_then(|b| b.curvature),
     };

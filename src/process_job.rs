@@ -139,7 +139,7 @@ fn run_on_pool(
             })
         });
         let drawn = time(Stage::Figures, || {
-            crate::collapse::per_drop::draw(&out.join("drops.csv"), &records, cfg, &id)
+            crate::per_drop::draw(&out.join("drops.csv"), &records, cfg, &id)
         });
         let written = writer
             .join()
@@ -158,7 +158,7 @@ fn run_on_pool(
     }
     let (drawn, warnings) = drawn?;
     let replaced = time(Stage::Figures, || {
-        crate::collapse::per_drop::replace(&mut ledger, drawn, &mut Vec::new())
+        crate::per_drop::replace(&mut ledger, drawn, &mut Vec::new())
     });
     saved(&mut ledger)?;
     replaced?;

@@ -3,12 +3,13 @@
 //! does not grow with its length. Records are appended in the
 //! frames' order, then read back a block at a time: walked in order,
 //! updated block by block, or one at a time. A record is stored as the bits
-//! of its fields, so what is read back is the same value.
+//! of its fields, so what is read back is the same value; each kind of
+//! record says how beside its type (`impl Record`, as
+//! [`crate::track::FrameTrack`]'s).
 
 use std::fs::File;
 
-use crate::detect::{CircleFit, Covariance};
-use crate::track::{FrameFlags, FrameTrack};
+use crate::io_util::{read_at, write_at};
 
 /// A record of a fixed number of bytes in the file.
 pub trait Record: Clone {
@@ -227,34 +228,6 @@ impl<T: Record> Records<T> {
     }
 }
 
-pub(crate) fn read_at(file: &File, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Read, Seek, SeekFrom};
-        let mut f = file;
-        f.seek(SeekFrom::Start(offset))?;
-        f.read_exact(buf)
-    }
-}
-
-pub(crate) fn write_at(file: &File, offset: u64, buf: &[u8]) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::write_all_at(file, buf, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Seek, SeekFrom, Write};
-        let mut f = file;
-        f.seek(SeekFrom::Start(offset))?;
-        f.write_all(buf)
-    }
-}
-
 /// Writes a record's fields as their bits, little-endian.
 pub struct Put<'a>(pub &'a mut Vec<u8>);
 
@@ -293,174 +266,5 @@ impl Take<'_> {
     }
     pub fn f64(&mut self) -> f64 {
         f64::from_bits(self.u64())
-    }
-}
-
-/// A circle fit: a tag (0 none, 1 full covariance, 2 centre only), then
-/// its fields, a centre-only covariance padded to six numbers.
-const FIT_BYTES: usize = 1 + 8 * 3 + 8 * 6 + 8 + 4 * 3 + 8;
-
-fn put_fit(p: &mut Put, fit: &Option<CircleFit>) {
-    let Some(f) = fit else {
-        p.0.resize(p.0.len() + FIT_BYTES, 0);
-        return;
-    };
-    let cov: [f64; 6] = match f.cov {
-        Covariance::Full(c) => {
-            p.u8(1);
-            c
-        }
-        Covariance::CentreOnly([a, b, c]) => {
-            p.u8(2);
-            [a, b, c, 0.0, 0.0, 0.0]
-        }
-    };
-    for v in [f.x_px, f.z_px, f.r_px].into_iter().chain(cov) {
-        p.f64(v);
-    }
-    p.f64(f.residual_px);
-    for v in [f.n_used, f.inliers, f.iterations] {
-        p.u32(v);
-    }
-    p.f64(f.scale_px);
-}
-
-fn take_fit(t: &mut Take) -> Option<CircleFit> {
-    let tag = t.u8();
-    if tag == 0 {
-        t.0 = &t.0[FIT_BYTES - 1..];
-        return None;
-    }
-    let (x_px, z_px, r_px) = (t.f64(), t.f64(), t.f64());
-    let c: [f64; 6] = std::array::from_fn(|_| t.f64());
-    let cov = if tag == 1 {
-        Covariance::Full(c)
-    } else {
-        Covariance::CentreOnly([c[0], c[1], c[2]])
-    };
-    Some(CircleFit {
-        x_px,
-        z_px,
-        r_px,
-        cov,
-        residual_px: t.f64(),
-        n_used: t.u32(),
-        inliers: t.u32(),
-        iterations: t.u32(),
-        scale_px: t.f64(),
-    })
-}
-
-impl Record for FrameTrack {
-    const BYTES: usize = 8 * 3 + 1 + 2 * FIT_BYTES;
-
-    fn put(&self, out: &mut Vec<u8>) {
-        let mut p = Put(out);
-        p.u64(self.index as u64);
-        p.u64(self.frame as u64);
-        p.f64(self.t_s);
-        p.u8(self.flags.bits());
-        put_fit(&mut p, &self.free);
-        put_fit(&mut p, &self.held);
-    }
-
-    fn get(b: &[u8]) -> Self {
-        let mut t = Take(b);
-        FrameTrack {
-            index: t.u64() as usize,
-            frame: t.u64() as i64,
-            t_s: t.f64(),
-            flags: FrameFlags::from_bits(t.u8()),
-            free: take_fit(&mut t),
-            held: take_fit(&mut t),
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::track::Flag;
-
-    fn fit(i: usize, full: bool) -> CircleFit {
-        let v = |k: usize| (i * 7 + k) as f64 / 3.0 - 5.0;
-        CircleFit {
-            x_px: v(1),
-            z_px: -0.0,
-            r_px: v(2),
-            cov: if full {
-                Covariance::Full([v(3), v(4), v(5), v(6), v(7), f64::MIN_POSITIVE])
-            } else {
-                Covariance::CentreOnly([v(3), -v(4), 1e-300])
-            },
-            residual_px: v(8),
-            n_used: i as u32,
-            inliers: u32::MAX - i as u32,
-            iterations: 3,
-            scale_px: v(9),
-        }
-    }
-
-    /// Frames with no fit, a free fit only, both, and flags.
-    fn frame(i: usize) -> FrameTrack {
-        let mut flags = FrameFlags::default();
-        if i.is_multiple_of(3) {
-            flags.insert(Flag::Missing);
-        }
-        if i.is_multiple_of(5) {
-            flags.insert(Flag::Partial);
-        }
-        FrameTrack {
-            index: i,
-            frame: i as i64 - 1000,
-            t_s: (i as f64 - 1000.0) / 60_000.0,
-            free: (!i.is_multiple_of(4)).then(|| fit(i, true)),
-            held: (i % 4 > 1).then(|| fit(i, false)),
-            flags,
-        }
-    }
-
-    #[test]
-    fn records_in_a_file_read_back_as_the_same_bits_as_in_memory() {
-        let n = 2 * BLOCK + 123;
-        let (mut mem, mut file) = (Records::new(n), Records::new(100));
-        for i in 0..n {
-            mem.push(frame(i)).unwrap();
-            file.push(frame(i)).unwrap();
-        }
-        mem.flush().unwrap();
-        file.flush().unwrap();
-        assert!(!mem.spilled() && file.spilled());
-        assert_eq!((mem.len(), file.len()), (n, n));
-        // Debug prints each f64's shortest round-trip form: equal text is
-        // equal bits.
-        assert_eq!(format!("{mem:?}"), format!("{file:?}"));
-        let expected: Vec<FrameTrack> = (0..n).map(frame).collect();
-        assert_eq!(format!("{file:?}"), format!("{expected:?}"));
-        // One record, replaced, and every record updated block by block.
-        for r in [&mut mem, &mut file] {
-            assert_eq!(
-                format!("{:?}", r.get(BLOCK + 7).unwrap()),
-                format!("{:?}", frame(BLOCK + 7))
-            );
-            r.set(BLOCK + 7, frame(1)).unwrap();
-            let mut seen = Vec::new();
-            r.update(|lo, block| -> std::io::Result<()> {
-                seen.push((lo, block.len()));
-                for f in block {
-                    f.index += 1;
-                }
-                Ok(())
-            })
-            .unwrap();
-            assert_eq!(seen.iter().map(|s| s.1).sum::<usize>(), n);
-            r.check().unwrap();
-        }
-        assert_eq!(format!("{mem:?}"), format!("{file:?}"));
-        let got: Vec<usize> = file.iter().map(|f| f.index).collect();
-        let want: Vec<usize> = (0..n)
-            .map(|i| if i == BLOCK + 7 { 2 } else { i + 1 })
-            .collect();
-        assert_eq!(got, want);
     }
 }

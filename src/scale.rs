@@ -77,6 +77,18 @@ fn student_t_975_over_normal(df: usize) -> f64 {
 }
 
 impl EdgeOffset {
+    /// The edge offset the configuration gives (`camera.edge_offset_px`),
+    /// with its spread (`camera.edge_offset_spread_px`, else
+    /// [`crate::config::DEFAULT_EDGE_OFFSET_SPREAD_PX`]).
+    pub fn from_config(camera: &crate::config::CameraConfig) -> Option<Self> {
+        camera.edge_offset_px.map(|o| EdgeOffset {
+            offset_px: o,
+            spread_px: camera
+                .edge_offset_spread_px
+                .unwrap_or(crate::config::DEFAULT_EDGE_OFFSET_SPREAD_PX),
+        })
+    }
+
     /// From runs' offsets (apparent radius minus R_mm / free-fall scale):
     /// their mean, and as spread the standard deviation of one more drop
     /// about that mean (s·√(1 + 1/n), s at least

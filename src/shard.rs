@@ -9,7 +9,7 @@
 //! cache and only assembles drops.csv, the collapse and the report.
 
 use crate::manifest::RunSpec;
-use crate::source::folder::ImageKind;
+use crate::source::frame_decode::ImageKind;
 use std::path::Path;
 
 /// Frames a run is counted for on top of its frames: its fixed cost

@@ -16,7 +16,8 @@
 use std::fs::File;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::records::{read_at, write_at, Record, Records};
+use crate::io_util::{read_at, write_at};
+use crate::records::{Record, Records};
 use crate::track::{FrameTrack, Track};
 
 /// One job's shelf: an unnamed temporary file written at the end.

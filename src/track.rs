@@ -49,7 +49,10 @@
 //!    flagged [`Flag::Outlier`] ([`outliers`]); the measurement leaves them
 //!    out.
 
+mod frame;
 pub mod outliers;
+
+pub use frame::{Flag, FrameFlags, FrameTrack};
 
 use crate::detect::background::GainRegion;
 use crate::detect::background_rows::{from_sample_rows, SampleRows};
@@ -158,116 +161,6 @@ const CHUNKS_PER_THREAD: usize = 4;
 /// [`TrackSettings::frames_in_memory_max`] by default: 8 MB of the track's
 /// records (256 bytes a frame) and 1.8 MB of pass 1's (56).
 pub const FRAMES_IN_MEMORY_MAX: usize = 32_768;
-
-impl TrackSettings {
-    pub fn from_config(cfg: &crate::config::DetectConfig) -> Self {
-        TrackSettings {
-            background_frames: cfg.background_frames.max(3),
-            edge: EdgeParams::from_config(cfg),
-            coarse: CoarseParams::default(),
-            surface: SurfaceParams::default(),
-            surface_override: SurfaceLine::from_config(cfg),
-            band_margin_px: 6.0,
-            kept_points_max: KEPT_POINTS_MAX,
-            chunk_frames_max: CHUNK_FRAMES_MAX,
-            frames_in_memory_max: FRAMES_IN_MEMORY_MAX,
-            skip_away: true,
-            probe_searches: true,
-        }
-    }
-}
-
-/// What the tracker found in one frame.
-#[derive(Debug, Clone, PartialEq)]
-pub struct FrameTrack {
-    /// Index in the source.
-    pub index: usize,
-    /// Camera image number.
-    pub frame: i64,
-    pub t_s: f64,
-    /// Pass 1: radius free.
-    pub free: Option<CircleFit>,
-    /// Pass 2: radius held at the calibrated R_px.
-    pub held: Option<CircleFit>,
-    /// `recovered`, `partial` (the circle leaves the frame), `missing`,
-    /// `outlier` (off its neighbours in flight: [`outliers`]), `excluded`
-    /// (by a person).
-    pub flags: FrameFlags,
-}
-
-/// One of a frame's [`FrameFlags`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Flag {
-    /// Found again by a search after frames without a fit.
-    Recovered,
-    /// The circle leaves the frame.
-    Partial,
-    /// Looked for and not found (or its held fit failed).
-    Missing,
-    /// In free flight, off the path of the frames around it far beyond
-    /// the errors ([`outliers`]): mismeasured. The measurement leaves it
-    /// out of its fits.
-    Outlier,
-    /// Left out of every fit by a person (`dropscope review`): its fits
-    /// are kept and shown, never used.
-    Excluded,
-}
-
-impl Flag {
-    const ALL: [Flag; 5] = [
-        Flag::Recovered,
-        Flag::Partial,
-        Flag::Missing,
-        Flag::Outlier,
-        Flag::Excluded,
-    ];
-
-    /// The flag's word in the track CSV.
-    pub fn name(self) -> &'static str {
-        match self {
-            Flag::Recovered => "recovered",
-            Flag::Partial => "partial",
-            Flag::Missing => "missing",
-            Flag::Outlier => "outlier",
-            Flag::Excluded => "excluded",
-        }
-    }
-}
-
-/// A frame's flags: one byte a frame, not a list (a long movie's track
-/// holds a record a frame).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct FrameFlags(u8);
-
-impl FrameFlags {
-    pub fn insert(&mut self, f: Flag) {
-        self.0 |= 1 << f as u8;
-    }
-
-    pub fn contains(self, f: Flag) -> bool {
-        self.0 & (1 << f as u8) != 0
-    }
-
-    /// The flags as one byte (a bit per [`Flag`]), as stored in a file.
-    pub fn bits(self) -> u8 {
-        self.0
-    }
-
-    pub fn from_bits(bits: u8) -> Self {
-        FrameFlags(bits)
-    }
-
-    /// The flags' words, space-separated, in [`Flag`]'s order (the order
-    /// the tracker sets them in); empty without flags.
-    pub fn text(self) -> String {
-        let words: Vec<&str> = Flag::ALL
-            .into_iter()
-            .filter(|&f| self.contains(f))
-            .map(Flag::name)
-            .collect();
-        words.join(" ")
-    }
-}
 
 /// A tracked run.
 #[derive(Debug)]

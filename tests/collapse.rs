@@ -6,10 +6,11 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use dropscope::collapse::groups::ContactRadius;
 use dropscope::collapse::synthetic::{
     contact_track, eq8_dataset, power_law_dataset, write_track, SyntheticSpec,
 };
-use dropscope::collapse::{self, groups::ContactRadius, CollapseArgs};
+use dropscope::collapse_job::{self, CollapseArgs};
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::{self, DropRecord};
 
@@ -37,7 +38,7 @@ fn run(records: &[DropRecord], plots: bool) -> (tempfile::TempDir, serde_json::V
     let drops = dir.path().join("drops.csv");
     dataset::write_csv(&drops, records).unwrap();
     let out = dir.path().join("out");
-    collapse::run(&args(&drops, &out, plots), &config(), "pipeline.toml").unwrap();
+    collapse_job::run(&args(&drops, &out, plots), &config(), "pipeline.toml").unwrap();
     let fits = serde_json::from_slice(&std::fs::read(out.join("fits.json")).unwrap()).unwrap();
     (dir, fits)
 }
@@ -197,7 +198,7 @@ fn groups_match_a_hand_computation() {
     )
     .unwrap();
     let out = dir.path().join("out");
-    collapse::run(&args(&drops, &out, false), &config(), "pipeline.toml").unwrap();
+    collapse_job::run(&args(&drops, &out, false), &config(), "pipeline.toml").unwrap();
     let rows = collapse_rows(&out.join("collapse.csv"));
     assert_eq!(rows.len(), 1);
     let row = &rows[0];
@@ -329,7 +330,7 @@ fn plots_are_valid_svg_and_png_showing_every_point() {
     let dir = tempfile::tempdir().unwrap();
     let drops = plot_dataset(dir.path());
     let out = dir.path().join("out");
-    let s = collapse::run(&args(&drops, &out, true), &config(), "pipeline.toml").unwrap();
+    let s = collapse_job::run(&args(&drops, &out, true), &config(), "pipeline.toml").unwrap();
     // DROPSCOPE_KEEP=DIR keeps the figures for a look by eye.
     if let Ok(keep) = std::env::var("DROPSCOPE_KEEP") {
         for p in files(dir.path()) {
@@ -505,7 +506,7 @@ fn guide_slopes_are_straight_and_clear_of_the_legend() {
     let drops = dir.path().join("drops.csv");
     dataset::write_csv(&drops, &recs).unwrap();
     let out = dir.path().join("out");
-    collapse::run(&args(&drops, &out, true), &config(), "pipeline.toml").unwrap();
+    collapse_job::run(&args(&drops, &out, true), &config(), "pipeline.toml").unwrap();
     for name in ["tau_vs_v", "pi_vs_eta"] {
         let svg = std::fs::read_to_string(out.join(format!("plots/{name}.svg"))).unwrap();
         let Fan {
@@ -579,7 +580,7 @@ fn the_legend_keeps_clear_of_the_error_bars() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let drops = out.join("drops.csv");
-    collapse::run(&args(&drops, &out, true), &config(), "pipeline.toml").unwrap();
+    collapse_job::run(&args(&drops, &out, true), &config(), "pipeline.toml").unwrap();
     for name in ["psi_vs_xi", "omega_vs_xi", "pi_vs_eta", "tau_vs_v"] {
         let svg = std::fs::read_to_string(out.join(format!("plots/{name}.svg"))).unwrap();
         let doc = roxmltree::Document::parse(&svg).unwrap();
@@ -623,8 +624,8 @@ fn two_runs_write_identical_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let drops = plot_dataset(dir.path());
     let (a, b) = (dir.path().join("a"), dir.path().join("b"));
-    collapse::run(&args(&drops, &a, true), &config(), "pipeline.toml").unwrap();
-    collapse::run(&args(&drops, &b, true), &config(), "pipeline.toml").unwrap();
+    collapse_job::run(&args(&drops, &a, true), &config(), "pipeline.toml").unwrap();
+    collapse_job::run(&args(&drops, &b, true), &config(), "pipeline.toml").unwrap();
     let (fa, fb) = (files(&a), files(&b));
     assert_eq!(fa, fb);
     assert!(fa.len() >= 12, "{fa:?}");
@@ -825,7 +826,7 @@ fn untracked_frames_change_neither_the_fits_nor_the_figure() {
         let p = dir.path().join(name);
         write_track(&p, rows).unwrap();
         let d = dropscope::collapse::diagnostics::diagnose(&rec, &s, &p).unwrap();
-        let figures = dropscope::plot::drop_figures(&d).unwrap();
+        let figures = dropscope::figures::drop_figures(&d).unwrap();
         (
             d.track.samples.len(),
             d.flight_in,
@@ -965,7 +966,7 @@ fn figures_without_data_say_so() {
             seed: 1,
         },
     );
-    let figures = dropscope::plot::collapse_figures(&[], &fits).unwrap();
+    let figures = dropscope::figures::collapse_figures(&[], &fits).unwrap();
     let svgs: Vec<String> = figures
         .iter()
         .filter(|(name, _)| name.ends_with(".svg"))

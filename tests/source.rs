@@ -7,8 +7,8 @@ use std::process::Command;
 
 use dropscope::source::cine::{self, CineSource};
 use dropscope::source::cine_write::{CinePacking, CineSpec, CineWriter};
-use dropscope::source::folder::{FolderSource, ImageKind};
-use dropscope::source::frame_decode::FrameDecoder;
+use dropscope::source::folder::FolderSource;
+use dropscope::source::frame_decode::{FrameDecoder, ImageKind};
 use dropscope::source::{
     open, pcc_xml, Frame, FrameSource, FrameValues, OpenOptions, P10Mode, SourceError, SourceMeta,
 };
@@ -791,7 +791,7 @@ fn write_tiff16_packbits(path: &Path, f: &Frame) {
 }
 
 fn write_png16(path: &Path, f: &Frame) {
-    std::fs::write(path, dropscope::source::cli::png16(f).unwrap()).unwrap();
+    std::fs::write(path, dropscope::inspect::png16(f).unwrap()).unwrap();
 }
 
 /// An 8-bit paletted grey BMP, bottom-up, rows padded to 4 bytes.
@@ -1137,7 +1137,7 @@ fn export_frames(input: &Path, frames: &str, out: &Path) {
 }
 
 /// The side file `<name>_frames.csv` an export writes beside its PNGs.
-fn exported_frames(csv: &Path) -> Vec<dropscope::source::cli::ExportedFrame> {
+fn exported_frames(csv: &Path) -> Vec<dropscope::inspect::ExportedFrame> {
     csv::Reader::from_path(csv)
         .unwrap()
         .deserialize()
@@ -1541,7 +1541,7 @@ fn cine_tables(bytes: &[u8], layout: &cine::CineLayout) -> (Vec<f64>, Vec<f64>) 
     );
     let times = (0..n)
         .map(|i| {
-            cine::Time64 {
+            dropscope::source::index::Time64 {
                 fractions: u32_at(t + 8 * i),
                 seconds: u32_at(t + 8 * i + 4),
             }

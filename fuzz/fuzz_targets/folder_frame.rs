@@ -18,7 +18,7 @@
 
 use std::path::Path;
 
-use dropscope::source::folder::ImageKind;
+use dropscope::source::frame_decode::ImageKind;
 use dropscope::source::frame_decode::FrameDecoder;
 use dropscope::source::Frame;
 use libfuzzer_sys::fuzz_target;

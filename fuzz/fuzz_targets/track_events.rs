@@ -58,7 +58,7 @@ impl Bytes<'_> {
 const MAX_CONTACT_FRAMES: f64 = 12.0;
 
 /// Frames of a shaped drop's track after its contact: the force fit uses
-/// 12 of them (`force::FLIGHT_FRAMES`), the rebound's parabola at least 5.
+/// 12 of them (`events::FLIGHT_FRAMES`), the rebound's parabola at least 5.
 const FRAMES_AFTER_CONTACT: f64 = 24.0;
 
 /// The contact-law fit's work limit here, in trajectories (the product's is

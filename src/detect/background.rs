@@ -12,7 +12,7 @@
 use super::circle::Circle;
 use super::coarse;
 use super::columns::{near_columns, window_columns, MIN_COLUMNS};
-use super::surface::SurfaceLine;
+use super::types::SurfaceLine;
 use super::{Band, DetectError};
 
 /// The median of a non-empty slice (the mean of the two middle values for an
@@ -385,7 +385,7 @@ fn fill_smooth(
     levels: &mut [f32],
     w: usize,
     h: usize,
-    surface: Option<&super::surface::SurfaceLine>,
+    surface: Option<&super::types::SurfaceLine>,
     (c0, c1): (usize, usize),
 ) {
     if !levels.iter().any(|v| v.is_nan()) {
@@ -659,7 +659,7 @@ trait AboveLine {
     fn is_none_or_above(&self, z: f64, x: f64, margin: f64) -> bool;
 }
 
-impl AboveLine for Option<&super::surface::SurfaceLine> {
+impl AboveLine for Option<&super::types::SurfaceLine> {
     fn is_none_or_above(&self, z: f64, x: f64, margin: f64) -> bool {
         match self {
             Some(s) => z < s.row_at(x) - margin,

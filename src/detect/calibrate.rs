@@ -9,7 +9,7 @@
 
 use super::circle::CircleFit;
 use super::edges::EdgeParams;
-use super::surface::SurfaceLine;
+use super::types::SurfaceLine;
 
 /// The calibrated radius.
 #[derive(Debug, Clone, Copy, PartialEq)]

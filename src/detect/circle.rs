@@ -32,7 +32,7 @@
 // Small fixed-size matrix code reads best with explicit indices.
 #![allow(clippy::needless_range_loop)]
 
-use super::edges::EdgePoint;
+use super::types::EdgePoint;
 use super::DetectError;
 
 /// A circle in frame pixels (see the module convention in [`super`]).

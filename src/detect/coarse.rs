@@ -21,8 +21,8 @@
 
 use super::background::Background;
 use super::circle::{fit_circle, Circle, FitOptions, FitScratch};
-use super::edges::EdgePoint;
-use super::surface::SurfaceLine;
+use super::types::EdgePoint;
+use super::types::SurfaceLine;
 use super::{Band, DetectError};
 
 /// Settings of [`detect_coarse`].

@@ -71,19 +71,9 @@
 
 use super::background::{Background, FrameGain};
 use super::circle::{fit_circle, Circle, CircleFit, FitOptions, FitScratch};
-use super::surface::SurfaceLine;
+pub use super::types::EdgePoint;
+use super::types::SurfaceLine;
 use super::{Band, DetectError};
-
-/// One sub-pixel edge point of the silhouette, in frame pixels.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EdgePoint {
-    /// Column (px).
-    pub x_px: f64,
-    /// Row (px, grows downward).
-    pub z_px: f64,
-    /// Relative weight in fits (> 0; 0 excludes the point).
-    pub weight: f64,
-}
 
 /// Settings of [`edge_points`] and [`measure_circle`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -136,18 +126,6 @@ struct NormalSums {
     /// `q` at the window's inner and outer ends.
     q_in: f64,
     q_out: f64,
-}
-
-impl EdgeParams {
-    /// The settings of `[detect]` in pipeline.toml, defaults for the rest.
-    pub fn from_config(cfg: &crate::config::DetectConfig) -> Self {
-        EdgeParams {
-            spacing_px: cfg.edge_spacing_px,
-            half_window: cfg.edge_half_window_px,
-            surface_margin_px: cfg.contact_margin_px,
-            ..EdgeParams::default()
-        }
-    }
 }
 
 /// A normal ready to be sampled: its window's start and step in 16.16

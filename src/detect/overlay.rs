@@ -13,8 +13,8 @@
 use image::RgbImage;
 
 use super::circle::Circle;
-use super::edges::EdgePoint;
-use super::surface::SurfaceLine;
+use super::types::EdgePoint;
+use super::types::SurfaceLine;
 use super::Band;
 
 /// Colours: fitted circle, edge points, surface line.
@@ -284,27 +284,9 @@ impl Scene<'_> {
     }
 }
 
-/// PNG bytes of an overlay ([`rgb_png`]).
+/// PNG bytes of an overlay ([`crate::plot::rgb_png`]).
 pub fn encode_png(img: &RgbImage) -> Result<Vec<u8>, image::ImageError> {
-    rgb_png(img.as_raw(), img.width(), img.height())
-}
-
-/// PNG bytes of `width × height` RGB pixels, as the overlay stills and the
-/// figures are written: the fast deflate with every row filtered by
-/// "Paeth". Against the adaptive choice per row, re-encoding the 60-drop
-/// campaign's figures (1650 × 560) took 1.1 instead of 2.6 ms each and
-/// its overlay stills 0.8 instead of 1.2 ms, for 1.7 % more bytes.
-pub fn rgb_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>, image::ImageError> {
-    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
-    use image::ImageEncoder;
-    let mut out = Vec::new();
-    PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Paeth).write_image(
-        rgb,
-        width,
-        height,
-        image::ExtendedColorType::Rgb8,
-    )?;
-    Ok(out)
+    crate::plot::rgb_png(img.as_raw(), img.width(), img.height())
 }
 
 /// Grey levels of the animation's palette; the colours of the drawing follow.

@@ -34,77 +34,9 @@
 //! The uncertainty is that of the weighted least-squares line,
 //! `σ̂²(XᵀWX)⁻¹`, with `σ̂²` the weighted residual variance.
 
-use crate::config::DetectConfig;
-
 use super::background::Background;
+pub use super::types::SurfaceLine;
 use super::DetectError;
-
-/// The undeformed surface's top line, in frame pixels.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SurfaceLine {
-    /// Row of the line at column 0 (px).
-    pub row0_px: f64,
-    /// Tilt (rows per column).
-    pub slope: f64,
-    /// Covariance of `(row0_px, slope)`; zero when given by the configuration.
-    pub cov: [[f64; 2]; 2],
-    /// RMS residual of the column edges about the line (px); 0 when given.
-    pub residual_px: f64,
-    /// Columns used in the fit (0 when given).
-    pub n_used: usize,
-    /// Systematic error of the edge model (px): the median over the columns
-    /// of the step fit's row minus the area method's row (module doc, step 2);
-    /// near 0 for a clean step, the size of the bias a structured band top
-    /// (a dark or bright top row, a glossy strip) can give. 0 when given.
-    pub model_err_px: f64,
-    /// The line's bow: the coefficient c of `c·x²` fitted beside the line
-    /// to the same column edges (1/px; positive: the ends lower than the
-    /// middle), and its standard error. A straight surface seen through a
-    /// lens with radial distortion `k1` about a centre row `z_c` is bowed by
-    /// `c = k1·(row − z_c)`: the lens measured in the images
-    /// (`lens::k1_from_bow`). 0 when given.
-    pub bow_per_px2: f64,
-    pub bow_err_per_px2: f64,
-}
-
-impl SurfaceLine {
-    /// The line's row at column `x`.
-    #[inline]
-    pub fn row_at(&self, x: f64) -> f64 {
-        self.row0_px + self.slope * x
-    }
-
-    /// Standard deviation of [`row_at`](Self::row_at)`(x)`:
-    /// `√(c₀₀ + 2x c₀₁ + x² c₁₁)`.
-    pub fn sigma_row_at(&self, x: f64) -> f64 {
-        let c = &self.cov;
-        (c[0][0] + 2.0 * x * c[0][1] + x * x * c[1][1])
-            .max(0.0)
-            .sqrt()
-    }
-
-    /// A line given, not fitted: row `row0_px` at column 0 and `slope`, with
-    /// no covariance, residual or edge-model error.
-    pub fn given(row0_px: f64, slope: f64) -> Self {
-        SurfaceLine {
-            row0_px,
-            slope,
-            cov: [[0.0; 2]; 2],
-            residual_px: 0.0,
-            n_used: 0,
-            model_err_px: 0.0,
-            bow_per_px2: 0.0,
-            bow_err_per_px2: 0.0,
-        }
-    }
-
-    /// The line fixed by the configuration (`detect.surface_row_px`,
-    /// `detect.surface_slope`), if it sets one.
-    pub fn from_config(cfg: &DetectConfig) -> Option<Self> {
-        cfg.surface_row_px
-            .map(|row0_px| SurfaceLine::given(row0_px, cfg.surface_slope))
-    }
-}
 
 /// Settings of [`fit_surface`].
 #[derive(Debug, Clone, Copy, PartialEq)]

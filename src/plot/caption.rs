@@ -91,7 +91,7 @@ pub struct CaptionBand {
 /// the width) right-aligned on a line of its own. Every text's ink lies
 /// within the band (a test), so the band is drawn on its own.
 pub fn caption_band(w: u32, c: &Caption) -> Result<CaptionBand, String> {
-    super::register_fonts();
+    super::draw::register_fonts();
     let font = ("sans-serif", FONT_PX).into_font();
     let items = texts(c);
     let one_line = items.join("  ·  ");

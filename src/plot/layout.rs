@@ -12,7 +12,7 @@ use plotters::prelude::SeriesLabelPosition;
 /// or not finite, is taken at the smallest positive double (a decade
 /// count then stays under 620); more than 12 decades are labelled every
 /// few, and more than 24 get no minor grid.
-pub(super) fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
     let lo = if lo.is_finite() && lo > 0.0 {
         lo
     } else {
@@ -81,7 +81,7 @@ fn linear_ticks(lo: f64, hi: f64) -> Vec<f64> {
 }
 
 /// Points normalised to the plot area (log or linear axes).
-pub(super) fn normalised(points: &[Pt], xr: [f64; 2], yr: [f64; 2], log: bool) -> Vec<(f64, f64)> {
+pub(crate) fn normalised(points: &[Pt], xr: [f64; 2], yr: [f64; 2], log: bool) -> Vec<(f64, f64)> {
     let f = |v: f64, r: [f64; 2]| {
         if log {
             (v.ln() - r[0].ln()) / (r[1].ln() - r[0].ln())
@@ -94,7 +94,7 @@ pub(super) fn normalised(points: &[Pt], xr: [f64; 2], yr: [f64; 2], log: bool) -
 
 /// Points along each one-sigma error bar of `points` (5 on each), for the
 /// legend to keep clear of the bars as of the markers.
-pub(super) fn along_bars(points: &[Pt]) -> Vec<Pt> {
+pub(crate) fn along_bars(points: &[Pt]) -> Vec<Pt> {
     let mut out = Vec::new();
     for &(x, y, ex, ey) in points {
         for t in [-1.0, -0.5, 0.0, 0.5, 1.0] {
@@ -110,10 +110,10 @@ pub(super) fn along_bars(points: &[Pt]) -> Vec<Pt> {
 }
 
 /// x, y, σx, σy of one point.
-pub(super) type Pt = (f64, f64, Option<f64>, Option<f64>);
+pub(crate) type Pt = (f64, f64, Option<f64>, Option<f64>);
 
 /// [lo, hi] of values ± errors; on a log axis the lower end stays positive.
-pub(super) fn range(points: &[Pt], log: bool, extra: &[f64]) -> ([f64; 2], [f64; 2]) {
+pub(crate) fn range(points: &[Pt], log: bool, extra: &[f64]) -> ([f64; 2], [f64; 2]) {
     let mut xr = [f64::INFINITY, f64::NEG_INFINITY];
     let mut yr = xr;
     let grow = |r: &mut [f64; 2], v: f64, e: Option<f64>| {
@@ -151,7 +151,7 @@ pub(super) fn range(points: &[Pt], log: bool, extra: &[f64]) -> ([f64; 2], [f64;
 
 /// A guide line: its two ends (data coordinates: a straight line on log
 /// axes), label and label position (the label's top-left corner).
-pub(super) type Guide = (Vec<(f64, f64)>, String, (f64, f64));
+pub(crate) type Guide = (Vec<(f64, f64)>, String, (f64, f64));
 
 /// Fan of guide lines with the given slopes in a log–log plot, starting at
 /// fraction (fx, fy) of the log ranges and running `len` of the x range,
@@ -160,7 +160,7 @@ pub(super) type Guide = (Vec<(f64, f64)>, String, (f64, f64));
 /// the steepest rising guide ends 5 % below the top. Each guide is its two
 /// ends: drawn through intermediate points rounded to pixels, a dashed
 /// guide looked bent.
-pub(super) fn guide_lines(
+pub(crate) fn guide_lines(
     xr: [f64; 2],
     yr: [f64; 2],
     (fx, fy): (f64, f64),
@@ -206,21 +206,21 @@ const GUIDE_LABEL_ROOM: f64 = 0.12;
 
 /// The corners of a guide's label (normalised coordinates, y up), from its
 /// position `at` (normalised: the text's top-left corner).
-pub(super) fn label_corners(at: (f64, f64), label: &str) -> [(f64, f64); 4] {
-    const FONT: f64 = super::LEGEND_FONT as f64;
+pub(crate) fn label_corners(at: (f64, f64), label: &str) -> [(f64, f64); 4] {
+    const FONT: f64 = super::draw::LEGEND_FONT as f64;
     let w = (label.chars().count() as f64 * 0.6 * FONT + 4.0) / PLOT_AREA_PX.0;
     let h = 1.2 * FONT / PLOT_AREA_PX.1;
     [at, (at.0 + w, at.1), (at.0, at.1 - h), (at.0 + w, at.1 - h)]
 }
 
 /// Approximate plotting-area size of a collapse figure, for legend layout.
-pub(super) const PLOT_AREA_PX: (f64, f64) = (1000.0, 660.0);
+pub(crate) const PLOT_AREA_PX: (f64, f64) = (1000.0, 660.0);
 
 /// Legend box size as fractions of the plotting area (DejaVu Sans at
 /// `LEGEND_FONT`: about 0.45 of it per character, 1.3 of it per entry, plus
 /// the marker and margins).
-pub(super) fn legend_box(labels: &[String]) -> (f64, f64) {
-    const LEGEND: f64 = super::LEGEND_FONT as f64;
+pub(crate) fn legend_box(labels: &[String]) -> (f64, f64) {
+    const LEGEND: f64 = super::draw::LEGEND_FONT as f64;
     let chars = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0) as f64;
     (
         ((chars * 0.45 * LEGEND + 60.0) / PLOT_AREA_PX.0).min(0.95),
@@ -231,7 +231,7 @@ pub(super) fn legend_box(labels: &[String]) -> (f64, f64) {
 /// Where the legend goes: the allowed corner whose legend-sized box holds
 /// no point (normalised coordinates, y up; `occupied` includes lines),
 /// else `None`.
-pub(super) fn free_corner(
+pub(crate) fn free_corner(
     occupied: &[(f64, f64)],
     (w, h): (f64, f64),
     allowed: &[SeriesLabelPosition],
@@ -260,7 +260,7 @@ pub(super) fn free_corner(
 
 /// Raise the top of a y range so that a band of height fraction `h` above
 /// the current top is free for the legend (log or linear axis).
-pub(super) fn with_band(yr: [f64; 2], h: f64, log: bool) -> [f64; 2] {
+pub(crate) fn with_band(yr: [f64; 2], h: f64, log: bool) -> [f64; 2] {
     let k = 1.0 / (1.0 - h - 0.04);
     if log {
         [yr[0], yr[0] * (yr[1] / yr[0]).powf(k)]
@@ -273,7 +273,7 @@ pub(super) fn with_band(yr: [f64; 2], h: f64, log: bool) -> [f64; 2] {
 /// σy)`, or with `relative` (log axes) `(x, 100·(y/fit(x) − 1), −,
 /// 100·σy/fit(x))` in percent. Points where the fit is not finite (or, for
 /// `relative`, not positive) are left out.
-pub(super) fn residuals(points: &[Pt], fit: &dyn Fn(f64) -> f64, relative: bool) -> Vec<Pt> {
+pub(crate) fn residuals(points: &[Pt], fit: &dyn Fn(f64) -> f64, relative: bool) -> Vec<Pt> {
     points
         .iter()
         .filter_map(|&(x, y, _, ey)| {
@@ -292,7 +292,7 @@ pub(super) fn residuals(points: &[Pt], fit: &dyn Fn(f64) -> f64, relative: bool)
 
 /// A y range symmetric about 0 holding every residual with its error bar,
 /// 15 % to spare; [−1, 1] when there is nothing to show.
-pub(super) fn residual_range(res: &[Pt]) -> [f64; 2] {
+pub(crate) fn residual_range(res: &[Pt]) -> [f64; 2] {
     let m = res
         .iter()
         .map(|&(_, r, _, e)| r.abs() + e.unwrap_or(0.0))

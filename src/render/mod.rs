@@ -36,15 +36,19 @@ pub mod camera;
 pub mod campaign;
 pub mod contact;
 pub mod coverage;
+mod error;
 pub mod export;
 pub mod optics;
 mod options;
 pub mod physics;
 pub mod raster;
+mod rng;
 pub mod truth;
 
+pub use error::RenderError;
 use options::positive;
 pub use options::{Preset, RenderArgs, RenderSettings};
+pub use rng::rng_for;
 
 use std::path::{Path, PathBuf};
 
@@ -53,51 +57,10 @@ use camera::CameraRaster;
 use campaign::DropSpec;
 use export::{CineSink, FolderSink, FrameFormat, FrameSink, PccHeader};
 use physics::{ContactLaw, Damping, DropParams, Trajectory};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::Rng;
 use raster::{Raster, Scene};
 use rayon::prelude::*;
 use truth::{BounceTruth, ContactTruth, FrameTruth, SurfaceTruth, Truth};
-
-/// Why rendering failed.
-#[derive(Debug, thiserror::Error)]
-pub enum RenderError {
-    #[error("render option `--{name}` = {value}: {allowed}")]
-    Invalid {
-        name: &'static str,
-        value: String,
-        allowed: String,
-    },
-    #[error("run {run}: {source}")]
-    Physics {
-        run: String,
-        #[source]
-        source: physics::PhysicsError,
-    },
-    #[error("run {run}: {source}")]
-    Raster {
-        run: String,
-        #[source]
-        source: raster::RasterError,
-    },
-    #[error(
-        "run {run}: δmax = {delta_max_mm:.3} mm reaches the pillar height h = {pillar_height_mm} mm, \
-         where the elastic-foundation model F = πEφRδ²/h no longer holds: lower the drop height"
-    )]
-    OutsideModel {
-        run: String,
-        delta_max_mm: f64,
-        pillar_height_mm: f64,
-    },
-    #[error(transparent)]
-    Export(#[from] export::ExportError),
-    #[error("{path}: cannot create folder: {source}")]
-    CreateDir {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-}
 
 /// What one rendered drop produced.
 #[derive(Debug, Clone)]
@@ -222,37 +185,6 @@ fn write_manifest(
             source,
         })
     })
-}
-
-/// A ChaCha8 generator for one purpose, seeded from `(seed, run, stream,
-/// index)` through FNV-1a and SplitMix64 (stable across platforms and
-/// versions, unlike `std`'s hashers).
-pub fn rng_for(seed: u64, run: &str, stream: &str, index: i64) -> ChaCha8Rng {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut eat = |bytes: &[u8]| {
-        for &b in bytes {
-            h ^= u64::from(b);
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-        // a separator so that ("ab", "c") and ("a", "bc") differ
-        h ^= 0xff;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    };
-    eat(&seed.to_le_bytes());
-    eat(run.as_bytes());
-    eat(stream.as_bytes());
-    eat(&index.to_le_bytes());
-    let mut state = h;
-    let mut key = [0u8; 32];
-    for chunk in key.chunks_mut(8) {
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        chunk.copy_from_slice(&z.to_le_bytes());
-    }
-    ChaCha8Rng::from_seed(key)
 }
 
 /// The default scale: 0.04 mm/px at R = 3 mm, +0.01 per mm of radius, so

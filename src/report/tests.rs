@@ -7,7 +7,7 @@ use super::html::{escape, pm};
 use super::render_report;
 use crate::collapse::groups::ContactRadius;
 use crate::collapse::synthetic::{eq8_dataset, SyntheticSpec};
-use crate::collapse::CollapseArgs;
+use crate::collapse_job::CollapseArgs;
 use crate::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use crate::dataset::{self, DropRecord, DropStatus};
 
@@ -45,7 +45,7 @@ fn collapse_into(out: &Path, recs: &[DropRecord]) {
         seed: 5,
         no_plots: false,
     };
-    crate::collapse::run(&args, &cfg, "pipeline.toml").unwrap();
+    crate::collapse_job::run(&args, &cfg, "pipeline.toml").unwrap();
 }
 
 /// Every value of a `src="…"`, `data-src="…"`, `data-full="…"` or `href="…"` attribute
@@ -248,7 +248,7 @@ fn a_collapse_without_plots_says_so_and_keeps_its_fits() {
 #[test]
 fn captioned_plots_are_the_collapse_figures() {
     let mut captioned: Vec<&str> = super::KNOWN_PLOTS.iter().map(|(s, _)| *s).collect();
-    let mut drawn = crate::plot::FIGURE_STEMS.to_vec();
+    let mut drawn = crate::figures::FIGURE_STEMS.to_vec();
     captioned.sort_unstable();
     drawn.sort_unstable();
     assert_eq!(captioned, drawn);

@@ -490,7 +490,7 @@ impl State {
             Some(p) => RunView::open(
                 &p,
                 &self.cfg,
-                &crate::process::open_options(
+                &crate::stage_settings::open_options(
                     &self.cfg,
                     self.number_digits.get(&rec.run).copied(),
                     rec.fps.or(self.cfg.camera.fps),

@@ -25,9 +25,11 @@ use std::sync::Arc;
 use ndarray::ArrayViewMut2;
 
 use super::colour::{self, Bayer};
-use super::index::{Stored, ValuesInFile};
+use super::index::{Stored, Time64, ValuesInFile};
 use super::p10_lut::P10_TO_LINEAR12;
 use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
+use crate::io_util::read_at;
+
 use super::{
     check_band, fill_rows, for_cols, grown, ColourInput, FrameNumbers, FrameSource, FrameValues,
     OpenOptions, P10Mode, SourceDetails, SourceError, SourceMeta,
@@ -97,24 +99,6 @@ impl CineStorage {
             CineStorage::Bgr24 => "24-bit BGR interpolated colour, bottom-up",
             CineStorage::Bgr48 => "48-bit BGR interpolated colour, bottom-up",
         }
-    }
-}
-
-/// TIME64: seconds since 1970-01-01 UTC in 32.32 fixed point (phantom.md §10).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Time64 {
-    pub fractions: u32,
-    pub seconds: u32,
-}
-
-impl Time64 {
-    /// `seconds<<32 | fractions` with the two flag bits of `fractions` cleared.
-    pub fn ticks(self) -> i128 {
-        (i128::from(self.seconds) << 32) | i128::from(self.fractions & !3)
-    }
-    /// `self − other` in seconds.
-    pub fn seconds_since(self, other: Time64) -> f64 {
-        (self.ticks() - other.ticks()) as f64 / 4_294_967_296.0
     }
 }
 
@@ -270,7 +254,7 @@ pub trait ReadAt {
 
 impl ReadAt for File {
     fn read_at(&self, offset: u64, dst: &mut [u8]) -> std::io::Result<()> {
-        read_exact_at(self, offset, dst)
+        crate::io_util::read_at(self, offset, dst)
     }
 }
 
@@ -791,7 +775,7 @@ impl CineSource {
         }
         let mut head = [0u8; 4];
         // Positioned: copies of the source share the file's offset.
-        read_exact_at(&self.file, start, &mut head).map_err(io)?;
+        read_at(&self.file, start, &mut head).map_err(io)?;
         let annot = u32::from_le_bytes(head);
         let expect = self.layout.header.image_bytes();
         // The image must fit before the end of the file and before the
@@ -1074,7 +1058,7 @@ impl CineSource {
                 });
             }
         }
-        if let Err(e) = read_exact_at(&self.file, byte0, grown(&mut self.bytes, span as usize)) {
+        if let Err(e) = read_at(&self.file, byte0, grown(&mut self.bytes, span as usize)) {
             return Err(self.frame_err(index, format!("reading pixels: {e}")));
         }
         let linear = storage == CineStorage::P10 && self.options.p10 == P10Mode::Linear;
@@ -1148,28 +1132,11 @@ fn read_rows(
     row_bytes: usize,
     reverse: bool,
 ) -> std::io::Result<()> {
-    read_exact_at(file, offset, dst)?;
+    read_at(file, offset, dst)?;
     if reverse && row_bytes > 0 {
         reverse_rows(dst, row_bytes);
     }
     Ok(())
-}
-
-/// Fill `dst` from byte `offset` of `file`: one positioned read on Unix
-/// (a seek is a system call of its own, 1–2 µs on this VM: a 64 kB band
-/// read measured 2.1 µs with `pread` against 3.9 µs with seek + read,
-/// medians of five runs).
-pub(crate) fn read_exact_at(file: &File, offset: u64, dst: &mut [u8]) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::read_exact_at(file, dst, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        let mut file = file;
-        file.seek(SeekFrom::Start(offset))?;
-        file.read_exact(dst)
-    }
 }
 
 /// Reverse the order of the `row_bytes`-long rows of `buf` in place.

@@ -28,43 +28,13 @@ use std::path::{Path, PathBuf};
 
 use ndarray::ArrayViewMut2;
 
-use super::frame_decode::{format_err, io_err, FrameDecoder, Probe, Shape};
+use super::frame_decode::{format_err, io_err, FrameDecoder, ImageKind, Probe, Shape};
 use super::listing::Listing;
 use super::pcc_xml::{self, PccXml};
 use super::{
     check_band, ColourInput, Frame, FrameNames, FrameNumbers, FrameSource, OpenOptions,
     SourceDetails, SourceError, SourceMeta,
 };
-
-/// Image file kinds a folder may hold.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub enum ImageKind {
-    Tiff,
-    Png,
-    Bmp,
-    Jpeg,
-}
-
-impl ImageKind {
-    /// The kind of a file extension (case-insensitive), if it is an image.
-    pub fn from_extension(ext: &str) -> Option<ImageKind> {
-        match ext.to_ascii_lowercase().as_str() {
-            "tif" | "tiff" => Some(ImageKind::Tiff),
-            "png" => Some(ImageKind::Png),
-            "bmp" => Some(ImageKind::Bmp),
-            "jpg" | "jpeg" => Some(ImageKind::Jpeg),
-            _ => None,
-        }
-    }
-    fn name(self) -> &'static str {
-        match self {
-            ImageKind::Tiff => "tiff",
-            ImageKind::Png => "png",
-            ImageKind::Bmp => "bmp",
-            ImageKind::Jpeg => "jpeg",
-        }
-    }
-}
 
 /// Split a file name into `(prefix, number, kind)`, or `None` when it is not
 /// a numbered image (see the module documentation for the sign rule).

@@ -19,7 +19,6 @@ use std::path::Path;
 
 use ndarray::{s, ArrayViewMut2};
 
-use super::folder::ImageKind;
 use super::widen::widen_u8;
 use super::{fill_row, fill_rows, for_cols, grown, SourceError};
 
@@ -99,6 +98,36 @@ pub(super) fn format_err(path: &Path, reason: impl Into<String>) -> SourceError 
     SourceError::Format {
         path: path.to_path_buf(),
         reason: reason.into(),
+    }
+}
+
+/// Image file kinds a folder may hold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum ImageKind {
+    Tiff,
+    Png,
+    Bmp,
+    Jpeg,
+}
+
+impl ImageKind {
+    /// The kind of a file extension (case-insensitive), if it is an image.
+    pub fn from_extension(ext: &str) -> Option<ImageKind> {
+        match ext.to_ascii_lowercase().as_str() {
+            "tif" | "tiff" => Some(ImageKind::Tiff),
+            "png" => Some(ImageKind::Png),
+            "bmp" => Some(ImageKind::Bmp),
+            "jpg" | "jpeg" => Some(ImageKind::Jpeg),
+            _ => None,
+        }
+    }
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            ImageKind::Tiff => "tiff",
+            ImageKind::Png => "png",
+            ImageKind::Bmp => "bmp",
+            ImageKind::Jpeg => "jpeg",
+        }
     }
 }
 

@@ -10,7 +10,6 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
-use super::cine::Time64;
 use super::SourceError;
 
 /// The camera image number of every readable frame, as runs of consecutive
@@ -107,6 +106,24 @@ impl From<Vec<f64>> for FrameValues {
     }
 }
 
+/// TIME64: seconds since 1970-01-01 UTC in 32.32 fixed point (phantom.md §10).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Time64 {
+    pub fractions: u32,
+    pub seconds: u32,
+}
+
+impl Time64 {
+    /// `seconds<<32 | fractions` with the two flag bits of `fractions` cleared.
+    pub fn ticks(self) -> i128 {
+        (i128::from(self.seconds) << 32) | i128::from(self.fractions & !3)
+    }
+    /// `self − other` in seconds.
+    pub fn seconds_since(self, other: Time64) -> f64 {
+        (self.ticks() - other.ticks()) as f64 / 4_294_967_296.0
+    }
+}
+
 /// How a value is stored in the file (formats/phantom.md §10).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stored {
@@ -186,7 +203,7 @@ impl ValuesInFile {
         let width = self.stored.bytes();
         let at = self.start + (lo * width) as u64;
         let mut bytes = vec![0u8; (hi - lo) * width];
-        super::cine::read_exact_at(&self.file, at, &mut bytes).map_err(|e| SourceError::Frame {
+        crate::io_util::read_at(&self.file, at, &mut bytes).map_err(|e| SourceError::Frame {
             path: self.path.clone(),
             index: asked,
             reason: format!(

@@ -11,7 +11,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::folder::ImageKind;
+use super::frame_decode::ImageKind;
 use super::{InputKind, SourceError};
 
 /// The kind of a recording file by its extension: `.cine` → cine; `.mraw`,

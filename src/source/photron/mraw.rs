@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use ndarray::ArrayViewMut2;
 
 use super::cih::{self, BitSide, Cih};
+use crate::io_util::read_at;
 use crate::source::{
     check_band, fill_rows, grown, FrameNumbers, FrameSource, OpenOptions, SourceDetails,
     SourceError, SourceMeta,
@@ -259,7 +260,7 @@ impl FrameSource for PhotronSource {
         let (b0, b1) = (first_bit / 8, end_bit.div_ceil(8));
         let at = index as u64 * self.cih.frame_bytes() + b0;
         let buf = grown(&mut self.bytes, (b1 - b0) as usize);
-        read_exact_at(&self.file, at, buf).map_err(|e| SourceError::Frame {
+        read_at(&self.file, at, buf).map_err(|e| SourceError::Frame {
             path: self.meta.path.clone(),
             index,
             reason: format!(
@@ -331,21 +332,6 @@ fn unpack12(src: &[u8], odd: bool, out: &mut [u16]) {
     if out.len() % 2 == 1 {
         let s = &src[3 * pairs..];
         out[2 * pairs] = (u16::from(s[0]) << 4) | (u16::from(s[1]) >> 4);
-    }
-}
-
-/// Fill `dst` from byte `offset` of `file` with one positioned read.
-fn read_exact_at(file: &File, offset: u64, dst: &mut [u8]) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::read_exact_at(file, dst, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Read, Seek, SeekFrom};
-        let mut file = file;
-        file.seek(SeekFrom::Start(offset))?;
-        file.read_exact(dst)
     }
 }
 

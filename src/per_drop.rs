@@ -6,8 +6,8 @@
 
 use std::path::{Path, PathBuf};
 
-use super::diagnostics::{self, DropDiagnostics};
-use super::CollapseError;
+use crate::collapse::diagnostics::{self, DropDiagnostics};
+use crate::collapse::CollapseError;
 use crate::config::{PipelineConfig, Surface};
 use crate::dataset::DropRecord;
 use crate::io_util::Durable;
@@ -72,7 +72,7 @@ pub fn figures(
                 // Named after the run, as its track and overlay are (spaces
                 // and non-ASCII letters included): its name passed
                 // `run_name::check` in `diagnose_all`.
-                let named = crate::plot::drop_figures(&d)?;
+                let named = crate::figures::drop_figures(&d)?;
                 Ok::<_, CollapseError>(
                     named
                         .into_iter()
@@ -140,7 +140,7 @@ pub fn replace(
     // drop), before the old ones go.
     let any = !figures.is_empty();
     for (rel, bytes) in figures {
-        super::write_as(ledger, &rel, &bytes, files, Durable::WithTheJob)?;
+        write_as(ledger, &rel, &bytes, files, Durable::WithTheJob)?;
         kept.insert(rel.to_string_lossy().into_owned());
     }
     let out_dir = ledger.out().to_path_buf();
@@ -159,5 +159,25 @@ pub fn replace(
     for rel in earlier {
         ledger.remove(&rel).map_err(gone)?;
     }
+    Ok(())
+}
+
+/// `rel` written through `ledger` and added to `files`, synced now or left for one [`crate::io_util::sync_file_system`]
+/// of them all ([`Durable`]): through the output folder's ledger
+/// ([`crate::out_folder`]), which lists it as dropscope's.
+pub(crate) fn write_as(
+    ledger: &mut Ledger,
+    rel: &Path,
+    bytes: &[u8],
+    files: &mut Vec<PathBuf>,
+    durable: Durable,
+) -> Result<(), CollapseError> {
+    ledger
+        .write_as(&rel.to_string_lossy(), bytes, durable)
+        .map_err(|source| CollapseError::Write {
+            path: ledger.out().join(rel),
+            source,
+        })?;
+    files.push(rel.to_path_buf());
     Ok(())
 }

@@ -10,18 +10,18 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::collections::BTreeMap;
 
-use super::layout::{
+use crate::collapse::fit::{self, ExponentFit, Fits, SeriesFit};
+use crate::collapse::groups::{DropGroups, Quantity};
+use crate::plot::layout::{
     along_bars, free_corner, guide_lines, label_corners, legend_box, log_ticks, normalised, range,
     residual_range, residuals, with_band, Guide, Pt,
 };
-use super::marker::{radius_style, Marker, MarkerKind};
-use super::{
+use crate::plot::PlotError;
+use crate::plot::{
     axis_tick, hover, render, tick, DrawResult, DESC_FONT, LEGEND_FONT, LIGHT_LINES, TICK_FONT,
 };
-use super::{Backend, Plane};
-use crate::collapse::fit::{self, ExponentFit, Fits, SeriesFit};
-use crate::collapse::groups::{DropGroups, Quantity};
-use crate::collapse::CollapseError;
+use crate::plot::{radius_style, Marker, MarkerKind};
+use crate::plot::{Backend, Plane};
 
 /// Size of every collapse figure, in pixels (SVG user units).
 pub const FIGURE_SIZE: (u32, u32) = (1100, 1040);
@@ -858,7 +858,7 @@ pub const FIGURE_STEMS: [&str; 4] = ["pi_vs_eta", "tau_vs_v", "psi_vs_xi", "omeg
 pub fn collapse_figures(
     groups: &[DropGroups],
     fits: &Fits,
-) -> Result<Vec<(String, Vec<u8>)>, CollapseError> {
+) -> Result<Vec<(String, Vec<u8>)>, PlotError> {
     let sets = by_radius(groups, fits);
     let mut out = Vec::new();
     out.extend(render!(FIGURE_STEMS[0], FIGURE_SIZE, |a| pi_vs_eta(

@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use serde_json::json;
 
-use super::{open, Frame, FrameSource, OpenOptions, P10Mode, SourceError, SourceMeta};
 use crate::config::PipelineConfig;
+use crate::source::{open, Frame, FrameSource, OpenOptions, P10Mode, SourceError, SourceMeta};
 
 /// Options shared by the commands that open a source.
 #[derive(Debug, Clone, clap::Args)]
@@ -158,7 +158,7 @@ pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
 }
 
 /// The inspect report as JSON (`json`) or as aligned text.
-pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, super::SourceError> {
+pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, crate::source::SourceError> {
     let d = &m.details;
     let times = m.timestamps_s.as_ref();
     // The first and the last time stamp, when there are any.
@@ -198,7 +198,7 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, super::Sourc
         "number_digits": d.frame_names.as_ref().map(|n| n.number_digits),
         "colour": d.colour.as_ref().map(|c| c.name()),
         "bayer": match &d.colour {
-            Some(super::ColourInput::Bayer(b)) => Some(b.name()),
+            Some(crate::source::ColourInput::Bayer(b)) => Some(b.name()),
             _ => None,
         },
         "warnings": d.warnings,
@@ -309,7 +309,7 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, super::Sourc
 /// `--numbers A:B` (or `A`): the indices of camera numbers A..B−1.
 fn number_range(
     text: &str,
-    numbers: &super::FrameNumbers,
+    numbers: &crate::source::FrameNumbers,
 ) -> anyhow::Result<std::ops::Range<usize>> {
     let parse = |s: &str| -> anyhow::Result<i64> {
         s.trim()
@@ -399,7 +399,7 @@ pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
     };
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let stem = super::input_name(&args.input);
+    let stem = crate::source::input_name(&args.input);
     let mut frame = Frame::zeros((meta.height, meta.width));
     let mut written = Vec::new();
     let mut rows = Vec::new();

@@ -5,9 +5,9 @@
 use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
 
-use super::{axis_tick, file_stem, render, tick, Backend, DrawResult, Plane, LIGHT_LINES};
 use crate::collapse::diagnostics::{DropDiagnostics, TrackSamples};
-use crate::collapse::CollapseError;
+use crate::plot::PlotError;
+use crate::plot::{axis_tick, file_stem, render, tick, Backend, DrawResult, Plane, LIGHT_LINES};
 
 /// Size of a per-drop figure in pixels.
 pub const DROP_FIGURE_SIZE: (u32, u32) = (1650, 560);
@@ -134,8 +134,8 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
     let mut cols = left.split_evenly((1, 2));
     cols.push(force_panel);
     let t_range = time_span_ms(&d.track);
-    let label = ("sans-serif", super::LEGEND_FONT);
-    let desc = ("sans-serif", super::DESC_FONT - 4);
+    let label = ("sans-serif", crate::plot::LEGEND_FONT);
+    let desc = ("sans-serif", crate::plot::DESC_FONT - 4);
 
     // z(t): rows grow downward, so the axis is reversed (up on the page is up in the lab).
     // Each panel's points are walked from the track as they are drawn (a
@@ -273,7 +273,7 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
     );
     let font = legend_font(&cols[2], &labels, plot_w)?;
     let band = (labels.len() as f64 * 1.3 * f64::from(font) + 24.0) / plot_h;
-    let fr = super::layout::with_band(span(y_all.into_iter()), band, false);
+    let fr = crate::plot::layout::with_band(span(y_all.into_iter()), band, false);
     let mut c = ChartBuilder::on(&cols[2])
         .margin(14)
         .margin_right(30)
@@ -333,7 +333,7 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
     Ok(())
 }
 
-/// The legend font size, at most [`super::LEGEND_FONT`] (and at least 12),
+/// The legend font size, at most [`crate::plot::LEGEND_FONT`] (and at least 12),
 /// at which the longest of `labels`, with the legend's marker and margins,
 /// fits `width_px`.
 fn legend_font<DB: Backend>(
@@ -343,7 +343,7 @@ fn legend_font<DB: Backend>(
 ) -> Result<u32, Box<dyn std::error::Error>> {
     // Marker, gaps and box margins around the text (plotters' series labels).
     const CHROME_PX: f64 = 60.0;
-    let base = super::LEGEND_FONT;
+    let base = crate::plot::LEGEND_FONT;
     let mut widest = 0.0f64;
     for l in labels {
         let (w, _) = area.estimate_text_size(l, &("sans-serif", base).into_text_style(area))?;
@@ -357,11 +357,11 @@ fn legend_font<DB: Backend>(
 }
 
 /// The diagnostics figure of one drop as `(file name, bytes)`, SVG and PNG.
-pub fn drop_figures(d: &DropDiagnostics) -> Result<Vec<(String, Vec<u8>)>, CollapseError> {
+pub fn drop_figures(d: &DropDiagnostics) -> Result<Vec<(String, Vec<u8>)>, PlotError> {
     let figures = render!(&file_stem(&d.run), DROP_FIGURE_SIZE, |a| panels(a, d))?;
     // The panels walked the samples (from their file, past its budget):
     // none failed to be read.
-    d.track.samples.check().map_err(|e| CollapseError::Plot {
+    d.track.samples.check().map_err(|e| PlotError {
         name: file_stem(&d.run),
         message: e.to_string(),
     })?;

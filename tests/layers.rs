@@ -837,7 +837,12 @@ fn ties(circle: &[String], node: impl Fn(&str) -> String) -> String {
                 .filter(|i| node(&i.from) == w[0] && node(&i.to) == w[1])
                 .map(|i| format!("src/{} imports {}", i.from, i.path))
                 .collect();
-            format!("  {} -> {}: {}", w[0], w[1], names.join("; "))
+            let more = match names.len() {
+                n if n > 4 => format!("; and {} more", n - 4),
+                _ => String::new(),
+            };
+            let shown = names.iter().take(4).cloned().collect::<Vec<_>>();
+            format!("  {} -> {}: {}{more}", w[0], w[1], shown.join("; "))
         })
         .collect::<Vec<_>>()
         .join("\n")

@@ -8,10 +8,9 @@
 //! Asserted, with today's files standing for the folders that ARCHITECTURE.md
 //! names (the groups below):
 //!
-//! - no circle among files (but the one waiting, [`WAITING_CIRCLE`]), and
-//!   none among the rooms (each folder under `src/` taken as one room,
-//!   `track.rs` with `track/`): an import that runs back up to a room above
-//!   is such a circle;
+//! - no circle among files, and none among the rooms (each folder under
+//!   `src/` taken as one room, `track.rs` with `track/`): an import that
+//!   runs back up to a room above is such a circle;
 //! - util (today `io_util`, `records`, `lsq`, `timings`, `text`, `console`,
 //!   `ranges`, and `lib.rs`'s `plural`) imports nothing else of the crate;
 //! - config (`config.rs`, `config_toml.rs`) imports no stage;
@@ -838,7 +837,12 @@ fn ties(circle: &[String], node: impl Fn(&str) -> String) -> String {
                 .filter(|i| node(&i.from) == w[0] && node(&i.to) == w[1])
                 .map(|i| format!("src/{} imports {}", i.from, i.path))
                 .collect();
-            format!("  {} -> {}: {}", w[0], w[1], names.join("; "))
+            let more = match names.len() {
+                n if n > 4 => format!("; and {} more", n - 4),
+                _ => String::new(),
+            };
+            let shown = names.iter().take(4).cloned().collect::<Vec<_>>();
+            format!("  {} -> {}: {}{more}", w[0], w[1], shown.join("; "))
         })
         .collect::<Vec<_>>()
         .join("\n")
@@ -914,57 +918,15 @@ fn figures_never_touch_files() {
     }
 }
 
-/// The one circle of files left, waiting for its split: the background's
-/// sphere passes (`Background::from_frames_with_sphere`, `coarse_pass`,
-/// `circles_and_line`) call the coarse detector and the surface fit, which
-/// take a `Background`. The passes go to a `background_sphere.rs` above
-/// both, the type stays below. [`no_circle_among_files`] overlooks a circle
-/// made of these files alone, and [`the_waiting_circle_is_still_there`]
-/// fails once it is gone, so that this list is emptied.
-const WAITING_CIRCLE: &[&str] = &[
-    "detect/background.rs",
-    "detect/coarse.rs",
-    "detect/surface.rs",
-];
-
-fn file_graph(skip_waiting: bool) -> BTreeMap<String, BTreeSet<String>> {
-    let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
-    for i in imports() {
-        let waiting =
-            WAITING_CIRCLE.contains(&i.from.as_str()) && WAITING_CIRCLE.contains(&i.to.as_str());
-        if !(skip_waiting && waiting) {
-            graph
-                .entry(i.from.clone())
-                .or_default()
-                .insert(i.to.clone());
-        }
-    }
-    graph
-}
-
-#[test]
-fn the_waiting_circle_is_still_there() {
-    let inside: BTreeMap<String, BTreeSet<String>> = file_graph(false)
-        .into_iter()
-        .filter(|(f, _)| WAITING_CIRCLE.contains(&f.as_str()))
-        .map(|(f, to)| {
-            let to = to
-                .into_iter()
-                .filter(|t| WAITING_CIRCLE.contains(&t.as_str()))
-                .collect();
-            (f, to)
-        })
-        .collect();
-    assert!(
-        find_circle(&inside).is_some(),
-        "{WAITING_CIRCLE:?} no longer import each other in a circle: empty WAITING_CIRCLE in \
-         tests/layers.rs"
-    );
-}
-
 #[test]
 fn no_circle_among_files() {
-    let graph = file_graph(true);
+    let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for i in imports() {
+        graph
+            .entry(i.from.clone())
+            .or_default()
+            .insert(i.to.clone());
+    }
     if let Some(circle) = find_circle(&graph) {
         panic!(
             "a circle of files (each imports the next; move the name to the lowest file that \

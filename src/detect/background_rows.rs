@@ -13,10 +13,10 @@
 //! from the page cache) and takes the per-pixel medians of those rows.
 
 use super::background::{
-    binned_pass, circles_and_line, clamp_region, coarse_view, fill_covered, gains_from_sums,
-    median_columns, plain_median_row, reference_sum, Background, GainRegion, ReferenceGains,
-    SphereMedian,
+    clamp_region, fill_covered, gains_from_sums, median_columns, plain_median_row, reference_sum,
+    Background, GainRegion, ReferenceGains, SphereMedian,
 };
+use super::background_sphere::{binned_pass, circles_and_line, coarse_view};
 use super::coarse::CoarseParams;
 use super::columns::{near_columns, MIN_COLUMNS};
 use super::DetectError;

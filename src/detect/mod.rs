@@ -8,6 +8,7 @@
 //! | --- | --- |
 //! | [`background`] | per-pixel background from the frames before the sphere, and a per-frame flicker gain |
 //! | [`background_rows`] | the same from sample frames read a band of rows at a time (never all held whole) |
+//! | [`background_sphere`] | the first passes of either from frames that may show the sphere: its coarse circles |
 //! | [`columns`] | the columns within reach of the sphere's path that the background and the line look at |
 //! | [`surface`] | the top of the pillar band as a sub-pixel line `row = row0 + slope · column` |
 //! | [`coarse`] | the sphere's first appearance and a coarse circle (also when it enters through the top) |
@@ -34,6 +35,7 @@
 
 pub mod background;
 pub mod background_rows;
+pub mod background_sphere;
 pub mod calibrate;
 pub mod circle;
 pub mod coarse;

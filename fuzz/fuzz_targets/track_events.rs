@@ -26,7 +26,7 @@
 use dropscope::config::Surface;
 use dropscope::events::{EventConfig, Geometry, TrackPoint};
 use dropscope::measure::{measure_drop, DropInfo};
-use dropscope::render::physics::{DropParams, Trajectory};
+use dropscope::render::physics::{ContactLaw, DropParams, Trajectory};
 use libfuzzer_sys::fuzz_target;
 
 struct Bytes<'a>(&'a [u8]);
@@ -126,6 +126,7 @@ fuzz_target!(|data: &[u8]| {
         gravity_m_s2: 9.81,
         impact_speed_m_s: v_in,
         damping_n_s_m: 0.0,
+        law: ContactLaw::MODEL,
     };
     // At most MAX_CONTACT_FRAMES frames in the contact: the fit integrates
     // every trajectory over them (20 steps a frame), and that sets the cost

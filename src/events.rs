@@ -129,69 +129,69 @@ pub const FORCE_FIT_MAX_TRAJECTORIES: usize = 2_500;
 /// Why events could not be found.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EventError {
-    #[error("too few measured frames ({0}) to find any event")]
     /// Fewer measured frames than the fits need (the count).
+    #[error("too few measured frames ({0}) to find any event")]
     TooFewFrames(usize),
+    /// The sphere's bottom never comes down to the surface line.
     #[error(
         "the sphere never reaches the surface line (closest approach {gap_px:.2} px above it)"
     )]
-    /// The sphere's bottom never comes down to the surface line.
     NeverLands {
         /// The smallest gap between the sphere's bottom and the line, px.
         gap_px: f64,
     },
-    #[error("the sphere is already in contact in the first measured frame ({frame}): no free flight before contact")]
     /// The first measured frame is already in contact.
+    #[error("the sphere is already in contact in the first measured frame ({frame}): no free flight before contact")]
     NoFlightBeforeContact {
         /// That first measured frame's image number.
         frame: i64,
     },
-    #[error("only {found} free-flight frames before contact (at least {needed} needed)")]
     /// Too few free-flight frames before the contact to fit the impact.
+    #[error("only {found} free-flight frames before contact (at least {needed} needed)")]
     ShortFlightBeforeContact {
         /// Free-flight frames before the contact.
         found: usize,
         /// The fewest the fit accepts.
         needed: usize,
     },
+    /// The last measured frame is still in contact.
     #[error(
         "the sphere is still in contact at the last measured frame ({frame}): no rebound recorded"
     )]
-    /// The last measured frame is still in contact.
     NoRebound {
         /// That last measured frame's image number.
         frame: i64,
     },
-    #[error("only {found} free-flight frames after the rebound (at least {needed} needed)")]
     /// Too few free-flight frames after the contact to fit the rebound.
+    #[error("only {found} free-flight frames after the rebound (at least {needed} needed)")]
     ShortFlightAfterContact {
         /// Free-flight frames after the contact.
         found: usize,
         /// The fewest the fit accepts.
         needed: usize,
     },
-    #[error("only {0} frames around the maximum penetration: cannot fit the peak")]
     /// Too few frames around the maximum penetration to fit the peak (the count).
+    #[error("only {0} frames around the maximum penetration: cannot fit the peak")]
     ShortPeak(usize),
-    #[error("the {0} fit failed (degenerate frames)")]
     /// A least-squares fit was degenerate; names the fit (`pre-contact flight`, `peak`, …).
+    #[error("the {0} fit failed (degenerate frames)")]
     FitFailed(&'static str),
-    #[error("the {0} parabola never meets the surface line")]
     /// A flight parabola never meets the surface line; names the flight (`pre-contact`, …).
+    #[error("the {0} parabola never meets the surface line")]
     NoCrossing(&'static str),
-    #[error("frame {frame}: its time {t_s} s is not after the previous frame's (frame times must be finite and increasing)")]
     /// A frame's time is not finite or not after the previous frame's.
+    #[error("frame {frame}: its time {t_s} s is not after the previous frame's (frame times must be finite and increasing)")]
     TimesNotIncreasing {
         /// The frame's image number.
         frame: i64,
         /// Its time, s.
         t_s: f64,
     },
-    #[error("impossible result: {0}")]
     /// The numbers measured are physically impossible (δmax not below the sphere's radius, or not finite); says which.
+    #[error("impossible result: {0}")]
     Impossible(String),
-    #[error("frame {frame}: its position or uncertainty is not a finite number")]
     /// A frame's position or uncertainty is not finite, or its σ is not positive.
+    #[error("frame {frame}: its position or uncertainty is not a finite number")]
     NotFinite {
         /// The frame's image number.
         frame: i64,

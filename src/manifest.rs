@@ -131,19 +131,19 @@ pub enum ManifestError {
         /// The column, the text found and what is allowed.
         message: String,
     },
-    #[error("{path}: the manifest lists no run")]
     /// The manifest has a header and no run.
+    #[error("{path}: the manifest lists no run")]
     Empty {
         /// The manifest file.
         path: PathBuf,
     },
+    /// None of the runs' inputs exists: a drive not mounted or a manifest moved without its runs.
     #[error(
         "{path}: none of its {runs} runs' inputs is there (the first, {}, does not exist): \
          nothing was written; is their drive mounted, or was the manifest moved without \
          them? (a run's path is taken from the manifest's folder)",
         first.display()
     )]
-    /// None of the runs' inputs exists: a drive not mounted or a manifest moved without its runs.
     NoneThere {
         /// The manifest file.
         path: PathBuf,

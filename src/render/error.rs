@@ -35,11 +35,11 @@ pub enum RenderError {
         #[source]
         source: raster::RasterError,
     },
+    /// The drop would press deeper than the pillars are high, outside the contact model.
     #[error(
         "run {run}: δmax = {delta_max_mm:.3} mm reaches the pillar height h = {pillar_height_mm} mm, \
          where the elastic-foundation model F = πEφRδ²/h no longer holds: lower the drop height"
     )]
-    /// The drop would press deeper than the pillars are high, outside the contact model.
     OutsideModel {
         /// The run being rendered.
         run: String,

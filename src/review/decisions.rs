@@ -311,14 +311,24 @@ pub enum ReviewError {
         /// What is wrong with it.
         message: String,
     },
+    /// The file is larger than [`MAX_FILE_BYTES`]: not a decisions file.
     #[error("{path}: larger than {MAX_FILE_BYTES} bytes: not a decisions file")]
-    TooLarge { path: PathBuf },
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+    },
+    /// `input.review` names a file outside the output folder, where the review could not save.
     #[error(
         "input.review names {path}, outside the output folder {out}: `dropscope review` saves \
          its decisions only inside the output folder it shows; name a file in that folder, or \
          leave input.review out (review.csv there)"
     )]
-    Outside { path: PathBuf, out: PathBuf },
+    Outside {
+        /// The decisions file named.
+        path: PathBuf,
+        /// The output folder.
+        out: PathBuf,
+    },
 }
 
 /// The decisions of one file, in its order.

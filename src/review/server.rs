@@ -73,6 +73,7 @@ pub enum ServeError {
     /// The port could not be listened on (in use, or not allowed).
     #[error("cannot listen on 127.0.0.1:{port}: {source}")]
     Bind {
+        /// The port asked for.
         port: u16,
         /// The underlying I/O error.
         #[source]
@@ -98,7 +99,6 @@ struct State {
     cfg: PipelineConfig,
     number_digits: std::collections::BTreeMap<String, usize>,
     token: String,
-    /// The port asked for.
     port: u16,
     /// drops.csv as last read, with the stamp of the file read.
     drops: Mutex<Option<(Stamp, Arc<Vec<DropRecord>>)>>,

@@ -80,7 +80,7 @@ pub struct SeriesFit {
     pub n_drops: usize,
     /// Whether the points were weighted by their effective variance (false: some error unknown or zero, unweighted).
     pub weighted: bool,
-    /// Reduced χ² of the weighted fit; `None` when unweighted or without degrees of freedom.
+    /// Reduced χ² of the fit (of unit weights when unweighted); `None` without degrees of freedom.
     pub chi2_red: Option<f64>,
     /// Ξ range covered by the drops (the series is not valid outside it).
     pub xi_range: [f64; 2],

@@ -283,7 +283,7 @@ pub struct CameraTruth {
     /// Pillar tops seen edge-on: the band's top `top_row_width_px` rows have
     /// `(1 + top_row)` times the band's transmission.
     pub top_row: f64,
-    /// Number of rows at the band's top that have the brighter transmission, px.
+    /// Height of the band's top strip whose transmission is scaled by `1 + top_row`, px.
     pub top_row_width_px: f64,
     /// Pillars dipping under the sphere: during contact the band's top edge at
     /// column x lies `dip · max(0, sphere bottom at x − y_s(x))` below `y_s(x)`

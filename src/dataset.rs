@@ -68,7 +68,7 @@ pub struct DropRecord {
     /// in the file as a text cell ([`crate::text::csv_cell`]).
     #[serde(serialize_with = "text_out", deserialize_with = "text_in")]
     pub run: String,
-    /// Sphere radius R, mm (from the manifest or `sphere.radius_mm`).
+    /// Sphere radius R, mm, as the run was given it (manifest, `--radius-mm` or `sphere.radius_mm`).
     pub sphere_radius_mm: f64,
     /// Sphere density, kg/m³ (from the manifest or `sphere.density_kg_m3`).
     #[serde(default = "default_density")]

@@ -67,7 +67,7 @@ pub struct TrackSample {
     pub z_px: Option<f64>,
     /// Penetration δ, mm (negative: the clearance above the surface).
     pub delta_mm: Option<f64>,
-    /// Contact force F from the trajectory, N.
+    /// Contact force F = m (g − z̈) from the smoothed trajectory, N; in contact only.
     pub force_n: Option<f64>,
     /// Whether the frame is in contact.
     pub in_contact: bool,

@@ -59,7 +59,7 @@ pub enum Kind {
 }
 
 impl Kind {
-    /// Every kind, in the order the page lists them.
+    /// Every kind of decision.
     pub const ALL: [Kind; 4] = [Kind::Reject, Kind::Exclude, Kind::Surface, Kind::Accept];
 
     /// Its word in the `decision` column.

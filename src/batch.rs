@@ -58,6 +58,7 @@ pub struct RunArgs {
     /// drop. Changes no output.
     #[arg(long)]
     pub timings: bool,
+    /// Values for recordings that lack them (`--fps`, `--mm-per-px`, `--surface-row-px`).
     #[command(flatten)]
     pub recording: crate::cli_values::RecordingArgs,
 }
@@ -65,39 +66,55 @@ pub struct RunArgs {
 /// Why the job could not run (a bad run is a row, not this).
 #[derive(Debug, thiserror::Error)]
 pub enum BatchError {
+    /// The configuration could not be used.
     #[error(transparent)]
     Config(#[from] crate::config::ConfigError),
+    /// The run manifest could not be read.
     #[error(transparent)]
     Manifest(#[from] crate::manifest::ManifestError),
+    /// The processing stage could not run (an output not written, an input that is no run).
     #[error(transparent)]
     Process(#[from] crate::process::ProcessError),
+    /// The collapse could not run.
     #[error(transparent)]
     Collapse(#[from] crate::collapse::CollapseError),
+    /// The report could not be written.
     #[error(transparent)]
     Report(#[from] crate::report::ReportError),
+    /// A file or folder could not be read or written.
     #[error("{path}: {source}")]
     Io {
+        /// The file or folder.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// The configuration names no input (neither `input.manifest` nor `input.paths`).
     #[error(
         "the configuration names no input: set input.manifest or input.paths in pipeline.toml"
     )]
     NoInput,
+    /// `input.paths` holds no run folder or `.cine` file (the path searched).
     #[error("input.paths: no run folder or .cine file found under {0}")]
     NothingFound(String),
+    /// The output folder could not be taken.
     #[error(transparent)]
     Lock(#[from] crate::lock::LockError),
+    /// The review's decisions could not be read.
     #[error(transparent)]
     Review(#[from] crate::review::decisions::ReviewError),
+    /// `--threads` asks for more than [`max_threads`].
     #[error(
         "--threads {asked}: at most {max} on this machine (4 × its {cores} cores): more threads \
          only share the cores, and each holds frames in memory"
     )]
     TooManyThreads {
+        /// The threads asked for.
         asked: usize,
+        /// The most allowed.
         max: usize,
+        /// The machine's cores.
         cores: usize,
     },
 }
@@ -135,13 +152,22 @@ pub struct JobOptions {
 #[derive(Debug, Clone, Copy)]
 pub enum RunEvent<'a> {
     /// The job knows how many runs it has.
-    Planned { runs: usize },
+    Planned {
+        /// How many.
+        runs: usize,
+    },
     /// A worker starts on a run.
-    Started { run: &'a str },
+    Started {
+        /// The run's name.
+        run: &'a str,
+    },
     /// A run is done: measured, failed, or taken from the cache.
     Finished {
+        /// The run's row of drops.csv.
         record: &'a DropRecord,
+        /// Whether it was taken from the cache.
         cached: bool,
+        /// Frames the run held.
         frames: usize,
         /// Seconds this job spent on the run (`None`: taken from the cache).
         seconds: Option<f64>,
@@ -155,7 +181,9 @@ pub enum RunEvent<'a> {
 /// What the job did.
 #[derive(Debug, Clone)]
 pub struct JobSummary {
+    /// The rows of drops.csv, one per run of this job.
     pub records: Vec<DropRecord>,
+    /// The output folder.
     pub out: PathBuf,
     /// Runs whose cached result was reused.
     pub cached: usize,
@@ -169,6 +197,7 @@ pub struct JobSummary {
     pub collapsed: bool,
     /// The share of the runs this job took (`None`: all, and it assembled them).
     pub shard: Option<crate::shard::Shard>,
+    /// Warnings of the collapse (also in fits.json).
     pub collapse_warnings: Vec<String>,
     /// Too few drops for the collapse's exponents and series: what they can
     /// and cannot show (`fits.json`'s `few_drops`; not among the warnings).
@@ -176,6 +205,7 @@ pub struct JobSummary {
 }
 
 impl JobSummary {
+    /// Runs that failed.
     pub fn failed(&self) -> usize {
         self.count(DropStatus::Failed)
     }
@@ -567,6 +597,7 @@ pub struct Review {
     /// The configuration's `input.review`, else `review.csv` in the output
     /// folder (which need not exist).
     pub path: PathBuf,
+    /// The decisions read from `path` (none when it does not exist).
     pub decisions: crate::review::decisions::Decisions,
 }
 

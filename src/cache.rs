@@ -81,10 +81,13 @@ impl Fingerprint {
 /// The cached outcome of one run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Entry {
+    /// The entry's layout, [`CACHE_SCHEMA`] when written; another is a miss.
     pub schema: u32,
+    /// The version of dropscope that wrote the entry.
     pub dropscope_version: String,
     /// SHA-256 of everything the result depends on (see the module docs).
     pub key: String,
+    /// The run's input as it was measured.
     pub input: Fingerprint,
     /// Output files of this run, relative to the output folder, with the
     /// SHA-256 of the bytes written: a file that is missing, emptied or
@@ -92,11 +95,13 @@ pub struct Entry {
     pub outputs: Vec<OutputFile>,
     /// Frames the run held (rows of its track).
     pub frames: usize,
+    /// The run's row of drops.csv.
     pub record: DropRecord,
     /// What the run's images say of its camera set-up, valid while the
     /// run's own key without a set-up is `scene_key` (see [`cached_scene`]).
     #[serde(default)]
     pub scene: Option<SceneSignature>,
+    /// The run's own key without a set-up when `scene` was read (see [`cached_scene`]).
     #[serde(default)]
     pub scene_key: Option<String>,
     /// SHA-256 (hex) of the entry's JSON with this field empty, set by
@@ -131,6 +136,7 @@ impl Entry {
 pub struct OutputFile {
     /// Relative to the output folder.
     pub path: String,
+    /// SHA-256 of the file (hex).
     pub sha256: String,
 }
 

@@ -43,12 +43,15 @@ pub struct CollapseArgs {
 /// What a run of the collapse produced (also written to disk).
 #[derive(Debug, Clone)]
 pub struct CollapseSummary {
+    /// The folder the collapse wrote into.
     pub out_dir: PathBuf,
+    /// Drops that entered the collapse.
     pub n_used: usize,
     /// Rows skipped for a problem (failed, or lacking a quantity).
     pub n_skipped: usize,
     /// Rows a person rejected (`dropscope review`): left out, no problem.
     pub n_rejected: usize,
+    /// Everything fitted.
     pub fits: fit::Fits,
     /// Every warning, also in fits.json.
     pub warnings: Vec<String>,

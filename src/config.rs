@@ -19,19 +19,33 @@ pub const EMBEDDED_NAME: &str = "(embedded pipeline.toml)";
 /// Why a configuration could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
+    /// The file could not be read.
     #[error("{path}: {source}")]
     Io {
+        /// The configuration file.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// The file is not valid TOML, or holds a key or table that is not known; `message` says where.
     #[error("{path}: {message}")]
-    Parse { path: PathBuf, message: String },
+    Parse {
+        /// The configuration file.
+        path: PathBuf,
+        /// The parser's message: the line, the column and what was expected.
+        message: String,
+    },
+    /// A key's value is out of range or inconsistent with another key.
     #[error("{path}: key `{key}` = {value}: {allowed}")]
     Invalid {
+        /// The configuration file.
         path: PathBuf,
+        /// The key, in dotted form (`detect.background_frames`).
         key: String,
+        /// The value as given.
         value: String,
+        /// What is allowed instead.
         allowed: String,
     },
 }
@@ -42,20 +56,27 @@ pub enum ConfigError {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawConfig {
+    /// The `[input]` table.
     #[serde(default)]
     pub input: RawInput,
+    /// The `[camera]` table.
     #[serde(default)]
     pub camera: RawCamera,
+    /// The `[sphere]` table.
     #[serde(default)]
     pub sphere: RawSphere,
+    /// The `[surface.<name>]` tables, by name.
     #[serde(default)]
     pub surface: BTreeMap<String, RawSurface>,
+    /// The `[detect]` table.
     #[serde(default)]
     pub detect: RawDetect,
+    /// The `[output]` table.
     #[serde(default)]
     pub output: RawOutput,
 }
 
+/// The `[input]` table as written: where the runs are.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawInput {
@@ -71,6 +92,7 @@ pub struct RawInput {
     pub review: Option<PathBuf>,
 }
 
+/// The `[camera]` table as written: frame rate, scale and optics.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawCamera {
@@ -94,14 +116,17 @@ pub struct RawCamera {
     pub p10_linear: Option<bool>,
 }
 
+/// The `[sphere]` table as written.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawSphere {
+    /// The spheres' density, kg/m³ (default 7800, steel).
     pub density_kg_m3: Option<f64>,
     /// Radius for runs given without a manifest.
     pub radius_mm: Option<f64>,
 }
 
+/// One `[surface.<name>]` table as written, lengths in mm.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawSurface {
@@ -117,6 +142,7 @@ pub struct RawSurface {
     pub solid_fraction: Option<f64>,
 }
 
+/// The `[detect]` table as written: settings of the per-frame detection.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawDetect {
@@ -136,6 +162,7 @@ pub struct RawDetect {
     pub edge_spacing_px: Option<f64>,
 }
 
+/// The `[output]` table as written.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawOutput {
@@ -150,12 +177,17 @@ pub struct RawOutput {
 /// A validated configuration; lengths in metres, paths resolved.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PipelineConfig {
+    /// Where the runs are.
     pub input: InputConfig,
+    /// Frame rate, scale and optics of the camera.
     pub camera: CameraConfig,
+    /// The spheres dropped.
     pub sphere: SphereConfig,
     /// Named surfaces (`[surface.<name>]`), at least one.
     pub surfaces: BTreeMap<String, Surface>,
+    /// Settings of the per-frame detection, as in the file (see [`PipelineConfig::detect_settings`] for the command line's).
     pub detect: DetectConfig,
+    /// Where and what to write.
     pub output: OutputConfig,
     /// Values given on the command line (`--fps`, `--mm-per-px`,
     /// `--surface-row-px`), not in the file: in the cache key, printed by
@@ -179,10 +211,13 @@ pub struct PipelineConfig {
 ///   the images.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct CommandLineValues {
+    /// `--fps`: frame rate for recordings that hold none, frames/s.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fps: Option<f64>,
+    /// `--mm-per-px`: a fixed scale, mm per px.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mm_per_px: Option<f64>,
+    /// `--surface-row-px`: the undeformed surface row at column 0, px.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub surface_row_px: Option<f64>,
 }
@@ -264,9 +299,12 @@ impl PipelineConfig {
     }
 }
 
+/// The validated `[input]` table: where the runs are.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct InputConfig {
+    /// A `runs.csv` manifest, resolved against the configuration's folder.
     pub manifest: Option<PathBuf>,
+    /// Run folders, `.cine` files, or directories holding them (used when no manifest), resolved against the configuration's folder.
     pub paths: Vec<PathBuf>,
     /// Name of the default surface; always a key of [`PipelineConfig::surfaces`].
     pub surface: String,
@@ -276,9 +314,12 @@ pub struct InputConfig {
     pub review: Option<PathBuf>,
 }
 
+/// The validated `[camera]` table: frame rate, scale and optics.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CameraConfig {
+    /// Frames per second for recordings that hold none and whose manifest row gives none.
     pub fps: Option<f64>,
+    /// A fixed scale, mm per px; `None`: from free fall, else from the sphere.
     pub mm_per_px: Option<f64>,
     /// A calibrated radial distortion, undone on every track ([`crate::lens`]).
     pub distortion_k1_per_px2: Option<f64>,
@@ -292,6 +333,7 @@ pub struct CameraConfig {
     /// spread, for runs whose scale comes from their apparent radius: given,
     /// or measured on the job's runs ([`crate::scale::EdgeOffset`]).
     pub edge_offset_px: Option<f64>,
+    /// The one-sigma spread of `edge_offset_px` from drop to drop, px.
     pub edge_offset_spread_px: Option<f64>,
     /// Runs are measured as Phantom Camera Control shows them: the viewer
     /// flips a `.cine` (bFlipV, bFlipH) or a Photron header records are
@@ -310,9 +352,12 @@ pub const DEFAULT_EDGE_OFFSET_SPREAD_PX: f64 = 0.1;
 /// at the corners of a 512 × 384 frame (realistic footage).
 pub const DEFAULT_DISTORTION_BOUND_PX: f64 = 0.5;
 
+/// The validated `[sphere]` table.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SphereConfig {
+    /// The spheres' density, kg/m³.
     pub density_kg_m3: f64,
+    /// Radius for runs given without a manifest, m.
     pub radius_m: Option<f64>,
 }
 
@@ -344,11 +389,16 @@ impl Surface {
     }
 }
 
+/// The validated `[detect]` table: settings of the per-frame detection.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DetectConfig {
+    /// Frames at the start of each run used for the background and surface (at least 1).
     pub background_frames: usize,
+    /// Fixed undeformed surface row at column 0, px, overriding detection; `None`: found in the images.
     pub surface_row_px: Option<f64>,
+    /// Surface tilt, rows per column, used with `surface_row_px`.
     pub surface_slope: f64,
+    /// Edge points closer than this to the surface line are not used, px.
     pub contact_margin_px: f64,
     /// Half-width of the edge window along each normal (samples, 1 px apart).
     pub edge_half_window_px: usize,
@@ -370,8 +420,10 @@ impl Default for DetectConfig {
     }
 }
 
+/// The validated `[output]` table.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OutputConfig {
+    /// Output folder, resolved against the configuration's folder.
     pub dir: PathBuf,
     /// Draw each drop's animated impact (`plots/impacts/<run>.png`, about
     /// 0.5 MB and 80 ms a drop); default true.

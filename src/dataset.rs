@@ -68,7 +68,9 @@ pub struct DropRecord {
     /// in the file as a text cell ([`crate::text::csv_cell`]).
     #[serde(serialize_with = "text_out", deserialize_with = "text_in")]
     pub run: String,
+    /// Sphere radius R, mm, as the run was given it (manifest, `--radius-mm` or `sphere.radius_mm`).
     pub sphere_radius_mm: f64,
+    /// Sphere density, kg/m³ (from the manifest or `sphere.density_kg_m3`).
     #[serde(default = "default_density")]
     pub sphere_density_kg_m3: f64,
     /// Key of the `[surface.<name>]` table of pipeline.toml holding the material.
@@ -93,37 +95,59 @@ pub struct DropRecord {
     /// flagged `fps_assumed`.
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub fps_source: String,
+    /// Speed at contact onset, m/s.
     pub v_impact_m_s: Option<f64>,
+    /// One-sigma error of `v_impact_m_s`, m/s.
     #[serde(default)]
     pub v_impact_m_s_err: Option<f64>,
+    /// Speed at loss of contact, m/s.
     pub v_rebound_m_s: Option<f64>,
+    /// One-sigma error of `v_rebound_m_s`, m/s.
     #[serde(default)]
     pub v_rebound_m_s_err: Option<f64>,
+    /// Restitution e = v_rebound / v_impact.
     pub restitution: Option<f64>,
+    /// One-sigma error of `restitution`.
     #[serde(default)]
     pub restitution_err: Option<f64>,
+    /// Maximum penetration δmax, mm.
     pub delta_max_mm: Option<f64>,
+    /// One-sigma error of `delta_max_mm`, mm.
     #[serde(default)]
     pub delta_max_mm_err: Option<f64>,
+    /// Measured contact radius at δmax (the collapse's default `a`), mm.
     pub a_max_mm: Option<f64>,
+    /// One-sigma error of `a_max_mm`, mm.
     #[serde(default)]
     pub a_max_mm_err: Option<f64>,
+    /// Geometric contact radius √(R² − (R − δmax)²), mm.
     pub a_geom_mm: Option<f64>,
+    /// One-sigma error of `a_geom_mm`, mm.
     #[serde(default)]
     pub a_geom_mm_err: Option<f64>,
+    /// Contact time τc, ms.
     pub tau_c_ms: Option<f64>,
+    /// One-sigma error of `tau_c_ms`, ms.
     #[serde(default)]
     pub tau_c_ms_err: Option<f64>,
+    /// Time of contact onset, s after the trigger.
     pub t_contact_s: Option<f64>,
+    /// One-sigma error of `t_contact_s`, s.
     #[serde(default)]
     pub t_contact_s_err: Option<f64>,
+    /// Time of loss of contact, s after the trigger.
     pub t_rebound_s: Option<f64>,
+    /// One-sigma error of `t_rebound_s`, s.
     #[serde(default)]
     pub t_rebound_s_err: Option<f64>,
+    /// The scale the run was measured at, mm per px (`scale_source` says where it came from).
     pub mm_per_px: Option<f64>,
+    /// One-sigma error of `mm_per_px`, mm per px.
     #[serde(default)]
     pub mm_per_px_err: Option<f64>,
+    /// The undeformed surface row at the impact column, px.
     pub surface_row_px: Option<f64>,
+    /// One-sigma error of `surface_row_px`, with the edge model's systematic, px.
     #[serde(default)]
     pub surface_row_px_err: Option<f64>,
     /// Camera set-up (the manifest's `setup`; empty when none, written `-`).
@@ -137,6 +161,7 @@ pub struct DropRecord {
     /// whether used or not: a check on a given scale.
     #[serde(default)]
     pub free_fall_mm_per_px: Option<f64>,
+    /// One-sigma error of `free_fall_mm_per_px`, mm per px.
     #[serde(default)]
     pub free_fall_mm_per_px_err: Option<f64>,
     /// Apparent (silhouette) radius minus R_mm / mm_per_px, px: a diagnostic
@@ -144,6 +169,7 @@ pub struct DropRecord {
     /// the radius's.
     #[serde(default)]
     pub edge_offset_px: Option<f64>,
+    /// One-sigma error of `edge_offset_px` (with `scale_source` `radius`: the spread of the runs' offsets), px.
     #[serde(default)]
     pub edge_offset_px_err: Option<f64>,
     /// Systematic error of the surface line's edge model, px (in
@@ -160,6 +186,7 @@ pub struct DropRecord {
     /// place (`surface_law_disagreement` when beyond 3σ).
     #[serde(default)]
     pub surface_law_offset_px: Option<f64>,
+    /// One-sigma error of `surface_law_offset_px`, px.
     #[serde(default)]
     pub surface_law_offset_px_err: Option<f64>,
     /// The lens's radial distortion k1 (1/px²) undone on the track: the
@@ -167,6 +194,7 @@ pub struct DropRecord {
     /// surface line's bow measures; its error (measured only).
     #[serde(default)]
     pub distortion_k1_per_px2: Option<f64>,
+    /// One-sigma error of a measured `distortion_k1_per_px2`, 1/px²; it enters every error as a systematic term.
     #[serde(default)]
     pub distortion_k1_per_px2_err: Option<f64>,
     /// Where the lens came from: `config` (a calibration), `surface_bow`
@@ -180,10 +208,13 @@ pub struct DropRecord {
     /// (÷√3, k1 anywhere between ± the bound). See `lens.rs`.
     #[serde(default)]
     pub distortion_mm_per_px: Option<f64>,
+    /// How far the distortion left unknown changes v_impact, m/s (see `distortion_mm_per_px`).
     #[serde(default)]
     pub distortion_v_impact_m_s: Option<f64>,
+    /// How far the distortion left unknown changes δmax, mm (see `distortion_mm_per_px`).
     #[serde(default)]
     pub distortion_delta_max_mm: Option<f64>,
+    /// How far the distortion left unknown changes τc, ms (see `distortion_mm_per_px`).
     #[serde(default)]
     pub distortion_tau_c_ms: Option<f64>,
     /// Time of the maximum penetration.
@@ -196,12 +227,14 @@ pub struct DropRecord {
     /// Gravity from the pre-contact flight with g free: a check on frame rate and scale.
     #[serde(default)]
     pub g_fit_m_s2: Option<f64>,
+    /// One-sigma error of `g_fit_m_s2`, m/s².
     #[serde(default)]
     pub g_fit_m_s2_err: Option<f64>,
     /// Status `tracked` only: the vertical velocity (positive downward) at
     /// the last tracked frame, from its free flight ([`crate::flight`]).
     #[serde(default)]
     pub v_last_m_s: Option<f64>,
+    /// One-sigma error of `v_last_m_s`, m/s.
     #[serde(default)]
     pub v_last_m_s_err: Option<f64>,
     /// Status `tracked` only: the time of that last tracked frame.
@@ -210,16 +243,19 @@ pub struct DropRecord {
     /// Contact law F = K·δⁿ fitted to the trajectory: K in SI units (N/mⁿ, δ in m).
     #[serde(default)]
     pub force_k_si: Option<f64>,
+    /// Error of `force_k_si`: the Akaike-weighted spread over the contact models, N/mⁿ.
     #[serde(default)]
     pub force_k_si_err: Option<f64>,
     /// The exponent n of F = K·δⁿ (the elastic-foundation model predicts 2).
     #[serde(default)]
     pub force_exponent: Option<f64>,
+    /// Error of `force_exponent`: the Akaike-weighted spread over the contact models.
     #[serde(default)]
     pub force_exponent_err: Option<f64>,
     /// K fitted with n held at 2 (N/m²): compare with π E φ R / h.
     #[serde(default)]
     pub force_k2_n_m2: Option<f64>,
+    /// One-sigma error of `force_k2_n_m2`, N/m².
     #[serde(default)]
     pub force_k2_n_m2_err: Option<f64>,
     /// The contact model of the law's best fit: `linear` (F = K·δⁿ + c·δ̇),
@@ -230,12 +266,14 @@ pub struct DropRecord {
     /// Linear damping c of F = K·δⁿ + c·δ̇ (when `force_model` is linear).
     #[serde(default)]
     pub damping_n_s_m: Option<f64>,
+    /// One-sigma error of `damping_n_s_m`, N·s/m.
     #[serde(default)]
     pub damping_n_s_m_err: Option<f64>,
     /// Hunt–Crossley damping α of F = K·δⁿ·(1 + α·δ̇) (when `force_model`
     /// is hunt_crossley).
     #[serde(default)]
     pub hunt_crossley_alpha_s_m: Option<f64>,
+    /// One-sigma error of `hunt_crossley_alpha_s_m`, s/m.
     #[serde(default)]
     pub hunt_crossley_alpha_s_m_err: Option<f64>,
     /// How the recording's stored samples became the grey picture measured,
@@ -246,6 +284,7 @@ pub struct DropRecord {
     /// when the frames were measured as stored.
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub reading: String,
+    /// Outcome of the run: measured, flagged, tracked only, failed, or decided in review.
     pub status: DropStatus,
     /// Quality flags, space-separated words ([`crate::quality::FLAGS`]);
     /// empty (written `-`) when nothing weakens the measurement. Any flag makes the
@@ -462,16 +501,23 @@ fn dash_in<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
 /// Why `drops.csv` could not be read or written.
 #[derive(Debug, thiserror::Error)]
 pub enum DatasetError {
+    /// The file could not be opened, read or written.
     #[error("{path}: {source}")]
     Io {
+        /// The `drops.csv` file.
         path: std::path::PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// A row could not be read as a drop record.
     #[error("{path}: row {row}: {source}")]
     Csv {
+        /// The `drops.csv` file.
         path: std::path::PathBuf,
+        /// The line of the file the row stands on (the header is line 1).
         row: u64,
+        /// The CSV reader's error.
         #[source]
         source: csv::Error,
     },

@@ -55,10 +55,13 @@ pub fn of_svg(svg: &str) -> Option<&str> {
      files away"
 )]
 pub struct Mixed {
+    /// The derived file (fits.json, collapse.csv, a figure).
     pub file: PathBuf,
+    /// The folder's drops.csv.
     pub drops: PathBuf,
     /// What the file says ("none" when it carries no id).
     pub found: String,
+    /// The dataset id of the folder's drops.csv.
     pub expected: String,
 }
 

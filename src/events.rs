@@ -42,10 +42,13 @@ pub struct TrackPoint {
 pub struct Geometry {
     /// Undeformed surface row at column 0; the line is row = y0 + slope·column.
     pub surface_row_px: f64,
+    /// Surface tilt, rows per column.
     pub surface_slope: f64,
     /// One-sigma uncertainty of the surface row near the impact column.
     pub surface_row_err_px: f64,
+    /// The sphere's radius in the image, px.
     pub radius_px: f64,
+    /// One-sigma uncertainty of `radius_px`, px.
     pub radius_err_px: f64,
     /// Scale s in mm per pixel.
     pub mm_per_px: f64,
@@ -126,51 +129,98 @@ pub const FORCE_FIT_MAX_TRAJECTORIES: usize = 2_500;
 /// Why events could not be found.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EventError {
+    /// Fewer measured frames than the fits need (the count).
     #[error("too few measured frames ({0}) to find any event")]
     TooFewFrames(usize),
+    /// The sphere's bottom never comes down to the surface line.
     #[error(
         "the sphere never reaches the surface line (closest approach {gap_px:.2} px above it)"
     )]
-    NeverLands { gap_px: f64 },
+    NeverLands {
+        /// The smallest gap between the sphere's bottom and the line, px.
+        gap_px: f64,
+    },
+    /// The first measured frame is already in contact.
     #[error("the sphere is already in contact in the first measured frame ({frame}): no free flight before contact")]
-    NoFlightBeforeContact { frame: i64 },
+    NoFlightBeforeContact {
+        /// That first measured frame's image number.
+        frame: i64,
+    },
+    /// Too few free-flight frames before the contact to fit the impact.
     #[error("only {found} free-flight frames before contact (at least {needed} needed)")]
-    ShortFlightBeforeContact { found: usize, needed: usize },
+    ShortFlightBeforeContact {
+        /// Free-flight frames before the contact.
+        found: usize,
+        /// The fewest the fit accepts.
+        needed: usize,
+    },
+    /// The last measured frame is still in contact.
     #[error(
         "the sphere is still in contact at the last measured frame ({frame}): no rebound recorded"
     )]
-    NoRebound { frame: i64 },
+    NoRebound {
+        /// That last measured frame's image number.
+        frame: i64,
+    },
+    /// Too few free-flight frames after the contact to fit the rebound.
     #[error("only {found} free-flight frames after the rebound (at least {needed} needed)")]
-    ShortFlightAfterContact { found: usize, needed: usize },
+    ShortFlightAfterContact {
+        /// Free-flight frames after the contact.
+        found: usize,
+        /// The fewest the fit accepts.
+        needed: usize,
+    },
+    /// Too few frames around the maximum penetration to fit the peak (the count).
     #[error("only {0} frames around the maximum penetration: cannot fit the peak")]
     ShortPeak(usize),
+    /// A least-squares fit was degenerate; names the fit (`pre-contact flight`, `peak`, …).
     #[error("the {0} fit failed (degenerate frames)")]
     FitFailed(&'static str),
+    /// A flight parabola never meets the surface line; names the flight (`pre-contact`, …).
     #[error("the {0} parabola never meets the surface line")]
     NoCrossing(&'static str),
+    /// A frame's time is not finite or not after the previous frame's.
     #[error("frame {frame}: its time {t_s} s is not after the previous frame's (frame times must be finite and increasing)")]
-    TimesNotIncreasing { frame: i64, t_s: f64 },
+    TimesNotIncreasing {
+        /// The frame's image number.
+        frame: i64,
+        /// Its time, s.
+        t_s: f64,
+    },
+    /// The numbers measured are physically impossible (δmax not below the sphere's radius, or not finite); says which.
     #[error("impossible result: {0}")]
     Impossible(String),
+    /// A frame's position or uncertainty is not finite, or its σ is not positive.
     #[error("frame {frame}: its position or uncertainty is not a finite number")]
-    NotFinite { frame: i64 },
+    NotFinite {
+        /// The frame's image number.
+        frame: i64,
+    },
 }
 
 /// A free-flight parabola z(t) = z0 + v0·τ + ½·g·τ² with g fixed, and a
 /// straight line x(t) = x0 + vx·τ, τ = t − t_ref.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FlightFit {
+    /// Reference time t_ref (the mean time of the points), s.
     pub t_ref_s: f64,
+    /// Centre row z0 at `t_ref_s`, px.
     pub z0_px: f64,
+    /// Vertical velocity v0 at `t_ref_s` (positive downward), px/s.
     pub v0_px_s: f64,
+    /// Gravity g held fixed in the fit, px/s².
     pub g_px_s2: f64,
     /// Scaled covariance of (z0, v0).
     pub cov: [[f64; 2]; 2],
+    /// Reduced χ² of the z fit.
     pub chi2_red: f64,
+    /// Centre column x0 at `t_ref_s`, px.
     pub x0_px: f64,
+    /// Horizontal velocity vx, px/s.
     pub vx_px_s: f64,
     /// First and last image numbers used.
     pub frames: (i64, i64),
+    /// Number of frames fitted.
     pub n_points: usize,
     /// Gravity from a fit with g free, in px/s², and its one-sigma error: a
     /// check on the frame rate and the scale.
@@ -178,13 +228,16 @@ pub struct FlightFit {
 }
 
 impl FlightFit {
+    /// The fitted centre row at time `t_s`, px.
     pub fn z_at(&self, t_s: f64) -> f64 {
         let u = t_s - self.t_ref_s;
         self.z0_px + self.v0_px_s * u + 0.5 * self.g_px_s2 * u * u
     }
+    /// The fitted vertical velocity at time `t_s` (positive downward), px/s.
     pub fn v_at(&self, t_s: f64) -> f64 {
         self.v0_px_s + self.g_px_s2 * (t_s - self.t_ref_s)
     }
+    /// The fitted centre column at time `t_s`, px.
     pub fn x_at(&self, t_s: f64) -> f64 {
         self.x0_px + self.vx_px_s * (t_s - self.t_ref_s)
     }
@@ -258,9 +311,11 @@ pub fn crossing_time(g: f64, v0: f64, c: f64, descending: bool) -> Option<f64> {
 /// A polynomial fit of z(t) around the deepest point of the contact.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PeakFit {
+    /// The polynomial z(t) fitted to the frames around the peak.
     pub poly: PolyFit,
     /// Time of the fitted maximum of z.
     pub t_max_s: f64,
+    /// First and last image numbers used.
     pub frames: (i64, i64),
 }
 
@@ -294,8 +349,11 @@ pub fn poly_max(p: &PolyFit, t_start: f64, lo: f64, hi: f64) -> f64 {
 /// Everything the event stage finds in one track.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Events {
+    /// The free flight before the contact.
     pub pre: FlightFit,
+    /// The free flight after the rebound.
     pub post: FlightFit,
+    /// The fit around the maximum penetration.
     pub peak: PeakFit,
     /// Impact column (x of the pre-contact flight at contact onset).
     pub impact_column_px: f64,

@@ -35,8 +35,10 @@ pub const MIN_FLIGHT_FRAMES: usize = 5;
 /// Why there is no free-flight fit.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FlightError {
+    /// Fewer tracked frames than the fit needs (the count).
     #[error("only {0} tracked frames: a free-flight fit needs at least {MIN_FLIGHT_FRAMES}")]
     TooFewFrames(usize),
+    /// The least-squares fit was degenerate.
     #[error("the free-flight fit failed (degenerate frames)")]
     FitFailed,
 }

@@ -36,9 +36,13 @@ use nalgebra::{DMatrix, DVector};
 /// One row of the tabulated force curve.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ForcePoint {
+    /// The frame's image number.
     pub frame: i64,
+    /// Penetration δ, m.
     pub delta_m: f64,
+    /// Contact force F = m·(g − z̈), N.
     pub force_n: f64,
+    /// One-sigma error of `force_n`, from z̈'s, N.
     pub force_err_n: f64,
 }
 
@@ -94,6 +98,7 @@ pub enum Damping {
 /// its damping, while δ > 0.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ContactModel {
+    /// The damping term: linear (c·δ̇) or Hunt–Crossley (K·δⁿ·α·δ̇).
     pub damping: Damping,
     /// Whether the force may pull (adhesion): `false` clamps F ≥ 0, so the
     /// sphere leaves the surface where the force falls to zero, before δ
@@ -154,8 +159,11 @@ impl ContactModel {
 /// compare.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModelFit {
+    /// The contact model fitted.
     pub model: ContactModel,
+    /// χ² of its fit.
     pub chi2: f64,
+    /// Its fitted exponent n.
     pub n: f64,
     /// Its Akaike weight among the models that converged (equal parameter
     /// counts: ∝ exp(−Δχ²/2ĉ), ĉ the best fit's χ²/dof when above 1).
@@ -190,6 +198,7 @@ pub struct ForceLaw {
     /// How n and K (n free) move per px that the surface moves down: to
     /// widen their errors by an uncertainty of the surface found later.
     pub n_per_surface_px: f64,
+    /// How K moves per px that the surface moves down, N/mⁿ per px.
     pub k_per_surface_px: f64,
     /// χ² per degree of freedom of the best model's fit.
     pub chi2_red: f64,
@@ -316,10 +325,13 @@ fn integrate_counted(
 /// Why the contact law could not be fitted.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ForceFitError {
+    /// Fewer than 12 frames around the contact (the count).
     #[error("only {0} frames around the contact (at least 12 needed)")]
     TooFewFrames(usize),
+    /// The fit found no solution (singular or not finite).
     #[error("the trajectory fit found no solution (singular or not finite)")]
     NoSolution,
+    /// The fit stopped at its work or time limit (which, in words).
     #[error("the trajectory fit stopped at its limit of {0}")]
     Limit(String),
 }

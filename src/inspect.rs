@@ -107,6 +107,7 @@ pub struct InspectArgs {
     /// exposure_s, gaps, and more).
     #[arg(long)]
     pub json: bool,
+    /// How to open the input.
     #[command(flatten)]
     pub source: SourceArgs,
 }
@@ -132,6 +133,7 @@ pub struct ExportArgs {
     /// Output folder (created if needed).
     #[arg(long)]
     pub out: PathBuf,
+    /// How to open the input.
     #[command(flatten)]
     pub source: SourceArgs,
 }
@@ -305,7 +307,6 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, crate::sourc
     Ok(lines.join("\n"))
 }
 
-/// Parse `A:B` (or `A:`) into the index range `A..B` within `count` frames.
 /// `--numbers A:B` (or `A`): the indices of camera numbers A..B−1.
 fn number_range(
     text: &str,
@@ -341,6 +342,8 @@ fn number_range(
     }
 }
 
+/// Parse `--frames A:B` (or `A:`, or `A`) into the index range `A..B` within
+/// `count` frames: `A:` runs to the end, `A` is that frame alone.
 pub fn parse_frame_range(text: &str, count: usize) -> anyhow::Result<std::ops::Range<usize>> {
     if text.trim_start().starts_with('-') {
         bail!(

@@ -269,6 +269,7 @@ impl Spool {
         self.len
     }
 
+    /// No byte written.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }

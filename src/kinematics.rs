@@ -19,18 +19,23 @@ use nalgebra::DMatrix;
 /// A value with its one-sigma uncertainty.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Measured {
+    /// The value.
     pub value: f64,
+    /// Its one-sigma uncertainty, in the value's unit.
     pub err: f64,
 }
 
 /// The sphere's physical parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SphereParams {
+    /// Sphere radius R, m.
     pub radius_m: f64,
+    /// Sphere density ρ, kg/m³.
     pub density_kg_m3: f64,
 }
 
 impl SphereParams {
+    /// The sphere's mass, (4/3) π R³ ρ, kg.
     pub fn mass_kg(&self) -> f64 {
         self.density_kg_m3 * 4.0 / 3.0 * std::f64::consts::PI * self.radius_m.powi(3)
     }
@@ -39,13 +44,21 @@ impl SphereParams {
 /// The per-drop kinematics, in SI units.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Kinematics {
+    /// Contact onset, s after the trigger.
     pub t_contact_s: Measured,
+    /// Loss of contact, s after the trigger.
     pub t_rebound_s: Measured,
+    /// Time of the maximum penetration, s after the trigger.
     pub t_max_s: f64,
+    /// Contact time τc = t_rebound − t_contact, s.
     pub tau_c_s: Measured,
+    /// Speed at contact onset, m/s.
     pub v_impact_m_s: Measured,
+    /// Speed at loss of contact, m/s.
     pub v_rebound_m_s: Measured,
+    /// Restitution e = v_rebound / v_impact.
     pub restitution: Measured,
+    /// Maximum penetration δmax, m.
     pub delta_max_m: Measured,
     /// Contact radius measured from the silhouette at the surface line, when
     /// the track carries half-widths.

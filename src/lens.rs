@@ -247,7 +247,9 @@ pub struct Bounded {
     pub lens: Lens,
     /// The surface line and the calibrated radius, corrected.
     pub surface_row0_px: f64,
+    /// The corrected surface tilt, rows per column.
     pub surface_slope: f64,
+    /// The corrected calibrated radius, px.
     pub radius_px: f64,
     /// The corrected track's free-flight curvature.
     pub curvature: Option<Curvature>,
@@ -258,9 +260,13 @@ pub struct Bounded {
 pub struct Shift {
     /// The scale (0 when it is given).
     pub mm_per_px: f64,
+    /// The change of v_impact, m/s.
     pub v_impact_m_s: f64,
+    /// The change of v_rebound, m/s.
     pub v_rebound_m_s: f64,
+    /// The change of δmax, mm.
     pub delta_max_mm: f64,
+    /// The change of τc, ms.
     pub tau_c_ms: f64,
 }
 

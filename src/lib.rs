@@ -52,6 +52,8 @@
 //! their unit in their name (`_px`, `_mm`, `_s`, `_m_s`, `_pa`); inside the
 //! library everything is SI unless the name says otherwise.
 
+#![deny(missing_docs)]
+
 pub mod batch;
 pub mod cache;
 pub mod cli_values;

@@ -43,7 +43,9 @@ pub struct Holder {
     pub job: String,
     /// `"K/N"` for a shard, `None` for a whole job.
     pub shard: Option<String>,
+    /// The holder's process id.
     pub pid: u32,
+    /// The machine the holder runs on.
     pub host: String,
     /// The process's start time in clock ticks since boot (Linux), to tell
     /// a reused pid from the holder.
@@ -110,6 +112,7 @@ fn short(job: &str) -> &str {
 /// Why the folder could not be taken.
 #[derive(Debug, thiserror::Error)]
 pub enum LockError {
+    /// Another process holds the folder.
     #[error(
         "{out} is in use by {holder}{same}: wait for it to end, or add --wait to start once it \
          has. If that process is no longer running (a crashed job on another machine), remove \
@@ -120,14 +123,21 @@ pub enum LockError {
         ticket = ticket.display()
     )]
     Busy {
+        /// The output folder.
         out: PathBuf,
+        /// Who holds it, as its ticket says.
         holder: Box<Holder>,
+        /// Whether the holder is another part (shard) of this same job.
         same_job: bool,
+        /// The holder's ticket, to remove should the process be gone.
         ticket: PathBuf,
     },
+    /// The lock folder or a ticket could not be made or read.
     #[error("{path}: cannot take the output folder's lock: {source}")]
     Io {
+        /// The lock folder or ticket.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },

@@ -36,21 +36,31 @@ pub const COLUMNS: [(&str, bool, &str); 10] = [
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ManifestRow {
+    /// The run's name, unique in the manifest.
     pub run: String,
+    /// The run's folder of frames or `.cine` file, as written (relative to the manifest's folder).
     pub path: PathBuf,
+    /// Sphere radius R, mm.
     pub sphere_radius_mm: f64,
+    /// Fall height of the sphere's lowest point to the surface, cm.
     #[serde(default)]
     pub drop_height_cm: Option<f64>,
+    /// Frame rate, frames/s, for a recording that holds none.
     #[serde(default)]
     pub fps: Option<f64>,
+    /// A fixed scale for this run, mm per px.
     #[serde(default)]
     pub mm_per_px: Option<f64>,
+    /// The `[surface.<name>]` of the configuration; empty: its default.
     #[serde(default)]
     pub surface: Option<String>,
+    /// Sphere density, kg/m³; empty: the configuration's.
     #[serde(default)]
     pub sphere_density_kg_m3: Option<f64>,
+    /// Camera set-up shared with other runs (same zoom and position).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub setup: Option<String>,
+    /// How many digits at the end of a frame file's name are its number (1‥18).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub number_digits: Option<u32>,
 }
@@ -58,14 +68,21 @@ pub struct ManifestRow {
 /// A validated run: the path resolved against the manifest's folder.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunSpec {
+    /// The run's name, unique in the manifest.
     pub run: String,
+    /// The run's input, resolved against the manifest's folder.
     pub path: PathBuf,
+    /// Sphere radius R, mm.
     pub sphere_radius_mm: f64,
+    /// Fall height of the sphere's lowest point to the surface, cm; `None`: not given.
     pub drop_height_cm: Option<f64>,
+    /// Frame rate from the manifest, frames/s; `None`: not given.
     pub fps: Option<f64>,
+    /// A fixed scale from the manifest, mm per px; `None`: not given.
     pub mm_per_px: Option<f64>,
     /// Surface name; `None` means the configuration's default.
     pub surface: Option<String>,
+    /// Sphere density, kg/m³; `None`: the configuration's.
     pub sphere_density_kg_m3: Option<f64>,
     /// Camera set-up shared with other runs (same zoom and position); `None`: not given.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -85,26 +102,42 @@ pub struct RunSpec {
 /// Why a manifest could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum ManifestError {
+    /// The manifest could not be read.
     #[error("{path}: {source}")]
     Io {
+        /// The manifest file.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// The header row is wrong: a required column missing, an unknown or repeated one.
     #[error("{path}: row {row} (the header): {message}")]
     Header {
+        /// The manifest file.
         path: PathBuf,
+        /// The header's row (1).
         row: u64,
+        /// What is wrong, and what is allowed.
         message: String,
     },
+    /// A row's value could not be read or is out of range.
     #[error("{path}: row {row}: {message}")]
     Row {
+        /// The manifest file.
         path: PathBuf,
+        /// The row, as a spreadsheet shows it (the header is row 1).
         row: u64,
+        /// The column, the text found and what is allowed.
         message: String,
     },
+    /// The manifest has a header and no run.
     #[error("{path}: the manifest lists no run")]
-    Empty { path: PathBuf },
+    Empty {
+        /// The manifest file.
+        path: PathBuf,
+    },
+    /// None of the runs' inputs exists: a drive not mounted or a manifest moved without its runs.
     #[error(
         "{path}: none of its {runs} runs' inputs is there (the first, {}, does not exist): \
          nothing was written; is their drive mounted, or was the manifest moved without \
@@ -112,8 +145,11 @@ pub enum ManifestError {
         first.display()
     )]
     NoneThere {
+        /// The manifest file.
         path: PathBuf,
+        /// How many runs it lists.
         runs: usize,
+        /// The first run's input, which does not exist.
         first: PathBuf,
     },
 }

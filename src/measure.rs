@@ -10,20 +10,26 @@ use crate::quality;
 /// What the measurement of one drop produced.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DropMeasurement {
+    /// The drop's row of drops.csv.
     pub record: DropRecord,
     /// The contact law fit, or why there is none.
     pub law: Result<ForceLaw, ForceFitError>,
     /// F = m(g − z̈) per contact frame: (image number, force in N).
     pub forces: Vec<(i64, f64)>,
+    /// Image numbers of the frames in contact, ascending.
     pub in_contact: Vec<i64>,
 }
 
 /// Identity of the drop being measured.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DropInfo {
+    /// The run's name.
     pub run: String,
+    /// Sphere radius R, mm.
     pub sphere_radius_mm: f64,
+    /// Sphere density ρ, kg/m³.
     pub sphere_density_kg_m3: f64,
+    /// The `[surface.<name>]` the drop hit.
     pub surface: String,
 }
 

@@ -26,12 +26,17 @@ const MARGIN_PX: f64 = 12.0;
 
 /// What the pictures of one run are drawn from.
 pub struct Pictures<'a> {
+    /// The run's recording, to read the frames drawn.
     pub source: &'a mut dyn FrameSource,
+    /// What the recording holds.
     pub meta: &'a SourceMeta,
+    /// The run's track.
     pub track: &'a Track,
+    /// The tracking settings the run was measured with.
     pub settings: &'a TrackSettings,
     /// A frame's δ as its row of the track CSV gives it.
     pub delta_mm: &'a (dyn Fn(&FrameTrack) -> Option<f64> + Sync),
+    /// The run's scale, mm per px.
     pub mm_per_px: f64,
 }
 

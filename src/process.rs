@@ -44,6 +44,7 @@ pub struct ProcessArgs {
     /// Sphere radius for INPUTs (default: the configuration's sphere.radius_mm).
     #[arg(long, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
     pub radius_mm: Option<f64>,
+    /// Values for recordings that lack them (`--fps`, `--mm-per-px`, `--surface-row-px`).
     #[command(flatten)]
     pub recording: crate::cli_values::RecordingArgs,
     /// Also draw the overlay of these camera image numbers (comma-separated,
@@ -81,6 +82,7 @@ pub struct ProcessArgs {
 /// The outcome of one run.
 #[derive(Debug)]
 pub struct RunOutcome {
+    /// The run's row of drops.csv.
     pub record: DropRecord,
     /// The track CSV's bytes (none for a run that failed): past
     /// [`TRACK_CSV_IN_MEMORY_MAX`], in a temporary file.
@@ -113,12 +115,16 @@ pub const TRACK_CSV_IN_MEMORY_MAX: usize = 1 << 20;
 /// Why the command could not run at all (a bad run is a row, not this).
 #[derive(Debug, thiserror::Error)]
 pub enum ProcessError {
+    /// An output file could not be written.
     #[error("{path}: cannot write: {source}")]
     Write {
+        /// The file.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// The command line asks for something that cannot be done; says what.
     #[error("{0}")]
     Usage(String),
     /// An INPUT named on the command line cannot be a run: it is not
@@ -126,7 +132,12 @@ pub enum ProcessError {
     /// output folder is created or touched, so a mistyped path never
     /// replaces the results already in it.
     #[error("{path}: {why}; nothing was written")]
-    Input { path: PathBuf, why: String },
+    Input {
+        /// The INPUT as given.
+        path: PathBuf,
+        /// Why it cannot be a run.
+        why: String,
+    },
 }
 
 /// The runs named on the command line: each INPUT one run named after its

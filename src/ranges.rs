@@ -8,7 +8,9 @@
 /// An inclusive range of a quantity, in the unit its key is written in.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Range {
+    /// The smallest value allowed.
     pub min: f64,
+    /// The largest value allowed.
     pub max: f64,
     /// The unit, as in messages (`mm`, `kg/m³`).
     pub unit: &'static str,

@@ -63,10 +63,12 @@ impl<T: Record> Records<T> {
         }
     }
 
+    /// Number of records, in memory and in the file.
     pub fn len(&self) -> usize {
         self.in_file + self.mem.len()
     }
 
+    /// No record at all.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -232,15 +234,19 @@ impl<T: Record> Records<T> {
 pub struct Put<'a>(pub &'a mut Vec<u8>);
 
 impl Put<'_> {
+    /// Write a byte.
     pub fn u8(&mut self, v: u8) {
         self.0.push(v);
     }
+    /// Write a `u32`, little-endian.
     pub fn u32(&mut self, v: u32) {
         self.0.extend_from_slice(&v.to_le_bytes());
     }
+    /// Write a `u64`, little-endian.
     pub fn u64(&mut self, v: u64) {
         self.0.extend_from_slice(&v.to_le_bytes());
     }
+    /// Write an `f64` as its bits, little-endian.
     pub fn f64(&mut self, v: f64) {
         self.u64(v.to_bits());
     }
@@ -255,15 +261,19 @@ impl Take<'_> {
         self.0 = rest;
         head.try_into().expect("N bytes")
     }
+    /// Read a byte.
     pub fn u8(&mut self) -> u8 {
         self.bytes::<1>()[0]
     }
+    /// Read a `u32`, little-endian.
     pub fn u32(&mut self) -> u32 {
         u32::from_le_bytes(self.bytes())
     }
+    /// Read a `u64`, little-endian.
     pub fn u64(&mut self) -> u64 {
         u64::from_le_bytes(self.bytes())
     }
+    /// Read an `f64` from its bits, little-endian.
     pub fn f64(&mut self) -> f64 {
         f64::from_bits(self.u64())
     }

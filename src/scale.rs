@@ -40,7 +40,9 @@ pub const EDGE_OFFSET_SYSTEMATIC_PX: f64 = 0.3;
 /// on the job's runs whose own free fall is precise ([`EdgeOffset::measure`]).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct EdgeOffset {
+    /// The edge offset, apparent minus true radius, px.
     pub offset_px: f64,
+    /// Its one-sigma spread from drop to drop, px.
     pub spread_px: f64,
 }
 
@@ -121,9 +123,13 @@ pub const MIN_SEGMENT_FRAMES: usize = 6;
 /// Where a run's scale came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ScaleSource {
+    /// The manifest's or configuration's scale.
     Given,
+    /// Free fall, pooled over the camera set-up's runs.
     SetupFreeFall,
+    /// The run's own free flights.
     FreeFall,
+    /// The sphere's radius: R_mm over its apparent radius in px (the last resort).
     Radius,
 }
 
@@ -155,7 +161,9 @@ pub const SPEED_SCALE_MAX_REL_ERR: f64 = 1e-3;
 /// The free flight's curvature z̈ (px/s²) with its one-sigma error.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Curvature {
+    /// The curvature z̈, px/s².
     pub g_px_s2: f64,
+    /// Its one-sigma error, px/s².
     pub err_px_s2: f64,
     /// Frames (over all flights, or all runs when pooled) behind it.
     pub frames: usize,
@@ -390,7 +398,9 @@ pub fn pool(curvatures: &[Curvature]) -> Option<Curvature> {
 /// What a run's scale is chosen from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScaleInputs {
+    /// Sphere radius R, mm.
     pub radius_mm: f64,
+    /// Gravity g, m/s².
     pub g_m_s2: f64,
     /// The manifest's or configuration's scale.
     pub given_mm_per_px: Option<f64>,
@@ -400,6 +410,7 @@ pub struct ScaleInputs {
     pub own: Option<Curvature>,
     /// The apparent radius and its statistical error.
     pub r_app_px: f64,
+    /// Statistical error of `r_app_px`, px.
     pub r_app_err_px: f64,
     /// The edge offset known from elsewhere, for the radius's scale.
     pub edge_offset: Option<EdgeOffset>,
@@ -407,6 +418,7 @@ pub struct ScaleInputs {
     /// distortion bound (see [`crate::lens`]): how much free fall's scale
     /// may be off by the lens, when comparing it with the sphere's.
     pub setup_at_bound: Option<Curvature>,
+    /// The run's own curvature through that lens (`setup_at_bound` is the set-up's).
     pub own_at_bound: Option<Curvature>,
 }
 
@@ -429,9 +441,11 @@ impl ScaleInputs {
 /// A run's scale.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scale {
+    /// The scale, mm per px.
     pub mm_per_px: f64,
     /// Relative one-sigma error of `mm_per_px`.
     pub rel_err: f64,
+    /// Where it came from.
     pub source: ScaleSource,
     /// The scale from free fall (the set-up's, else the run's own) and its
     /// one-sigma error, mm/px, whether used or not.
@@ -616,8 +630,11 @@ pub fn resolve(inp: &ScaleInputs) -> Scale {
 /// radius as the manifest gives it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ApparentSize {
+    /// The apparent (silhouette) radius, px.
     pub r_app_px: f64,
+    /// Its statistical error, px.
     pub r_app_err_px: f64,
+    /// The sphere's radius as the manifest gives it, mm.
     pub radius_mm: f64,
 }
 
@@ -627,9 +644,11 @@ pub struct ApparentSize {
 pub struct SizeDisagreement {
     /// The run's (R_app − edge offset) / R_mm and its one-sigma error, px/mm.
     pub px_per_mm: f64,
+    /// One-sigma error of `px_per_mm`, px/mm.
     pub err: f64,
     /// The other runs' weighted mean and its error, px/mm.
     pub others_px_per_mm: f64,
+    /// One-sigma error of `others_px_per_mm`, px/mm.
     pub others_err: f64,
     /// How many other runs.
     pub others: usize,

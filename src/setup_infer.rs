@@ -55,14 +55,19 @@ pub const AGREEMENT_SIGMAS: f64 = 4.0;
 /// What a run's images say of its camera set-up.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SceneSignature {
+    /// Frame width, px.
     pub width_px: usize,
+    /// Frame height, px.
     pub height_px: usize,
     /// The surface line's row at the middle column and its tilt.
     pub surface_row_px: f64,
+    /// The surface line's tilt, rows per column.
     pub surface_slope: f64,
     /// The sphere's apparent radius and its statistical error.
     pub r_app_px: f64,
+    /// Statistical error of `r_app_px`, px.
     pub r_app_err_px: f64,
+    /// The sphere's radius from the manifest, mm.
     pub radius_mm: f64,
     /// The scale of the run's own free flights and its one-sigma error
     /// (statistical and the distortion bound's), mm/px.

@@ -21,7 +21,9 @@ pub const FIXED_COST_FRAMES: u64 = 100;
 /// The K-th (`index`, from 0) of `count` shares.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Shard {
+    /// Which share, K, from 0.
     pub index: usize,
+    /// How many shares, N (at least 1).
     pub count: usize,
 }
 
@@ -34,17 +36,25 @@ impl std::fmt::Display for Shard {
 /// Why `--shard` could not be understood.
 #[derive(Debug, thiserror::Error)]
 pub enum ShardError {
+    /// `--shard` is neither `K/N` with 0 ≤ K < N nor `slurm` (the text given).
     #[error(
         "--shard {0}: expected K/N with 0 <= K < N (e.g. 2/8), or `slurm` inside a Slurm array job"
     )]
     Syntax(String),
+    /// `--shard slurm` outside a Slurm array job (the variable not set).
     #[error(
         "--shard slurm: {0} is not set: this is not a task of a Slurm array job. Submit with \
          `sbatch --array=0-<N-1>` (`dropscope slurm` writes the script), or give --shard K/N"
     )]
     NotArray(&'static str),
+    /// A Slurm array variable does not hold a whole number.
     #[error("--shard slurm: {name}={value} is not a whole number")]
-    BadVariable { name: &'static str, value: String },
+    BadVariable {
+        /// The variable's name.
+        name: &'static str,
+        /// Its value.
+        value: String,
+    },
 }
 
 impl Shard {

@@ -46,19 +46,29 @@ pub struct SlurmArgs {
 /// Why the scripts could not be written or submitted.
 #[derive(Debug, thiserror::Error)]
 pub enum SlurmError {
+    /// A script or folder could not be written.
     #[error("{path}: {source}")]
     Io {
+        /// The file or folder.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// `sbatch` could not be started (not a Slurm node); the scripts are written.
     #[error(
         "cannot run sbatch ({0}): is this a Slurm login node? The scripts are written; \
          submit them by hand (see the command printed without --submit)"
     )]
     NoSbatch(std::io::Error),
+    /// `sbatch` failed on a script, or printed no job id.
     #[error("sbatch {script} failed: {message}")]
-    Sbatch { script: PathBuf, message: String },
+    Sbatch {
+        /// The script handed to it.
+        script: PathBuf,
+        /// What it printed, on its output and its error stream.
+        message: String,
+    },
     /// A value that would reach the scripts is outside its field's set.
     #[error("{0}")]
     Value(String),
@@ -181,6 +191,7 @@ pub struct Plan {
     pub exe: PathBuf,
     /// `--config` for the jobs (`None`: the embedded default).
     pub config: Option<PathBuf>,
+    /// The output folder (on a file system every node sees).
     pub out: PathBuf,
     /// Where the scripts and the logs go.
     pub scripts: PathBuf,
@@ -191,14 +202,18 @@ pub struct Plan {
 /// The two scripts written.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scripts {
+    /// The array job's script: one shard per task.
     pub array: PathBuf,
+    /// The finishing job's script, started after every task succeeded.
     pub finish: PathBuf,
 }
 
 /// Job ids Slurm gave.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Submitted {
+    /// The array job's id.
     pub array_job: String,
+    /// The finishing job's id.
     pub finish_job: String,
 }
 

@@ -32,6 +32,7 @@ pub fn open_options(
 }
 
 impl TrackSettings {
+    /// The tracking settings of a `[detect]` table: its values, and the defaults for the rest (at least 3 background frames).
     pub fn from_config(cfg: &DetectConfig) -> Self {
         TrackSettings {
             background_frames: cfg.background_frames.max(3),

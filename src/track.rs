@@ -78,8 +78,11 @@ pub const RADIUS_SYSTEMATIC_PX: f64 = 0.002;
 pub struct TrackSettings {
     /// Frames, spread evenly over the movie, that make the background.
     pub background_frames: usize,
+    /// How edge points are measured along the normals.
     pub edge: EdgeParams,
+    /// How a frame is searched for the sphere without a prediction.
     pub coarse: CoarseParams,
+    /// How the surface line is found in the background.
     pub surface: SurfaceParams,
     /// A fixed surface line (from the configuration) instead of the detected one.
     pub surface_override: Option<SurfaceLine>,
@@ -165,10 +168,13 @@ pub const FRAMES_IN_MEMORY_MAX: usize = 32_768;
 /// A tracked run.
 #[derive(Debug)]
 pub struct Track {
+    /// The undeformed surface line.
     pub surface: SurfaceLine,
     /// True when the surface line came from the configuration.
     pub surface_from_config: bool,
+    /// The sphere's calibrated radius R_px, held in pass 2, px.
     pub radius_px: f64,
+    /// One-sigma error of `radius_px`, with its systematic floor, px.
     pub radius_err_px: f64,
     /// Frames whose full circle gave the radius.
     pub radius_frames: usize,
@@ -177,6 +183,7 @@ pub struct Track {
     /// [`Records::iter`], then [`Records::check`] that none failed to be
     /// read back.
     pub frames: Records<FrameTrack>,
+    /// The background the frames were measured against.
     pub background: Background,
     /// Frames that pass 2 had to read again (see the module doc, step 4).
     pub reread_frames: usize,
@@ -209,28 +216,39 @@ pub struct Track {
 /// Why a run could not be tracked.
 #[derive(Debug, thiserror::Error)]
 pub enum TrackError {
+    /// The recording could not be read.
     #[error(transparent)]
     Source(#[from] SourceError),
+    /// A frame's detection failed in a way that stops the run.
     #[error("frame {frame}: {}", plain_detect(source))]
     Detect {
+        /// The frame's image number.
         frame: i64,
+        /// Why detection failed.
         #[source]
         source: DetectError,
     },
+    /// No background could be built (no backlight to measure against).
     #[error("no sphere found: no backlit background to measure against: {0}")]
     Background(DetectError),
+    /// No surface line was found in the background.
     #[error(
         "no sphere found: no surface line in the background ({}); if the surface is out of \
          view, give its row with --surface-row-px (or detect.surface_row_px in pipeline.toml)",
         surface_problem(.0)
     )]
     Surface(DetectError),
+    /// No frame shows a dark round shape.
     #[error(
         "no sphere found in any of the {frames} frames: dropscope measures a dark, round \
          sphere against a bright backlit background, falling onto a surface whose top is a \
          horizontal line below it; no dark round shape was seen in these frames"
     )]
-    NoSphere { frames: usize },
+    NoSphere {
+        /// Frames searched.
+        frames: usize,
+    },
+    /// Fewer than 3 frames show the whole sphere clear of the surface, so its radius in pixels cannot be measured.
     #[error(
         "no sphere found whole: the sphere's outline is clear of the picture's border and of \
          the surface in {} (3 needed to measure its radius in pixels): a sphere only partly \
@@ -238,13 +256,16 @@ pub enum TrackError {
         frames_text(*found)
     )]
     NoCalibration {
+        /// How many frames do.
         found: usize,
         /// When the picture looks upside down: the question whether it is
         /// ([`upside_down_hint`]); else empty.
         upside_down: String,
     },
+    /// The movie has fewer than 8 frames (the count).
     #[error("only {0} frames: too short a movie to find a drop in (at least 8 needed)")]
     TooShort(usize),
+    /// The temporary file of the per-frame records failed.
     #[error("a temporary file for the track's per-frame records (set TMPDIR to a folder with room): {0}")]
     Records(#[from] std::io::Error),
 }

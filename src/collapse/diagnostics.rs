@@ -18,13 +18,16 @@ use crate::records::{Put, Record, Records, Take};
 /// z(t) = c0 + c1 (t − t0) + c2 (t − t0)², z in px, t in s.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FlightFit {
+    /// The expansion time t0, s.
     pub t0_s: f64,
+    /// c0 (px), c1 (px/s), c2 (px/s²).
     pub coef: [f64; 3],
     /// Times of the first and last frame used.
     pub t_range_s: [f64; 2],
 }
 
 impl FlightFit {
+    /// z at time `t` (s), px.
     pub fn eval(&self, t: f64) -> f64 {
         let u = t - self.t0_s;
         self.coef[0] + u * (self.coef[1] + u * self.coef[2])
@@ -36,7 +39,9 @@ impl FlightFit {
 /// force uncertainty).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ForceLaw {
+    /// The run's name.
     pub run: String,
+    /// Number of contact frames the law was fitted on.
     pub n_points: usize,
     /// The exponent n (model: 2).
     pub n: Estimate,
@@ -56,10 +61,15 @@ pub struct ForceLaw {
 /// [`TrackRow`] read back is 168 and its flags' text).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackSample {
+    /// Time of the frame, s after the trigger.
     pub t_s: f64,
+    /// Sphere centre row, px; `None` where the frame has no centre.
     pub z_px: Option<f64>,
+    /// Penetration δ, mm (negative: the clearance above the surface).
     pub delta_mm: Option<f64>,
+    /// Contact force F = m (g − z̈) from the smoothed trajectory, N; in contact only.
     pub force_n: Option<f64>,
+    /// Whether the frame is in contact.
     pub in_contact: bool,
 }
 
@@ -129,6 +139,7 @@ impl TrackSample {
 /// every frame's time in ms (the time axis when no frame has a centre).
 #[derive(Debug)]
 pub struct TrackSamples {
+    /// The rows' samples, in the track's order.
     pub samples: Records<TrackSample>,
     /// The least and greatest `t_s · 1e3` over all rows (±∞ for none).
     pub all_t_ms: [f64; 2],
@@ -173,13 +184,21 @@ pub fn read_track_samples_within(path: &Path, memory_max: usize) -> Result<Track
 /// One drop's track and what was fitted to it.
 #[derive(Debug)]
 pub struct DropDiagnostics {
+    /// The run's name.
     pub run: String,
+    /// The track file, `tracks/<run>.csv`.
     pub track_path: PathBuf,
+    /// The track's samples.
     pub track: TrackSamples,
+    /// Contact onset from drops.csv, s after the trigger.
     pub t_contact_s: Option<f64>,
+    /// Loss of contact from drops.csv, s after the trigger.
     pub t_rebound_s: Option<f64>,
+    /// The free-flight parabola before contact.
     pub flight_in: Option<FlightFit>,
+    /// The free-flight parabola after the rebound.
     pub flight_out: Option<FlightFit>,
+    /// The force law F = K δⁿ, from drops.csv or fitted to the track's table.
     pub force_law: Option<ForceLaw>,
 }
 

@@ -63,6 +63,7 @@ pub struct FitSettings {
 /// One fitted number.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Estimate {
+    /// The fitted value.
     pub value: f64,
     /// First-order standard error (from the χ²-scaled covariance).
     pub stderr: Option<f64>,
@@ -75,8 +76,11 @@ pub struct Estimate {
 pub struct SeriesFit {
     /// Constant, linear and quadratic coefficients (A1, A2, A3 or B1, B2, B3).
     pub coef: [Estimate; 3],
+    /// Number of drops fitted.
     pub n_drops: usize,
+    /// Whether the points were weighted by their effective variance (false: some error unknown or zero, unweighted).
     pub weighted: bool,
+    /// Reduced χ² of the fit (of unit weights when unweighted); `None` without degrees of freedom.
     pub chi2_red: Option<f64>,
     /// Ξ range covered by the drops (the series is not valid outside it).
     pub xi_range: [f64; 2],
@@ -139,29 +143,38 @@ fn display_name(name: &str) -> &str {
 pub struct AsymptoteFit {
     /// The formula, e.g. "Pi = c1 (kappa/phi)^(1/3) eta^(1/3)  (Eq. 5)".
     pub law: String,
+    /// The fitted constant (c1, c2, d1 or d2).
     pub constant: Estimate,
+    /// Number of drops fitted.
     pub n_drops: usize,
     /// Which drops were used, e.g. "Xi < 1.32 (first term of Eq. 8 dominant)".
     pub selection: String,
     /// RMS of ln(y / law) over those drops: how well one power law describes them.
     pub rms_log_residual: Option<f64>,
+    /// Whether the points were weighted by their effective variance (false: some error unknown or zero, unweighted).
     pub weighted: bool,
 }
 
 /// Local exponents for one sphere radius.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ExponentFit {
+    /// The sphere radius of these drops, mm.
     pub radius_mm: f64,
+    /// Number of drops of this radius.
     pub n_drops: usize,
     /// ν of Π ∝ η^ν.
     pub nu: Option<f64>,
+    /// Standard error of ν.
     pub nu_stderr: Option<f64>,
+    /// 95 % bootstrap interval of ν [lo, hi].
     pub nu_ci: Option<[f64; 2]>,
     /// ln of the prefactor: ln Π = nu_intercept + ν ln η.
     pub nu_intercept: Option<f64>,
     /// μ of τc ∝ v^μ (τc in s, v in m/s).
     pub mu: Option<f64>,
+    /// Standard error of μ.
     pub mu_stderr: Option<f64>,
+    /// 95 % bootstrap interval of μ [lo, hi].
     pub mu_ci: Option<[f64; 2]>,
     /// ln τc\[s\] = mu_intercept + μ ln v\[m/s\].
     pub mu_intercept: Option<f64>,
@@ -174,14 +187,23 @@ pub struct ExponentFit {
 /// Everything fitted, plus the warnings met on the way.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fits {
+    /// Ψ = A1 + A2 Ξ + A3 Ξ² (Eq. (8) of Maruoka 2019).
     pub psi_series: Option<SeriesFit>,
+    /// Ω = B1 + B2 Ξ + B3 Ξ², the τc analogue (from Eq. (10)).
     pub omega_series: Option<SeriesFit>,
+    /// The crossover Ξ× = A1/A2, where the two leading terms of Eq. (8) are equal.
     pub crossover_xi: Option<Estimate>,
+    /// Ψ = c1 at small Ξ (Eq. (5)).
     pub eq5: Option<AsymptoteFit>,
+    /// Ψ/Ξ = c2 at large Ξ (Eq. (7)).
     pub eq7: Option<AsymptoteFit>,
+    /// Ω = d1 at small Ξ (Eq. (1e)).
     pub eq1e: Option<AsymptoteFit>,
+    /// Ω/Ξ = d2 at large Ξ (Eq. (11)).
     pub eq11: Option<AsymptoteFit>,
+    /// The local exponents ν and μ, per sphere radius.
     pub exponents: Vec<ExponentFit>,
+    /// Warnings met on the way (an unweighted fit, too few drops, …), one sentence each.
     pub warnings: Vec<String>,
     /// When no exponent and no series could be fitted for lack of drops
     /// (a radius needs 3, a series 4): what these drops can and cannot
@@ -193,9 +215,13 @@ pub struct Fits {
 /// ∂/∂p_i · σ_i over (v, δ, a, τc) (`None` = unknown error).
 #[derive(Debug, Clone, Copy)]
 pub struct Obs {
+    /// The abscissa, as the fit takes it (Ξ, or a logarithm).
     pub x: f64,
+    /// The ordinate, as the fit takes it.
     pub y: f64,
+    /// ∂x/∂p_i · σ_i over (v, δ, a, τc); `None`: an error unknown.
     pub sx: Option<[f64; 4]>,
+    /// ∂y/∂p_i · σ_i over (v, δ, a, τc); `None`: an error unknown.
     pub sy: Option<[f64; 4]>,
 }
 

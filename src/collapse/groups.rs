@@ -40,7 +40,9 @@ pub type RelErrors = [Option<f64>; 4];
 /// depends on has an unknown error.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Quantity {
+    /// The group's value.
     pub value: f64,
+    /// Relative sensitivity `(e_i r_i)` over (v, δ, a, τc); `None`: an input's error unknown.
     pub rel_sens: Option<[f64; 4]>,
 }
 
@@ -93,6 +95,7 @@ pub enum ASource {
 }
 
 impl ASource {
+    /// Its word in collapse.csv (`measured`, `geometric_fallback`, …).
     pub fn as_str(self) -> &'static str {
         match self {
             ASource::Measured => "measured",
@@ -121,23 +124,35 @@ pub enum ContactRadius {
 /// Every group of SPEC §3 for one drop.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DropGroups {
+    /// The run's name.
     pub run: String,
+    /// Sphere radius R, mm.
     pub sphere_radius_mm: f64,
     /// Name of the surface whose E, h, φ were used.
     pub surface: String,
+    /// Where the contact radius a came from.
     pub a_source: ASource,
     /// Relative errors of (v, δ, a, τc) as read.
     pub rel_err: RelErrors,
     /// v (m/s) and τc (s) themselves, for the τc ∝ v^μ fit.
     pub v_m_s: Quantity,
+    /// τc, s; `None` when the drop has none.
     pub tau_c_s: Option<Quantity>,
+    /// Π = δ/R.
     pub pi: Quantity,
+    /// ξ = a/R.
     pub xi: Quantity,
+    /// η = ρv²/E, the Cauchy number.
     pub eta: Quantity,
+    /// κ = h/R, exact.
     pub kappa: f64,
+    /// ω = τc v/R; `None` without τc.
     pub omega: Option<Quantity>,
+    /// Ψ = Π φ^{1/3} κ^{-1/3} η^{-1/3}.
     pub psi: Quantity,
+    /// Ξ = ξ φ^{1/6} κ^{-1/6} η^{-1/6}.
     pub big_xi: Quantity,
+    /// Ω = ω φ^{1/3} κ^{-1/3} η^{-1/3}; `None` without τc.
     pub big_omega: Option<Quantity>,
     /// Π' = δ/a (Eq. (6)).
     pub pi_prime: Quantity,

@@ -179,14 +179,18 @@ struct Skipped<'a> {
 /// What was run, for traceability.
 #[derive(Debug, Clone, Serialize)]
 pub struct Provenance {
+    /// The version of dropscope that ran the collapse.
     pub dropscope_version: &'static str,
     /// The input table's file name (not its path: the same data in two
     /// folders gives the same bytes).
     pub drops_csv: String,
     /// [`crate::dataset_id`] of the drops.csv read.
     pub dataset_id: String,
+    /// Which contact radius was asked for: `measured` or `geometric` (`--contact-radius`).
     pub contact_radius: &'static str,
+    /// Number of bootstrap resamples per fit (0: no intervals).
     pub bootstrap_resamples: usize,
+    /// The bootstrap's base seed.
     pub seed: u64,
     /// The surfaces used, by name.
     pub surfaces: Vec<SurfaceUsed>,
@@ -195,9 +199,13 @@ pub struct Provenance {
 /// A material of pipeline.toml that entered the groups.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SurfaceUsed {
+    /// The `[surface.<name>]` name.
     pub name: String,
+    /// Young's modulus E, Pa.
     pub modulus_pa: f64,
+    /// Pillar height h, m.
     pub pillar_height_m: f64,
+    /// Solid fraction φ.
     pub solid_fraction: f64,
 }
 

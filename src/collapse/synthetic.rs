@@ -11,14 +11,19 @@ use crate::dataset::{DropRecord, DropStatus};
 /// What to generate.
 #[derive(Debug, Clone)]
 pub struct SyntheticSpec {
+    /// Sphere radii, mm.
     pub radii_mm: Vec<f64>,
     /// Drops per radius, at velocities spaced log-uniformly over `v_range_m_s`.
     pub per_radius: usize,
+    /// Impact speeds, from the lowest to the highest, m/s.
     pub v_range_m_s: [f64; 2],
     /// Relative one-sigma noise of (v, δ, a, τc); also written as the `_err`s.
     pub rel_noise: [f64; 4],
+    /// Sphere density, kg/m³.
     pub density_kg_m3: f64,
+    /// The surface the drops hit.
     pub surface: Surface,
+    /// Seed of the noise.
     pub seed: u64,
 }
 

@@ -7,9 +7,13 @@ use super::groups::{DropGroups, SkipReason};
 pub struct DropOutcome {
     /// Line number in drops.csv (the header is line 1).
     pub row: u64,
+    /// The run's name.
     pub run: String,
+    /// Sphere radius R, mm.
     pub sphere_radius_mm: f64,
+    /// The surface's name, as the row gives it or the configuration's default.
     pub surface: String,
+    /// The drop's groups, or why it is skipped.
     pub groups: Result<DropGroups, SkipReason>,
     /// False for a `tracked` run (no contact): not a drop, left out of the
     /// collapse without being counted or listed as skipped.

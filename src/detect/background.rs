@@ -66,10 +66,13 @@ impl Default for GainRegion {
 /// Per-pixel background and the flicker reference region.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Background {
+    /// Frame width, px.
     pub width: usize,
+    /// Frame height, px.
     pub height: usize,
     /// Row-major background levels, in the units of the frames.
     pub levels: Vec<f32>,
+    /// The flicker reference strips.
     pub region: GainRegion,
     /// Gains of the frames the background was built from.
     pub gains: Vec<f64>,
@@ -234,16 +237,22 @@ impl StripSums {
 /// strips, and each strip's own (left, right).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameGain {
+    /// The frame's gain relative to the background, over both strips.
     pub gain: f64,
+    /// Standard error of `gain`.
     pub sigma: f64,
+    /// Each strip's own (left, right); `None` unless both strips are lit.
     pub sides: Option<[StripGain; 2]>,
 }
 
 /// One reference strip's gain, its standard error, and its mean column.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StripGain {
+    /// The strip's mean column, px.
     pub column_px: f64,
+    /// The strip's gain relative to the background.
     pub gain: f64,
+    /// Standard error of `gain`.
     pub sigma: f64,
 }
 

@@ -115,6 +115,7 @@ pub struct CircleFit {
 }
 
 impl CircleFit {
+    /// The fitted circle: centre and radius.
     pub fn circle(&self) -> Circle {
         Circle {
             x_px: self.x_px,

@@ -12,9 +12,13 @@ pub enum DetectError {
          the background must come from the same movie"
     )]
     ShapeMismatch {
+        /// The frame's width, px.
         width: usize,
+        /// The frame's height, px.
         height: usize,
+        /// The background's width, px.
         bg_width: usize,
+        /// The background's height, px.
         bg_height: usize,
     },
     /// No frame was given to build the background from.
@@ -26,15 +30,26 @@ pub enum DetectError {
          needs a bright backlit background there (is the movie underexposed, or something dark \
          standing at the frame's edges?)"
     )]
-    DarkReference { what: String },
+    DarkReference {
+        /// Which reference region is dark, in words.
+        what: String,
+    },
     /// Too few usable points for a fit.
     #[error("{what}: only {found} usable points, at least {needed} needed")]
     TooFewPoints {
+        /// The fit, in words (e.g. `circle measurement`).
         what: &'static str,
+        /// Usable points found.
         found: usize,
+        /// The fewest the fit needs.
         needed: usize,
     },
     /// The fit has no unique solution (collinear points, zero radius, NaN).
     #[error("{what}: degenerate fit ({reason})")]
-    Degenerate { what: &'static str, reason: String },
+    Degenerate {
+        /// The fit, in words.
+        what: &'static str,
+        /// Why it has no unique solution.
+        reason: String,
+    },
 }

@@ -19,7 +19,9 @@ use super::Band;
 
 /// Colours: fitted circle, edge points, surface line.
 pub const CIRCLE_RGB: [u8; 3] = [255, 40, 40];
+/// Colour of the edge points.
 pub const POINT_RGB: [u8; 3] = [40, 255, 40];
+/// Colour of the surface line.
 pub const SURFACE_RGB: [u8; 3] = [60, 140, 255];
 
 /// Which part of the frame to draw and how large.
@@ -27,9 +29,11 @@ pub const SURFACE_RGB: [u8; 3] = [60, 140, 255];
 pub struct OverlayView {
     /// First column and row of the crop (frame pixels).
     pub x0: usize,
+    /// First row of the crop (frame pixels); `x0` is its first column.
     pub z0: usize,
     /// Crop size (frame pixels).
     pub width: usize,
+    /// Crop height (frame pixels); `width` is its width.
     pub height: usize,
     /// Enlargement (≥ 1).
     pub zoom: u32,
@@ -78,8 +82,11 @@ pub fn point_radius_px(zoom: u32) -> f64 {
 /// the greys, its index in the animation's palette.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mark {
+    /// The fitted circle.
     Circle,
+    /// An edge point used by the fit.
     Point,
+    /// The surface line.
     Surface,
 }
 
@@ -135,11 +142,17 @@ impl OverlayView {
 /// significant bits scaled to 8) with the detection on top.
 #[derive(Debug, Clone, Copy)]
 pub struct Scene<'a> {
+    /// The rows of the frame drawn.
     pub band: &'a Band<'a>,
+    /// Significant bits of the band's samples.
     pub bit_depth: u8,
+    /// The crop and its enlargement.
     pub view: &'a OverlayView,
+    /// The edge points to mark.
     pub points: &'a [EdgePoint],
+    /// The fitted circle, when there is one.
     pub circle: Option<&'a Circle>,
+    /// The surface line, when there is one.
     pub surface: Option<&'a SurfaceLine>,
 }
 
@@ -325,8 +338,11 @@ const GREY_INDEX: [u8; 256] = {
 /// One frame of an animation in the animation's palette (see
 /// [`Scene::indexed`]): `width × height` indices, row by row.
 pub struct IndexedFrame {
+    /// Width of the frame, px.
     pub width: u32,
+    /// Height of the frame, px.
     pub height: u32,
+    /// Palette indices, `width × height`, row by row.
     pub data: Vec<u8>,
 }
 

@@ -75,6 +75,7 @@ impl Default for SurfaceParams {
 /// The band's top in one column.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ColumnEdge {
+    /// The column, px.
     pub x_px: f64,
     /// Row of the blurred-step fit to the flank (module doc, step 2).
     pub row_px: f64,

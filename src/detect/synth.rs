@@ -19,7 +19,9 @@ pub const SUBCOLUMNS: usize = 64;
 /// A scene: bright background, dark sphere, pillar band in front of both.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
+    /// Frame width, px.
     pub width: usize,
+    /// Frame height, px.
     pub height: usize,
     /// Background level at the frame centre.
     pub background: f64,
@@ -51,6 +53,7 @@ pub struct PillarBand {
     pub channel_level: f64,
     /// Period of the pillar pattern (px) and the pillar's share of it.
     pub period_px: f64,
+    /// The pillar's share of the period, in (0, 1].
     pub solid_fraction: f64,
 }
 

@@ -12,7 +12,9 @@ pub struct Band<'a> {
     pub data: &'a [u16],
     /// Frame row of the first row of `data`.
     pub row0: usize,
+    /// Number of rows in `data`.
     pub nrows: usize,
+    /// Frame width, px (the length of a row of `data`).
     pub width: usize,
     /// Columns `cols.0..cols.1` hold the frame's pixels (`0..width` for
     /// whole rows). A band read as a window ([`Band::window`]) holds
@@ -115,6 +117,7 @@ pub struct SurfaceLine {
     /// `c = k1·(row − z_c)`: the lens measured in the images
     /// (`lens::k1_from_bow`). 0 when given.
     pub bow_per_px2: f64,
+    /// Standard error of `bow_per_px2`, 1/px².
     pub bow_err_per_px2: f64,
 }
 

@@ -17,6 +17,7 @@ pub struct Caption {
     pub delta_mm: Option<f64>,
     /// Scale of the frame, and the picture's enlargement of it.
     pub mm_per_px: f64,
+    /// The picture's enlargement of the frame (`mm_per_px` is the frame's scale).
     pub zoom: u32,
 }
 
@@ -25,8 +26,11 @@ pub const FONT_PX: u32 = 18;
 const LINE_PX: u32 = 24;
 /// Band grey level and colour (the text and the bar are white on it).
 pub const BAND_GREY: u8 = 32;
+/// The band's colour.
 pub const BAND_RGB: [u8; 3] = [BAND_GREY; 3];
+/// Grey level of the scale bar and the text.
 pub const BAR_GREY: u8 = 255;
+/// Colour of the scale bar and the text.
 pub const BAR_RGB: [u8; 3] = [BAR_GREY; 3];
 /// Thickness of the scale bar, pixels.
 pub const BAR_THICK_PX: u32 = 4;
@@ -82,7 +86,9 @@ pub fn with_caption(img: &RgbImage, c: &Caption) -> Result<RgbImage, String> {
 /// anti-aliasing over them), row by row.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CaptionBand {
+    /// The band's height, pixels.
     pub height: u32,
+    /// Its grey levels, row by row, the picture's width each.
     pub grey: Vec<u8>,
 }
 

@@ -4,6 +4,8 @@
 #[derive(Debug, thiserror::Error)]
 #[error("plot {name}: {message}")]
 pub struct PlotError {
+    /// The figure's name.
     pub name: String,
+    /// What went wrong.
     pub message: String,
 }

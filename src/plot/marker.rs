@@ -10,11 +10,17 @@ use plotters_backend::{BackendCoord, DrawingErrorKind};
 /// The marker shapes of Figs. 3–4 of Maruoka 2019, plus a few for other radii.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MarkerKind {
+    /// A circle (R = 3 mm in the paper's figures).
     Circle,
+    /// A triangle pointing up (R = 4 mm).
     Triangle,
+    /// A diagonal cross (R = 4.5 mm).
     Cross,
+    /// A diamond (R = 5 mm).
     Diamond,
+    /// A square (R = 7 mm).
     Square,
+    /// A triangle pointing down (another radius).
     InvertedTriangle,
 }
 
@@ -47,14 +53,18 @@ pub fn radius_style(radius_mm: f64, other_index: usize) -> (RGBColor, MarkerKind
 /// One marker at a data coordinate.
 #[derive(Debug, Clone, Copy)]
 pub struct Marker<C> {
+    /// Where the marker stands, in data coordinates.
     pub at: C,
+    /// Its shape.
     pub kind: MarkerKind,
+    /// Its colour.
     pub color: RGBColor,
     /// Half-size in pixels.
     pub size: i32,
 }
 
 impl<C> Marker<C> {
+    /// A marker of `kind` and `color` at `at`, `size` pixels from its centre to its edge.
     pub fn new(at: C, kind: MarkerKind, color: RGBColor, size: i32) -> Self {
         Marker {
             at,

@@ -148,6 +148,7 @@ impl CameraRaster {
         Ok(raster)
     }
 
+    /// The realised camera this raster draws through.
     pub fn optics(&self) -> &Optics {
         &self.optics
     }

@@ -14,7 +14,9 @@ pub const PAPER_HEIGHTS_CM: [f64; 6] = [1.5, 3.0, 6.0, 12.0, 25.0, 50.0];
 pub struct DropSpec {
     /// Folder and file-name prefix.
     pub run: String,
+    /// Sphere radius R, mm.
     pub radius_mm: f64,
+    /// Fall height of the sphere's lowest point to the surface, cm.
     pub height_cm: f64,
     /// Position in the campaign (0-based); sets the trigger's wall-clock time.
     pub index: usize,
@@ -92,11 +94,17 @@ pub fn parse_pair(text: &str) -> Result<(f64, f64), String> {
 /// true scale when `--manifest-scale` asks for it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct SetupManifestRow {
+    /// The run's name.
     pub run: String,
+    /// The run's folder, relative to the manifest.
     pub path: std::path::PathBuf,
+    /// Sphere radius R, mm.
     pub sphere_radius_mm: f64,
+    /// Fall height of the sphere's lowest point to the surface, cm.
     pub drop_height_cm: f64,
+    /// The camera set-up the run was filmed with.
     pub setup: String,
+    /// The true scale, mm per px, with `--manifest-scale`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mm_per_px: Option<f64>,
 }

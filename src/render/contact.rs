@@ -44,8 +44,11 @@ pub enum ContactMode {
 /// The damping named on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum DampingArg {
+    /// No damping: restitution 1.
     None,
+    /// Linear damping `c ḋ`.
     Linear,
+    /// Hunt–Crossley damping `α K_n δ^n ḋ`.
     HuntCrossley,
 }
 
@@ -62,6 +65,7 @@ impl From<DampingArg> for Damping {
 /// The validated contact options of a render.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactSpec {
+    /// The model's law, or drawn per drop (`--contact`).
     pub mode: ContactMode,
     /// `--force-exponent`.
     pub exponent: Option<f64>,
@@ -88,8 +92,11 @@ impl ContactSpec {
 /// One drop's contact, before its damping coefficient is solved.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactDraw {
+    /// Elastic exponent n of `K_n δ^n`.
     pub exponent: f64,
+    /// The kind of damping.
     pub damping: Damping,
+    /// The force may pull (true), or is clamped at F ≥ 0.
     pub adhesion: bool,
     /// The restitution the damping is solved for (1 without damping).
     pub restitution: f64,

@@ -26,16 +26,23 @@ use crate::source::Frame;
 /// Why an output could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
+    /// A file could not be written.
     #[error("{path}: cannot write: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// A frame could not be encoded into the file's format.
     #[error("{path}: cannot encode frame {frame}: {message}")]
     Encode {
+        /// The file.
         path: PathBuf,
+        /// The frame's image number.
         frame: i64,
+        /// The encoder's message.
         message: String,
     },
 }
@@ -304,13 +311,19 @@ impl FrameSink for FolderSink {
 pub struct PccHeader {
     /// Shown in `CameraSetup/Description`.
     pub description: String,
+    /// Image number of the first frame (negative before the trigger).
     pub first_image_no: i64,
+    /// Number of frames.
     pub image_count: usize,
+    /// Frame width, px.
     pub width_px: usize,
+    /// Frame height, px.
     pub height_px: usize,
     /// 8 or 12.
     pub bit_depth: u8,
+    /// Frame rate, frames/s.
     pub fps: f64,
+    /// Exposure time of each frame, s.
     pub exposure_s: f64,
     /// Trigger instant, in units of 10 ns since 1970-01-01 00:00 local time.
     pub trigger_10ns: i64,

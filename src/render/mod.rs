@@ -65,23 +65,29 @@ use truth::{BounceTruth, ContactTruth, FrameTruth, SurfaceTruth, Truth};
 /// What one rendered drop produced.
 #[derive(Debug, Clone)]
 pub struct DropSummary {
+    /// The run's name.
     pub run: String,
     /// The run's folder.
     pub dir: PathBuf,
+    /// Number of frames written.
     pub frames: usize,
+    /// The exact values behind the drop (its `truth.json`).
     pub truth: Truth,
 }
 
 /// What a render produced.
 #[derive(Debug, Default)]
 pub struct RenderReport {
+    /// The drops rendered, in order.
     pub drops: Vec<DropSummary>,
     /// Runs that failed, with the reason; the others were still rendered.
     pub failures: Vec<(String, String)>,
+    /// The `runs.csv` written for the drops, ready for `dropscope process --manifest`.
     pub manifest: Option<PathBuf>,
 }
 
 impl RenderReport {
+    /// Frames written over every drop.
     pub fn frames(&self) -> usize {
         self.drops.iter().map(|d| d.frames).sum()
     }

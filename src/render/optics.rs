@@ -21,6 +21,7 @@ use super::truth::CameraTruth;
 /// How one effect's strength is chosen.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Strength {
+    /// The effect is off (strength 0).
     Off,
     /// The same value for every drop (an explicit option).
     Fixed(f64),
@@ -50,26 +51,42 @@ impl Strength {
 /// Every real-camera effect of a render, before the per-drop draws.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OpticsSpec {
+    /// Light rim inside the outline, fraction of the backlight.
     pub rim: Strength,
+    /// Width of the rim's fade, px.
     pub rim_width_px: Strength,
+    /// Halo outside the outline, fraction of the backlight.
     pub halo: Strength,
+    /// Width of the halo's fade, px.
     pub halo_width_px: Strength,
+    /// Highlight on the sphere, fraction of the backlight (its size and place are drawn per drop).
     pub highlight: Strength,
+    /// Light added in a strip below the glossy band top, fraction of the backlight.
     pub gloss: Strength,
+    /// Height of the gloss strip, px.
     pub gloss_width_px: Strength,
+    /// Extra transmission of the band's top rows (pillar tops seen edge-on), fraction (may be negative).
     pub top_row: Strength,
+    /// Height of those top rows, px.
     pub top_row_width_px: Strength,
+    /// How far the band's top edge dips under the sphere, as a fraction of the sphere bottom's depth below the line.
     pub dip: Strength,
     /// σ at the focal row, px.
     pub blur_sigma0_px: Strength,
     /// Growth of σ per row away from the focal row, px/row; `Drawn(0, 1)`
     /// means "up to the largest that keeps σ ≤ [`MAX_SIGMA_PX`]".
     pub defocus_px_per_row: Strength,
+    /// The row in best focus, px; `Drawn(lo, hi)` draws it as a fraction of the height.
     pub focus_row_px: Strength,
+    /// Barrel distortion: the inward displacement of the image corners, px.
     pub corner_displacement_px: Strength,
+    /// Camera roll θ, degrees.
     pub roll_deg: Strength,
+    /// Column fixed pattern: the rms of the per-column gain (and of the offset, as a fraction of the background level).
     pub column_noise: Strength,
+    /// Number of stuck-bright hot pixels (the draw's integer part).
     pub hot_pixels: Strength,
+    /// Illumination drift's amplitude on each side of the image, fraction.
     pub drift: Strength,
     /// Saturated backlight: the dimmest background pixel reads `1 + this`
     /// times white before the sensor clips (0: the light as the look says).
@@ -79,7 +96,9 @@ pub struct OpticsSpec {
     pub glint: Strength,
     /// σ of the glint, fraction of the sphere's radius.
     pub glint_sigma: Strength,
+    /// Frame files in flight left unwritten per drop.
     pub missing_frames: usize,
+    /// Start the movie as the sphere enters at the top edge (or at its release, when in view).
     pub start_at_entry: bool,
     /// Longest flight (frames) between the first and second contact for
     /// which the movie goes on through the second contact; 0: never.
@@ -203,14 +222,18 @@ impl OpticsSpec {
 /// Roll about the image centre, then radial (barrel) distortion.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Geometry {
+    /// Column of the centre of distortion and roll, `(W − 1)/2`, px.
     pub cx: f64,
+    /// Row of the centre of distortion and roll, `(H − 1)/2`, px.
     pub cz: f64,
+    /// Radial distortion coefficient k1 (≤ 0: barrel), 1/px².
     pub k1: f64,
     cos: f64,
     sin: f64,
 }
 
 impl Geometry {
+    /// The geometry of a `width_px` × `height_px` image with distortion `k1` (1/px²) and roll `roll_deg` (degrees), about the image centre.
     pub fn new(width_px: usize, height_px: usize, k1: f64, roll_deg: f64) -> Self {
         let th = roll_deg.to_radians();
         Geometry {
@@ -265,10 +288,13 @@ impl Geometry {
 /// The realised camera of one drop, with what the raster needs beyond truth.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Optics {
+    /// The camera's values, as written into `truth.json`.
     pub truth: CameraTruth,
+    /// Its roll and distortion.
     pub geometry: Geometry,
     /// Per-column gain and offset (fraction of white).
     pub column_gain: Vec<f64>,
+    /// Per-column offset, fraction of white (`column_gain` is the gain).
     pub column_offset: Vec<f64>,
 }
 
@@ -294,8 +320,11 @@ pub fn draw_setup(spec: &OpticsSpec, seed: u64, setup: &str) -> SetupDraw {
 /// The frame a camera is drawn for.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameGeometry {
+    /// Image width, px.
     pub width_px: usize,
+    /// Image height, px.
     pub height_px: usize,
+    /// The sphere's radius in the image, px.
     pub radius_px: f64,
 }
 
@@ -464,7 +493,9 @@ pub struct Entry {
     /// sphere's lowest point at or below row 0 of the recorded image, or the
     /// release's image when the sphere hangs in view before it.
     pub first_frame: i64,
+    /// The sphere's release is in view: it hangs still until `t_release_s`.
     pub release_in_view: bool,
+    /// Release instant, s after the trigger.
     pub t_release_s: f64,
 }
 

@@ -49,6 +49,7 @@ pub enum Preset {
 }
 
 impl Preset {
+    /// The preset's name, as `--preset` takes it.
     pub fn name(self) -> &'static str {
         match self {
             Preset::Clean => "clean",
@@ -351,31 +352,47 @@ pub struct RenderArgs {
 /// Validated settings shared by every drop of a render.
 #[derive(Debug, Clone)]
 pub struct RenderSettings {
+    /// The preset the settings started from.
     pub preset: Preset,
+    /// The picture's look: sensor, light and blur.
     pub look: Look,
     /// A real camera's effects (all off outside `--preset real` unless given).
     pub optics: OpticsSpec,
+    /// How each drop's frames are written.
     pub format: FrameFormat,
     /// How a `.cine` stores its samples.
     pub packing: CinePackingChoice,
     /// JPEG quality: fixed, or drawn per drop in the range (`--preset real`).
     pub jpeg_quality: (u8, u8),
+    /// Seed of every random choice; the same seed gives byte-identical files.
     pub seed: u64,
+    /// Frame rate, frames/s.
     pub fps: f64,
+    /// Exposure time of each frame (at most the frame interval), s.
     pub exposure_s: f64,
+    /// Frame width, px.
     pub width_px: usize,
+    /// Frame height, px.
     pub height_px: usize,
+    /// Scale, mm per px; `None`: chosen from the sphere's radius.
     pub mm_per_px: Option<f64>,
+    /// Frames before the first contact (unless the movie starts at the sphere's entry).
     pub frames_before: usize,
+    /// Frames after the loss of contact.
     pub frames_after: usize,
+    /// Undeformed surface row at column 0, px; `None`: drawn near 0.72 of the height.
     pub surface_row_px: Option<f64>,
+    /// Surface tilt, rows per column.
     pub surface_slope: f64,
+    /// Sphere density, kg/m³.
     pub density_kg_m3: f64,
+    /// The pillar surface the spheres hit.
     pub surface: Surface,
     /// The model's restitution (linear damping solved for it).
     pub restitution: f64,
     /// The contact law's options ([`ContactSpec::is_model`]: the model).
     pub contact: ContactSpec,
+    /// Gravity, m/s².
     pub gravity_m_s2: f64,
 }
 

@@ -69,34 +69,50 @@ pub const BETA_THIRD_HALF: f64 = 4.206_546_315_976_364;
 /// Why a drop cannot be simulated.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum PhysicsError {
+    /// A drop parameter is out of range.
     #[error("drop parameter `{name}` = {value}: {allowed}")]
     InvalidParameter {
+        /// The parameter's name.
         name: &'static str,
+        /// Its value.
         value: f64,
+        /// What is allowed.
         allowed: &'static str,
     },
+    /// The damping is so strong that the sphere does not leave the surface within the time limit.
     #[error(
         "the sphere did not leave the surface within {limit_s:.3e} s of contact at t = {t_contact_s:.6e} s \
          (damping c = {damping_n_s_m:.4e} N·s/m, α = {hunt_crossley_s_m:.4e} s/m too strong): ask for a larger restitution"
     )]
     NoRebound {
+        /// Contact onset, s.
         t_contact_s: f64,
+        /// The longest contact simulated, s.
         limit_s: f64,
+        /// Linear damping c, N·s/m.
         damping_n_s_m: f64,
+        /// Hunt–Crossley damping α, s/m.
         hunt_crossley_s_m: f64,
     },
+    /// No damping coefficient gives the restitution asked for: the sphere sticks.
     #[error("restitution {requested} cannot be reached with {damping} damping (the sphere sticks); ask for a larger restitution")]
     RestitutionUnreachable {
+        /// The restitution asked for.
         requested: f64,
+        /// The kind of damping (`linear`, `hunt_crossley`).
         damping: &'static str,
     },
+    /// Without adhesion, the sphere leaves the surface too slowly to rise back above the undeformed line.
     #[error(
         "the sphere left the surface at t = {t_s:.6e} s with δ = {delta_m:.3e} m still below the \
          undeformed line and too slow ({speed_m_s:.3e} m/s) to rise back to it: ask for a larger restitution"
     )]
     FallsBackInside {
+        /// When the force reached 0, s.
         t_s: f64,
+        /// The penetration δ then, m.
         delta_m: f64,
+        /// The sphere's upward speed then, m/s.
         speed_m_s: f64,
     },
 }

@@ -50,7 +50,9 @@ pub struct Look {
     /// Transmission of the pillars, of the channels between them, and of the
     /// base below the pillars, relative to the background.
     pub pillar_grey: f64,
+    /// Transmission of the channels between the pillars, relative to the background.
     pub channel_grey: f64,
+    /// Transmission of the base below the pillars, relative to the background.
     pub base_grey: f64,
     /// Standard deviation of the Gaussian optical blur, px (0 = none).
     pub blur_sigma_px: f64,
@@ -84,7 +86,9 @@ impl Look {
 /// Where things are in the picture, in px.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Scene {
+    /// Image width, px.
     pub width_px: usize,
+    /// Image height, px.
     pub height_px: usize,
     /// Sphere radius R / s.
     pub radius_px: f64,
@@ -94,7 +98,9 @@ pub struct Scene {
     pub surface_slope: f64,
     /// Pillar height h, pillar width b and channel width c in px.
     pub pillar_height_px: f64,
+    /// Pillar width b, px.
     pub pillar_width_px: f64,
+    /// Channel width c, px.
     pub channel_width_px: f64,
     /// Column where a pillar starts.
     pub pillar_phase_px: f64,
@@ -110,10 +116,14 @@ impl Scene {
 /// Why a raster cannot be set up.
 #[derive(Debug, thiserror::Error)]
 pub enum RasterError {
+    /// A render setting is out of range.
     #[error("render setting `{name}` = {value}: {allowed}")]
     Invalid {
+        /// The setting's name.
         name: &'static str,
+        /// The value given.
         value: String,
+        /// What is allowed instead.
         allowed: &'static str,
     },
 }
@@ -224,10 +234,12 @@ impl Raster {
         })
     }
 
+    /// Where things are in the picture.
     pub fn scene(&self) -> &Scene {
         &self.scene
     }
 
+    /// The picture's look.
     pub fn look(&self) -> &Look {
         &self.look
     }

@@ -36,23 +36,36 @@ use super::raster::Look;
 /// The surface as rendered, in mm and Pa.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SurfaceTruth {
+    /// Young's modulus E of the pillars' material, Pa.
     pub modulus_pa: f64,
+    /// Pillar height h, mm.
     pub pillar_height_mm: f64,
+    /// Pillar width b, mm.
     pub pillar_width_mm: f64,
+    /// Width c of the channels between pillars, mm.
     pub channel_width_mm: f64,
+    /// Solid fraction φ = b / (b + c) of the surface, dimensionless.
     pub solid_fraction: f64,
 }
 
 /// A later contact within the rendered window.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BounceTruth {
+    /// When this contact starts (δ crosses 0 going down), s after the trigger.
     pub t_contact_s: f64,
+    /// When δ reaches its maximum in this contact, s after the trigger.
     pub t_max_s: f64,
+    /// When δ returns to 0 at the end of this contact, s after the trigger.
     pub t_rebound_s: f64,
+    /// Contact time τc = `t_rebound_s − t_contact_s`, s.
     pub tau_c_s: f64,
+    /// Speed at the start of this contact, m/s.
     pub v_impact_m_s: f64,
+    /// Speed when this contact ends, m/s.
     pub v_rebound_m_s: f64,
+    /// Restitution e = `v_rebound_m_s / v_impact_m_s` of this contact.
     pub restitution: f64,
+    /// Maximum penetration δmax of this contact, mm.
     pub delta_max_mm: f64,
     /// Without adhesion: when the force reached 0 and the sphere left the
     /// deformed surface (δ still > 0); absent when it stayed until δ = 0.
@@ -115,6 +128,7 @@ pub struct FrameTruth {
     pub t_s: f64,
     /// Sphere centre column and row, px.
     pub x_px: f64,
+    /// Sphere centre row (its column is `x_px`), px.
     pub z_px: f64,
     /// Penetration δ (0 out of contact), mm.
     pub delta_mm: f64,
@@ -124,6 +138,7 @@ pub struct FrameTruth {
     /// when a camera model is on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub image_x_px: Option<f64>,
+    /// Row of the sphere centre in the recorded image; pairs with `image_x_px`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub image_z_px: Option<f64>,
 }
@@ -131,24 +146,35 @@ pub struct FrameTruth {
 /// Everything known exactly about one rendered drop.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Truth {
+    /// Run name, as in the manifest and the frames' folder.
     pub run: String,
+    /// Seed of the random draws that made this drop.
     pub seed: u64,
     /// `clean`, `realistic` or `harsh` (the look's starting point; see `look`).
     pub preset: String,
+    /// Sphere radius R, mm.
     pub sphere_radius_mm: f64,
+    /// Sphere density, kg/m³.
     pub sphere_density_kg_m3: f64,
     /// Fall height of the sphere's lowest point to the surface; v = √(2gH).
     pub drop_height_cm: f64,
+    /// The surface as rendered.
     pub surface: SurfaceTruth,
     /// Restitution asked for (1 = no damping).
     pub restitution_requested: f64,
+    /// Frame rate, frames per second.
     pub fps: f64,
+    /// Exposure time of each frame, s.
     pub exposure_s: f64,
+    /// Image width, px.
     pub width_px: usize,
+    /// Image height, px.
     pub height_px: usize,
     /// 8 or 12 (12-bit data in 16-bit files).
     pub bit_depth: u8,
+    /// Scale of the scene frame, mm per px.
     pub mm_per_px: f64,
+    /// The sphere's radius in the image, `sphere_radius_mm / mm_per_px`, px.
     pub radius_px: f64,
     /// Undeformed surface row at column 0.
     pub surface_row_px: f64,
@@ -156,13 +182,21 @@ pub struct Truth {
     pub surface_slope: f64,
     /// The sphere centre's column (it falls straight down the image).
     pub impact_column_px: f64,
+    /// When the first contact starts (δ crosses 0 going down), s after the trigger.
     pub t_contact_s: f64,
+    /// When δ returns to 0 at the end of the first contact, s after the trigger.
     pub t_rebound_s: f64,
+    /// Contact time τc = `t_rebound_s − t_contact_s` of the first contact, s.
     pub tau_c_s: f64,
+    /// When δ reaches its maximum in the first contact, s after the trigger.
     pub t_max_s: f64,
+    /// Speed at impact, m/s.
     pub v_impact_m_s: f64,
+    /// Speed when the first contact ends, m/s.
     pub v_rebound_m_s: f64,
+    /// Restitution e = `v_rebound_m_s / v_impact_m_s` of the first contact.
     pub restitution: f64,
+    /// Maximum penetration δmax of the first contact, mm.
     pub delta_max_mm: f64,
     /// Geometric contact radius at δmax: √(R² − (R − δmax)²).
     pub a_max_mm: f64,
@@ -192,6 +226,7 @@ pub struct Truth {
     /// Quality (1‥100) of JPEG frame files; absent for other formats.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub jpeg_quality: Option<u8>,
+    /// The sphere at every frame's mid-exposure, in image order.
     pub frames: Vec<FrameTruth>,
 }
 
@@ -216,20 +251,26 @@ pub struct CameraTruth {
     /// Optical blur σ(row) = `blur_sigma0_px + defocus_px_per_row·|row − focus_row_px|`
     /// (Gaussian, in the recorded image's rows).
     pub blur_sigma0_px: f64,
+    /// Growth of σ per row away from `focus_row_px`, px per row.
     pub defocus_px_per_row: f64,
+    /// The row in best focus, px.
     pub focus_row_px: f64,
     /// σ at the best and worst row of the frame, px.
     pub blur_sigma_min_px: f64,
+    /// σ at the worst row of the frame, px (`blur_sigma_min_px` is the best).
     pub blur_sigma_max_px: f64,
     /// Light rim inside the outline: `rim · g(R − ρ; rim_width_px)` at distance ρ from the centre.
     pub rim: f64,
+    /// Width of the rim's fade inward from the outline, px.
     pub rim_width_px: f64,
     /// Halo outside the outline: `halo · g(ρ − R; halo_width_px)`.
     pub halo: f64,
+    /// Width of the halo's fade outward from the outline, px.
     pub halo_width_px: f64,
     /// Highlight on the sphere: `highlight · exp(−|p − c − offset|² / (2 σ²))`,
     /// `c` the centre averaged over the exposure.
     pub highlight: f64,
+    /// Width σ of the highlight's Gaussian, px.
     pub highlight_sigma_px: f64,
     /// Offset of the highlight from the centre (column, row), px.
     pub highlight_offset_px: [f64; 2],
@@ -237,10 +278,12 @@ pub struct CameraTruth {
     /// just below the band's top edge, where the sphere's mirror image (in the
     /// surface line) does not cover it.
     pub gloss: f64,
+    /// Height of the gloss strip below the band's top edge, px.
     pub gloss_width_px: f64,
     /// Pillar tops seen edge-on: the band's top `top_row_width_px` rows have
     /// `(1 + top_row)` times the band's transmission.
     pub top_row: f64,
+    /// Height of the band's top strip whose transmission is scaled by `1 + top_row`, px.
     pub top_row_width_px: f64,
     /// Pillars dipping under the sphere: during contact the band's top edge at
     /// column x lies `dip · max(0, sphere bottom at x − y_s(x))` below `y_s(x)`
@@ -249,17 +292,23 @@ pub struct CameraTruth {
     /// Column fixed pattern: per-column gain `1 + column_gain_rms·n₁` and
     /// offset `column_offset_rms·n₂` (fraction of white), `n` standard normal.
     pub column_gain_rms: f64,
+    /// Column offset's standard deviation, as a fraction of white (see `column_gain_rms`).
     pub column_offset_rms: f64,
     /// Stuck-bright pixels `[row, column]` and the value they read (DN).
     pub hot_pixels: Vec<[usize; 2]>,
+    /// Value the hot pixels read, DN.
     pub hot_pixel_dn: u16,
     /// Illumination drift: gain `1 + (1 − u)·drift_left·sin(φ_l + π·cycles·s)
     /// + u·drift_right·sin(φ_r + π·cycles·s)` with `u = column/(W − 1)` and
     /// `s ∈ [0, 1]` the time through the movie.
     pub drift_left: f64,
+    /// Drift amplitude at the right edge (see `drift_left`).
     pub drift_right: f64,
+    /// Phase φ_l of the left edge's drift, radians.
     pub drift_phase_left: f64,
+    /// Phase φ_r of the right edge's drift, radians.
     pub drift_phase_right: f64,
+    /// Number of half-periods of drift over the movie (`cycles`).
     pub drift_cycles: f64,
     /// Saturated backlight: the light is multiplied by `saturation_gain =
     /// (1 + saturation) / B_min` (`B_min` the dimmest background pixel of
@@ -267,12 +316,14 @@ pub struct CameraTruth {
     /// reads white with no noise, and an edge's half level lies inside the
     /// true outline. 0 and 1: off.
     pub saturation: f64,
+    /// The light's multiplier before the sensor clips, `(1 + saturation) / B_min` (1: off).
     pub saturation_gain: f64,
     /// Central glint (the backlight's specular image on the ball):
     /// `glint · exp(−|p − c_k − offset|² / (2 σ²))` inside the disk for each
     /// sphere centre `c_k` over the exposure (so it smears with the motion),
     /// a fraction of the backlight that may exceed 1 (clipped at white).
     pub glint: f64,
+    /// Width σ of the glint's Gaussian, px.
     pub glint_sigma_px: f64,
     /// Offset of the glint from the centre (column, row), px.
     pub glint_offset_px: [f64; 2],

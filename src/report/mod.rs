@@ -37,18 +37,24 @@ use html::escape;
 /// files are said in the page, not here).
 #[derive(Debug, thiserror::Error)]
 pub enum ReportError {
+    /// The report could not be written.
     #[error("{path}: cannot write the report: {source}")]
     Write {
+        /// The report file.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
     /// The collapse files are another dataset's than the folder's drops.csv.
     #[error(transparent)]
     Mixed(#[from] crate::dataset_id::Mixed),
+    /// A file the report shows could not be read.
     #[error("{path}: cannot read: {source}")]
     Read {
+        /// The file.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },

@@ -64,21 +64,28 @@ pub fn impact_column(rows: &[TrackRow], record: &DropRecord) -> Option<f64> {
 /// (the track CSV a column at a time, or only the numbers when it has no
 /// track), the frames of its events and its surface line.
 pub struct RunData<'a> {
+    /// The run's row of drops.csv.
     pub record: &'a DropRecord,
+    /// The run's track, one row per frame (empty when it has none).
     pub rows: &'a [TrackRow],
     /// Every camera image number of the run, in order (the source's).
     pub frames: &'a [i64],
+    /// Every decision of the review file (the run's are picked out).
     pub decisions: &'a Decisions,
     /// The image's surface line (row at column 0, tilt), when found.
     pub image_surface: Option<(f64, f64)>,
+    /// Frame width, px.
     pub width_px: usize,
+    /// Frame height, px.
     pub height_px: usize,
+    /// Frame rate, frames/s.
     pub fps: f64,
     /// Why frames show no overlay, when they do not.
     pub problem: Option<String>,
 }
 
 impl RunData<'_> {
+    /// The run as the review page's JSON.
     pub fn to_json(&self) -> Value {
         let r = self.rows;
         let col = |f: &dyn Fn(&TrackRow) -> Value| Value::Array(r.iter().map(f).collect());

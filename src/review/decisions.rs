@@ -59,6 +59,7 @@ pub enum Kind {
 }
 
 impl Kind {
+    /// Every kind of decision.
     pub const ALL: [Kind; 4] = [Kind::Reject, Kind::Exclude, Kind::Surface, Kind::Accept];
 
     /// Its word in the `decision` column.
@@ -80,7 +81,9 @@ impl Kind {
 /// Camera image numbers `first` to `last`, both included.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
 pub struct Frames {
+    /// The first camera image number left out.
     pub first: i64,
+    /// The last camera image number left out (at least `first`).
     pub last: i64,
 }
 
@@ -108,6 +111,7 @@ impl Frames {
         Ok(Frames { first, last })
     }
 
+    /// Whether camera image `frame` lies in the range.
     pub fn contains(&self, frame: i64) -> bool {
         (self.first..=self.last).contains(&frame)
     }
@@ -131,7 +135,9 @@ impl std::fmt::Display for Frames {
 /// One row of `review.csv`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Decision {
+    /// The run the decision is about.
     pub run: String,
+    /// What the decision does.
     pub decision: Kind,
     /// `exclude` only.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -139,7 +145,9 @@ pub struct Decision {
     /// `surface` only: the row at the impact column, px.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub value: Option<f64>,
+    /// Why, in the reviewer's words.
     pub reason: String,
+    /// When it was decided (UTC, `YYYY-MM-DDTHH:MM:SSZ`); informative, not used.
     pub time: String,
 }
 
@@ -218,6 +226,7 @@ pub struct RunReview {
 }
 
 impl RunReview {
+    /// No decision touches the run.
     pub fn is_empty(&self) -> bool {
         self.rejected.is_none()
             && self.accepted.is_none()
@@ -283,31 +292,49 @@ impl RunReview {
 /// Why `review.csv` could not be read or written.
 #[derive(Debug, thiserror::Error)]
 pub enum ReviewError {
+    /// The file could not be read or written.
     #[error("{path}: {source}")]
     Io {
+        /// The decisions file.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// A line of the file is not a valid decision.
     #[error("{path}: line {line}: {message}")]
     Row {
+        /// The decisions file.
         path: PathBuf,
+        /// The line (the header is line 1).
         line: u64,
+        /// What is wrong with it.
         message: String,
     },
+    /// The file is larger than [`MAX_FILE_BYTES`]: not a decisions file.
     #[error("{path}: larger than {MAX_FILE_BYTES} bytes: not a decisions file")]
-    TooLarge { path: PathBuf },
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+    },
+    /// `input.review` names a file outside the output folder, where the review could not save.
     #[error(
         "input.review names {path}, outside the output folder {out}: `dropscope review` saves \
          its decisions only inside the output folder it shows; name a file in that folder, or \
          leave input.review out (review.csv there)"
     )]
-    Outside { path: PathBuf, out: PathBuf },
+    Outside {
+        /// The decisions file named.
+        path: PathBuf,
+        /// The output folder.
+        out: PathBuf,
+    },
 }
 
 /// The decisions of one file, in its order.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Decisions {
+    /// The decisions, in the file's order.
     pub rows: Vec<Decision>,
 }
 

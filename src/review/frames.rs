@@ -51,6 +51,7 @@ pub enum View {
 }
 
 impl View {
+    /// The view a word names (`sphere`, `contact`, `frame`).
     pub fn from_word(w: &str) -> Option<View> {
         match w {
             "sphere" => Some(View::Sphere),
@@ -64,6 +65,7 @@ impl View {
 /// A run opened for drawing its frames.
 pub struct RunView {
     source: Box<dyn FrameSource>,
+    /// What the run's recording holds: size, frames, rate.
     pub meta: SourceMeta,
     settings: TrackSettings,
     /// The background and the image's surface line, or why there are none.

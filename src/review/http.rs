@@ -18,6 +18,7 @@ pub const MAX_BODY_BYTES: usize = 64 << 10;
 /// A request as read.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Request {
+    /// The method (`GET`, `POST`, …), as sent.
     pub method: String,
     /// The path, percent-decoded, without the query.
     pub path: String,
@@ -25,6 +26,7 @@ pub struct Request {
     pub query: Vec<(String, String)>,
     /// Header names in lower case, values trimmed.
     pub headers: Vec<(String, String)>,
+    /// The body (at most [`MAX_BODY_BYTES`]).
     pub body: Vec<u8>,
 }
 
@@ -54,10 +56,13 @@ impl Request {
 /// A response to write.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Response {
+    /// The status code.
     pub status: u16,
+    /// The `Content-Type` header's value.
     pub content_type: &'static str,
     /// Headers besides those every response carries.
     pub headers: Vec<(&'static str, String)>,
+    /// The body.
     pub body: Vec<u8>,
 }
 

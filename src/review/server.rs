@@ -70,12 +70,16 @@ pub struct ServeOptions {
 /// Why the server could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum ServeError {
+    /// The port could not be listened on (in use, or not allowed).
     #[error("cannot listen on 127.0.0.1:{port}: {source}")]
     Bind {
+        /// The port asked for.
         port: u16,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// Another I/O error of the listening socket.
     #[error("{0}")]
     Io(#[from] std::io::Error),
 }

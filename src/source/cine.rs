@@ -106,47 +106,82 @@ impl CineStorage {
 /// beyond `SETUP.Length`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CineHeader {
+    /// CINEFILEHEADER Compression: 0 grey or interpolated colour, 1 JPEG, 2 raw colour (Bayer).
     pub compression: u16,
+    /// CINEFILEHEADER Version (1 in every file seen).
     pub version: u16,
+    /// FirstMovieImage: the number of the first image recorded in camera memory.
     pub first_movie_image: i32,
+    /// TotalImageCount: images recorded in camera memory.
     pub total_image_count: u32,
+    /// FirstImageNo: the number of the first image saved in this file (may be negative).
     pub first_image_no: i32,
+    /// ImageCount: images saved in this file (the length of the offset table).
     pub image_count: u32,
+    /// OffImageHeader: byte offset of the BITMAPINFOHEADER.
     pub off_image_header: u32,
+    /// OffSetup: byte offset of the SETUP block.
     pub off_setup: u32,
+    /// OffImageOffsets: byte offset of the table of int64 image offsets.
     pub off_image_offsets: u32,
+    /// TriggerTime: when the camera was triggered.
     pub trigger_time: Time64,
+    /// biWidth: image width, px.
     pub width: u32,
+    /// biHeight: image height, px.
     pub height: u32,
+    /// biBitCount: container bits per pixel (8, 16, 24 or 48).
     pub bit_count: u16,
+    /// biCompression: 0 unpacked, 256 packed P10, 1024 packed P12L.
     pub bi_compression: u32,
+    /// biSizeImage: bytes of one image's pixel data.
     pub size_image: u32,
+    /// How the pixels are stored, from `bit_count` and `bi_compression`.
     pub storage: CineStorage,
     /// A raw colour cine's (Compression 2) Bayer pattern; `None`: one grey
     /// sample a pixel, or interpolated colour ([`CineStorage::Bgr24`], [`CineStorage::Bgr48`]).
     pub bayer: Option<Bayer>,
     /// SETUP.Length: how many SETUP bytes this file holds.
     pub setup_length: u16,
+    /// SETUP FrameRate16: frame rate, frames/s, capped at 65535 (legacy).
     pub frame_rate16: u16,
+    /// SETUP Shutter16: exposure, µs (legacy).
     pub shutter16_us: u16,
+    /// SETUP FrameRate: integer frame rate, frames/s.
     pub frame_rate: Option<u32>,
+    /// SETUP Shutter: exposure, µs.
     pub shutter_us: Option<u32>,
+    /// SETUP bFlipH: the viewer flips the picture left to right.
     pub flip_h: Option<bool>,
+    /// SETUP bFlipV: the viewer flips the picture upside down.
     pub flip_v: Option<bool>,
+    /// SETUP CameraVersion: the camera's model code (73: Phantom v7.3, …).
     pub camera_version: Option<u32>,
+    /// SETUP SoftwareVersion: the PCC or SDK build that wrote the file.
     pub software_version: Option<u32>,
+    /// SETUP CFA: the colour filter array (its low byte: 0 grey, 3–6 Bayer patterns).
     pub cfa: Option<u32>,
+    /// SETUP Rotate: the viewer's rotation, degrees (0, +90 counter-clockwise, −90).
     pub rotate: Option<i32>,
+    /// SETUP RealBPP: significant bits of a sample.
     pub real_bpp: Option<u32>,
+    /// SETUP ShutterNs: exposure, ns.
     pub shutter_ns: Option<u32>,
+    /// SETUP BlackLevel: the raw black level, counts.
     pub black_level: Option<i32>,
+    /// SETUP WhiteLevel: the raw white level, counts.
     pub white_level: Option<i32>,
     /// Viewer image adjustments PCC applies when exporting (fOffset, fGain, fGamma).
     pub f_offset: Option<f32>,
+    /// SETUP fGain (see `f_offset`).
     pub f_gain: Option<f32>,
+    /// SETUP fGamma (see `f_offset`).
     pub f_gamma: Option<f32>,
+    /// SETUP CameraModel: the camera's name (`Phantom v2012`, …).
     pub camera_model: Option<String>,
+    /// SETUP fDecimation: the decimation applied when saving (1 when absent).
     pub f_decimation: Option<f32>,
+    /// SETUP dFrameRate: the acquisition frame rate in full precision, frames/s.
     pub d_frame_rate: Option<f64>,
 }
 
@@ -230,6 +265,7 @@ impl CineHeader {
 /// index would be 36 bytes a frame in memory).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CineLayout {
+    /// The header fields.
     pub header: CineHeader,
     /// Byte where tag 1002's time stamps (a TIME64 an image) start.
     pub times_at: Option<u64>,
@@ -249,6 +285,7 @@ impl CineLayout {
 /// Bytes at an offset: of a file, or of a copy of it in memory (the fuzz
 /// target's).
 pub trait ReadAt {
+    /// Fill `dst` with the bytes at `offset`; an error when they are not all there.
     fn read_at(&self, offset: u64, dst: &mut [u8]) -> std::io::Result<()>;
 }
 

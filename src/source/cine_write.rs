@@ -85,11 +85,15 @@ impl CinePacking {
 /// Gray16, 10 for P10, 12 for P12L; every sample must be below `2^bit_depth`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CineSpec {
+    /// Frame width, px.
     pub width: usize,
+    /// Frame height, px.
     pub height: usize,
     /// Number of frames that will be written (the offset table is sized by it).
     pub frame_count: usize,
+    /// How the samples are packed in the file.
     pub packing: CinePacking,
+    /// Significant bits per sample (SETUP.RealBPP).
     pub bit_depth: u8,
     /// Frames per second of the saved frames (written as dFrameRate, FrameRate, FrameRate16).
     pub fps: f64,
@@ -130,18 +134,31 @@ impl Default for CineSpec {
 /// Why a cine could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum CineWriteError {
+    /// The file could not be created or written.
     #[error("{path}: {source}")]
     Io {
+        /// The cine being written.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// The [`CineSpec`] asks for something the format cannot hold.
     #[error("{path}: cannot write this cine: {reason}")]
-    Spec { path: PathBuf, reason: String },
+    Spec {
+        /// The cine being written.
+        path: PathBuf,
+        /// What cannot be written, and why.
+        reason: String,
+    },
+    /// A frame does not fit the spec (its shape, a sample too large, one frame too many).
     #[error("{path}: frame {index}: {reason}")]
     Frame {
+        /// The cine being written.
         path: PathBuf,
+        /// The frame's index, 0-based, in the order written.
         index: usize,
+        /// What is wrong with it.
         reason: String,
     },
 }

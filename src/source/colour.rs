@@ -55,13 +55,18 @@ impl ColourInput {
 /// picture top-down.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Bayer {
+    /// G B on the first row, R G on the second.
     Gbrg,
+    /// R G on the first row, G B on the second.
     Rggb,
+    /// G R on the first row, B G on the second.
     Grbg,
+    /// B G on the first row, G R on the second.
     Bggr,
 }
 
 impl Bayer {
+    /// The pattern's name in capitals (`GBRG`, …), as in messages and `reading`.
     pub fn name(self) -> &'static str {
         match self {
             Bayer::Gbrg => "GBRG",
@@ -99,9 +104,13 @@ pub fn luma(rgb: [f32; 3], max: u16) -> u16 {
 /// `height`, sampled in `pattern`.
 #[derive(Debug, Clone, Copy)]
 pub struct Mosaic<'a> {
+    /// The mosaic's samples, rows top-down.
     pub rows: ArrayView2<'a, u16>,
+    /// The picture row of the first of `rows`.
     pub row0: usize,
+    /// The whole picture's height, rows.
     pub height: usize,
+    /// The colour filter pattern of the whole picture.
     pub pattern: Bayer,
 }
 

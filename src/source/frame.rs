@@ -21,7 +21,9 @@ pub struct SourceMeta {
     pub format: String,
     /// Number of frames that can be read (indices `0..frame_count`).
     pub frame_count: usize,
+    /// Frame width, px.
     pub width: usize,
+    /// Frame height, px.
     pub height: usize,
     /// Significant bits per sample (8, 10, 12, 14 or 16).
     pub bit_depth: u8,
@@ -56,6 +58,7 @@ pub struct SourceDetails {
     pub white_level: Option<i64>,
     /// Viewer flips recorded by the camera software (formats/phantom.md §8.6).
     pub flip_h: bool,
+    /// The viewer flips the picture upside down (`flip_h`: left to right).
     pub flip_v: bool,
     /// Viewer rotation in degrees (+90 counter-clockwise), recorded, never applied.
     pub rotate_deg: i32,
@@ -70,7 +73,9 @@ pub struct SourceDetails {
     pub decimation: f64,
     /// Camera model text or code, software version, SETUP length (cine).
     pub camera: Option<String>,
+    /// The camera software's version that wrote the cine (SETUP's SoftwareVersion).
     pub software_version: Option<u32>,
+    /// Length of the cine's SETUP block, bytes.
     pub setup_length: Option<u16>,
     /// The PCC XML side file read for a folder.
     pub side_file: Option<PathBuf>,

@@ -104,9 +104,13 @@ pub(super) fn format_err(path: &Path, reason: impl Into<String>) -> SourceError 
 /// Image file kinds a folder may hold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum ImageKind {
+    /// TIFF (`.tif`, `.tiff`).
     Tiff,
+    /// PNG (`.png`).
     Png,
+    /// Windows bitmap (`.bmp`).
     Bmp,
+    /// JPEG (`.jpg`, `.jpeg`).
     Jpeg,
 }
 

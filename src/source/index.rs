@@ -34,10 +34,12 @@ impl FrameNumbers {
         }
     }
 
+    /// Number of frames.
     pub fn len(&self) -> usize {
         self.len
     }
 
+    /// No frame at all.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
@@ -52,10 +54,12 @@ impl FrameNumbers {
         Some(number + (index - start) as i64)
     }
 
+    /// The first frame's image number; `None` when empty.
     pub fn first(&self) -> Option<i64> {
         self.get(0)
     }
 
+    /// The last frame's image number; `None` when empty.
     pub fn last(&self) -> Option<i64> {
         self.len.checked_sub(1).and_then(|i| self.get(i))
     }
@@ -96,7 +100,9 @@ impl FromIterator<i64> for FrameNumbers {
 /// as a `.cine` stores them, read from the file when asked for.
 #[derive(Debug, Clone, PartialEq)]
 pub enum FrameValues {
+    /// The values in memory, one per frame.
     Memory(Arc<[f64]>),
+    /// The values as the file stores them, read when asked for.
     File(Arc<ValuesInFile>),
 }
 
@@ -109,7 +115,9 @@ impl From<Vec<f64>> for FrameValues {
 /// TIME64: seconds since 1970-01-01 UTC in 32.32 fixed point (phantom.md §10).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Time64 {
+    /// The fraction of a second, in units of 2⁻³² s.
     pub fractions: u32,
+    /// Whole seconds since 1970-01-01 00:00 UTC.
     pub seconds: u32,
 }
 
@@ -180,6 +188,7 @@ impl PartialEq for ValuesInFile {
 }
 
 impl ValuesInFile {
+    /// `len` values stored as `stored` from byte `start` of `file` (named `path` in messages).
     pub fn new(file: File, path: PathBuf, start: u64, len: usize, stored: Stored) -> Self {
         static NEXT_ID: AtomicU64 = AtomicU64::new(0);
         ValuesInFile {
@@ -238,6 +247,7 @@ thread_local! {
 }
 
 impl FrameValues {
+    /// Number of values (frames).
     pub fn len(&self) -> usize {
         match self {
             FrameValues::Memory(v) => v.len(),
@@ -245,6 +255,7 @@ impl FrameValues {
         }
     }
 
+    /// No value at all.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

@@ -44,6 +44,7 @@ fn stem(name: &str) -> &str {
 /// A folder's entries, sorted by name.
 #[derive(Debug, Clone, Default)]
 pub struct Listing {
+    /// The folder listed.
     pub dir: PathBuf,
     /// Regular files (links followed).
     pub files: Vec<String>,

@@ -26,7 +26,9 @@ pub struct PccXml {
     pub first_image_no: Option<i64>,
     /// `CineFileHeader/ImageCount`: number of exported images.
     pub image_count: Option<u64>,
+    /// `BitmapInfoHeader/biWidth`: image width, px.
     pub width: Option<u32>,
+    /// `BitmapInfoHeader/biHeight`: image height, px.
     pub height: Option<u32>,
     /// `BitmapInfoHeader/biBitCount` of the exported images.
     pub bit_count: Option<u32>,
@@ -34,10 +36,15 @@ pub struct PccXml {
     pub fps: Option<f64>,
     /// `CameraSetup/ShutterNs` (ns), else `Shutter` (µs), in seconds.
     pub exposure_s: Option<f64>,
+    /// `CameraSetup/RealBPP`: significant bits of a sample.
     pub real_bpp: Option<u8>,
+    /// `CameraSetup/BlackLevel`: the raw black level, counts.
     pub black_level: Option<i64>,
+    /// `CameraSetup/WhiteLevel`: the raw white level, counts.
     pub white_level: Option<i64>,
+    /// `CameraSetup/bFlipH`: the viewer flips the picture left to right.
     pub flip_h: Option<bool>,
+    /// `CameraSetup/bFlipV`: the viewer flips the picture upside down.
     pub flip_v: Option<bool>,
     /// `(image number, seconds after the trigger)` from `TIMEBLOCK`, in file order.
     pub times: Vec<(i64, f64)>,

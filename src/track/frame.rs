@@ -13,6 +13,7 @@ pub struct FrameTrack {
     pub index: usize,
     /// Camera image number.
     pub frame: i64,
+    /// Time of the frame, s after the trigger.
     pub t_s: f64,
     /// Pass 1: radius free.
     pub free: Option<CircleFit>,
@@ -69,10 +70,12 @@ impl Flag {
 pub struct FrameFlags(u8);
 
 impl FrameFlags {
+    /// Set flag `f`.
     pub fn insert(&mut self, f: Flag) {
         self.0 |= 1 << f as u8;
     }
 
+    /// Whether flag `f` is set.
     pub fn contains(self, f: Flag) -> bool {
         self.0 & (1 << f as u8) != 0
     }
@@ -82,6 +85,7 @@ impl FrameFlags {
         self.0
     }
 
+    /// The flags stored as one byte by [`FrameFlags::bits`].
     pub fn from_bits(bits: u8) -> Self {
         FrameFlags(bits)
     }

@@ -79,6 +79,7 @@ const CHI2_1_MEDIAN: f64 = 0.454_936;
 pub struct Sample {
     /// The frame's index (its record's position in the track).
     pub index: usize,
+    /// Time of the frame, s.
     pub t_s: f64,
     /// Held centre column, row and free radius (px), each with its
     /// reported σ (px); a σ that is not finite and positive leaves that
@@ -122,6 +123,7 @@ pub struct Outliers {
 }
 
 impl Outliers {
+    /// Take the next frame of the movie, in order.
     pub fn push(&mut self, seen: Seen) {
         match seen {
             Seen::Flight(sample) => {

@@ -57,8 +57,11 @@ pub enum CihForm {
 /// What dropscope takes from a Photron header.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cih {
+    /// Which form the header had (`.cihx` XML or `.cih` text).
     pub form: CihForm,
+    /// Frame width, px.
     pub width: u32,
+    /// Frame height, px.
     pub height: u32,
     /// Frames saved in the MRAW.
     pub total_frames: u64,
@@ -76,6 +79,7 @@ pub struct Cih {
     pub container_bits: u32,
     /// Significant bits of a sample (`effectiveBit/depth`; the container's when absent).
     pub effective_bits: u32,
+    /// Which end of a sample holds its significant bits.
     pub side: BitSide,
     /// `colorInfo/type` or `Color Type` as written (`Mono`, `Raw`, `Color` …).
     pub colour_type: Option<String>,
@@ -83,7 +87,9 @@ pub struct Cih {
     pub camera: Option<String>,
     /// The viewer's display flips and rotation (degrees), recorded, not applied to storage.
     pub flip_h: bool,
+    /// The viewer flips the picture upside down (recorded, not applied to storage).
     pub flip_v: bool,
+    /// The viewer's rotation, degrees (recorded, not applied to storage).
     pub rotate_deg: f64,
 }
 

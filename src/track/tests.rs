@@ -1,8 +1,12 @@
 use super::*;
+use super::{ahead::*, kept::*, look::*, pass1::*, walk::*};
 use crate::config::DetectConfig;
 use crate::detect::synth::{self, PillarBand, Scene};
+use crate::detect::{Background, Circle, CircleFit, EdgeParams, SurfaceLine};
+use crate::records::Record;
 use crate::source::memory::MemorySource;
 use crate::source::SourceMeta;
+use crate::source::{Frame, FrameSource, SourceError};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -1,13 +1,17 @@
 //! Pass 2: each frame held at the calibrated radius, on the points pass 1
 //! kept, or measured again as pass 1 looked at it.
 
+use super::band::measure_in_band;
 use super::error::TrackError;
 use super::frame::{Flag, FrameTrack};
-use super::kept::KeptRef;
+use super::kept::{Kept, KeptRef};
 use super::look::{Look, Pass1, ScratchPool};
 use super::settings::TrackSettings;
 use crate::detect::circle::FitScratch;
+use crate::detect::EdgeScratch;
 use crate::detect::{fit_circle, Circle, CircleFit, EdgePoint, FitOptions};
+use crate::records::Records;
+use crate::source::Frame;
 use crate::source::FrameSource;
 use crate::timings::{self, Stage};
 
@@ -137,4 +141,117 @@ pub(super) fn hold(
     } else {
         Held::Reread(p)
     }
+}
+
+/// Step 4 of [`super::track`], on pass 1's points: each frame held on its
+/// own (on every thread), the frames past the points' budget measured again
+/// as pass 1 did and held like the others. Each frame's held fit goes
+/// straight into its record (a `Held` a frame held until all were done was
+/// 144 bytes a frame at the tracker's peak), a block of records at a time
+/// (all of them when in memory); only the frames to read again are listed,
+/// in order, with the circle to read them around. Also how many frames were
+/// measured again.
+pub(super) fn hold_all(
+    source: &mut dyn FrameSource,
+    ctx: &Pass1,
+    frames: &mut Records<FrameTrack>,
+    kept: &Records<Option<Kept>>,
+    kept_points: &[[f32; 2]],
+    radius_px: f64,
+    pool: &ScratchPool,
+) -> Result<(Vec<(usize, Circle)>, usize), TrackError> {
+    let st = ctx.st;
+    let mut reread: Vec<(usize, Circle)> = Vec::new();
+    let mut remeasured_frames = 0;
+    frames.update(|lo, block| -> Result<(), TrackError> {
+        use rayon::prelude::*;
+        let hi = lo + block.len();
+        kept.with_block(lo, hi, |kept| -> Result<(), TrackError> {
+            reread.par_extend(
+                block
+                    .par_iter_mut()
+                    .zip(kept)
+                    .enumerate()
+                    .with_min_len(64)
+                    .map_init(
+                        || (Vec::new(), FitScratch::default()),
+                        |(points, fs), (i, (ft, k))| {
+                            let h = timings::time(Stage::Pass2, || match k {
+                                Some(Kept::Points {
+                                    start,
+                                    len,
+                                    centre,
+                                    radial_sigma_px,
+                                }) => {
+                                    let k = KeptRef {
+                                        points: &kept_points[*start..start + len],
+                                        centre: *centre,
+                                        radial_sigma_px: *radial_sigma_px,
+                                    };
+                                    hold(ft, Some(k), radius_px, st, points, fs)
+                                }
+                                // Below, with a source.
+                                Some(Kept::Again(_)) => Held::NoFit,
+                                None => hold(ft, None, radius_px, st, points, fs),
+                            });
+                            settle(ft, h).map(|p| (lo + i, p))
+                        },
+                    )
+                    .flatten(),
+            );
+            let again: Vec<(usize, Look)> = kept
+                .iter()
+                .enumerate()
+                .filter_map(|(i, k)| match k {
+                    Some(Kept::Again(look)) => Some((i, *look)),
+                    _ => None,
+                })
+                .collect();
+            remeasured_frames += again.len();
+            if !again.is_empty() {
+                let redone = timings::time(Stage::Pass2, || {
+                    remeasure(source, ctx, block, &again, radius_px, st, pool)
+                })?;
+                for ((i, _), h) in again.iter().zip(redone) {
+                    reread.extend(settle(&mut block[*i], h).map(|p| (lo + *i, p)));
+                }
+            }
+            Ok(())
+        })?
+    })?;
+    reread.sort_by_key(|r| r.0);
+    Ok((reread, remeasured_frames))
+}
+
+/// The frames `reread` of [`hold_all`] read again, in the frames' order (the
+/// first that cannot be read is the error), and measured around their held
+/// circle; a frame without a fit there is flagged `missing`.
+pub(super) fn read_again(
+    source: &mut dyn FrameSource,
+    ctx: &Pass1,
+    frames: &mut Records<FrameTrack>,
+    reread: Vec<(usize, Circle)>,
+    buf: &mut Frame,
+    es: &mut EdgeScratch,
+    radius_px: f64,
+) -> Result<(), TrackError> {
+    for (i, p) in reread {
+        let mut ft = frames.get(i)?;
+        ft.held = measure_in_band(
+            source,
+            ft.index,
+            buf,
+            ctx.bg,
+            &p,
+            ctx.surface,
+            Some(radius_px),
+            ctx.st,
+            es,
+        )?;
+        if ft.held.is_none() {
+            ft.flags.insert(Flag::Missing);
+        }
+        frames.set(i, ft)?;
+    }
+    Ok(())
 }

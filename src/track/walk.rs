@@ -6,8 +6,10 @@ use super::frame::FrameTrack;
 use super::kept::Kept;
 use super::look::{Look, LookScratch, Pass1, ScratchPool, Seen};
 use super::pass1::Pass1State;
+use super::settings::{search_stride, TrackSettings};
 use crate::records::Records;
 use crate::source::FrameSource;
+use crate::source::SourceMeta;
 use crate::timings::{self, Stage};
 
 /// Pass 1 in order, frame by frame.
@@ -41,6 +43,32 @@ pub(super) struct Walk {
 }
 
 impl Walk {
+    /// A walk from the first frame of `meta`'s movie, nothing seen yet.
+    pub(super) fn new(meta: &SourceMeta, st: &TrackSettings) -> Walk {
+        let (n, in_memory) = (meta.frame_count, st.frames_in_memory_max);
+        let (h, w) = (meta.height, meta.width);
+        Walk {
+            frames: Records::with_capacity(n, in_memory),
+            kept_points: Vec::new(),
+            kept_points_max: st.kept_points_max,
+            kept: Records::with_capacity(n, in_memory),
+            state: Pass1State::default(),
+            scratch: LookScratch::new(h, w),
+            measured_ahead: 0,
+            away_frames: 0,
+            searched: std::collections::VecDeque::new(),
+            searched_ahead: 0,
+            stride: if st.probe_searches {
+                search_stride(meta.fps)
+            } else {
+                1
+            },
+            probe: None,
+            probed: None,
+            unsearched_frames: 0,
+        }
+    }
+
     /// Frame `i`: taken from `ahead` (what another thread saw there) when
     /// that thread looked at it as this walk does — a frame's measurement is
     /// a pure function of the frame and the look — else measured here.

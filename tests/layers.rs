@@ -93,7 +93,7 @@ const CLAP_FILES: &[&str] = &[
     "inspect.rs",
     "batch.rs",
     "collapse_job.rs",
-    "process.rs",
+    "process/args.rs",
     "slurm.rs",
     "collapse/groups.rs",
     "render/contact.rs",
@@ -863,7 +863,10 @@ fn the_reader_sees_the_imports_it_must() {
         has("track/pass2.rs", "detect/circle.rs"),
         "via detect's re-export"
     );
-    assert!(has("process.rs", "track.rs"), "process.rs -> track.rs");
+    assert!(
+        has("process/tracked.rs", "track/run.rs"),
+        "process/tracked.rs -> track/run.rs"
+    );
     assert!(has("detect/edges.rs", "detect/circle.rs"), "super::circle");
     assert!(has("main.rs", "config.rs"), "main.rs -> config.rs");
     // Test code is left out: test_support.rs is imported by tests only.

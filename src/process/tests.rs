@@ -1,4 +1,8 @@
-use super::*;
+use super::{failure::*, inputs::*, prepare::*, run::*, tracked::*, types::*};
+use crate::dataset::DropRecord;
+use crate::io_util::Spool;
+use crate::shelf::Shelf;
+use std::path::{Path, PathBuf};
 
 #[test]
 fn a_panic_in_a_run_becomes_its_failed_row() {

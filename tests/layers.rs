@@ -92,7 +92,7 @@ const CLAP_FILES: &[&str] = &[
     "inspect.rs",
     "batch.rs",
     "collapse_job.rs",
-    "process.rs",
+    "process/args.rs",
     "slurm.rs",
     "collapse/groups.rs",
     "render/contact.rs",
@@ -859,12 +859,18 @@ fn the_reader_sees_the_imports_it_must() {
     );
     // A `use crate::…` item, a re-export followed to its file, an inline
     // `crate::` path, a `super::` path and main.rs's `dropscope::`.
-    assert!(has("track.rs", "records.rs"), "track.rs -> records.rs");
     assert!(
-        has("track.rs", "detect/circle.rs"),
+        has("track/kept.rs", "records.rs"),
+        "track/kept.rs -> records.rs"
+    );
+    assert!(
+        has("track/pass2.rs", "detect/circle.rs"),
         "via detect's re-export"
     );
-    assert!(has("process.rs", "track.rs"), "process.rs -> track.rs");
+    assert!(
+        has("process/tracked.rs", "track/run.rs"),
+        "process/tracked.rs -> track/run.rs"
+    );
     assert!(has("detect/edges.rs", "detect/circle.rs"), "super::circle");
     assert!(has("main.rs", "config.rs"), "main.rs -> config.rs");
     // Test code is left out: test_support.rs is imported by tests only.

@@ -1,0 +1,284 @@
+//! A run's files drawn and written: overlays, the animated impact, the track
+//! CSV, each written whole or not at all.
+
+use super::checks::{frame_rate_checks, saturated_share};
+use super::types::{ProcessError, RunOutcome, TRACK_CSV_IN_MEMORY_MAX};
+use crate::cache::OutputFile;
+use crate::config::PipelineConfig;
+use crate::dataset::{DropRecord, TrackRow};
+use crate::io_util::{Durable, Spool};
+use crate::manifest::RunSpec;
+use crate::quality;
+use crate::setup_infer::SceneSignature;
+use crate::track::{FrameTrack, Track, TrackSettings};
+use std::io::Write;
+use std::path::Path;
+
+/// What a run's files are drawn and written from.
+pub(super) struct Files<'a> {
+    pub(super) recording: RecordingRow<'a>,
+    pub(super) source: &'a mut dyn crate::source::FrameSource,
+    pub(super) settings: &'a TrackSettings,
+    /// A frame's row of the track CSV.
+    pub(super) row_of: &'a (dyn Fn(&FrameTrack) -> TrackRow + Sync),
+    /// The main overlay is the held frame nearest this time.
+    pub(super) still_at_s: Option<f64>,
+    /// The animated impact's contact and rebound times.
+    pub(super) impact: Option<(f64, Option<f64>)>,
+    pub(super) overlay_frames: &'a [i64],
+    pub(super) scene: SceneSignature,
+}
+
+/// The run's outcome: `record`, with its overlays, animated impact and
+/// track CSV (drawn and written beside each other).
+pub(super) fn with_files(record: DropRecord, f: Files<'_>) -> Result<RunOutcome, String> {
+    let Files {
+        recording,
+        source,
+        settings,
+        row_of,
+        still_at_s,
+        impact,
+        overlay_frames,
+        scene,
+    } = f;
+    let RecordingRow {
+        run, meta, tr, sc, ..
+    } = recording;
+    let pictures = || {
+        let mut pictures = crate::pictures::Pictures {
+            source,
+            meta,
+            track: tr,
+            settings,
+            delta_mm: &|f| row_of(f).delta_mm,
+            mm_per_px: sc.mm_per_px,
+        };
+        let overlay = still_at_s.and_then(|at| {
+            let ft = tr
+                .frames
+                .iter()
+                .filter(|f| f.held.is_some() && !f.flags.contains(crate::track::Flag::Excluded))
+                .min_by(|a, b| (a.t_s - at).abs().total_cmp(&(b.t_s - at).abs()))?;
+            pictures.still(&ft)
+        });
+        let frame_overlays: Vec<(i64, Vec<u8>)> = overlay_frames
+            .iter()
+            .filter_map(|&n| {
+                let ft = tr.frames.iter().find(|f| f.frame == n)?;
+                pictures.still(&ft).map(|png| (n, png))
+            })
+            .collect();
+        let impact = impact.and_then(|(t, rebound)| pictures.impact(t, rebound));
+        (overlay, frame_overlays, impact)
+    };
+    let track_csv = || {
+        let mut track_csv = Spool::new(TRACK_CSV_IN_MEMORY_MAX);
+        crate::dataset::write_csv_rows(&mut track_csv, tr.frames.iter().map(|f| row_of(&f)))
+            .map(|()| track_csv)
+            .map_err(|e| {
+                format!(
+                    "{}: cannot hold its track CSV in a temporary file: {e}",
+                    run.path.display()
+                )
+            })
+    };
+    let ((overlay, frame_overlays, impact), track_csv) = rayon::join(pictures, track_csv);
+    let track_csv = track_csv?;
+    // Everything above walked the track's records: none failed to be read.
+    tr.frames
+        .check()
+        .map_err(|e| format!("{}: {e}", run.path.display()))?;
+    Ok(RunOutcome {
+        record,
+        track_csv,
+        track_rows: tr.frames.len(),
+        overlay,
+        frame_overlays,
+        impact,
+        scene: Some(scene),
+        seconds: 0.0,
+        notes: meta.reading_notes(),
+    })
+}
+
+/// A frame's row of the track CSV, without the measurement's columns
+/// (contact, δ, force: [`annotate_track`]).
+pub(super) fn track_row(f: &FrameTrack) -> TrackRow {
+    let fit = f.held.or(f.free);
+    TrackRow {
+        frame: f.frame,
+        // To the nanosecond: a time computed as frame / fps carries
+        // float noise (-0.0030000000000001137) no clock has.
+        t_s: (f.t_s * 1e9).round() / 1e9,
+        x_px: fit.map(|c| c.x_px),
+        z_px: fit.map(|c| c.z_px),
+        r_px: fit.map(|c| c.r_px),
+        residual_px: fit.map(|c| c.residual_px),
+        edge_points: fit.map_or(0, |c| c.inliers as usize),
+        in_contact: false,
+        delta_mm: None,
+        sigma_z_px: fit.map(|c| c.cov.sigma_z_px()),
+        sigma_x_px: fit.map(|c| c.cov.sigma_x_px()),
+        r_free_px: f.free.map(|c| c.r_px),
+        sigma_r_free_px: f.free.and_then(|c| c.cov.sigma_r_px()),
+        force_n: None,
+        flags: f.flags.text(),
+    }
+}
+
+/// Write `bytes` to `out/rel` atomically, creating folders.
+pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessError> {
+    write_file_as(out, rel, Durable::Now, |f| f.write_all(bytes))
+}
+
+/// Write what `write` writes to `out/rel` atomically, creating folders,
+/// durable as `durable` says.
+pub(super) fn write_file_as(
+    out: &Path,
+    rel: &str,
+    durable: Durable,
+    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> Result<(), ProcessError> {
+    crate::out_folder::write_as(out, rel, durable, write)
+        .map(drop)
+        .map_err(|source| ProcessError::Write {
+            path: out.join(rel),
+            source,
+        })
+}
+
+/// Make the files written by [`write_run_outputs`] (and the cache entries)
+/// into `out` durable, all at once: called before the drops.csv that lists
+/// them. Until then an operating-system crash may leave a run's file short;
+/// the cache finds it by its SHA-256 and processes the run again.
+pub fn sync_outputs(out: &Path) -> Result<(), ProcessError> {
+    crate::io_util::sync_file_system(out).map_err(|source| ProcessError::Write {
+        path: out.to_path_buf(),
+        source,
+    })
+}
+
+/// Write one run's track (`tracks/<run>.csv`), overlays
+/// (`plots/overlays/<run>[_<number>].png`) and animated impact
+/// (`plots/impacts/<run>.png`) into `out`, each atomically but unsynced:
+/// the job makes them durable at once ([`sync_outputs`]) before its
+/// drops.csv. A track, main overlay or animation that this run's previous
+/// cache entry lists, and that this outcome does not have (the run now
+/// fails), is removed while it holds the bytes written then
+/// ([`crate::out_folder::remove_if_holds`]). A run whose name
+/// is no file name writes and removes nothing. Returns the files written,
+/// relative to `out`, with the SHA-256 of their bytes.
+pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, ProcessError> {
+    let run = &o.record.run;
+    if crate::run_name::check(run).is_err() {
+        // Its row says why it failed; it has no files and removes none.
+        return Ok(Vec::new());
+    }
+    let track = format!("tracks/{run}.csv");
+    let main_overlay = format!("plots/overlays/{run}.png");
+    let before = crate::cache::listed_outputs(out, run);
+    let remove_if_present = |out: &Path, rel: &str| remove_if_listed(out, rel, &before);
+    let mut written = Vec::new();
+    if o.track_csv.is_empty() {
+        remove_if_present(out, &track)?;
+    } else {
+        // From its spool to the file, never whole in memory.
+        write_file_as(out, &track, Durable::WithTheJob, |f| o.track_csv.copy_to(f))?;
+        written.push(OutputFile {
+            sha256: o.track_csv.sha256_hex(),
+            path: track,
+        });
+    }
+    let mut write = |rel: String, bytes: &[u8]| -> Result<(), ProcessError> {
+        write_file_as(out, &rel, Durable::WithTheJob, |f| f.write_all(bytes))?;
+        written.push(OutputFile::new(rel, bytes));
+        Ok(())
+    };
+    match &o.overlay {
+        Some(png) => write(main_overlay, png)?,
+        None => remove_if_present(out, &main_overlay)?,
+    }
+    let impact = format!("plots/impacts/{run}.png");
+    match &o.impact {
+        Some(apng) => write(impact, apng)?,
+        None => remove_if_present(out, &impact)?,
+    }
+    for (n, png) in &o.frame_overlays {
+        write(format!("plots/overlays/{run}_{n}.png"), png)?;
+    }
+    Ok(written)
+}
+
+/// Remove `out/rel` if `listed` (what an earlier job wrote for the run)
+/// names it and it still holds the bytes listed there.
+pub(super) fn remove_if_listed(
+    out: &Path,
+    rel: &str,
+    listed: &[OutputFile],
+) -> Result<(), ProcessError> {
+    let Some(f) = listed.iter().find(|f| f.path == rel) else {
+        return Ok(());
+    };
+    crate::out_folder::remove_if_holds(out, rel, &f.sha256)
+        .map(drop)
+        .map_err(|source| ProcessError::Write {
+            path: out.join(rel),
+            source,
+        })
+}
+
+/// What a run's row says of its recording, its scale and its checks,
+/// whatever became of its impact.
+pub(super) struct RecordingRow<'a> {
+    pub(super) run: &'a RunSpec,
+    pub(super) cfg: &'a PipelineConfig,
+    pub(super) meta: &'a crate::source::SourceMeta,
+    pub(super) tr: &'a Track,
+    pub(super) sc: &'a crate::scale::Scale,
+    /// Apparent minus true radius and its error, px.
+    pub(super) edge_offset: Option<(f64, f64)>,
+    pub(super) fps_source: &'a str,
+}
+
+impl RecordingRow<'_> {
+    /// Fill `record`'s manifest, scale and frame-rate columns and flag what
+    /// weakens them (scale disagreement, saturation, frame times, an
+    /// assumed or disagreeing frame rate).
+    pub(super) fn describe(&self, record: &mut DropRecord) {
+        let (run, sc, meta, tr) = (self.run, self.sc, self.meta, self.tr);
+        record.setup = run.setup.clone().unwrap_or_default();
+        record.drop_height_cm = run.drop_height_cm;
+        record.path = run.path.display().to_string();
+        record.reading = meta.reading();
+        record.scale_source = sc.source.name().to_string();
+        record.free_fall_mm_per_px = sc.free_fall_mm_per_px.map(|(s, _)| s);
+        record.free_fall_mm_per_px_err = sc.free_fall_mm_per_px.map(|(_, e)| e);
+        record.edge_offset_px = self.edge_offset.map(|(o, _)| o);
+        record.edge_offset_px_err = self.edge_offset.map(|(_, e)| e);
+        record.surface_model_err_px = Some(tr.surface.model_err_px);
+        if let Some(w) = &sc.warning {
+            quality::flag(record, quality::SCALE_DISAGREEMENT, w.clone());
+        }
+        if let Some(share) = saturated_share(tr, meta.bit_depth) {
+            quality::flag(
+                record,
+                quality::SATURATED,
+                format!(
+                    "{:.1} % of the background near the sphere's path is clipped at the white level",
+                    share * 100.0
+                ),
+            );
+        }
+        for w in &meta.details.warnings {
+            if w.starts_with(crate::source::validate::IRREGULAR_TIMES)
+                || w.starts_with(crate::source::validate::TIMES_INCOMPLETE)
+            {
+                quality::flag(record, quality::TIME_IRREGULAR, w.clone());
+            } else if w.starts_with(crate::source::validate::TIMES_AND_RATE_DISAGREE) {
+                quality::flag(record, quality::FPS_MISMATCH, w.clone());
+            }
+        }
+        frame_rate_checks(record, run, self.cfg, meta.fps, self.fps_source);
+    }
+}

@@ -864,14 +864,17 @@ fn the_reader_sees_the_imports_it_must() {
         "track/kept.rs -> records.rs"
     );
     assert!(
-        has("track/pass2.rs", "detect/circle.rs"),
+        has("track/pass2.rs", "detect/circle/types.rs"),
         "via detect's re-export"
     );
     assert!(
         has("process/tracked.rs", "track/run.rs"),
         "process/tracked.rs -> track/run.rs"
     );
-    assert!(has("detect/edges.rs", "detect/circle.rs"), "super::circle");
+    assert!(
+        has("detect/edges.rs", "detect/circle/types.rs"),
+        "super::circle"
+    );
     assert!(has("main.rs", "config.rs"), "main.rs -> config.rs");
     // Test code is left out: test_support.rs is imported by tests only.
     assert!(!imports().iter().any(|i| i.to == "test_support.rs"));

@@ -134,7 +134,7 @@ const RULES: &[Rule] = &[
         why: "source never imports config, dataset, detect or anything above",
     },
     Rule {
-        part: &["source/cine.rs", "source/cine_write.rs"],
+        part: &["source/cine/", "source/cine_write.rs"],
         name: "source/'s .cine reader",
         allowed: Allowed::Never(&[
             &[
@@ -154,7 +154,7 @@ const RULES: &[Rule] = &[
         ],
         name: "source/'s folder reader",
         allowed: Allowed::Never(&[
-            &["source/cine.rs", "source/cine_write.rs"],
+            &["source/cine/", "source/cine_write.rs"],
             &["source/photron/"],
         ]),
         why: "readers never import each other",
@@ -163,7 +163,7 @@ const RULES: &[Rule] = &[
         part: &["source/photron/"],
         name: "source/photron/",
         allowed: Allowed::Never(&[
-            &["source/cine.rs", "source/cine_write.rs"],
+            &["source/cine/", "source/cine_write.rs"],
             &[
                 "source/folder.rs",
                 "source/frame_decode.rs",

@@ -138,7 +138,7 @@ const RULES: &[Rule] = &[
         name: "source/'s .cine reader",
         allowed: Allowed::Never(&[
             &[
-                "source/folder.rs",
+                "source/folder/",
                 "source/frame_decode.rs",
                 "source/listing.rs",
             ],
@@ -148,7 +148,7 @@ const RULES: &[Rule] = &[
     },
     Rule {
         part: &[
-            "source/folder.rs",
+            "source/folder/",
             "source/frame_decode.rs",
             "source/listing.rs",
         ],
@@ -165,7 +165,7 @@ const RULES: &[Rule] = &[
         allowed: Allowed::Never(&[
             &["source/cine/", "source/cine_write.rs"],
             &[
-                "source/folder.rs",
+                "source/folder/",
                 "source/frame_decode.rs",
                 "source/listing.rs",
             ],

@@ -537,28 +537,7 @@ fn truth(
     let (traj, t_window_end) = (&window.traj, window.t_window_end);
     let params = &motion.params;
     let b = traj.bounces()[0];
-    let frames_truth: Vec<FrameTruth> = numbers
-        .iter()
-        .map(|&n| {
-            let t = n as f64 / st.fps;
-            let (x, z) = place.centre(traj, t);
-            let d = traj.state(t).0;
-            let image = match painter {
-                Painter::Camera(c) => Some(c.optics().geometry.forward(x, z)),
-                Painter::Plain(_) => None,
-            };
-            FrameTruth {
-                frame: n,
-                t_s: t,
-                x_px: x,
-                z_px: z,
-                delta_mm: d.max(0.0) * 1e3,
-                in_contact: d > 0.0,
-                image_x_px: image.map(|p| p.0),
-                image_z_px: image.map(|p| p.1),
-            }
-        })
-        .collect();
+    let frames_truth = frame_truths(st, place, traj, painter, numbers);
     let second_bounce = traj
         .bounces()
         .get(1)
@@ -644,4 +623,37 @@ fn truth(
         jpeg_quality,
         frames: frames_truth,
     }
+}
+
+/// The sphere's exact place in each image `numbers`, and with a real
+/// camera where its lens puts it.
+fn frame_truths(
+    st: &RenderSettings,
+    place: &Placement,
+    traj: &Trajectory,
+    painter: &Painter,
+    numbers: &[i64],
+) -> Vec<FrameTruth> {
+    numbers
+        .iter()
+        .map(|&n| {
+            let t = n as f64 / st.fps;
+            let (x, z) = place.centre(traj, t);
+            let d = traj.state(t).0;
+            let image = match painter {
+                Painter::Camera(c) => Some(c.optics().geometry.forward(x, z)),
+                Painter::Plain(_) => None,
+            };
+            FrameTruth {
+                frame: n,
+                t_s: t,
+                x_px: x,
+                z_px: z,
+                delta_mm: d.max(0.0) * 1e3,
+                in_contact: d > 0.0,
+                image_x_px: image.map(|p| p.0),
+                image_z_px: image.map(|p| p.1),
+            }
+        })
+        .collect()
 }

@@ -6,11 +6,13 @@ use super::side_file::{
 };
 use crate::source::frame_decode::{format_err, io_err, FrameDecoder, ImageKind, Probe, Shape};
 use crate::source::listing::Listing;
+use crate::source::pcc_xml::PccXml;
 use crate::source::{
     check_band, ColourInput, Frame, FrameNames, FrameNumbers, FrameSource, OpenOptions,
     SourceDetails, SourceError, SourceMeta,
 };
 use ndarray::ArrayViewMut2;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// A folder of numbered frames opened for random access.
@@ -43,163 +45,25 @@ impl FolderSource {
     /// [`FolderSource::open`] on a folder already listed. Frame files and
     /// XMLs named like a recording beside them (its PCC export) are left
     /// out; recordings beside the sequence are named in a warning.
-    pub fn open_listed(mut listing: Listing, options: &OpenOptions) -> Result<Self, SourceError> {
+    pub fn open_listed(listing: Listing, options: &OpenOptions) -> Result<Self, SourceError> {
         let recordings = listing.recordings_text();
         let has_dirs = !listing.dirs.is_empty();
-        // The names are moved, not copied (a long movie's are megabytes).
-        let names: Vec<String> = if listing.recordings.is_empty() {
-            listing.files
-        } else {
-            let (files, l) = (std::mem::take(&mut listing.files), &listing);
-            files
-                .into_iter()
-                .filter(|n| !l.is_export(n) && !l.recordings.contains(n))
-                .collect()
-        };
-        let Listing { dir, not_files, .. } = listing;
+        let (names, dir, not_files) = candidates(listing);
         let dir = dir.as_path();
-        // Group numbered images by (prefix, kind); pick the largest group.
-        let mut groups: std::collections::BTreeMap<(String, ImageKind), Vec<(i64, String)>> =
-            Default::default();
         let xmls: Vec<String> = names
             .iter()
             .filter(|n| n.to_ascii_lowercase().ends_with(".xml"))
             .cloned()
             .collect();
         let lone = lone_export(&names, &xmls);
-        let mut others = Vec::new();
         let given_digits = options.number_digits;
-        for name in names {
-            if let Some((prefix, number, kind)) = parse_frame_name_split(&name, given_digits) {
-                groups
-                    .entry((prefix, kind))
-                    .or_default()
-                    .push((number, name));
-            } else if !name.to_ascii_lowercase().ends_with(".xml") {
-                others.push(name);
-            }
-        }
-        if let Some((name, stem, kind)) = &lone {
-            // Its number comes from the XML below; the name is not parsed.
-            groups.clear();
-            groups.insert((stem.clone(), *kind), vec![(0, name.clone())]);
-            others.retain(|o| o != name);
-        }
-        let Some(best) = groups.values().map(Vec::len).max() else {
-            let what = if let Some(r) = &recordings {
-                format!(
-                    "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder, \
-                     but {r}: give the one to read as the input (or list them in a runs.csv)"
-                )
-            } else if has_dirs {
-                "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder, \
-                 only sub-folders: give the run folders themselves, or list them in a \
-                 runs.csv and use --manifest"
-                    .to_string()
-            } else {
-                format!(
-                    "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder; \
-                     dropscope reads {}",
-                    crate::source::SUPPORTED_INPUTS
-                )
-            };
-            return Err(format_err(dir, what));
-        };
-        let mut tied = groups.iter().filter(|(_, v)| v.len() == best);
-        let ((prefix, kind), _) = tied.next().expect("a largest group exists");
-        if let Some(((p2, k2), _)) = tied.next() {
-            return Err(format_err(
-                dir,
-                format!(
-                    "two frame sequences of {best} files each ({prefix:?}… {} files and \
-                     {p2:?}… {} files): keep one sequence per folder",
-                    kind.name(),
-                    k2.name()
-                ),
-            ));
-        }
-        let (prefix, kind) = (prefix.clone(), *kind);
-        let mut warnings = Vec::new();
-        for ((p, k), v) in &groups {
-            if (p, *k) != (&prefix, kind) {
-                warnings.push(format!(
-                    "ignored {} file(s) outside the sequence, e.g. {}",
-                    v.len(),
-                    v[0].1
-                ));
-            }
-        }
-        if !others.is_empty() {
-            let shown: Vec<&str> = others.iter().take(5).map(String::as_str).collect();
-            warnings.push(format!(
-                "ignored {} non-frame file(s): {}{}",
-                others.len(),
-                shown.join(", "),
-                if others.len() > 5 { ", …" } else { "" }
-            ));
-        }
-        if let Some(r) = &recordings {
-            warnings.push(format!(
-                "this folder also holds {r}, not read with its frame sequence: give each \
-                 as an input of its own"
-            ));
-        }
-        if !not_files.is_empty() {
-            warnings.push(format!(
-                "ignored {} entries that are not regular files (named pipes, sockets, \
-                 devices or broken links), e.g. {}",
-                not_files.len(),
-                not_files[0]
-            ));
-        }
+        let (mut groups, others) = group_frames(names, given_digits, &lone);
+        let (prefix, kind) = pick_sequence(&groups, dir, &recordings, has_dirs)?;
+        let mut warnings =
+            ignored_warnings(&groups, (&prefix, kind), &others, &recordings, &not_files);
         let mut frames = groups.remove(&(prefix.clone(), kind)).unwrap_or_default();
-        // Digits that can be read two ways: the split chosen, said.
-        let mut prefix = prefix;
-        let mut number_digits = given_digits;
-        let mut names_note = None;
-        let split = match (given_digits, &lone) {
-            (None, None) if frames.iter().all(|(n, _)| *n >= 0) => {
-                let runs: Vec<&str> = frames
-                    .iter()
-                    .filter_map(|(_, name)| {
-                        let stem = name.rsplit_once('.')?.0;
-                        let run = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
-                        Some(&stem[stem.len() - run..])
-                    })
-                    .collect();
-                number_split(&runs)
-            }
-            _ => None,
-        };
-        if let Some((chosen, other)) = split {
-            let example = frames[0].1.clone();
-            let all = example.rsplit_once('.').map_or(0, |(stem, _)| {
-                stem.bytes().rev().take_while(u8::is_ascii_digit).count()
-            });
-            if chosen < all {
-                for f in frames.iter_mut() {
-                    if let Some((p, n, _)) = parse_frame_name_split(&f.1, Some(chosen)) {
-                        f.0 = n;
-                        prefix = p;
-                    }
-                }
-                number_digits = Some(chosen);
-            }
-            let reading = |d: usize| {
-                let a = if matches!(d, 8 | 11 | 18) { "an" } else { "a" };
-                match parse_frame_name_split(&example, Some(d)) {
-                    Some((p, n, _)) => format!("name {p:?} and {a} {d}-digit frame number ({n} …)"),
-                    None => format!("{a} {d}-digit frame number"),
-                }
-            };
-            names_note = Some(format!(
-                "the frame names ({example} …) end in {all} digits that read two ways: taken \
-                 as {}, not as {}; set number_digits = {other} in the run's manifest row to \
-                 read them the other way",
-                reading(chosen),
-                reading(other)
-            ));
-        }
+        let (prefix, number_digits, names_note) =
+            split_numbers(&mut frames, prefix, given_digits, &lone);
         frames.sort();
         if let Some(w) = frames.windows(2).find(|w| w[0].0 == w[1].0) {
             return Err(format_err(
@@ -225,68 +89,16 @@ impl FolderSource {
         // others are checked against it as each is read (the decoder reads
         // the header anyway), not here: opening must not touch every file.
         let first = open_and_probe(&file(0), kind, &mut FrameDecoder::for_headers())?;
-        let mut xml_warnings = Vec::new();
-        let xml = pick_xml(dir, &prefix, &xmls, &mut xml_warnings);
-
-        // The PCC XML side file.
-        warnings.extend(xml_warnings);
-        let xml = xml?;
-        let (xml_path, mut xml) = match xml {
-            Some((p, x)) => (Some(p), Some(x)),
-            None => (None, None),
-        };
-        let fps = match xml.as_ref().and_then(|x| x.fps) {
-            Some(f) if f.is_finite() && f > 0.0 => f,
-            _ => match options.fps_fallback {
-                Some(f) if f.is_finite() && f > 0.0 => f,
-                _ => {
-                    return Err(SourceError::NoFrameRate {
-                        path: dir.to_path_buf(),
-                    })
-                }
-            },
-        };
-        // Bit depth: the XML's RealBPP when it fits the container, else the container's.
-        let bit_depth = match xml.as_ref().and_then(|x| x.real_bpp) {
-            Some(b) if (1..=first.bits).contains(&b) => b,
-            _ => first.bits,
-        };
+        let side = read_side_file(dir, &prefix, &xmls, first.bits, options, &mut warnings)?;
+        let (xml_path, mut xml, fps, bit_depth) = (side.path, side.xml, side.fps, side.bit_depth);
         if let Some((name, stem, _)) = &lone {
-            let from_xml = xml.as_ref().and_then(|x| {
-                x.first_image_no
-                    .map(|n| (n, "FirstImageNo"))
-                    .or_else(|| x.times.first().map(|t| (t.0, "first time stamp")))
-            });
-            let in_name = parse_frame_name(name).map(|(_, n, _)| n);
-            let (number, why) = match (from_xml, in_name) {
-                (Some((n, field)), Some(m)) if m != n => {
-                    (n, format!("the XML's {field}, not the {m} in its name"))
-                }
-                (Some((n, field)), _) => (n, format!("the XML's {field}")),
-                (None, Some(m)) => (m, "the number in its name: the XML says none".into()),
-                (None, None) => (0, "0: neither its name nor the XML says which".into()),
-            };
-            frame_numbers = FrameNumbers::consecutive(number, 1);
-            warnings.push(format!(
-                "{name} is a single-frame PCC export (named like its side file {stem}.xml, \
-                 not numbered): read as image {number}, {why}"
-            ));
+            frame_numbers = lone_numbers(name, stem, xml.as_ref(), &mut warnings);
         }
         if let (Some(x), Some(path), None) = (&xml, &xml_path, &lone) {
             files.renumbered = align_side_file(x, path, &mut frame_numbers, &mut warnings)?;
         }
-        let timestamps_s = xml.as_ref().and_then(|x| {
-            let (times, note) = times_per_frame(&x.times, &frame_numbers, fps);
-            warnings.extend(note);
-            times
-        });
-        let exposures_s = xml
-            .as_ref()
-            .and_then(|x| per_frame(&x.exposures, &frame_numbers));
-        if let Some(x) = &mut xml {
-            // Each frame's values are in the two tables now.
-            (x.times, x.exposures) = (Vec::new(), Vec::new());
-        }
+        let (timestamps_s, exposures_s) =
+            values_per_frame(&mut xml, &frame_numbers, fps, &mut warnings);
         let meta = SourceMeta {
             path: dir.to_path_buf(),
             format: kind.name().into(),
@@ -441,4 +253,306 @@ impl FolderSource {
             path, index, &mut file, len, self.kind, shape, row0, cols, out,
         )
     }
+}
+
+/// The names of a listed folder that may belong to its frame sequence:
+/// frame files and XMLs named like a recording beside them (its PCC export)
+/// left out; with the folder and its entries that are not regular files.
+/// The names are moved, not copied (a long movie's are megabytes).
+fn candidates(mut listing: Listing) -> (Vec<String>, PathBuf, Vec<String>) {
+    let names: Vec<String> = if listing.recordings.is_empty() {
+        listing.files
+    } else {
+        let (files, l) = (std::mem::take(&mut listing.files), &listing);
+        files
+            .into_iter()
+            .filter(|n| !l.is_export(n) && !l.recordings.contains(n))
+            .collect()
+    };
+    let Listing { dir, not_files, .. } = listing;
+    (names, dir, not_files)
+}
+
+/// Numbered images grouped by (prefix, kind), the lone export's alone when
+/// there is one, and the names that are neither frames nor XMLs.
+#[allow(clippy::type_complexity)]
+fn group_frames(
+    names: Vec<String>,
+    given_digits: Option<usize>,
+    lone: &Option<(String, String, ImageKind)>,
+) -> (
+    BTreeMap<(String, ImageKind), Vec<(i64, String)>>,
+    Vec<String>,
+) {
+    let mut groups: BTreeMap<(String, ImageKind), Vec<(i64, String)>> = Default::default();
+    let mut others = Vec::new();
+    for name in names {
+        if let Some((prefix, number, kind)) = parse_frame_name_split(&name, given_digits) {
+            groups
+                .entry((prefix, kind))
+                .or_default()
+                .push((number, name));
+        } else if !name.to_ascii_lowercase().ends_with(".xml") {
+            others.push(name);
+        }
+    }
+    if let Some((name, stem, kind)) = &lone {
+        // Its number comes from the XML below; the name is not parsed.
+        groups.clear();
+        groups.insert((stem.clone(), *kind), vec![(0, name.clone())]);
+        others.retain(|o| o != name);
+    }
+    (groups, others)
+}
+
+/// The sequence: the largest group (prefix, kind); an error when there is
+/// none or two tie.
+fn pick_sequence(
+    groups: &BTreeMap<(String, ImageKind), Vec<(i64, String)>>,
+    dir: &Path,
+    recordings: &Option<String>,
+    has_dirs: bool,
+) -> Result<(String, ImageKind), SourceError> {
+    let Some(best) = groups.values().map(Vec::len).max() else {
+        let what = if let Some(r) = &recordings {
+            format!(
+                "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder, \
+                 but {r}: give the one to read as the input (or list them in a runs.csv)"
+            )
+        } else if has_dirs {
+            "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder, \
+             only sub-folders: give the run folders themselves, or list them in a \
+             runs.csv and use --manifest"
+                .to_string()
+        } else {
+            format!(
+                "no numbered frames (<prefix><number>.tif|png|bmp|jpg) in this folder; \
+                 dropscope reads {}",
+                crate::source::SUPPORTED_INPUTS
+            )
+        };
+        return Err(format_err(dir, what));
+    };
+    let mut tied = groups.iter().filter(|(_, v)| v.len() == best);
+    let ((prefix, kind), _) = tied.next().expect("a largest group exists");
+    if let Some(((p2, k2), _)) = tied.next() {
+        return Err(format_err(
+            dir,
+            format!(
+                "two frame sequences of {best} files each ({prefix:?}… {} files and \
+                 {p2:?}… {} files): keep one sequence per folder",
+                kind.name(),
+                k2.name()
+            ),
+        ));
+    }
+    Ok((prefix.clone(), *kind))
+}
+
+/// Warnings naming what the sequence leaves out: other groups of frames,
+/// other files, recordings beside it, entries that are not regular files.
+fn ignored_warnings(
+    groups: &BTreeMap<(String, ImageKind), Vec<(i64, String)>>,
+    (prefix, kind): (&String, ImageKind),
+    others: &[String],
+    recordings: &Option<String>,
+    not_files: &[String],
+) -> Vec<String> {
+    let mut warnings = Vec::new();
+    for ((p, k), v) in groups {
+        if (p, *k) != (prefix, kind) {
+            warnings.push(format!(
+                "ignored {} file(s) outside the sequence, e.g. {}",
+                v.len(),
+                v[0].1
+            ));
+        }
+    }
+    if !others.is_empty() {
+        let shown: Vec<&str> = others.iter().take(5).map(String::as_str).collect();
+        warnings.push(format!(
+            "ignored {} non-frame file(s): {}{}",
+            others.len(),
+            shown.join(", "),
+            if others.len() > 5 { ", …" } else { "" }
+        ));
+    }
+    if let Some(r) = &recordings {
+        warnings.push(format!(
+            "this folder also holds {r}, not read with its frame sequence: give each \
+             as an input of its own"
+        ));
+    }
+    if !not_files.is_empty() {
+        warnings.push(format!(
+            "ignored {} entries that are not regular files (named pipes, sockets, \
+             devices or broken links), e.g. {}",
+            not_files.len(),
+            not_files[0]
+        ));
+    }
+    warnings
+}
+
+/// Digits that can be read two ways: the split chosen (the frames'
+/// numbers and the prefix read with it), and the note that says so.
+/// Returns the prefix, the number's digits and the note.
+fn split_numbers(
+    frames: &mut [(i64, String)],
+    prefix: String,
+    given_digits: Option<usize>,
+    lone: &Option<(String, String, ImageKind)>,
+) -> (String, Option<usize>, Option<String>) {
+    let mut prefix = prefix;
+    let mut number_digits = given_digits;
+    let mut names_note = None;
+    let split = match (given_digits, lone) {
+        (None, None) if frames.iter().all(|(n, _)| *n >= 0) => {
+            let runs: Vec<&str> = frames
+                .iter()
+                .filter_map(|(_, name)| {
+                    let stem = name.rsplit_once('.')?.0;
+                    let run = stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+                    Some(&stem[stem.len() - run..])
+                })
+                .collect();
+            number_split(&runs)
+        }
+        _ => None,
+    };
+    if let Some((chosen, other)) = split {
+        let example = frames[0].1.clone();
+        let all = example.rsplit_once('.').map_or(0, |(stem, _)| {
+            stem.bytes().rev().take_while(u8::is_ascii_digit).count()
+        });
+        if chosen < all {
+            for f in frames.iter_mut() {
+                if let Some((p, n, _)) = parse_frame_name_split(&f.1, Some(chosen)) {
+                    f.0 = n;
+                    prefix = p;
+                }
+            }
+            number_digits = Some(chosen);
+        }
+        let reading = |d: usize| {
+            let a = if matches!(d, 8 | 11 | 18) { "an" } else { "a" };
+            match parse_frame_name_split(&example, Some(d)) {
+                Some((p, n, _)) => format!("name {p:?} and {a} {d}-digit frame number ({n} …)"),
+                None => format!("{a} {d}-digit frame number"),
+            }
+        };
+        names_note = Some(format!(
+            "the frame names ({example} …) end in {all} digits that read two ways: taken \
+             as {}, not as {}; set number_digits = {other} in the run's manifest row to \
+             read them the other way",
+            reading(chosen),
+            reading(other)
+        ));
+    }
+    (prefix, number_digits, names_note)
+}
+
+/// What the PCC XML side file (or the options without one) says of the
+/// sequence.
+struct SideValues {
+    path: Option<PathBuf>,
+    xml: Option<PccXml>,
+    fps: f64,
+    /// The XML's RealBPP when it fits the container, else the container's.
+    bit_depth: u8,
+}
+
+/// The PCC XML side file, the frame rate and the bit depth; its warnings
+/// into `warnings`.
+fn read_side_file(
+    dir: &Path,
+    prefix: &str,
+    xmls: &[String],
+    container_bits: u8,
+    options: &OpenOptions,
+    warnings: &mut Vec<String>,
+) -> Result<SideValues, SourceError> {
+    let mut xml_warnings = Vec::new();
+    let xml = pick_xml(dir, prefix, xmls, &mut xml_warnings);
+    warnings.extend(xml_warnings);
+    let xml = xml?;
+    let (path, xml) = match xml {
+        Some((p, x)) => (Some(p), Some(x)),
+        None => (None, None),
+    };
+    let fps = match xml.as_ref().and_then(|x| x.fps) {
+        Some(f) if f.is_finite() && f > 0.0 => f,
+        _ => match options.fps_fallback {
+            Some(f) if f.is_finite() && f > 0.0 => f,
+            _ => {
+                return Err(SourceError::NoFrameRate {
+                    path: dir.to_path_buf(),
+                })
+            }
+        },
+    };
+    // Bit depth: the XML's RealBPP when it fits the container, else the container's.
+    let bit_depth = match xml.as_ref().and_then(|x| x.real_bpp) {
+        Some(b) if (1..=container_bits).contains(&b) => b,
+        _ => container_bits,
+    };
+    Ok(SideValues {
+        path,
+        xml,
+        fps,
+        bit_depth,
+    })
+}
+
+/// The image number of a single-frame PCC export (`name`, named like its
+/// side file `stem.xml`): the XML's, else the one in its name, else 0; a
+/// warning says which.
+fn lone_numbers(
+    name: &str,
+    stem: &str,
+    xml: Option<&PccXml>,
+    warnings: &mut Vec<String>,
+) -> FrameNumbers {
+    let from_xml = xml.and_then(|x| {
+        x.first_image_no
+            .map(|n| (n, "FirstImageNo"))
+            .or_else(|| x.times.first().map(|t| (t.0, "first time stamp")))
+    });
+    let in_name = parse_frame_name(name).map(|(_, n, _)| n);
+    let (number, why) = match (from_xml, in_name) {
+        (Some((n, field)), Some(m)) if m != n => {
+            (n, format!("the XML's {field}, not the {m} in its name"))
+        }
+        (Some((n, field)), _) => (n, format!("the XML's {field}")),
+        (None, Some(m)) => (m, "the number in its name: the XML says none".into()),
+        (None, None) => (0, "0: neither its name nor the XML says which".into()),
+    };
+    warnings.push(format!(
+        "{name} is a single-frame PCC export (named like its side file {stem}.xml, \
+         not numbered): read as image {number}, {why}"
+    ));
+    FrameNumbers::consecutive(number, 1)
+}
+
+/// Each frame's time stamp and exposure from the side file (its warnings
+/// into `warnings`), moved out of it.
+fn values_per_frame(
+    xml: &mut Option<PccXml>,
+    frame_numbers: &FrameNumbers,
+    fps: f64,
+    warnings: &mut Vec<String>,
+) -> (Option<Vec<f64>>, Option<Vec<f64>>) {
+    let timestamps_s = xml.as_ref().and_then(|x| {
+        let (times, note) = times_per_frame(&x.times, frame_numbers, fps);
+        warnings.extend(note);
+        times
+    });
+    let exposures_s = xml
+        .as_ref()
+        .and_then(|x| per_frame(&x.exposures, frame_numbers));
+    if let Some(x) = xml.as_mut() {
+        // Each frame's values are in the two tables now.
+        (x.times, x.exposures) = (Vec::new(), Vec::new());
+    }
+    (timestamps_s, exposures_s)
 }

@@ -135,130 +135,22 @@ pub fn parse_layout_at<R: ReadAt + ?Sized>(r: &R, file_len: u64) -> Result<CineL
     let version = u16_at(data, 6).unwrap_or(0);
     let (off_ih, off_setup, off_offsets) = (h(24), h(28), h(32));
     let image_count = h(20);
-    if header_size < 44 {
-        return Err(format!("CINEFILEHEADER.Headersize {header_size} < 44"));
-    }
-    if version != 1 {
-        return Err(format!(
-            "unsupported: cine header version {version} (only version 1, with 64-bit image offsets, is known)"
-        ));
-    }
-    if image_count == 0 {
-        return Err("the cine holds no images (ImageCount 0)".into());
-    }
-    for (name, off) in [
-        ("OffImageHeader", off_ih),
-        ("OffSetup", off_setup),
-        ("OffImageOffsets", off_offsets),
-    ] {
-        if off < u32::from(header_size) {
-            return Err(format!(
-                "{name} = {off} points inside the 44-byte file header"
-            ));
-        }
-    }
-    // BITMAPINFOHEADER
-    if u64::from(off_ih) + 40 > region {
-        return Err(format!(
-            "BITMAPINFOHEADER at {off_ih} lies outside the header region"
-        ));
-    }
-    let bih = &bytes_at(r, u64::from(off_ih), 40)?[..];
-    let width = i32_at(bih, 4).unwrap_or(0);
-    let height = i32_at(bih, 8).unwrap_or(0);
-    let bit_count = u16_at(bih, 14).unwrap_or(0);
-    let bi_compression = u32_at(bih, 16).unwrap_or(0);
-    let size_image = u32_at(bih, 20).unwrap_or(0);
-    if width <= 0 || height <= 0 {
-        return Err(format!(
-            "unsupported image size {width}×{height} (biWidth and biHeight must be positive)"
-        ));
-    }
-    let (width, height) = (width as u32, height as u32);
-    if u64::from(width) * u64::from(height) > MAX_PIXELS {
-        return Err(format!("image size {width}×{height} is implausibly large"));
-    }
-    // SETUP
-    let setup_start = u64::from(off_setup);
-    let setup_head = if setup_start + 144 <= region {
-        bytes_at(r, setup_start, 144)?
-    } else {
-        Vec::new()
-    };
-    if setup_head.get(140..142) != Some(b"ST".as_slice()) {
-        return Err(format!(
-            "SETUP at {off_setup} has no \"ST\" mark at +140: corrupt header"
-        ));
-    }
-    let setup_length = u16_at(&setup_head, 142).unwrap_or(0);
-    if setup_length < 144 {
-        return Err(format!("SETUP.Length {setup_length} is too small (< 144)"));
-    }
-    let setup_end = setup_start + u64::from(setup_length);
-    if setup_end > region {
-        return Err(format!(
-            "SETUP (Length {setup_length}) runs past the header region"
-        ));
-    }
-    let setup_bytes = bytes_at(r, setup_start, usize::from(setup_length))?;
+    check_file_header(
+        header_size,
+        version,
+        image_count,
+        [off_ih, off_setup, off_offsets],
+    )?;
+    let bih = Bitmap::read(r, off_ih, region)?;
+    let (width, height) = (bih.width, bih.height);
+    let (setup_bytes, setup_length) = read_setup(r, off_setup, region)?;
+    let setup_end = u64::from(off_setup) + u64::from(setup_length);
     let setup = Setup {
         bytes: &setup_bytes,
     };
     let cfa = setup.u32(808);
-    let cfa_name = |c: u32| match c {
-        0 => "0 = gray",
-        1 => "1 = VRI gbrg/rggb",
-        2 => "2 = VRIV6 bggr/grbg",
-        3 => "3 = BAYER gb/rg",
-        4 => "4 = BAYERFLIP rg/gb",
-        5 => "5 = BAYERFLIPB gr/bg",
-        6 => "6 = BAYERFLIPH bg/gr",
-        _ => "unknown pattern",
-    };
-    let cfa_low = cfa.map_or(0, |c| c & 0xFF);
-    // Raw colour (Compression 2): a Bayer mosaic, one sample a pixel, its
-    // pattern from CFA as ffmpeg maps it (phantom.md §8.3).
-    let bayer = match compression {
-        2 => Some(match cfa_low {
-            3 => Bayer::Gbrg,
-            4 => Bayer::Rggb,
-            5 => Bayer::Grbg,
-            6 => Bayer::Bggr,
-            c => {
-                return Err(format!(
-                    "unsupported: raw colour cine with CFA {} (Compression 2); dropscope reads \
-                     the Bayer patterns CFA 3–6 (GBRG, RGGB, GRBG, BGGR) and interpolated \
-                     colour — re-save it as interpolated colour or grey in PCC",
-                    cfa_name(c)
-                ))
-            }
-        }),
-        0 => None,
-        c => {
-            return Err(format!(
-                "unsupported: cine Compression {c} (1 = JPEG .cci); dropscope reads \
-                 uncompressed grey, interpolated colour and raw Bayer cines"
-            ))
-        }
-    };
-    let storage = match (bit_count, bi_compression, bayer.is_some()) {
-        (8, 0, _) => CineStorage::Gray8,
-        (16, 0, _) => CineStorage::Gray16,
-        (24, 0, false) => CineStorage::Bgr24,
-        (48, 0, false) => CineStorage::Bgr48,
-        (_, 256, _) => CineStorage::P10,
-        (_, 1024, _) => CineStorage::P12L,
-        (b, c, _) => {
-            return Err(format!(
-                "unsupported: biBitCount {b} with biCompression {c}{}",
-                if bayer.is_some() {
-                    " in a raw colour cine"
-                } else {
-                    ""
-                }
-            ))
-        }
-    };
+    let bayer = bayer_of(compression, cfa)?;
+    let storage = storage_of(bih.bit_count, bih.bi_compression, bayer.is_some())?;
     let header = CineHeader {
         compression,
         version,
@@ -275,9 +167,9 @@ pub fn parse_layout_at<R: ReadAt + ?Sized>(r: &R, file_len: u64) -> Result<CineL
         },
         width,
         height,
-        bit_count,
-        bi_compression,
-        size_image,
+        bit_count: bih.bit_count,
+        bi_compression: bih.bi_compression,
+        size_image: bih.size_image,
         storage,
         bayer,
         setup_length,
@@ -310,12 +202,212 @@ pub fn parse_layout_at<R: ReadAt + ?Sized>(r: &R, file_len: u64) -> Result<CineL
     }
     // Tagged blocks from OffSetup + Length to OffImageOffsets (§5): where
     // the per-image values start.
-    let n = u64::from(image_count);
+    let (times_at, exposures_at, block_types) =
+        tagged_blocks(r, setup_end, u64::from(off_offsets), u64::from(image_count))?;
+    // Image offsets: int64, absolute (§6). Checked against the file length,
+    // a block at a time.
+    let layout = CineLayout {
+        header,
+        times_at,
+        exposures_at,
+        block_types,
+    };
+    check_offsets(r, &layout, file_len)?;
+    Ok(layout)
+}
+
+/// CINEFILEHEADER's own checks: its size, its version (1: 64-bit image
+/// offsets), some images, and offsets `[OffImageHeader, OffSetup,
+/// OffImageOffsets]` past it.
+fn check_file_header(
+    header_size: u16,
+    version: u16,
+    image_count: u32,
+    offsets: [u32; 3],
+) -> Result<(), String> {
+    let [off_ih, off_setup, off_offsets] = offsets;
+    if header_size < 44 {
+        return Err(format!("CINEFILEHEADER.Headersize {header_size} < 44"));
+    }
+    if version != 1 {
+        return Err(format!(
+            "unsupported: cine header version {version} (only version 1, with 64-bit image offsets, is known)"
+        ));
+    }
+    if image_count == 0 {
+        return Err("the cine holds no images (ImageCount 0)".into());
+    }
+    for (name, off) in [
+        ("OffImageHeader", off_ih),
+        ("OffSetup", off_setup),
+        ("OffImageOffsets", off_offsets),
+    ] {
+        if off < u32::from(header_size) {
+            return Err(format!(
+                "{name} = {off} points inside the 44-byte file header"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The BITMAPINFOHEADER fields read.
+struct Bitmap {
+    width: u32,
+    height: u32,
+    bit_count: u16,
+    bi_compression: u32,
+    size_image: u32,
+}
+
+impl Bitmap {
+    /// BITMAPINFOHEADER at `off_ih`, inside the header region (`region`
+    /// bytes), with a plausible positive size.
+    fn read<R: ReadAt + ?Sized>(r: &R, off_ih: u32, region: u64) -> Result<Bitmap, String> {
+        if u64::from(off_ih) + 40 > region {
+            return Err(format!(
+                "BITMAPINFOHEADER at {off_ih} lies outside the header region"
+            ));
+        }
+        let bih = &bytes_at(r, u64::from(off_ih), 40)?[..];
+        let width = i32_at(bih, 4).unwrap_or(0);
+        let height = i32_at(bih, 8).unwrap_or(0);
+        let bit_count = u16_at(bih, 14).unwrap_or(0);
+        let bi_compression = u32_at(bih, 16).unwrap_or(0);
+        let size_image = u32_at(bih, 20).unwrap_or(0);
+        if width <= 0 || height <= 0 {
+            return Err(format!(
+                "unsupported image size {width}×{height} (biWidth and biHeight must be positive)"
+            ));
+        }
+        let (width, height) = (width as u32, height as u32);
+        if u64::from(width) * u64::from(height) > MAX_PIXELS {
+            return Err(format!("image size {width}×{height} is implausibly large"));
+        }
+        Ok(Bitmap {
+            width,
+            height,
+            bit_count,
+            bi_compression,
+            size_image,
+        })
+    }
+}
+
+/// SETUP at `off_setup`: its "ST" mark checked and its first `Length`
+/// bytes (inside the header region, `region` bytes) read, with `Length`.
+fn read_setup<R: ReadAt + ?Sized>(
+    r: &R,
+    off_setup: u32,
+    region: u64,
+) -> Result<(Vec<u8>, u16), String> {
+    let setup_start = u64::from(off_setup);
+    let setup_head = if setup_start + 144 <= region {
+        bytes_at(r, setup_start, 144)?
+    } else {
+        Vec::new()
+    };
+    if setup_head.get(140..142) != Some(b"ST".as_slice()) {
+        return Err(format!(
+            "SETUP at {off_setup} has no \"ST\" mark at +140: corrupt header"
+        ));
+    }
+    let setup_length = u16_at(&setup_head, 142).unwrap_or(0);
+    if setup_length < 144 {
+        return Err(format!("SETUP.Length {setup_length} is too small (< 144)"));
+    }
+    let setup_end = setup_start + u64::from(setup_length);
+    if setup_end > region {
+        return Err(format!(
+            "SETUP (Length {setup_length}) runs past the header region"
+        ));
+    }
+    Ok((
+        bytes_at(r, setup_start, usize::from(setup_length))?,
+        setup_length,
+    ))
+}
+
+/// Raw colour (Compression 2): a Bayer mosaic, one sample a pixel, its
+/// pattern from CFA as ffmpeg maps it (phantom.md §8.3); `None` for
+/// Compression 0; an error for any other.
+fn bayer_of(compression: u16, cfa: Option<u32>) -> Result<Option<Bayer>, String> {
+    let cfa_name = |c: u32| match c {
+        0 => "0 = gray",
+        1 => "1 = VRI gbrg/rggb",
+        2 => "2 = VRIV6 bggr/grbg",
+        3 => "3 = BAYER gb/rg",
+        4 => "4 = BAYERFLIP rg/gb",
+        5 => "5 = BAYERFLIPB gr/bg",
+        6 => "6 = BAYERFLIPH bg/gr",
+        _ => "unknown pattern",
+    };
+    let cfa_low = cfa.map_or(0, |c| c & 0xFF);
+    Ok(match compression {
+        2 => Some(match cfa_low {
+            3 => Bayer::Gbrg,
+            4 => Bayer::Rggb,
+            5 => Bayer::Grbg,
+            6 => Bayer::Bggr,
+            c => {
+                return Err(format!(
+                    "unsupported: raw colour cine with CFA {} (Compression 2); dropscope reads \
+                     the Bayer patterns CFA 3–6 (GBRG, RGGB, GRBG, BGGR) and interpolated \
+                     colour — re-save it as interpolated colour or grey in PCC",
+                    cfa_name(c)
+                ))
+            }
+        }),
+        0 => None,
+        c => {
+            return Err(format!(
+                "unsupported: cine Compression {c} (1 = JPEG .cci); dropscope reads \
+                 uncompressed grey, interpolated colour and raw Bayer cines"
+            ))
+        }
+    })
+}
+
+/// How the pixels are stored, from `biBitCount` and `biCompression`.
+fn storage_of(
+    bit_count: u16,
+    bi_compression: u32,
+    raw_colour: bool,
+) -> Result<CineStorage, String> {
+    Ok(match (bit_count, bi_compression, raw_colour) {
+        (8, 0, _) => CineStorage::Gray8,
+        (16, 0, _) => CineStorage::Gray16,
+        (24, 0, false) => CineStorage::Bgr24,
+        (48, 0, false) => CineStorage::Bgr48,
+        (_, 256, _) => CineStorage::P10,
+        (_, 1024, _) => CineStorage::P12L,
+        (b, c, _) => {
+            return Err(format!(
+                "unsupported: biBitCount {b} with biCompression {c}{}",
+                if raw_colour {
+                    " in a raw colour cine"
+                } else {
+                    ""
+                }
+            ))
+        }
+    })
+}
+
+/// The tagged blocks between `pos` (the end of SETUP) and `blocks_end`
+/// (OffImageOffsets): where the time stamps (1002) and exposures (1003) of
+/// `n` images start, and the blocks' types in file order.
+#[allow(clippy::type_complexity)]
+fn tagged_blocks<R: ReadAt + ?Sized>(
+    r: &R,
+    pos: u64,
+    blocks_end: u64,
+    n: u64,
+) -> Result<(Option<u64>, Option<u64>, Vec<u16>), String> {
     let mut times_at = None;
     let mut exposures_at = None;
     let mut block_types = Vec::new();
-    let mut pos = setup_end;
-    let blocks_end = u64::from(off_offsets);
+    let mut pos = pos;
     while pos + 8 <= blocks_end {
         let head = bytes_at(r, pos, 8)?;
         let size = u64::from(u32_at(&head, 0).unwrap_or(0));
@@ -332,21 +424,24 @@ pub fn parse_layout_at<R: ReadAt + ?Sized>(r: &R, file_len: u64) -> Result<CineL
         }
         pos += size;
     }
-    // Image offsets: int64, absolute (§6). Checked against the file length,
-    // a block at a time.
-    let layout = CineLayout {
-        header,
-        times_at,
-        exposures_at,
-        block_types,
-    };
+    Ok((times_at, exposures_at, block_types))
+}
+
+/// Every image offset of `layout` checked against the file's length
+/// (`file_len`), a block at a time.
+fn check_offsets<R: ReadAt + ?Sized>(
+    r: &R,
+    layout: &CineLayout,
+    file_len: u64,
+) -> Result<(), String> {
+    let image_count = layout.header.image_count;
     let mut table = Vec::new();
     for lo in (0..image_count as usize).step_by(OFFSETS_BLOCK) {
         let hi = (lo + OFFSETS_BLOCK).min(image_count as usize);
-        read_offsets(r, &layout, file_len, lo..hi, lo, &mut table)
+        read_offsets(r, layout, file_len, lo..hi, lo, &mut table)
             .map_err(|(frame, reason)| format!("frame {frame}: {reason}"))?;
     }
-    Ok(layout)
+    Ok(())
 }
 
 /// Image offsets read from a table at once.

@@ -101,7 +101,6 @@ pub(super) fn fit_circle_lanes<V: Lanes>(
     opts: &FitOptions,
     scratch: &mut FitScratch,
 ) -> Result<CircleFit, DetectError> {
-    const WHAT: &str = "robust circle fit";
     let n = points.len();
     let mut c = match start {
         Some(c) => c,
@@ -178,6 +177,28 @@ pub(super) fn fit_circle_lanes<V: Lanes>(
     }
     // Residual and covariance from the sums at the solution.
     let residual_px = (last.ss_unweighted / last.n_in.max(1) as f64).sqrt();
+    let cov = covariance(&last, held, opts)?;
+    Ok(CircleFit {
+        x_px: c.x_px,
+        z_px: c.z_px,
+        r_px: c.r_px,
+        cov,
+        residual_px,
+        n_used: count(n),
+        inliers: count(inliers),
+        iterations: count(iterations),
+        scale_px: scale.unwrap_or(opts.min_scale_px),
+    })
+}
+
+/// What the errors of [`fit_circle`] name.
+const WHAT: &str = "robust circle fit";
+
+/// The centre's (and with a free radius the radius's) covariance from the
+/// sums at the solution (module doc, covariance), with the errors shared
+/// by all points along their radii (`radial_sigma_px`) added.
+#[inline(always)]
+fn covariance(last: &LastSums, held: bool, opts: &FitOptions) -> Result<Covariance, DetectError> {
     let degenerate = || DetectError::Degenerate {
         what: WHAT,
         reason: "singular normal matrix (points on too short an arc?)".into(),
@@ -188,7 +209,7 @@ pub(super) fn fit_circle_lanes<V: Lanes>(
     let jtj = if bread_ok { last.bread } else { last.jtj };
     let sb2 = opts.radial_sigma_px * opts.radial_sigma_px;
     let meat = last.meat;
-    let cov = if held {
+    Ok(if held {
         let m2 = [[jtj[0][0], jtj[0][1]], [jtj[1][0], jtj[1][1]]];
         let b2 = [[meat[0][0], meat[0][1]], [meat[1][0], meat[1][1]]];
         let inv = inverse_spd(&m2).ok_or_else(degenerate)?;
@@ -212,17 +233,6 @@ pub(super) fn fit_circle_lanes<V: Lanes>(
         // A free radius absorbs a uniform shift: it adds σ_b² to var(r) only.
         cov[2][2] += sb2;
         Covariance::full(&cov)
-    };
-    Ok(CircleFit {
-        x_px: c.x_px,
-        z_px: c.z_px,
-        r_px: c.r_px,
-        cov,
-        residual_px,
-        n_used: count(n),
-        inliers: count(inliers),
-        iterations: count(iterations),
-        scale_px: scale.unwrap_or(opts.min_scale_px),
     })
 }
 

@@ -608,66 +608,24 @@ fn probe_tiff<F: FrameBytes>(
         return Err(format!("not a TIFF ({len} bytes)"));
     }
     let head = &sc.head[..head_usize];
-    let fetch = |file: &mut F, off: u64, out: &mut Vec<u8>, n: usize| {
-        out.clear();
-        if off + n as u64 <= head.len() as u64 {
-            out.extend_from_slice(&head[off as usize..off as usize + n]);
-            Ok(())
-        } else {
-            out.resize(n, 0);
-            file.read_at(off, out).map_err(|e| e.to_string())
-        }
-    };
-    let big_endian = match &head[0..4] {
-        b"II*\0" => false,
-        b"MM\0*" => true,
+    let order = match &head[0..4] {
+        b"II*\0" => ByteOrder { big_endian: false },
+        b"MM\0*" => ByteOrder { big_endian: true },
         _ => return Ok(None), // BigTIFF or not a TIFF: let the generic path decide
     };
-    let u16_ = |b: &[u8]| {
-        let a = [b[0], b[1]];
-        if big_endian {
-            u16::from_be_bytes(a)
-        } else {
-            u16::from_le_bytes(a)
-        }
-    };
-    let u32_ = |b: &[u8]| {
-        let a = [b[0], b[1], b[2], b[3]];
-        if big_endian {
-            u32::from_be_bytes(a)
-        } else {
-            u32::from_le_bytes(a)
-        }
-    };
-    let ifd = u64::from(u32_(&head[4..8]));
+    let ifd = u64::from(order.u32(&head[4..8]));
     if ifd + 2 > len {
         return Err(format!("IFD offset {ifd} is past the end ({len} bytes)"));
     }
-    fetch(file, ifd, &mut sc.entries, 2)?;
-    let n = usize::from(u16_(&sc.entries));
+    fetch(file, head, ifd, &mut sc.entries, 2)?;
+    let n = usize::from(order.u16(&sc.entries));
     if ifd + 2 + 12 * n as u64 > len {
         return Err(format!("IFD with {n} entries runs past the end"));
     }
-    fetch(file, ifd + 2, &mut sc.entries, 12 * n)?;
+    fetch(file, head, ifd + 2, &mut sc.entries, 12 * n)?;
     let entries = &sc.entries;
-    // (type, count, value-or-offset bytes)
-    let tag = |t: u16| {
-        entries
-            .chunks_exact(12)
-            .find(|e| u16_(&e[0..2]) == t)
-            .map(|e| (u16_(&e[2..4]), u32_(&e[4..8]), [e[8], e[9], e[10], e[11]]))
-    };
-    let scalar = |e: Option<(u16, u32, [u8; 4])>| -> Option<u64> {
-        let (ty, count, v) = e?;
-        if count < 1 {
-            return None;
-        }
-        match ty {
-            3 => Some(u64::from(u16_(&v[0..2]))),
-            4 => Some(u64::from(u32_(&v))),
-            _ => None,
-        }
-    };
+    let tag = |t: u16| order.tag(entries, t);
+    let scalar = |e: Option<(u16, u32, [u8; 4])>| order.scalar(e);
     let width = scalar(tag(256)).ok_or("TIFF without ImageWidth")? as usize;
     let height = scalar(tag(257)).ok_or("TIFF without ImageLength")? as usize;
     let bits = scalar(tag(258)).unwrap_or(1);
@@ -678,10 +636,125 @@ fn probe_tiff<F: FrameBytes>(
     let sample_format = scalar(tag(339)).unwrap_or(1);
     let predictor = scalar(tag(317)).unwrap_or(1);
     let tiled = tag(322).is_some();
-    // The stored rows are read top row first, as PCC writes them: a frame
-    // whose Orientation tag says it is to be shown flipped or turned
-    // would be measured upside down or mirrored without a word.
-    match scalar(tag(274)) {
+    check_orientation(scalar(tag(274)))?;
+    if let Some(why) = super::frame_too_large(width as u64, height as u64) {
+        return Err(format!("TIFF: {why}"));
+    }
+    let simple = compression == 1
+        && photometric == 1
+        && spp == 1
+        && (bits == 8 || bits == 16)
+        && sample_format == 1
+        && predictor == 1
+        && !tiled;
+    if !simple {
+        return Ok(None);
+    }
+    let strips = tag(273).ok_or("TIFF without StripOffsets")?;
+    let rps = rows_per_strip.clamp(1, height as u64) as usize;
+    let need = height.div_ceil(rps);
+    read_strip_offsets(
+        file,
+        head,
+        order,
+        strips,
+        (need, height, rps),
+        len,
+        &mut sc.raw,
+        &mut sc.strips,
+    )?;
+    let row_bytes = width as u64 * bits / 8;
+    let rps = check_strips(&mut sc.strips, rps, height, row_bytes, len)?;
+    Ok(Some(Probe {
+        width,
+        height,
+        bits: bits as u8,
+        colour: false,
+        layout: Layout::TiffRaw {
+            big_endian: order.big_endian,
+            rows_per_strip: rps,
+        },
+    }))
+}
+
+/// A TIFF's byte order, read from its first two bytes.
+#[derive(Debug, Clone, Copy)]
+struct ByteOrder {
+    big_endian: bool,
+}
+
+impl ByteOrder {
+    fn u16(self, b: &[u8]) -> u16 {
+        let a = [b[0], b[1]];
+        if self.big_endian {
+            u16::from_be_bytes(a)
+        } else {
+            u16::from_le_bytes(a)
+        }
+    }
+
+    fn u32(self, b: &[u8]) -> u32 {
+        let a = [b[0], b[1], b[2], b[3]];
+        if self.big_endian {
+            u32::from_be_bytes(a)
+        } else {
+            u32::from_le_bytes(a)
+        }
+    }
+
+    /// Tag `t` of the IFD `entries` (12 bytes each): (type, count,
+    /// value-or-offset bytes).
+    fn tag(self, entries: &[u8], t: u16) -> Option<(u16, u32, [u8; 4])> {
+        entries
+            .chunks_exact(12)
+            .find(|e| self.u16(&e[0..2]) == t)
+            .map(|e| {
+                (
+                    self.u16(&e[2..4]),
+                    self.u32(&e[4..8]),
+                    [e[8], e[9], e[10], e[11]],
+                )
+            })
+    }
+
+    /// The value of a SHORT or LONG tag `e`.
+    fn scalar(self, e: Option<(u16, u32, [u8; 4])>) -> Option<u64> {
+        let (ty, count, v) = e?;
+        if count < 1 {
+            return None;
+        }
+        match ty {
+            3 => Some(u64::from(self.u16(&v[0..2]))),
+            4 => Some(u64::from(self.u32(&v))),
+            _ => None,
+        }
+    }
+}
+
+/// `n` bytes at `off` of a file whose first bytes are `head`: from `head`
+/// when they lie in it, else read.
+fn fetch<F: FrameBytes>(
+    file: &mut F,
+    head: &[u8],
+    off: u64,
+    out: &mut Vec<u8>,
+    n: usize,
+) -> Result<(), String> {
+    out.clear();
+    if off + n as u64 <= head.len() as u64 {
+        out.extend_from_slice(&head[off as usize..off as usize + n]);
+        Ok(())
+    } else {
+        out.resize(n, 0);
+        file.read_at(off, out).map_err(|e| e.to_string())
+    }
+}
+
+/// The stored rows are read top row first, as PCC writes them: a frame
+/// whose Orientation tag (`orientation`) says it is to be shown flipped or
+/// turned would be measured upside down or mirrored without a word.
+fn check_orientation(orientation: Option<u64>) -> Result<(), String> {
+    match orientation {
         None | Some(1) => {}
         Some(o) => {
             let how = match o {
@@ -698,23 +771,23 @@ fn probe_tiff<F: FrameBytes>(
             ));
         }
     }
-    if let Some(why) = super::frame_too_large(width as u64, height as u64) {
-        return Err(format!("TIFF: {why}"));
-    }
-    let simple = compression == 1
-        && photometric == 1
-        && spp == 1
-        && (bits == 8 || bits == 16)
-        && sample_format == 1
-        && predictor == 1
-        && !tiled;
-    if !simple {
-        return Ok(None);
-    }
-    let strips = tag(273).ok_or("TIFF without StripOffsets")?;
+    Ok(())
+}
+
+/// The strip offsets (tag `strips`) of `need` strips of `rps` rows (of
+/// `height`) into `strips`, read through `raw`.
+#[allow(clippy::too_many_arguments)]
+fn read_strip_offsets<F: FrameBytes>(
+    file: &mut F,
+    head: &[u8],
+    order: ByteOrder,
+    strips: (u16, u32, [u8; 4]),
+    (need, height, rps): (usize, usize, usize),
+    len: u64,
+    raw: &mut Vec<u8>,
+    offsets: &mut Vec<u64>,
+) -> Result<(), String> {
     let (ty, count, v) = strips;
-    let rps = rows_per_strip.clamp(1, height as u64) as usize;
-    let need = height.div_ceil(rps);
     if (count as usize) < need {
         return Err(format!(
             "{count} strip offsets for {height} rows of {rps} per strip"
@@ -726,25 +799,37 @@ fn probe_tiff<F: FrameBytes>(
         _ => return Err(format!("StripOffsets of TIFF type {ty}")),
     };
     if need * size <= 4 {
-        sc.raw.clear();
-        sc.raw.extend_from_slice(&v[..need * size]);
+        raw.clear();
+        raw.extend_from_slice(&v[..need * size]);
     } else {
-        let off = u64::from(u32_(&v));
+        let off = u64::from(order.u32(&v));
         if off + (need * size) as u64 > len {
             return Err("StripOffsets array runs past the end".into());
         }
-        fetch(file, off, &mut sc.raw, need * size)?;
+        fetch(file, head, off, raw, need * size)?;
     }
-    sc.strips.clear();
-    for c in sc.raw.chunks_exact(size) {
-        sc.strips.push(if size == 2 {
-            u64::from(u16_(c))
+    offsets.clear();
+    for c in raw.chunks_exact(size) {
+        offsets.push(if size == 2 {
+            u64::from(order.u16(c))
         } else {
-            u64::from(u32_(c))
+            u64::from(order.u32(c))
         });
     }
-    let row_bytes = width as u64 * bits / 8;
-    for (i, &o) in sc.strips.iter().enumerate() {
+    Ok(())
+}
+
+/// Each strip (`strips`, of `rps` rows of `row_bytes` of `height`) checked
+/// to lie inside the file (`len` bytes); strips back to back become one
+/// strip of all rows, read in one call. Returns the rows per strip.
+fn check_strips(
+    strips: &mut Vec<u64>,
+    rps: usize,
+    height: usize,
+    row_bytes: u64,
+    len: u64,
+) -> Result<usize, String> {
+    for (i, &o) in strips.iter().enumerate() {
         let rows = rps.min(height - i * rps) as u64;
         if o + rows * row_bytes > len {
             return Err(format!(
@@ -754,23 +839,13 @@ fn probe_tiff<F: FrameBytes>(
     }
     // Strips back to back: one strip of all rows, read in one call.
     let strip_bytes = rps as u64 * row_bytes;
-    let contiguous = sc.strips.windows(2).all(|w| w[1] == w[0] + strip_bytes);
-    let rps = if contiguous {
-        sc.strips.truncate(1);
+    let contiguous = strips.windows(2).all(|w| w[1] == w[0] + strip_bytes);
+    Ok(if contiguous {
+        strips.truncate(1);
         height
     } else {
         rps
-    };
-    Ok(Some(Probe {
-        width,
-        height,
-        bits: bits as u8,
-        colour: false,
-        layout: Layout::TiffRaw {
-            big_endian,
-            rows_per_strip: rps,
-        },
-    }))
+    })
 }
 
 /// Parse an 8-bit paletted BMP with a grey palette; `Ok(None)` for any

@@ -306,52 +306,15 @@ impl FrameDecoder {
             Layout::TiffRaw {
                 big_endian,
                 rows_per_strip,
-            } => {
-                let sc = &mut self.scratch;
-                let bpp = usize::from(p.bits / 8);
-                let row_bytes = w * bpp;
-                let rps = *rows_per_strip;
-                let row_at =
-                    |strips: &[u64], r: usize| strips[r / rps] as usize + (r % rps) * row_bytes;
-                if !sc.whole {
-                    // A small band or a large file: read only the band's
-                    // rows, one read per strip they lie in.
-                    grown(&mut sc.bytes, n * row_bytes);
-                    let mut r = row0;
-                    while r < row0 + n {
-                        let take = (rps - r % rps).min(row0 + n - r);
-                        let dst =
-                            &mut sc.bytes[(r - row0) * row_bytes..(r - row0 + take) * row_bytes];
-                        file.read_at(row_at(&sc.strips, r) as u64, dst)
-                            .map_err(|e| frame_err(format!("reading rows: {e}")))?;
-                        r += take;
-                    }
-                }
-                let (whole, head, bytes, strips) = (sc.whole, &sc.head, &sc.bytes, &sc.strips);
-                let big_endian = *big_endian;
-                fill_rows(out, &mut self.row_scratch, |j, dst| {
-                    let src = if whole {
-                        let o = row_at(strips, row0 + j);
-                        &head[o..o + row_bytes]
-                    } else {
-                        &bytes[j * row_bytes..(j + 1) * row_bytes]
-                    };
-                    for_cols(dst, cols, |c, dst| {
-                        let src = &src[c.start * bpp..c.end * bpp];
-                        if bpp == 1 {
-                            widen_u8(src, dst);
-                        } else if big_endian {
-                            for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
-                                *d = u16::from_be_bytes([s[0], s[1]]);
-                            }
-                        } else {
-                            for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
-                                *d = u16::from_le_bytes([s[0], s[1]]);
-                            }
-                        }
-                    });
-                });
-            }
+            } => self.tiff_rows(
+                file,
+                (*big_endian, *rows_per_strip),
+                &p,
+                row0,
+                cols,
+                out,
+                &frame_err,
+            )?,
             Layout::Bmp8 {
                 data_offset,
                 stride,
@@ -407,37 +370,110 @@ impl FrameDecoder {
                     );
                 }
             }
-            Layout::Generic => {
-                let bytes = &mut self.scratch.bytes;
-                bytes.clear();
-                file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
-                file.read_to_end(bytes).map_err(io_err(path))?;
-                let mut reader = image::ImageReader::new(Cursor::new(&bytes[..]))
-                    .with_guessed_format()
-                    .map_err(io_err(path))?;
-                // A frame the caps admit, decoded within a memory bound: a
-                // failed allocation is this frame's error, not an abort.
-                reader.limits(super::decode_limits());
-                let img = reader
-                    .decode()
-                    .map_err(|e| frame_err(format!("cannot decode: {e}")))?;
-                self.u16_scratch.clear();
-                if p.bits == 16 {
-                    self.u16_scratch.extend(img.into_luma16().into_raw());
-                } else {
-                    self.u16_scratch
-                        .extend(img.into_luma8().into_raw().into_iter().map(u16::from));
-                }
-                if self.u16_scratch.len() < (row0 + n) * w {
-                    return Err(frame_err("decoded image is smaller than its header".into()));
-                }
-                for j in 0..n {
-                    let src = &self.u16_scratch[(row0 + j) * w..(row0 + j + 1) * w];
-                    fill_row(out.slice_mut(s![j, ..]), &mut self.row_scratch, |dst| {
-                        dst.copy_from_slice(src)
-                    });
-                }
+            Layout::Generic => self.generic_rows(path, file, &p, row0, out, &frame_err)?,
+        }
+        Ok(())
+    }
+    /// Rows of a raw TIFF (`big_endian`, `rps` rows per strip): from the
+    /// file's bytes read whole at the probe, else only the band's rows read,
+    /// one read per strip they lie in.
+    #[allow(clippy::too_many_arguments)]
+    fn tiff_rows<F: FrameBytes>(
+        &mut self,
+        file: &mut F,
+        (big_endian, rps): (bool, usize),
+        p: &Probe,
+        row0: usize,
+        cols: Option<&[std::ops::Range<usize>]>,
+        out: &mut ArrayViewMut2<u16>,
+        frame_err: &dyn Fn(String) -> SourceError,
+    ) -> Result<(), SourceError> {
+        let n = out.nrows();
+        let w = p.width;
+        let sc = &mut self.scratch;
+        let bpp = usize::from(p.bits / 8);
+        let row_bytes = w * bpp;
+        let row_at = |strips: &[u64], r: usize| strips[r / rps] as usize + (r % rps) * row_bytes;
+        if !sc.whole {
+            // A small band or a large file: read only the band's
+            // rows, one read per strip they lie in.
+            grown(&mut sc.bytes, n * row_bytes);
+            let mut r = row0;
+            while r < row0 + n {
+                let take = (rps - r % rps).min(row0 + n - r);
+                let dst = &mut sc.bytes[(r - row0) * row_bytes..(r - row0 + take) * row_bytes];
+                file.read_at(row_at(&sc.strips, r) as u64, dst)
+                    .map_err(|e| frame_err(format!("reading rows: {e}")))?;
+                r += take;
             }
+        }
+        let (whole, head, bytes, strips) = (sc.whole, &sc.head, &sc.bytes, &sc.strips);
+        fill_rows(out, &mut self.row_scratch, |j, dst| {
+            let src = if whole {
+                let o = row_at(strips, row0 + j);
+                &head[o..o + row_bytes]
+            } else {
+                &bytes[j * row_bytes..(j + 1) * row_bytes]
+            };
+            for_cols(dst, cols, |c, dst| {
+                let src = &src[c.start * bpp..c.end * bpp];
+                if bpp == 1 {
+                    widen_u8(src, dst);
+                } else if big_endian {
+                    for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                        *d = u16::from_be_bytes([s[0], s[1]]);
+                    }
+                } else {
+                    for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                        *d = u16::from_le_bytes([s[0], s[1]]);
+                    }
+                }
+            });
+        });
+        Ok(())
+    }
+
+    /// Rows of a frame decoded whole by the `image` crate, within the
+    /// decode limits.
+    fn generic_rows<F: FrameBytes>(
+        &mut self,
+        path: &Path,
+        file: &mut F,
+        p: &Probe,
+        row0: usize,
+        out: &mut ArrayViewMut2<u16>,
+        frame_err: &dyn Fn(String) -> SourceError,
+    ) -> Result<(), SourceError> {
+        let n = out.nrows();
+        let w = p.width;
+        let bytes = &mut self.scratch.bytes;
+        bytes.clear();
+        file.seek(SeekFrom::Start(0)).map_err(io_err(path))?;
+        file.read_to_end(bytes).map_err(io_err(path))?;
+        let mut reader = image::ImageReader::new(Cursor::new(&bytes[..]))
+            .with_guessed_format()
+            .map_err(io_err(path))?;
+        // A frame the caps admit, decoded within a memory bound: a
+        // failed allocation is this frame's error, not an abort.
+        reader.limits(super::decode_limits());
+        let img = reader
+            .decode()
+            .map_err(|e| frame_err(format!("cannot decode: {e}")))?;
+        self.u16_scratch.clear();
+        if p.bits == 16 {
+            self.u16_scratch.extend(img.into_luma16().into_raw());
+        } else {
+            self.u16_scratch
+                .extend(img.into_luma8().into_raw().into_iter().map(u16::from));
+        }
+        if self.u16_scratch.len() < (row0 + n) * w {
+            return Err(frame_err("decoded image is smaller than its header".into()));
+        }
+        for j in 0..n {
+            let src = &self.u16_scratch[(row0 + j) * w..(row0 + j + 1) * w];
+            fill_row(out.slice_mut(s![j, ..]), &mut self.row_scratch, |dst| {
+                dst.copy_from_slice(src)
+            });
         }
         Ok(())
     }

@@ -1,12 +1,13 @@
 //! What the header region says: the storage of the pixels, the header's
 //! fields and where the per-frame values and image offsets are.
 
+use std::io::Read;
+use std::path::Path;
+
 use crate::source::colour::Bayer;
 use crate::source::index::Time64;
 use crate::source::packing::packed_span;
 use crate::source::ColourInput;
-use std::io::Read;
-use std::path::Path;
 
 /// Does the file start with the cine magic `"CI"`?
 pub fn has_cine_magic(path: &Path) -> bool {

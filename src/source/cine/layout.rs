@@ -2,10 +2,11 @@
 //! `BITMAPINFOHEADER`, `SETUP` and the tagged blocks, each size checked
 //! against the file's length.
 
+use std::fs::File;
+
 use super::header::{CineHeader, CineLayout, CineStorage};
 use crate::source::colour::Bayer;
 use crate::source::index::Time64;
-use std::fs::File;
 
 /// Largest accepted frame (pixels): the cap of every reader.
 const MAX_PIXELS: u64 = crate::source::validate::MAX_FRAME_PIXELS;

@@ -1,6 +1,13 @@
 //! [`CineSource`]: a `.cine` opened for random access, its frames read on
 //! demand.
 
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom};
+use std::path::Path;
+use std::sync::Arc;
+
+use ndarray::ArrayViewMut2;
+
 use super::header::{CineLayout, CineStorage};
 use super::layout::{parse_layout_at, read_offsets, OFFSETS_BLOCK};
 use crate::io_util::read_at;
@@ -12,11 +19,6 @@ use crate::source::{
     check_band, fill_rows, for_cols, grown, FrameNumbers, FrameSource, FrameValues, OpenOptions,
     P10Mode, SourceDetails, SourceError, SourceMeta,
 };
-use ndarray::ArrayViewMut2;
-use std::fs::File;
-use std::io::{Read, Seek, SeekFrom};
-use std::path::Path;
-use std::sync::Arc;
 
 /// Largest accepted per-image annotation (bytes); 8 in every file seen.
 const MAX_ANNOTATION: u32 = 1 << 20;

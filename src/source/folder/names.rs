@@ -1,8 +1,9 @@
 //! Frame file names (module doc, naming): their prefix, number and kind,
 //! and the [`FrameFiles`] of a sequence.
 
-use crate::source::frame_decode::ImageKind;
 use std::path::{Path, PathBuf};
+
+use crate::source::frame_decode::ImageKind;
 
 /// Split a file name into `(prefix, number, kind)`, or `None` when it is not
 /// a numbered image (see the module documentation for the sign rule).

@@ -1,10 +1,11 @@
 //! PCC's XML side file beside the frames: which one, whether it describes
 //! them, and the frame times from it; and a lone exported image.
 
+use std::path::{Path, PathBuf};
+
 use crate::source::frame_decode::{format_err, io_err, ImageKind};
 use crate::source::pcc_xml::{self, PccXml};
 use crate::source::{FrameNumbers, SourceError};
-use std::path::{Path, PathBuf};
 
 /// The folder's only image when an XML side file is named like it
 /// (`cam_1.tif` beside `cam_1.xml`, `12bpp.tif` beside `12bpp.xml`): PCC's

@@ -1,5 +1,10 @@
 //! [`FolderSource`]: a folder of numbered frames opened for random access.
 
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use ndarray::ArrayViewMut2;
+
 use super::names::{number_split, parse_frame_name, parse_frame_name_split, FrameFiles};
 use super::side_file::{
     align_side_file, gaps_of, lone_export, per_frame, pick_xml, times_per_frame,
@@ -11,9 +16,6 @@ use crate::source::{
     check_band, ColourInput, Frame, FrameNames, FrameNumbers, FrameSource, OpenOptions,
     SourceDetails, SourceError, SourceMeta,
 };
-use ndarray::ArrayViewMut2;
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 
 /// A folder of numbered frames opened for random access.
 pub struct FolderSource {

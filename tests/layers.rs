@@ -139,7 +139,7 @@ const RULES: &[Rule] = &[
         allowed: Allowed::Never(&[
             &[
                 "source/folder/",
-                "source/frame_decode.rs",
+                "source/frame_decode/",
                 "source/listing.rs",
             ],
             &["source/photron/"],
@@ -149,7 +149,7 @@ const RULES: &[Rule] = &[
     Rule {
         part: &[
             "source/folder/",
-            "source/frame_decode.rs",
+            "source/frame_decode/",
             "source/listing.rs",
         ],
         name: "source/'s folder reader",
@@ -166,7 +166,7 @@ const RULES: &[Rule] = &[
             &["source/cine/", "source/cine_write.rs"],
             &[
                 "source/folder/",
-                "source/frame_decode.rs",
+                "source/frame_decode/",
                 "source/listing.rs",
             ],
         ]),

@@ -72,36 +72,14 @@ pub fn from_sample_rows<R: SampleRows>(
         .map(|_| Array2::zeros((h.max(n * band), w)))
         .collect();
     // Passes 1 and 2's view of each frame and its strip sum.
-    let seen: Vec<(Vec<u16>, [f64; 2])> = readers[..groups]
-        .par_iter_mut()
-        .zip(buffers.par_iter_mut())
-        .enumerate()
-        .map(|(g, (reader, buf))| {
-            let mut out = Vec::new();
-            for k in g * n / groups..(g + 1) * n / groups {
-                let mut frame = buf.slice_mut(s![..h, ..]);
-                if let Err(e) = reader.read_rows(k, 0, std::slice::from_ref(&(0..w)), &mut frame) {
-                    return (out, Some(e));
-                }
-                let data = frame
-                    .as_slice()
-                    .expect("a buffer's leading rows are contiguous");
-                let sum = reference_sum(data, w, region);
-                let view = if binned {
-                    coarse_view(data, w, h)
-                } else {
-                    data.to_vec()
-                };
-                out.push((view, sum));
-            }
-            (out, None)
-        })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .try_fold(Vec::with_capacity(n), |mut all, (part, err)| {
-            all.extend(part);
-            err.map_or(Ok(all), Err)
-        })?;
+    let seen = first_views(
+        &mut readers[..groups],
+        &mut buffers,
+        n,
+        (h, w),
+        region,
+        binned,
+    )?;
     let sums: Vec<[f64; 2]> = seen.iter().map(|s| s.1).collect();
     let ReferenceGains {
         pooled: gains,
@@ -180,6 +158,53 @@ pub fn from_sample_rows<R: SampleRows>(
         gains,
         near_cols,
     }))
+}
+
+/// Passes 1 and 2's view of each of the `n` sample frames (binned when the
+/// frame is large, [`binned_pass`]) and its strip sum, the frames shared out
+/// in order between `readers` (one buffer each); the first read that
+/// failed, in the frames' order.
+#[allow(clippy::type_complexity)]
+fn first_views<R: SampleRows>(
+    readers: &mut [R],
+    buffers: &mut [Array2<u16>],
+    n: usize,
+    (h, w): (usize, usize),
+    region: GainRegion,
+    binned: bool,
+) -> Result<Vec<(Vec<u16>, [f64; 2])>, R::Error> {
+    use rayon::prelude::*;
+    let groups = readers.len();
+    readers
+        .par_iter_mut()
+        .zip(buffers.par_iter_mut())
+        .enumerate()
+        .map(|(g, (reader, buf))| {
+            let mut out = Vec::new();
+            for k in g * n / groups..(g + 1) * n / groups {
+                let mut frame = buf.slice_mut(s![..h, ..]);
+                if let Err(e) = reader.read_rows(k, 0, std::slice::from_ref(&(0..w)), &mut frame) {
+                    return (out, Some(e));
+                }
+                let data = frame
+                    .as_slice()
+                    .expect("a buffer's leading rows are contiguous");
+                let sum = reference_sum(data, w, region);
+                let view = if binned {
+                    coarse_view(data, w, h)
+                } else {
+                    data.to_vec()
+                };
+                out.push((view, sum));
+            }
+            (out, None)
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .try_fold(Vec::with_capacity(n), |mut all, (part, err)| {
+            all.extend(part);
+            err.map_or(Ok(all), Err)
+        })
 }
 
 #[cfg(test)]

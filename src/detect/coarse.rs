@@ -105,86 +105,9 @@ pub fn detect_coarse(
         let gb = gain * bg.at(band.row0 + i, j) as f64;
         (gb - band.data[i * w + j] as f64, params.threshold * gb)
     };
-    scratch.labels.clear();
-    scratch.labels.resize(h * w, 0);
-    // Row by row, branch-free (f32, four pixels at a time): dark
-    // (I < (1 − threshold)·g·B) and above the line minus the margin, whose
-    // row at each column is computed once.
-    scratch.limits.clear();
-    scratch.limits.extend((0..w).map(|j| match surface {
-        Some(s) => (s.row_at(j as f64) - params.surface_margin_px) as f32,
-        None => f32::INFINITY,
-    }));
-    let level = ((1.0 - params.threshold) * gain) as f32;
-    for i in 0..h {
-        let z = (band.row0 + i) as f32;
-        let row = &band.data[i * w..][..w];
-        let bg_row = &bg.levels[(band.row0 + i) * bg.width..][..w];
-        let labels = &mut scratch.labels[i * w..][..w];
-        let limits = &scratch.limits[..w];
-        for j in 0..w {
-            let dark = (row[j] as f32) < level * bg_row[j];
-            labels[j] = (dark & (z < limits[j])) as u32;
-        }
-    }
-    // Label 4-connected groups; keep the largest.
-    // (label, size, first row, last row, first column, last column) of
-    // the largest group.
-    let mut best = (0u32, 0usize, 0usize, 0usize, 0usize, 0usize);
-    let mut next = 2u32;
-    let n = h * w;
-    let mut start = 0;
-    while start < n {
-        // Skip 16 pixels at a time where no new group starts (most of
-        // the frame), then one at a time.
-        if start + 16 <= n && !scratch.labels[start..start + 16].contains(&1) {
-            start += 16;
-            continue;
-        }
-        start += 1;
-        let start = start - 1;
-        if scratch.labels[start] != 1 {
-            continue;
-        }
-        let label = next;
-        next += 1;
-        let mut size = 0;
-        let (mut top, mut bottom) = (h, 0);
-        let (mut left, mut right) = (w, 0);
-        scratch.stack.clear();
-        scratch.stack.push(start);
-        scratch.labels[start] = label;
-        while let Some(k) = scratch.stack.pop() {
-            size += 1;
-            let (i, j) = (k / w, k % w);
-            top = top.min(i);
-            bottom = bottom.max(i);
-            left = left.min(j);
-            right = right.max(j);
-            let mut visit = |kk: usize| {
-                if scratch.labels[kk] == 1 {
-                    scratch.labels[kk] = label;
-                    scratch.stack.push(kk);
-                }
-            };
-            if i > 0 {
-                visit(k - w);
-            }
-            if i + 1 < h {
-                visit(k + w);
-            }
-            if j > 0 {
-                visit(k - 1);
-            }
-            if j + 1 < w {
-                visit(k + 1);
-            }
-        }
-        if size > best.1 {
-            best = (label, size, top, bottom, left, right);
-        }
-    }
-    let (label, area, top, bottom, left, right) = best;
+    mark_dark(band, bg, gain, surface, params, scratch);
+    let (label, area, top, bottom, left, right) =
+        largest_group(&mut scratch.labels, &mut scratch.stack, (h, w));
     if area < params.min_area_px.max(1) {
         return Ok(None);
     }
@@ -249,6 +172,109 @@ pub fn detect_coarse(
         touches_top,
         boundary_points: scratch.points.len(),
     }))
+}
+
+/// Each pixel of `band` dark (`I < (1 − threshold)·g·B`) and above the
+/// surface line minus the margin marked 1 in `scratch.labels`, the others 0.
+fn mark_dark(
+    band: &Band,
+    bg: &Background,
+    gain: f64,
+    surface: Option<&SurfaceLine>,
+    params: &CoarseParams,
+    scratch: &mut CoarseScratch,
+) {
+    let (h, w) = (band.nrows, band.width);
+    scratch.labels.clear();
+    scratch.labels.resize(h * w, 0);
+    // Row by row, branch-free (f32, four pixels at a time): dark
+    // (I < (1 − threshold)·g·B) and above the line minus the margin, whose
+    // row at each column is computed once.
+    scratch.limits.clear();
+    scratch.limits.extend((0..w).map(|j| match surface {
+        Some(s) => (s.row_at(j as f64) - params.surface_margin_px) as f32,
+        None => f32::INFINITY,
+    }));
+    let level = ((1.0 - params.threshold) * gain) as f32;
+    for i in 0..h {
+        let z = (band.row0 + i) as f32;
+        let row = &band.data[i * w..][..w];
+        let bg_row = &bg.levels[(band.row0 + i) * bg.width..][..w];
+        let labels = &mut scratch.labels[i * w..][..w];
+        let limits = &scratch.limits[..w];
+        for j in 0..w {
+            let dark = (row[j] as f32) < level * bg_row[j];
+            labels[j] = (dark & (z < limits[j])) as u32;
+        }
+    }
+}
+
+/// The 4-connected groups of the pixels marked 1 in `labels` (`h × w`),
+/// labelled 2, 3, …; the largest one's (label, size, first row, last row,
+/// first column, last column).
+fn largest_group(
+    labels: &mut [u32],
+    stack: &mut Vec<usize>,
+    (h, w): (usize, usize),
+) -> (u32, usize, usize, usize, usize, usize) {
+    // Label 4-connected groups; keep the largest.
+    // (label, size, first row, last row, first column, last column) of
+    // the largest group.
+    let mut best = (0u32, 0usize, 0usize, 0usize, 0usize, 0usize);
+    let mut next = 2u32;
+    let n = h * w;
+    let mut start = 0;
+    while start < n {
+        // Skip 16 pixels at a time where no new group starts (most of
+        // the frame), then one at a time.
+        if start + 16 <= n && !labels[start..start + 16].contains(&1) {
+            start += 16;
+            continue;
+        }
+        start += 1;
+        let start = start - 1;
+        if labels[start] != 1 {
+            continue;
+        }
+        let label = next;
+        next += 1;
+        let mut size = 0;
+        let (mut top, mut bottom) = (h, 0);
+        let (mut left, mut right) = (w, 0);
+        stack.clear();
+        stack.push(start);
+        labels[start] = label;
+        while let Some(k) = stack.pop() {
+            size += 1;
+            let (i, j) = (k / w, k % w);
+            top = top.min(i);
+            bottom = bottom.max(i);
+            left = left.min(j);
+            right = right.max(j);
+            let mut visit = |kk: usize| {
+                if labels[kk] == 1 {
+                    labels[kk] = label;
+                    stack.push(kk);
+                }
+            };
+            if i > 0 {
+                visit(k - w);
+            }
+            if i + 1 < h {
+                visit(k + w);
+            }
+            if j > 0 {
+                visit(k - 1);
+            }
+            if j + 1 < w {
+                visit(k + 1);
+            }
+        }
+        if size > best.1 {
+            best = (label, size, top, bottom, left, right);
+        }
+    }
+    best
 }
 
 /// The label [`mark_outside`] gives the pixels outside the sphere's group.

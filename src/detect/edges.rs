@@ -251,13 +251,7 @@ pub fn edge_points<'s>(
         };
         inside && above
     };
-    if scratch.table.len() != n {
-        scratch.table.clear();
-        scratch.table.extend((0..n).map(|k| {
-            let (s, c) = (std::f64::consts::TAU * k as f64 / n as f64).sin_cos();
-            (c, s)
-        }));
-    }
+    unit_normals(&mut scratch.table, n);
     let row0 = band.row0 as f64;
     let last_j = (m - 1) as f64;
     scratch.windows.clear();
@@ -267,16 +261,10 @@ pub fn edge_points<'s>(
         if !(visible(xa, za) && visible(xb, zb)) {
             continue;
         }
-        // A lit background at the ends (each sample is divided by its
-        // own); 1/g at the ends, linear in between.
-        let (Some(ba), Some(bb)) = (bg.bilinear(xa, za), bg.bilinear(xb, zb)) else {
+        let Some(w) = lit_window(bg, &frame_gain, [(xa, za), (xb, zb)], (c, s), row0, last_j)
+        else {
             continue;
         };
-        if !(ba > 0.0 && bb > 0.0) {
-            continue;
-        }
-        let (ia, ib) = (1.0 / frame_gain.at(xa).0, 1.0 / frame_gain.at(xb).0);
-        let w = Window::new(xa, za - row0, c, s, ia, (ib - ia) / last_j);
         // The window is a segment inside the (convex) visible region, so
         // every sample's four neighbours are inside the band; checked
         // here on the fixed-point positions as the samplers will step them.
@@ -288,19 +276,13 @@ pub fn edge_points<'s>(
     // inside it, with the same width).
     let bg_rows = &bg.levels[band.row0 * band.width..(band.row0 + band.nrows) * band.width];
     sample_windows(band, bg_rows, m, &scratch.windows, &mut scratch.samples);
-    for (w, sm) in scratch.windows.iter().zip(&scratch.samples) {
-        // Σ q_j t_j = Σ r_j (ia + j·di)(t0 + j)
-        //           = ia·t0·S0 + (ia + di·t0)·S1 + di·S2,  S_k = Σ j^k r_j:
-        // three independent sums of the samples, the weights applied once.
-        let (ia, di) = (w.ia, w.di);
-        scratch.normals.push(NormalSums {
-            c: w.c,
-            s: w.s,
-            qt: ia * t0 * sm.s0 + (ia + di * t0) * sm.s1 + di * sm.s2,
-            q_in: sm.first * ia,
-            q_out: sm.last * (ia + last_j * di),
-        });
-    }
+    normal_sums(
+        &scratch.windows,
+        &scratch.samples,
+        t0,
+        last_j,
+        &mut scratch.normals,
+    );
     if scratch.normals.is_empty() {
         return Ok(&scratch.points);
     }
@@ -314,19 +296,7 @@ pub fn edge_points<'s>(
         params,
         &mut scratch.levels,
     )
-    .unwrap_or_else(|| {
-        // Too little of the sphere's inside is visible: the windows'
-        // innermost samples stand for it.
-        scratch.levels.clear();
-        scratch
-            .levels
-            .extend(scratch.normals.iter().map(|n| n.q_in));
-        let mid = scratch.levels.len() / 2;
-        let tau = *scratch.levels.select_nth_unstable_by(mid, f64::total_cmp).1;
-        let spread: f64 = scratch.levels.iter().map(|q| (q - tau).abs()).sum::<f64>()
-            / scratch.levels.len() as f64;
-        (tau, 1.25 * spread / (scratch.levels.len() as f64).sqrt())
-    });
+    .unwrap_or_else(|| inner_samples_level(&mut scratch.levels, &scratch.normals));
     let contrast = 1.0 - tau;
     if !(contrast >= params.min_contrast && contrast > 0.0) {
         return Ok(&scratch.points);
@@ -336,10 +306,105 @@ pub fn edge_points<'s>(
     let rel_gain = sigma_gain / gain;
     scratch.radial_sigma_px =
         (w as f64 + 0.5) / contrast * (sigma_tau * sigma_tau + rel_gain * rel_gain).sqrt();
+    edge_points_on_normals(
+        &scratch.normals,
+        (cx, cz, r),
+        t0,
+        m,
+        contrast,
+        &mut scratch.points,
+    );
+    Ok(&scratch.points)
+}
+
+/// The window from `(xa, za)` to `(xb, zb)` along `(c, s)` (rows from
+/// `row0`) where the background is lit at both ends (each sample is divided
+/// by its own): 1/g at the ends, linear in between (`last_j` the last
+/// sample's index).
+fn lit_window(
+    bg: &Background,
+    frame_gain: &FrameGain,
+    [(xa, za), (xb, zb)]: [(f64, f64); 2],
+    (c, s): (f64, f64),
+    row0: f64,
+    last_j: f64,
+) -> Option<Window> {
+    let (Some(ba), Some(bb)) = (bg.bilinear(xa, za), bg.bilinear(xb, zb)) else {
+        return None;
+    };
+    if !(ba > 0.0 && bb > 0.0) {
+        return None;
+    }
+    let (ia, ib) = (1.0 / frame_gain.at(xa).0, 1.0 / frame_gain.at(xb).0);
+    Some(Window::new(xa, za - row0, c, s, ia, (ib - ia) / last_j))
+}
+
+/// The unit normals `(cos, sin)` of `n` directions evenly around the
+/// circle, in `table` (kept while `n` is unchanged).
+fn unit_normals(table: &mut Vec<(f64, f64)>, n: usize) {
+    if table.len() != n {
+        table.clear();
+        table.extend((0..n).map(|k| {
+            let (s, c) = (std::f64::consts::TAU * k as f64 / n as f64).sin_cos();
+            (c, s)
+        }));
+    }
+}
+
+/// Each window's normal sums from its samples' sums (`t0` the radius of
+/// its first sample, `last_j` its last sample's index).
+fn normal_sums(
+    windows: &[Window],
+    samples: &[Samples],
+    t0: f64,
+    last_j: f64,
+    normals: &mut Vec<NormalSums>,
+) {
+    for (w, sm) in windows.iter().zip(samples) {
+        // Σ q_j t_j = Σ r_j (ia + j·di)(t0 + j)
+        //           = ia·t0·S0 + (ia + di·t0)·S1 + di·S2,  S_k = Σ j^k r_j:
+        // three independent sums of the samples, the weights applied once.
+        let (ia, di) = (w.ia, w.di);
+        normals.push(NormalSums {
+            c: w.c,
+            s: w.s,
+            qt: ia * t0 * sm.s0 + (ia + di * t0) * sm.s1 + di * sm.s2,
+            q_in: sm.first * ia,
+            q_out: sm.last * (ia + last_j * di),
+        });
+    }
+}
+
+/// The transmission when too little of the sphere's inside is visible: the
+/// windows' innermost samples stand for it (their median, and its error
+/// from their mean deviation), through `levels`.
+fn inner_samples_level(levels: &mut Vec<f64>, normals: &[NormalSums]) -> (f64, f64) {
+    // Too little of the sphere's inside is visible: the windows'
+    // innermost samples stand for it.
+    levels.clear();
+    levels.extend(normals.iter().map(|n| n.q_in));
+    let mid = levels.len() / 2;
+    let tau = *levels.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let spread: f64 = levels.iter().map(|q| (q - tau).abs()).sum::<f64>() / levels.len() as f64;
+    (tau, 1.25 * spread / (levels.len() as f64).sqrt())
+}
+
+/// The edge point on each normal whose inside and outside ends lie on
+/// either side of half the contrast: at the radius `te` where the area
+/// method puts the step (`(cx, cz, r)` the predicted circle, `t0` the
+/// windows' first radius, `m` their samples).
+fn edge_points_on_normals(
+    normals: &[NormalSums],
+    (cx, cz, r): (f64, f64, f64),
+    t0: f64,
+    m: usize,
+    contrast: f64,
+    points: &mut Vec<EdgePoint>,
+) {
     let ta = t0 - 0.5;
     // Σ t_j over the window.
     let sum_t = m as f64 * r;
-    for nrm in &scratch.normals {
+    for nrm in normals {
         let p_in = (1.0 - nrm.q_in) / contrast;
         let p_out = (1.0 - nrm.q_out) / contrast;
         if !(p_in > 0.5 && p_out < 0.5) {
@@ -351,13 +416,12 @@ pub fn edge_points<'s>(
             continue;
         }
         let te = te2.sqrt();
-        scratch.points.push(EdgePoint {
+        points.push(EdgePoint {
             x_px: cx + te * nrm.c,
             z_px: cz + te * nrm.s,
             weight: 1.0,
         });
     }
-    Ok(&scratch.points)
 }
 
 /// Fewest interior pixels for [`transmission`] to be trusted.

@@ -272,6 +272,85 @@ impl CameraRaster {
         if centres.is_empty() {
             return None;
         }
+        let reach_of = self.sphere_reach(centres)?;
+        let SphereReach {
+            region,
+            k,
+            xm,
+            zm,
+            rim_w,
+            halo_w,
+            dip_on,
+            mirror_on,
+        } = reach_of;
+        let sc = &self.scene;
+        let lk = &self.look;
+        let o = &self.optics.truth;
+        let r = sc.radius_px;
+        let w = sc.width_px;
+        let cw = region.c1 - region.c0;
+        let mut layer = vec![0.0_f32; (region.r1 - region.r0) * cw];
+        let dark = 1.0 - lk.sphere_transmission;
+        let reach = r + halo_w.max(HALF_DIAGONAL) + 0.75;
+        let inner = (r - rim_w - HALF_DIAGONAL).max(0.0);
+        let two_sigma2 = 2.0 * o.highlight_sigma_px * o.highlight_sigma_px;
+        let two_glint2 = 2.0 * o.glint_sigma_px * o.glint_sigma_px;
+        let (hx, hz) = (xm + o.highlight_offset_px[0], zm + o.highlight_offset_px[1]);
+        let lit = Lit {
+            r,
+            k,
+            rim_w,
+            halo_w,
+            dark,
+            reach,
+            inner,
+            two_sigma2,
+            two_glint2,
+            highlight_at: (hx, hz),
+        };
+        let mirrored: Vec<(f64, f64)> = centres
+            .iter()
+            .map(|&(x, z)| (x, 2.0 * self.surface_at(x) - z))
+            .collect();
+        for i in region.r0..region.r1 {
+            for j in region.c0..region.c1 {
+                let (mx, mz) = self.map[i * w + j];
+                let b = f64::from(self.background[[i, j]]);
+                let (depth, dslope) = if dip_on {
+                    self.dip_at(mx, xm, zm)
+                } else {
+                    (0.0, 0.0)
+                };
+                let slope = sc.surface_slope + dslope;
+                let a = self.surface_at(mx) + depth - slope * mx;
+                let f_hide = below_line_fraction(mx - 0.5, mx + 0.5, mz, a, slope);
+                let mut delta = 0.0;
+                if depth > 0.0 {
+                    delta += b
+                        * (self.band(mx, mz, a, slope)
+                            - self.band(mx, mz, sc.surface_row_px, sc.surface_slope));
+                }
+                let vis = 1.0 - f_hide;
+                if vis > 0.0 {
+                    let light = self.sphere_light((mx, mz), centres, &lit);
+                    delta += b * vis * light;
+                }
+                if mirror_on && f_hide > 0.0 {
+                    if let Some(dark) =
+                        self.mirror_darkening((mx, mz), (a, slope), f_hide, b, &mirrored, &lit)
+                    {
+                        delta -= dark;
+                    }
+                }
+                layer[(i - region.r0) * cw + (j - region.c0)] = delta as f32;
+            }
+        }
+        Some((region, layer))
+    }
+
+    /// Where the sphere layer of `centres` (not empty) reaches: the region
+    /// of the recorded image, and what its pixels need.
+    fn sphere_reach(&self, centres: &[(f64, f64)]) -> Option<SphereReach> {
         let sc = &self.scene;
         let lk = &self.look;
         let o = &self.optics.truth;
@@ -340,130 +419,132 @@ impl CameraRaster {
             c0: c0 as usize,
             c1: c1 as usize,
         };
-        let cw = region.c1 - region.c0;
-        let mut layer = vec![0.0_f32; (region.r1 - region.r0) * cw];
-        let dark = 1.0 - lk.sphere_transmission;
-        let reach = r + halo_w.max(HALF_DIAGONAL) + 0.75;
-        let inner = (r - rim_w - HALF_DIAGONAL).max(0.0);
-        let two_sigma2 = 2.0 * o.highlight_sigma_px * o.highlight_sigma_px;
-        let two_glint2 = 2.0 * o.glint_sigma_px * o.glint_sigma_px;
-        let (hx, hz) = (xm + o.highlight_offset_px[0], zm + o.highlight_offset_px[1]);
-        let mirrored: Vec<(f64, f64)> = centres
-            .iter()
-            .map(|&(x, z)| (x, 2.0 * self.surface_at(x) - z))
-            .collect();
-        let coverage = |dx: f64, dz: f64, rho: f64| -> f64 {
-            if rho <= r - HALF_DIAGONAL {
-                1.0
-            } else if rho >= r + HALF_DIAGONAL {
-                0.0
-            } else {
-                disk_rect_area(dx - 0.5, dx + 0.5, dz - 0.5, dz + 0.5, r)
+        Some(SphereReach {
+            region,
+            k,
+            xm,
+            zm,
+            rim_w,
+            halo_w,
+            dip_on,
+            mirror_on,
+        })
+    }
+
+    /// The sphere's light at image point `(mx, mz)` over the exposure's
+    /// centres: its shadow (`−dark` times its coverage), rim, halo, glint
+    /// and highlight, averaged over the `k` centres.
+    fn sphere_light(&self, (mx, mz): (f64, f64), centres: &[(f64, f64)], lit: &Lit) -> f64 {
+        let o = &self.optics.truth;
+        let Lit {
+            r,
+            k,
+            rim_w,
+            halo_w,
+            dark,
+            reach,
+            inner,
+            two_sigma2,
+            two_glint2,
+            highlight_at: (hx, hz),
+        } = *lit;
+        let coverage = |dx: f64, dz: f64, rho: f64| disk_coverage(dx, dz, rho, r);
+        let (mut c_sum, mut s_sum) = (0.0, 0.0);
+        for &(cx, cz) in centres {
+            let (dx, dz) = (mx - cx, mz - cz);
+            let d2 = dx * dx + dz * dz;
+            if d2 >= reach * reach {
+                continue;
             }
-        };
-        for i in region.r0..region.r1 {
-            for j in region.c0..region.c1 {
-                let (mx, mz) = self.map[i * w + j];
-                let b = f64::from(self.background[[i, j]]);
-                let (depth, dslope) = if dip_on {
-                    self.dip_at(mx, xm, zm)
+            if o.glint > 0.0 {
+                let (gx, gz) = (dx - o.glint_offset_px[0], dz - o.glint_offset_px[1]);
+                let g = o.glint * (-(gx * gx + gz * gz) / two_glint2).exp();
+                s_sum += if d2 <= inner * inner {
+                    g
                 } else {
-                    (0.0, 0.0)
+                    g * coverage(dx, dz, d2.sqrt())
                 };
-                let slope = sc.surface_slope + dslope;
-                let a = self.surface_at(mx) + depth - slope * mx;
-                let f_hide = below_line_fraction(mx - 0.5, mx + 0.5, mz, a, slope);
-                let mut delta = 0.0;
-                if depth > 0.0 {
-                    delta += b
-                        * (self.band(mx, mz, a, slope)
-                            - self.band(mx, mz, sc.surface_row_px, sc.surface_slope));
-                }
-                let vis = 1.0 - f_hide;
-                if vis > 0.0 {
-                    let (mut c_sum, mut s_sum) = (0.0, 0.0);
-                    for &(cx, cz) in centres {
-                        let (dx, dz) = (mx - cx, mz - cz);
-                        let d2 = dx * dx + dz * dz;
-                        if d2 >= reach * reach {
-                            continue;
-                        }
-                        if o.glint > 0.0 {
-                            let (gx, gz) = (dx - o.glint_offset_px[0], dz - o.glint_offset_px[1]);
-                            let g = o.glint * (-(gx * gx + gz * gz) / two_glint2).exp();
-                            s_sum += if d2 <= inner * inner {
-                                g
-                            } else {
-                                g * coverage(dx, dz, d2.sqrt())
-                            };
-                        }
-                        if d2 <= inner * inner {
-                            c_sum += 1.0;
-                            continue;
-                        }
-                        let rho = d2.sqrt();
-                        let c = coverage(dx, dz, rho);
-                        c_sum += c;
-                        if o.rim > 0.0 {
-                            s_sum += o.rim * fade((r - rho).max(0.0), rim_w) * c;
-                        }
-                        if o.halo > 0.0 {
-                            s_sum += o.halo * fade((rho - r).max(0.0), halo_w) * (1.0 - c);
-                        }
-                    }
-                    let c = c_sum / k;
-                    let mut light = -dark * c + s_sum / k;
-                    if o.highlight > 0.0 && c > 0.0 {
-                        let d2 = (mx - hx).powi(2) + (mz - hz).powi(2);
-                        light += o.highlight * (-d2 / two_sigma2).exp() * c;
-                    }
-                    delta += b * vis * light;
-                }
-                if mirror_on && f_hide > 0.0 {
-                    let below = |depth_px: f64| {
-                        f_hide - below_line_fraction(mx - 0.5, mx + 0.5, mz, a + depth_px, slope)
-                    };
-                    let gloss_strip = if o.gloss != 0.0 {
-                        below(o.gloss_width_px)
-                    } else {
-                        0.0
-                    };
-                    let refl_strip = if lk.reflection > 0.0 {
-                        below(lk.reflection_depth_px)
-                    } else {
-                        0.0
-                    };
-                    if gloss_strip > 0.0 || refl_strip > 0.0 {
-                        let mut cm = 0.0;
-                        for &(cx, cz) in &mirrored {
-                            let (dx, dz) = (mx - cx, mz - cz);
-                            let d2 = dx * dx + dz * dz;
-                            if d2 < (r + HALF_DIAGONAL).powi(2) {
-                                cm += coverage(dx, dz, d2.sqrt());
-                            }
-                        }
-                        cm /= k;
-                        if cm > 0.0 {
-                            let grey = {
-                                let p = pillar_fraction(
-                                    mx - 0.5,
-                                    mx + 0.5,
-                                    sc.pillar_phase_px,
-                                    sc.pillar_width_px,
-                                    sc.pillar_width_px + sc.channel_width_px,
-                                );
-                                p * lk.pillar_grey + (1.0 - p) * lk.channel_grey
-                            };
-                            delta -= b
-                                * cm
-                                * (o.gloss * gloss_strip + lk.reflection * grey * refl_strip);
-                        }
-                    }
-                }
-                layer[(i - region.r0) * cw + (j - region.c0)] = delta as f32;
+            }
+            if d2 <= inner * inner {
+                c_sum += 1.0;
+                continue;
+            }
+            let rho = d2.sqrt();
+            let c = coverage(dx, dz, rho);
+            c_sum += c;
+            if o.rim > 0.0 {
+                s_sum += o.rim * fade((r - rho).max(0.0), rim_w) * c;
+            }
+            if o.halo > 0.0 {
+                s_sum += o.halo * fade((rho - r).max(0.0), halo_w) * (1.0 - c);
             }
         }
-        Some((region, layer))
+        let c = c_sum / k;
+        let mut light = -dark * c + s_sum / k;
+        if o.highlight > 0.0 && c > 0.0 {
+            let d2 = (mx - hx).powi(2) + (mz - hz).powi(2);
+            light += o.highlight * (-d2 / two_sigma2).exp() * c;
+        }
+        light
+    }
+
+    /// What the sphere's mirror image (`mirrored` centres) in the glossy
+    /// strip and the reflection takes from image point `(mx, mz)` of
+    /// background `b`, under the line `(a, slope)` that hides `f_hide` of
+    /// it; `None` where it takes nothing.
+    #[allow(clippy::too_many_arguments)]
+    fn mirror_darkening(
+        &self,
+        (mx, mz): (f64, f64),
+        (a, slope): (f64, f64),
+        f_hide: f64,
+        b: f64,
+        mirrored: &[(f64, f64)],
+        lit: &Lit,
+    ) -> Option<f64> {
+        let sc = &self.scene;
+        let lk = &self.look;
+        let o = &self.optics.truth;
+        let (r, k) = (lit.r, lit.k);
+        let coverage = |dx: f64, dz: f64, rho: f64| disk_coverage(dx, dz, rho, r);
+        let below = |depth_px: f64| {
+            f_hide - below_line_fraction(mx - 0.5, mx + 0.5, mz, a + depth_px, slope)
+        };
+        let gloss_strip = if o.gloss != 0.0 {
+            below(o.gloss_width_px)
+        } else {
+            0.0
+        };
+        let refl_strip = if lk.reflection > 0.0 {
+            below(lk.reflection_depth_px)
+        } else {
+            0.0
+        };
+        if gloss_strip > 0.0 || refl_strip > 0.0 {
+            let mut cm = 0.0;
+            for &(cx, cz) in mirrored {
+                let (dx, dz) = (mx - cx, mz - cz);
+                let d2 = dx * dx + dz * dz;
+                if d2 < (r + HALF_DIAGONAL).powi(2) {
+                    cm += coverage(dx, dz, d2.sqrt());
+                }
+            }
+            cm /= k;
+            if cm > 0.0 {
+                let grey = {
+                    let p = pillar_fraction(
+                        mx - 0.5,
+                        mx + 0.5,
+                        sc.pillar_phase_px,
+                        sc.pillar_width_px,
+                        sc.pillar_width_px + sc.channel_width_px,
+                    );
+                    p * lk.pillar_grey + (1.0 - p) * lk.channel_grey
+                };
+                return Some(b * cm * (o.gloss * gloss_strip + lk.reflection * grey * refl_strip));
+            }
+        }
+        None
     }
 
     /// Gaussian blur with the σ of each output row (separable: rows with
@@ -514,6 +595,51 @@ impl CameraRaster {
             }
         }
         (out, res)
+    }
+}
+
+/// Where a frame's sphere layer reaches ([`CameraRaster::sphere_layer`]).
+struct SphereReach {
+    region: Region,
+    /// The number of centres over the exposure, and their mean.
+    k: f64,
+    xm: f64,
+    zm: f64,
+    /// The rim's and the halo's widths (px), 0 without them.
+    rim_w: f64,
+    halo_w: f64,
+    /// The sphere presses the surface down (the dip) / a mirror image shows.
+    dip_on: bool,
+    mirror_on: bool,
+}
+
+/// What the sphere's light at a pixel needs, the same for every pixel of a
+/// frame.
+#[derive(Clone, Copy)]
+struct Lit {
+    r: f64,
+    k: f64,
+    rim_w: f64,
+    halo_w: f64,
+    dark: f64,
+    /// Beyond this distance (px) a centre adds nothing; within `inner` the
+    /// pixel is wholly covered.
+    reach: f64,
+    inner: f64,
+    two_sigma2: f64,
+    two_glint2: f64,
+    highlight_at: (f64, f64),
+}
+
+/// The part of the unit pixel at `(dx, dz)` from a disk's centre (at
+/// distance `rho`) that the disk of radius `r` covers.
+fn disk_coverage(dx: f64, dz: f64, rho: f64, r: f64) -> f64 {
+    if rho <= r - HALF_DIAGONAL {
+        1.0
+    } else if rho >= r + HALF_DIAGONAL {
+        0.0
+    } else {
+        disk_rect_area(dx - 0.5, dx + 0.5, dz - 0.5, dz + 0.5, r)
     }
 }
 

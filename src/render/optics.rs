@@ -367,21 +367,14 @@ pub fn draw(
     };
     let column_rms = spec.column_noise.realise(u());
     let hot_count = (spec.hot_pixels.realise(u()).floor() as usize).min(width_px * height_px);
-    let mut cols = rng_for(seed, setup, "columns", 0);
-    let column_gain: Vec<f64> = (0..width_px)
-        .map(|_| 1.0 + column_rms * cols.sample::<f64, _>(StandardNormal))
-        .collect();
-    let column_offset: Vec<f64> = (0..width_px)
-        .map(|_| column_rms * background_level * cols.sample::<f64, _>(StandardNormal))
-        .collect();
-    let mut hot = rng_for(seed, setup, "hot", 0);
-    let mut hot_pixels: Vec<[usize; 2]> = Vec::with_capacity(hot_count);
-    while hot_pixels.len() < hot_count {
-        let p = [hot.gen_range(0..height_px), hot.gen_range(0..width_px)];
-        if !hot_pixels.contains(&p) {
-            hot_pixels.push(p);
-        }
-    }
+    let (column_gain, column_offset, hot_pixels) = sensor_pattern(
+        seed,
+        setup,
+        [height_px, width_px],
+        column_rms,
+        background_level,
+        hot_count,
+    );
     let hot_pixel_dn = (0.92 * f64::from(white_dn)).round() as u16;
 
     let mut d = rng_for(seed, run, "optics", 0);
@@ -403,17 +396,7 @@ pub fn draw(
     let drift_phase_left = std::f64::consts::TAU * v();
     let drift_phase_right = std::f64::consts::TAU * v();
     let drift_cycles = 0.5 + v();
-    // The saturated backlight and the glint from their own stream, so that
-    // the draws above are those of a camera without them.
-    let mut gl = rng_for(seed, run, "glare", 0);
-    let mut w = || -> f64 { gl.gen_range(0.0..1.0) };
-    let saturation = spec.saturation.realise(w());
-    let glint = spec.glint.realise(w());
-    let glint_sigma_px = spec.glint_sigma.realise(w()) * radius_px;
-    let glint_offset_px = [
-        0.05 * (2.0 * w() - 1.0) * radius_px,
-        0.05 * (2.0 * w() - 1.0) * radius_px,
-    ];
+    let (saturation, glint, glint_sigma_px, glint_offset_px) = glare(spec, seed, run, radius_px);
     let sigma_at = |row: f64| sigma0 + gradient * (row - focus_row).abs();
     let truth = CameraTruth {
         setup: setup.to_string(),
@@ -463,6 +446,52 @@ pub fn draw(
         column_gain,
         column_offset,
     }
+}
+
+/// The saturated backlight and the glint of run `run`, from their own
+/// stream, so that the other draws are those of a camera without them:
+/// `(saturation, glint, glint_sigma_px, glint_offset_px)`.
+fn glare(spec: &OpticsSpec, seed: u64, run: &str, radius_px: f64) -> (f64, f64, f64, [f64; 2]) {
+    let mut gl = rng_for(seed, run, "glare", 0);
+    let mut w = || -> f64 { gl.gen_range(0.0..1.0) };
+    let saturation = spec.saturation.realise(w());
+    let glint = spec.glint.realise(w());
+    let glint_sigma_px = spec.glint_sigma.realise(w()) * radius_px;
+    let glint_offset_px = [
+        0.05 * (2.0 * w() - 1.0) * radius_px,
+        0.05 * (2.0 * w() - 1.0) * radius_px,
+    ];
+    (saturation, glint, glint_sigma_px, glint_offset_px)
+}
+
+/// A set-up's sensor pattern, each from its own stream of `(seed, setup)`:
+/// each column's gain and offset (rms `column_rms`, the offset's in units
+/// of `background_level`) and `hot_count` distinct hot pixels `[row, column]`
+/// in a frame of `[height_px, width_px]`.
+fn sensor_pattern(
+    seed: u64,
+    setup: &str,
+    [height_px, width_px]: [usize; 2],
+    column_rms: f64,
+    background_level: f64,
+    hot_count: usize,
+) -> (Vec<f64>, Vec<f64>, Vec<[usize; 2]>) {
+    let mut cols = rng_for(seed, setup, "columns", 0);
+    let column_gain: Vec<f64> = (0..width_px)
+        .map(|_| 1.0 + column_rms * cols.sample::<f64, _>(StandardNormal))
+        .collect();
+    let column_offset: Vec<f64> = (0..width_px)
+        .map(|_| column_rms * background_level * cols.sample::<f64, _>(StandardNormal))
+        .collect();
+    let mut hot = rng_for(seed, setup, "hot", 0);
+    let mut hot_pixels: Vec<[usize; 2]> = Vec::with_capacity(hot_count);
+    while hot_pixels.len() < hot_count {
+        let p = [hot.gen_range(0..height_px), hot.gen_range(0..width_px)];
+        if !hot_pixels.contains(&p) {
+            hot_pixels.push(p);
+        }
+    }
+    (column_gain, column_offset, hot_pixels)
 }
 
 impl Optics {

@@ -415,54 +415,7 @@ pub(super) fn positive(name: &'static str, v: f64) -> Result<f64, RenderError> {
 impl RenderArgs {
     /// Check the options and build the settings (errors name the option).
     pub fn settings(&self) -> Result<RenderSettings, RenderError> {
-        let mut look = self.preset.look();
-        if let Some(b) = self.bit_depth {
-            if !matches!(b, 8 | 12) {
-                return Err(invalid("bit-depth", b, "must be 8 or 12"));
-            }
-            look.bit_depth = b;
-        }
-        let set = |target: &mut f64, v: Option<f64>, name: &'static str, max: f64| {
-            if let Some(v) = v {
-                if !(v.is_finite() && (0.0..=max).contains(&v)) {
-                    return Err(invalid(name, v, &format!("must lie in [0, {max}]")));
-                }
-                *target = v;
-            }
-            Ok(())
-        };
-        set(&mut look.gradient, self.gradient, "gradient", 1.0)?;
-        set(&mut look.blur_sigma_px, self.blur_px, "blur-px", 20.0)?;
-        set(
-            &mut look.read_noise_dn,
-            self.read_noise_dn,
-            "read-noise-dn",
-            1e4,
-        )?;
-        set(&mut look.full_well_e, self.full_well_e, "full-well-e", 1e9)?;
-        set(&mut look.flicker, self.flicker, "flicker", 0.5)?;
-        set(&mut look.reflection, self.reflection, "reflection", 1.0)?;
-        set(
-            &mut look.background_level,
-            self.background_level,
-            "background-level",
-            1.0,
-        )?;
-        set(
-            &mut look.sphere_transmission,
-            self.sphere_transmission,
-            "sphere-transmission",
-            1.0,
-        )?;
-        if let Some(m) = self.motion_blur {
-            look.motion_blur = m;
-        }
-        if let Some(d) = self.dust {
-            if d > 1000 {
-                return Err(invalid("dust", d, "must be ≤ 1000"));
-            }
-            look.dust_count = d;
-        }
+        let look = self.look()?;
         let fps = positive("fps", self.fps)?;
         let exposure_s = positive("exposure-us", self.exposure_us)? / 1e6;
         if exposure_s > 1.0 / fps {
@@ -513,33 +466,7 @@ impl RenderArgs {
             return Err(invalid("repeats", self.repeats, "must lie in 1‥1000"));
         }
         let optics = self.optics(&look)?;
-        if self.format == FrameFormat::Jpeg && look.bit_depth != 8 {
-            return Err(invalid(
-                "format",
-                "jpeg",
-                "JPEG frames hold 8 bits: add --bit-depth 8",
-            ));
-        }
-        if self.packing != CinePackingChoice::Unpacked {
-            let name = match self.packing {
-                CinePackingChoice::P10 => "p10",
-                _ => "p12l",
-            };
-            if self.format != FrameFormat::Cine {
-                return Err(invalid(
-                    "packing",
-                    name,
-                    "packs the samples of a .cine: add --format cine",
-                ));
-            }
-            if look.bit_depth != 12 {
-                return Err(invalid(
-                    "packing",
-                    name,
-                    "packs 12-bit frames: add --bit-depth 12",
-                ));
-            }
-        }
+        self.check_format(&look)?;
         let jpeg_quality = match (self.jpeg_quality, self.preset) {
             (Some(q), _) if !(1..=100).contains(&q) => {
                 return Err(invalid("jpeg-quality", q, "must lie in 1‥100"))
@@ -571,6 +498,91 @@ impl RenderArgs {
             contact,
             gravity_m_s2: self.gravity_m_s2,
         })
+    }
+
+    /// The preset's look with the look options applied, each checked.
+    fn look(&self) -> Result<Look, RenderError> {
+        let mut look = self.preset.look();
+        if let Some(b) = self.bit_depth {
+            if !matches!(b, 8 | 12) {
+                return Err(invalid("bit-depth", b, "must be 8 or 12"));
+            }
+            look.bit_depth = b;
+        }
+        let set = |target: &mut f64, v: Option<f64>, name: &'static str, max: f64| {
+            if let Some(v) = v {
+                if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                    return Err(invalid(name, v, &format!("must lie in [0, {max}]")));
+                }
+                *target = v;
+            }
+            Ok(())
+        };
+        set(&mut look.gradient, self.gradient, "gradient", 1.0)?;
+        set(&mut look.blur_sigma_px, self.blur_px, "blur-px", 20.0)?;
+        set(
+            &mut look.read_noise_dn,
+            self.read_noise_dn,
+            "read-noise-dn",
+            1e4,
+        )?;
+        set(&mut look.full_well_e, self.full_well_e, "full-well-e", 1e9)?;
+        set(&mut look.flicker, self.flicker, "flicker", 0.5)?;
+        set(&mut look.reflection, self.reflection, "reflection", 1.0)?;
+        set(
+            &mut look.background_level,
+            self.background_level,
+            "background-level",
+            1.0,
+        )?;
+        set(
+            &mut look.sphere_transmission,
+            self.sphere_transmission,
+            "sphere-transmission",
+            1.0,
+        )?;
+        if let Some(m) = self.motion_blur {
+            look.motion_blur = m;
+        }
+        if let Some(d) = self.dust {
+            if d > 1000 {
+                return Err(invalid("dust", d, "must be ≤ 1000"));
+            }
+            look.dust_count = d;
+        }
+        Ok(look)
+    }
+
+    /// The frame format against the bit depth, and the packing against both.
+    fn check_format(&self, look: &Look) -> Result<(), RenderError> {
+        if self.format == FrameFormat::Jpeg && look.bit_depth != 8 {
+            return Err(invalid(
+                "format",
+                "jpeg",
+                "JPEG frames hold 8 bits: add --bit-depth 8",
+            ));
+        }
+        if self.packing != CinePackingChoice::Unpacked {
+            let name = match self.packing {
+                CinePackingChoice::P10 => "p10",
+                _ => "p12l",
+            };
+            if self.format != FrameFormat::Cine {
+                return Err(invalid(
+                    "packing",
+                    name,
+                    "packs the samples of a .cine: add --format cine",
+                ));
+            }
+            if look.bit_depth != 12 {
+                return Err(invalid(
+                    "packing",
+                    name,
+                    "packs 12-bit frames: add --bit-depth 12",
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The contact options, checked against each other.

@@ -421,6 +421,34 @@ fn shutter_s(text: &str) -> Option<f64> {
     (v.is_finite() && v > 0.0).then_some(v)
 }
 
+/// The exposure (s): the header's shutter in ns, else its shutter (the XML
+/// writes the denominator: 50000 for 1/50000 s), else none; an error when
+/// it is not an exposure.
+fn exposure_of(form: CihForm, found: &Found) -> Result<Option<f64>, String> {
+    Ok(match number::<f64>(found, SHUTTER_NS)? {
+        Some(ns) if ns > 0.0 => Some(ns * 1e-9),
+        _ => match found.get(SHUTTER) {
+            None => None,
+            Some(s) => {
+                // The XML writes the denominator (50000 for 1/50000 s).
+                let v = match (form, s.contains('/')) {
+                    (CihForm::Xml, false) => s.trim().parse::<f64>().ok().map(|d| 1.0 / d),
+                    _ => shutter_s(s),
+                };
+                match v {
+                    Some(v) if v.is_finite() && v > 0.0 => Some(v),
+                    _ => {
+                        return Err(format!(
+                            "the header's {} {s:?} is not an exposure",
+                            found.name(SHUTTER)
+                        ))
+                    }
+                }
+            }
+        },
+    })
+}
+
 fn from_fields(form: CihForm, found: &Found) -> Result<Cih, String> {
     if let Some(ff) = found.get(FILE_FORMAT) {
         if !ff.eq_ignore_ascii_case("mraw") {
@@ -497,28 +525,7 @@ fn from_fields(form: CihForm, found: &Found) -> Result<Cih, String> {
         ));
     }
     let record_rate_fps: f64 = required(found, RECORD_RATE)?;
-    let exposure_s = match number::<f64>(found, SHUTTER_NS)? {
-        Some(ns) if ns > 0.0 => Some(ns * 1e-9),
-        _ => match found.get(SHUTTER) {
-            None => None,
-            Some(s) => {
-                // The XML writes the denominator (50000 for 1/50000 s).
-                let v = match (form, s.contains('/')) {
-                    (CihForm::Xml, false) => s.trim().parse::<f64>().ok().map(|d| 1.0 / d),
-                    _ => shutter_s(s),
-                };
-                match v {
-                    Some(v) if v.is_finite() && v > 0.0 => Some(v),
-                    _ => {
-                        return Err(format!(
-                            "the header's {} {s:?} is not an exposure",
-                            found.name(SHUTTER)
-                        ))
-                    }
-                }
-            }
-        },
-    };
+    let exposure_s = exposure_of(form, found)?;
     let flag = |f: Field| {
         found
             .get(f)

@@ -65,7 +65,7 @@ fn write(
     bytes: &[u8],
     files: &mut Vec<PathBuf>,
 ) -> Result<(), CollapseError> {
-    per_drop::write_as(ledger, rel, bytes, files, crate::io_util::Durable::Now)
+    per_drop::write_as(ledger, rel, bytes, files, crate::util::io::Durable::Now)
 }
 
 /// The tables [`run`] writes into the output folder: `collapse.csv`, `fits.json`.
@@ -169,7 +169,7 @@ pub fn run(
     if n_rejected > 0 {
         warnings.push(format!(
             "{} rejected in review left out (listed under `skipped`)",
-            crate::plural(n_rejected, "drop")
+            crate::util::text::plural(n_rejected, "drop")
         ));
     }
     warnings.extend(fits.warnings.iter().cloned());

@@ -440,7 +440,7 @@ impl PipelineConfig {
             path: path.to_path_buf(),
             source,
         };
-        let bytes = crate::io_util::read_input(path, 16 << 20).map_err(io)?;
+        let bytes = crate::util::io::read_input(path, 16 << 20).map_err(io)?;
         let text = String::from_utf8(bytes).map_err(|e| {
             io(std::io::Error::new(
                 std::io::ErrorKind::InvalidData,
@@ -531,18 +531,23 @@ impl Checker<'_> {
         }
     }
 
-    /// A number within its physical range ([`crate::ranges`]).
-    fn ranged(&self, key: &str, range: crate::ranges::Range, v: f64) -> Result<f64, ConfigError> {
+    /// A number within its physical range ([`crate::util::ranges`]).
+    fn ranged(
+        &self,
+        key: &str,
+        range: crate::util::ranges::Range,
+        v: f64,
+    ) -> Result<f64, ConfigError> {
         let v = self.positive(key, v)?;
         range
             .check(v)
-            .map_err(|allowed| self.invalid(key, crate::ranges::show(v), &allowed))
+            .map_err(|allowed| self.invalid(key, crate::util::ranges::show(v), &allowed))
     }
 
     fn ranged_opt(
         &self,
         key: &str,
-        range: crate::ranges::Range,
+        range: crate::util::ranges::Range,
         v: Option<f64>,
     ) -> Result<Option<f64>, ConfigError> {
         v.map(|v| self.ranged(key, range, v)).transpose()
@@ -554,11 +559,11 @@ impl Checker<'_> {
         let text = p.to_string_lossy();
         if text
             .chars()
-            .any(|c| c.is_control() || crate::text::is_format(c))
+            .any(|c| c.is_control() || crate::util::text::is_format(c))
         {
             return Err(self.invalid(
                 key,
-                format!("{:?}", crate::text::one_line(&text)),
+                format!("{:?}", crate::util::text::one_line(&text)),
                 "must be a path without control or invisible format characters",
             ));
         }
@@ -575,7 +580,7 @@ impl RawConfig {
         let mut surfaces = BTreeMap::new();
         for (name, s) in self.surface {
             let key = |k: &str| format!("surface.{name}.{k}");
-            use crate::ranges::{MODULUS_PA, PILLAR_MM};
+            use crate::util::ranges::{MODULUS_PA, PILLAR_MM};
             let modulus_pa = c.ranged(&key("modulus_pa"), MODULUS_PA, s.modulus_pa)?;
             let h = c.ranged(&key("pillar_height_mm"), PILLAR_MM, s.pillar_height_mm)?;
             let b = c.ranged(&key("pillar_width_mm"), PILLAR_MM, s.pillar_width_mm)?;
@@ -618,7 +623,7 @@ impl RawConfig {
             }
         };
 
-        use crate::ranges::{DENSITY_KG_M3, FPS, MM_PER_PX, SPHERE_RADIUS_MM};
+        use crate::util::ranges::{DENSITY_KG_M3, FPS, MM_PER_PX, SPHERE_RADIUS_MM};
         let density = c.ranged(
             "sphere.density_kg_m3",
             DENSITY_KG_M3,

@@ -58,8 +58,8 @@ impl Removed {
             format!(
                 "removed {} that the previous job in this folder wrote (its provenance.json \
                  lists them) and this one did not; {} of that job no longer in this one",
-                crate::plural(self.files, "file"),
-                crate::plural(self.runs, "run")
+                crate::util::text::plural(self.files, "file"),
+                crate::util::text::plural(self.runs, "run")
             )
         })
     }
@@ -230,7 +230,7 @@ mod tests {
             ("report.html", b"<p>old page</p>".to_vec()),
         ] {
             ledger
-                .write_as(rel, &bytes, crate::io_util::Durable::Now)
+                .write_as(rel, &bytes, crate::util::io::Durable::Now)
                 .unwrap();
         }
         ledger.save().unwrap();

@@ -4,8 +4,8 @@
 //!
 //! | module | stage |
 //! | --- | --- |
+//! | [`util`] | the leaves: atomic writes and paths inside the output folder, spilled per-frame records, least squares, `--timings`, text sanitising and printing, the physical ranges of numbers |
 //! | [`config`] | `pipeline.toml` → validated [`config::PipelineConfig`] in SI units |
-//! | [`ranges`] | the physical range of every number where it enters |
 //! | [`cli_values`] | command-line flag values checked as they are parsed (`--fps`, `--radius-mm`, …) |
 //! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
@@ -13,7 +13,6 @@
 //! | [`stage_settings`] | the stages' own settings from the configuration: how a recording is opened, detected and tracked |
 //! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
-//! | [`records`] | a run's per-frame records, in a temporary file past a budget |
 //! | [`events`] | contact onset, peak and loss of contact from the track |
 //! | [`kinematics`] | v, δ, a, τc, e with jointly propagated errors |
 //! | [`scale`] | mm/px: given, from free fall (pooled per camera set-up), or from the radius |
@@ -43,8 +42,6 @@
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | the drawing kit: SVG + PNG bytes from plain data, embedded font |
 //! | [`run_name`] | run names that are file names, never paths |
-//! | [`lsq`], [`io_util`] | weighted least squares; atomic writes, paths kept inside the output folder |
-//! | [`text`], [`console`] | one sanitiser for text bound for a terminal or a CSV cell; printing that never panics |
 //! | [`out_folder`] | every write, read-back and removal inside the output folder: no link followed, only dropscope's own files removed |
 //!
 //! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
@@ -61,7 +58,6 @@ pub mod collapse;
 pub mod collapse_job;
 pub mod config;
 pub mod config_toml;
-pub mod console;
 pub mod dataset;
 pub mod dataset_id;
 pub mod detect;
@@ -70,12 +66,10 @@ pub mod figures;
 pub mod flight;
 pub mod force;
 pub mod inspect;
-pub mod io_util;
 pub mod kinematics;
 pub mod leftovers;
 pub mod lens;
 pub mod lock;
-pub mod lsq;
 pub mod manifest;
 pub mod measure;
 pub mod out_folder;
@@ -86,8 +80,6 @@ pub mod process;
 pub mod process_job;
 pub mod progress;
 pub mod quality;
-pub mod ranges;
-pub mod records;
 pub mod render;
 pub mod report;
 pub mod review;
@@ -101,15 +93,5 @@ pub mod source;
 pub mod stage_settings;
 #[cfg(test)]
 mod test_support;
-pub mod text;
-pub mod timings;
 pub mod track;
-
-/// "1 drop", "3 drops": a count with its noun for messages.
-pub fn plural(n: usize, noun: &str) -> String {
-    if n == 1 {
-        format!("1 {noun}")
-    } else {
-        format!("{n} {noun}s")
-    }
-}
+pub mod util;

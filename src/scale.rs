@@ -27,7 +27,7 @@
 //! silhouette's own size), so the fitted centre stays unbiased.
 
 use crate::events::TrackPoint;
-use crate::lsq::{weighted_lsq_built, RowQr};
+use crate::util::lsq::{weighted_lsq_built, RowQr};
 use nalgebra::DMatrix;
 
 /// One-sigma systematic error of the apparent radius as the sphere's true

@@ -62,12 +62,12 @@ pub fn collapse_csv(outcomes: &[DropOutcome], dataset_id: &str) -> Vec<u8> {
             Ok(_) => "",
             Err(reason) => reason.0.as_str(),
         };
-        // Text cells: nothing a spreadsheet runs ([`crate::text::csv_cell`]).
+        // Text cells: nothing a spreadsheet runs ([`crate::util::text::csv_cell`]).
         let (run, surface) = (
-            crate::text::csv_cell(&o.run),
-            crate::text::csv_cell(&o.surface),
+            crate::util::text::csv_cell(&o.run),
+            crate::util::text::csv_cell(&o.surface),
         );
-        let note = crate::text::csv_cell(note);
+        let note = crate::util::text::csv_cell(note);
         let row = Row {
             row: o.row,
             run: &run,

@@ -6,11 +6,11 @@ use super::types::{ProcessError, RunOutcome, TRACK_CSV_IN_MEMORY_MAX};
 use crate::cache::OutputFile;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
-use crate::io_util::{Durable, Spool};
 use crate::manifest::RunSpec;
 use crate::quality;
 use crate::setup_infer::SceneSignature;
 use crate::track::{FrameTrack, Track, TrackSettings};
+use crate::util::io::{Durable, Spool};
 use std::io::Write;
 use std::path::Path;
 
@@ -153,7 +153,7 @@ pub(super) fn write_file_as(
 /// them. Until then an operating-system crash may leave a run's file short;
 /// the cache finds it by its SHA-256 and processes the run again.
 pub fn sync_outputs(out: &Path) -> Result<(), ProcessError> {
-    crate::io_util::sync_file_system(out).map_err(|source| ProcessError::Write {
+    crate::util::io::sync_file_system(out).map_err(|source| ProcessError::Write {
         path: out.to_path_buf(),
         source,
     })

@@ -69,7 +69,9 @@ impl KeptRun {
             Err(e) => return Some(KeptRun(Err(e))),
         };
         let shelf = shelf?;
-        let track = crate::timings::time(crate::timings::Stage::Shelf, || shelf.put(t.tr)).ok()?;
+        let track =
+            crate::util::timings::time(crate::util::timings::Stage::Shelf, || shelf.put(t.tr))
+                .ok()?;
         Some(KeptRun(Ok(ShelvedRun {
             shelf: Arc::clone(shelf),
             meta: t.meta,
@@ -92,8 +94,10 @@ impl KeptRun {
             Ok(s) => s,
             Err(e) => return Some(Err(e)),
         };
-        let tr =
-            crate::timings::time(crate::timings::Stage::Shelf, || s.shelf.take(s.track)).ok()?;
+        let tr = crate::util::timings::time(crate::util::timings::Stage::Shelf, || {
+            s.shelf.take(s.track)
+        })
+        .ok()?;
         Some(caught(run, || {
             // The same recording, opened again: its frame rate is the one
             // it was tracked at.

@@ -10,10 +10,10 @@ use super::tracked::{open_run, track_run, Tracked};
 use super::types::{ProcessError, RunOutcome};
 use crate::config::PipelineConfig;
 use crate::dataset::DropRecord;
-use crate::io_util::Spool;
 use crate::manifest::RunSpec;
 use crate::quality;
 use crate::scale::Curvature;
+use crate::util::io::Spool;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -100,7 +100,7 @@ pub fn process_setup(
                 Err(f) => f.recording.clone(),
             };
             let mut o = caught(run, || {
-                let _timed = crate::timings::start(crate::timings::Stage::Events);
+                let _timed = crate::util::timings::start(crate::util::timings::Stage::Events);
                 measure_run(
                     t.map_err(|f| f.reason)?,
                     run,

@@ -77,7 +77,9 @@ pub(super) fn open_run(
     use crate::config::FpsSource;
     let open_with = |fps_fallback: Option<f64>| {
         let options = open_options(cfg, run.number_digits, fps_fallback);
-        crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
+        crate::util::timings::time(crate::util::timings::Stage::Open, || {
+            open(&run.path, &options)
+        })
     };
     let has_fps = |m: &crate::source::SourceMeta| m.fps.is_finite() && m.fps > 0.0;
     match open_with(None) {
@@ -108,7 +110,7 @@ pub(super) fn bounded_of(
     meta: &crate::source::SourceMeta,
     cfg: &PipelineConfig,
 ) -> Option<crate::lens::Bounded> {
-    use crate::timings::{time, Stage};
+    use crate::util::timings::{time, Stage};
     let lens = match lens_of(tr, meta, cfg) {
         LensUsed::Measured { err, .. } => Lens::new(-err * 3f64.sqrt(), meta.width, meta.height),
         LensUsed::Bound(lens) => lens,
@@ -147,7 +149,7 @@ pub(super) fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, 
         )
         .into());
     }
-    use crate::timings::{time, Stage};
+    use crate::util::timings::{time, Stage};
     let (mut source, fps_source) = open_run(run, cfg)?;
     let meta = source.meta().clone();
     // A failure from here on has a recording: its frames and frame rate

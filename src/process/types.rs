@@ -2,8 +2,8 @@
 //! ([`ProcessError`]).
 
 use crate::dataset::DropRecord;
-use crate::io_util::Spool;
 use crate::setup_infer::SceneSignature;
+use crate::util::io::Spool;
 use std::path::PathBuf;
 
 /// The outcome of one run.

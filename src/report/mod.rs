@@ -274,7 +274,7 @@ fn collapse_rows(out_dir: &Path) -> Option<Vec<(String, bool)>> {
     r.records()
         .map(|row| {
             let row = row.ok()?;
-            let name = crate::text::csv_cell_back(row.get(run)?);
+            let name = crate::util::text::csv_cell_back(row.get(run)?);
             Some((name.to_string(), row.get(used)? == "true"))
         })
         .collect()
@@ -515,7 +515,7 @@ pub fn write_report(
     let path = out_dir.join("report.html");
     let bytes = render_report(out_dir, config_name, records);
     ledger
-        .write_as("report.html", &bytes, crate::io_util::Durable::Now)
+        .write_as("report.html", &bytes, crate::util::io::Durable::Now)
         .and_then(|_| ledger.save())
         .map_err(|source| ReportError::Write {
             path: path.clone(),

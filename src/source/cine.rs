@@ -28,7 +28,7 @@ use super::colour::{self, Bayer};
 use super::index::{Stored, Time64, ValuesInFile};
 use super::p10_lut::P10_TO_LINEAR12;
 use super::packing::{packed_span, unpack_msb, unpack_u16le, unpack_u8};
-use crate::io_util::read_at;
+use crate::util::io::read_at;
 
 use super::{
     check_band, fill_rows, for_cols, grown, ColourInput, FrameNumbers, FrameSource, FrameValues,
@@ -43,7 +43,7 @@ const MAX_ANNOTATION: u32 = 1 << 20;
 /// Does the file start with the cine magic `"CI"`?
 pub fn has_cine_magic(path: &Path) -> bool {
     let mut magic = [0u8; 2];
-    crate::io_util::open_regular(path)
+    crate::util::io::open_regular(path)
         .and_then(|mut f| f.read_exact(&mut magic))
         .is_ok()
         && &magic == b"CI"
@@ -291,7 +291,7 @@ pub trait ReadAt {
 
 impl ReadAt for File {
     fn read_at(&self, offset: u64, dst: &mut [u8]) -> std::io::Result<()> {
-        crate::io_util::read_at(self, offset, dst)
+        crate::util::io::read_at(self, offset, dst)
     }
 }
 
@@ -706,7 +706,7 @@ impl CineSource {
                 }
             }
         };
-        let file = crate::io_util::open_regular(path).map_err(io)?;
+        let file = crate::util::io::open_regular(path).map_err(io)?;
         let file_len = file.metadata().map_err(io)?.len();
         let layout = parse_layout_at(&file, file_len).map_err(fmt)?;
         let mut meta = build_meta(path, &layout, options, &file).map_err(io)?;

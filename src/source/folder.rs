@@ -783,7 +783,7 @@ fn pick_xml(
         if !look.chd {
             continue; // some other XML, not PCC's
         }
-        let file = crate::io_util::open_regular(&path).map_err(io_err(&path))?;
+        let file = crate::util::io::open_regular(&path).map_err(io_err(&path))?;
         let x = pcc_xml::read(std::io::BufReader::with_capacity(1 << 16, file))
             .map_err(|r| format_err(&path, r))?;
         parsed.push((path, x));
@@ -824,7 +824,7 @@ struct XmlLook {
 fn look_through(path: &Path) -> std::io::Result<XmlLook> {
     use std::io::Read;
     const KEPT: usize = 3;
-    let mut file = crate::io_util::open_regular(path)?;
+    let mut file = crate::util::io::open_regular(path)?;
     let mut buf = vec![0u8; (1 << 16) + KEPT];
     let mut look = XmlLook {
         utf8: true,
@@ -864,7 +864,7 @@ fn open_and_probe(
     kind: ImageKind,
     decoder: &mut FrameDecoder,
 ) -> Result<Probe, SourceError> {
-    let (mut file, len) = crate::io_util::open_regular_len(path).map_err(io_err(path))?;
+    let (mut file, len) = crate::util::io::open_regular_len(path).map_err(io_err(path))?;
     decoder.probe(path, &mut file, len, kind)
 }
 
@@ -914,7 +914,7 @@ impl FolderSource {
     ) -> Result<(), SourceError> {
         check_band(&self.meta, index, row0, out)?;
         let path = &self.file(index);
-        let (mut file, len) = crate::io_util::open_regular_len(path).map_err(io_err(path))?;
+        let (mut file, len) = crate::util::io::open_regular_len(path).map_err(io_err(path))?;
         let first = self.file(0);
         let shape = Shape {
             width: self.meta.width,

@@ -141,6 +141,15 @@ pub fn csv_cell_back(s: &str) -> &str {
     }
 }
 
+/// "1 drop", "3 drops": a count with its noun for messages.
+pub fn plural(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -57,7 +57,6 @@ pub mod cli_values;
 pub mod collapse;
 pub mod collapse_job;
 pub mod config;
-pub mod config_toml;
 pub mod dataset;
 pub mod dataset_id;
 pub mod detect;

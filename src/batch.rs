@@ -435,7 +435,7 @@ fn run_setup(
             scene_key: fp.as_ref().map(|fp| cache::scene_key(cfg, r, fp)),
             entry_sha256: String::new(),
         };
-        if key.is_some() && crate::run_name::check(&r.run).is_ok() {
+        if key.is_some() && crate::dataset::run_name::check(&r.run).is_ok() {
             cache::store(out, &entry).map_err(|source| BatchError::Io {
                 path: out.join("runs").join(&r.run),
                 source,

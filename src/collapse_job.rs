@@ -111,7 +111,7 @@ pub fn run(
 ) -> Result<CollapseSummary, CollapseError> {
     let records = dataset::read_csv(&args.drops)?;
     let dataset_id =
-        crate::dataset_id::of_file(&args.drops).map_err(|source| DatasetError::Io {
+        crate::dataset::id::of_file(&args.drops).map_err(|source| DatasetError::Io {
             path: args.drops.clone(),
             source,
         })?;
@@ -237,7 +237,7 @@ pub fn run(
             for (name, bytes) in crate::figures::collapse_figures(&used, &fits)? {
                 let rel = Path::new("plots").join(&name);
                 let bytes = if rel.extension().is_some_and(|e| e == "svg") {
-                    crate::dataset_id::tag_svg(bytes, &dataset_id)
+                    crate::dataset::id::tag_svg(bytes, &dataset_id)
                 } else {
                     bytes
                 };

@@ -21,7 +21,7 @@
 //! | [`flight`] | a run without a contact: its free flight (v at the last frame, g) |
 //! | [`measure`] | one drop from track to record |
 //! | [`quality`] | the quality flags of a measured drop (`flags` in drops.csv) |
-//! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
+//! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv`, the id of a `drops.csv`, run names that are file names |
 //! | [`pictures`] | a run's overlays with their captions, and its animated impact |
 //! | [`process`] | one run (or camera set-up) → record, track, overlays; runs in parallel |
 //! | [`process_job`] | `dropscope process`: the runs through the main job's cache → drops.csv, per-drop figures |
@@ -41,7 +41,6 @@
 //! | [`review`] | `dropscope review`: every frame of a drop in a local web page, and `review.csv`, the decisions `process` and `run` apply |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | the drawing kit: SVG + PNG bytes from plain data, embedded font |
-//! | [`run_name`] | run names that are file names, never paths |
 //! | [`out_folder`] | every write, read-back and removal inside the output folder: no link followed, only dropscope's own files removed |
 //!
 //! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
@@ -58,7 +57,6 @@ pub mod collapse;
 pub mod collapse_job;
 pub mod config;
 pub mod dataset;
-pub mod dataset_id;
 pub mod detect;
 pub mod events;
 pub mod figures;
@@ -82,7 +80,6 @@ pub mod quality;
 pub mod render;
 pub mod report;
 pub mod review;
-pub mod run_name;
 pub mod scale;
 pub mod setup_infer;
 pub mod shard;

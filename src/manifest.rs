@@ -213,7 +213,8 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
         let r: ManifestRow = rec
             .deserialize(headers.as_ref())
             .map_err(|e| row_err(row, value_message(&e, &rec, headers.as_ref())))?;
-        crate::run_name::check(&r.run).map_err(|e| row_err(row, format!("column `run`: {e}")))?;
+        crate::dataset::run_name::check(&r.run)
+            .map_err(|e| row_err(row, format!("column `run`: {e}")))?;
         if runs.iter().any(|x| x.run == r.run) {
             return Err(row_err(row, format!("run `{}` is listed twice", r.run)));
         }

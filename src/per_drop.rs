@@ -27,7 +27,7 @@ pub fn diagnose_all<'a>(
     let mut todo = Vec::new();
     for (i, rec) in records.iter().enumerate() {
         // A run name that is not a file name never reaches outside tracks/.
-        if crate::run_name::check(&rec.run).is_err() || !rec.status.measured() {
+        if crate::dataset::run_name::check(&rec.run).is_err() || !rec.status.measured() {
             continue;
         }
         let Some(p) = crate::out_folder::path(&tracks_dir, &format!("{}.csv", rec.run))
@@ -90,7 +90,7 @@ pub fn figures(
         for (name, bytes) in d? {
             let rel = Path::new("plots").join("drops").join(name);
             let bytes = if rel.extension().is_some_and(|e| e == "svg") {
-                crate::dataset_id::tag_svg(bytes, dataset_id)
+                crate::dataset::id::tag_svg(bytes, dataset_id)
             } else {
                 bytes
             };

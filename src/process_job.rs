@@ -121,7 +121,7 @@ fn run_on_pool(
     let entries: Vec<_> = done.into_iter().map(|(e, _)| e).collect();
     let records: Vec<DropRecord> = entries.iter().map(|e| e.record.clone()).collect();
     let drops = crate::dataset::to_csv_bytes(&records);
-    let id = crate::dataset_id::of_bytes(&drops);
+    let id = crate::dataset::id::of_bytes(&drops);
     // The per-drop figures are drawn from the tracks while the runs' files
     // are synced and drops.csv and provenance.json written; they are
     // written after drops.csv. The syncs wait on the disk on a thread of

@@ -21,6 +21,7 @@
 //! - measure (today `events`, `kinematics`, `force`, `flight`, `quality`,
 //!   `measure`) never imports track, detect, source or config;
 //! - `render/` never imports detect, track, measure or calibrate;
+//! - `dataset/` never imports the job level;
 //! - `figures/` never imports the job level and never touches `std::fs`;
 //!   `collapse/` never imports the job level;
 //! - a `mod.rs` (or `track.rs` for `track/`) defines no name that a file
@@ -30,7 +31,7 @@
 //!
 //! Waiting for their folders (each needs code moved first): `cli/` as
 //! clap's only home (until then [`CLAP_FILES`]); `dataset/`, `collapse/`
-//! and `report/` without `std::fs` or the output folder (`dataset.rs`
+//! and `report/` without `std::fs` or the output folder (`dataset/record.rs`
 //! reads its CSV, `collapse/diagnostics.rs` the tracks, `report/` writes
 //! report.html through `out_folder`); `pipeline/` never importing the job
 //! level (`process.rs` reads the cache's entries).
@@ -44,6 +45,7 @@ use std::sync::OnceLock;
 
 const UTIL: &[&str] = &["util/"];
 const CONFIG: &[&str] = &["config/"];
+const DATASET: &[&str] = &["dataset/"];
 const SOURCE: &[&str] = &["source/"];
 const DETECT: &[&str] = &["detect/"];
 const PLOT: &[&str] = &["plot/"];
@@ -191,6 +193,12 @@ const RULES: &[Rule] = &[
         name: "render/",
         allowed: Allowed::Never(&[DETECT, TRACK, MEASURE, CALIBRATE]),
         why: "the truth is made without the measurement",
+    },
+    Rule {
+        part: DATASET,
+        name: "dataset/",
+        allowed: Allowed::Never(&[JOB]),
+        why: "dataset is the records' schema: the job level reads and writes it",
     },
     Rule {
         part: FIGURES,

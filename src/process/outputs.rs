@@ -171,7 +171,7 @@ pub fn sync_outputs(out: &Path) -> Result<(), ProcessError> {
 /// relative to `out`, with the SHA-256 of their bytes.
 pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, ProcessError> {
     let run = &o.record.run;
-    if crate::run_name::check(run).is_err() {
+    if crate::dataset::run_name::check(run).is_err() {
         // Its row says why it failed; it has no files and removes none.
         return Ok(Vec::new());
     }

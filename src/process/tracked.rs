@@ -137,7 +137,7 @@ pub(super) fn bounded_of(
 }
 
 pub(super) fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, RunFailure> {
-    crate::run_name::check(&run.run)?;
+    crate::dataset::run_name::check(&run.run)?;
     let surface_name = run
         .surface
         .clone()

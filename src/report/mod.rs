@@ -48,7 +48,7 @@ pub enum ReportError {
     },
     /// The collapse files are another dataset's than the folder's drops.csv.
     #[error(transparent)]
-    Mixed(#[from] crate::dataset_id::Mixed),
+    Mixed(#[from] crate::dataset::id::Mixed),
     /// A file the report shows could not be read.
     #[error("{path}: cannot read: {source}")]
     Read {
@@ -62,11 +62,11 @@ pub enum ReportError {
 
 /// Refuse a folder whose collapse files (`fits.json`, `collapse.csv`, the
 /// SVG figures) were computed from another drops.csv than the one in it
-/// ([`crate::dataset_id`]). A folder without fits.json has nothing to mix;
+/// ([`crate::dataset::id`]). A folder without fits.json has nothing to mix;
 /// an SVG that carries no dataset id is not dropscope's (a figure of
 /// yours) and not looked at.
 pub fn check_one_dataset(out_dir: &Path) -> Result<(), ReportError> {
-    use crate::dataset_id::{check, of_svg};
+    use crate::dataset::id::{check, of_svg};
     let fits_path = out_dir.join("fits.json");
     let Ok(fits) = std::fs::read(&fits_path) else {
         return Ok(());
@@ -78,7 +78,7 @@ pub fn check_one_dataset(out_dir: &Path) -> Result<(), ReportError> {
             source,
         })
     };
-    let expected = crate::dataset_id::of_bytes(&read(&drops)?);
+    let expected = crate::dataset::id::of_bytes(&read(&drops)?);
     let doc: serde_json::Value = serde_json::from_slice(&fits).unwrap_or_default();
     let found = doc["provenance"]["dataset_id"].as_str();
     check(&fits_path, found, &drops, &expected)?;
@@ -250,7 +250,7 @@ fn collapse_plots(out_dir: &Path, ledger: &Ledger, dataset: Option<&str>) -> Vec
             }
             let bytes = crate::out_folder::read(out_dir, &rel, SVG_MAX_BYTES).ok()??;
             let ours = dataset.is_some()
-                && crate::dataset_id::of_svg(&String::from_utf8_lossy(&bytes)) == dataset;
+                && crate::dataset::id::of_svg(&String::from_utf8_lossy(&bytes)) == dataset;
             let known = KNOWN_PLOTS.iter().any(|(k, _)| *k == stem);
             (ours && known).then(|| (stem.clone(), Plot::Referenced(rel)))
         })
@@ -349,7 +349,7 @@ fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRe
     } else {
         String::new()
     };
-    let dataset = crate::dataset_id::of_file(&out_dir.join("drops.csv"))
+    let dataset = crate::dataset::id::of_file(&out_dir.join("drops.csv"))
         .map(|id| format!(" · dataset <code title=\"SHA-256 of drops.csv\">{id}</code>"))
         .unwrap_or_default();
     let _ = write!(
@@ -433,7 +433,7 @@ fn collapse_section(out: &mut String, out_dir: &Path, records: &[DropRecord]) {
     }
     // The collapse writes fits.json first: plots without it are an earlier job's.
     let plots = if fits_bytes.is_some() {
-        let dataset = crate::dataset_id::of_file(&out_dir.join("drops.csv")).ok();
+        let dataset = crate::dataset::id::of_file(&out_dir.join("drops.csv")).ok();
         collapse_plots(out_dir, &Ledger::open(out_dir), dataset.as_deref())
     } else {
         Vec::new()

@@ -176,7 +176,7 @@ impl Decision {
     /// Whether the row is complete and consistent: a run name, a reason,
     /// frames for `exclude` only, a finite value for `surface` only.
     pub fn check(&self) -> Result<(), String> {
-        crate::run_name::check(&self.run)?;
+        crate::dataset::run_name::check(&self.run)?;
         let word = self.decision.word();
         if self.reason.trim().is_empty() {
             return Err(format!("`{word}` needs a reason"));

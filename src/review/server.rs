@@ -550,7 +550,7 @@ fn check_run_name(run: &str) -> Result<(), Response> {
             format!("run `{}`: a run name, not a path", one_line(run)),
         ));
     }
-    crate::run_name::check(run).map_err(|e| Response::error(400, e))
+    crate::dataset::run_name::check(run).map_err(|e| Response::error(400, e))
 }
 
 /// The rows of the track CSV `out/rel`, read through no link below the

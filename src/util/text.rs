@@ -14,7 +14,7 @@
 //!   OWASP guidance on CSV injection lists) gets a `'` in front, as does one
 //!   starting with `'`; [`csv_cell_back`] removes it, so a run name survives
 //!   the round trip. Numeric columns are written as numbers and never touched.
-//! - **Run names** ([`crate::run_name::check`]) refuse control and format
+//! - **Run names** ([`crate::dataset::run_name::check`]) refuse control and format
 //!   characters outright.
 
 use std::borrow::Cow;

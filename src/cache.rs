@@ -12,10 +12,10 @@
 //! each run either committed (whole) or not started, so starting it again
 //! finishes with the outputs of an uninterrupted job.
 
+use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::dataset::DropRecord;
 use crate::manifest::RunSpec;
-use crate::setup_infer::SceneSignature;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::fs::File;

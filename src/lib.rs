@@ -15,8 +15,7 @@
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
 //! | [`events`] | contact onset, peak and loss of contact from the track |
 //! | [`kinematics`] | v, δ, a, τc, e with jointly propagated errors |
-//! | [`scale`] | mm/px: given, from free fall (pooled per camera set-up), or from the radius |
-//! | [`lens`] | radial lens distortion: a known k1 undone on the track, or its bound as a systematic |
+//! | [`calibrate`] | mm/px (given, from free fall pooled per camera set-up, or from the radius), lens distortion, camera set-ups inferred from the images |
 //! | [`force`] | F(δ) table and the trajectory-fitted contact law |
 //! | [`flight`] | a run without a contact: its free flight (v at the last frame, g) |
 //! | [`measure`] | one drop from track to record |
@@ -52,6 +51,7 @@
 
 pub mod batch;
 pub mod cache;
+pub mod calibrate;
 pub mod cli_values;
 pub mod collapse;
 pub mod collapse_job;
@@ -65,7 +65,6 @@ pub mod force;
 pub mod inspect;
 pub mod kinematics;
 pub mod leftovers;
-pub mod lens;
 pub mod lock;
 pub mod manifest;
 pub mod measure;
@@ -80,8 +79,6 @@ pub mod quality;
 pub mod render;
 pub mod report;
 pub mod review;
-pub mod scale;
-pub mod setup_infer;
 pub mod shard;
 pub mod shelf;
 pub mod slurm;

@@ -58,7 +58,7 @@ const MEASURE: &[&str] = &[
     "quality.rs",
     "measure.rs",
 ];
-const CALIBRATE: &[&str] = &["scale.rs", "lens.rs", "setup_infer.rs"];
+const CALIBRATE: &[&str] = &["calibrate/"];
 const RENDER: &[&str] = &["render/"];
 const FIGURES: &[&str] = &["figures/"];
 const COLLAPSE: &[&str] = &["collapse/"];

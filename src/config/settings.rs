@@ -163,17 +163,17 @@ pub struct CameraConfig {
     pub fps: Option<f64>,
     /// A fixed scale, mm per px; `None`: from free fall, else from the sphere.
     pub mm_per_px: Option<f64>,
-    /// A calibrated radial distortion, undone on every track ([`crate::lens`]).
+    /// A calibrated radial distortion, undone on every track ([`crate::calibrate::lens`]).
     pub distortion_k1_per_px2: Option<f64>,
     /// Without a calibration: the distortion at the image corner (px) whose
     /// effect enters the errors as a systematic term; 0 leaves it out.
     pub distortion_bound_px: f64,
     /// Runs without a manifest `setup` share one when their images say they
-    /// were filmed through one camera set-up ([`crate::setup_infer`]).
+    /// were filmed through one camera set-up ([`crate::calibrate::setup_infer`]).
     pub infer_setups: bool,
     /// The silhouette's edge offset (apparent minus true radius, px) and its
     /// spread, for runs whose scale comes from their apparent radius: given,
-    /// or measured on the job's runs ([`crate::scale::EdgeOffset`]).
+    /// or measured on the job's runs ([`crate::calibrate::scale::EdgeOffset`]).
     pub edge_offset_px: Option<f64>,
     /// The one-sigma spread of `edge_offset_px` from drop to drop, px.
     pub edge_offset_spread_px: Option<f64>,

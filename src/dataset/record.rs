@@ -154,7 +154,7 @@ pub struct DropRecord {
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub setup: String,
     /// Where `mm_per_px` came from: `given`, `setup_free_fall`, `free_fall`
-    /// or `radius` (see `scale.rs`).
+    /// or `radius` (see `calibrate/scale.rs`).
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub scale_source: String,
     /// The scale from free fall (the set-up's pooled, else the run's own),
@@ -205,7 +205,7 @@ pub struct DropRecord {
     /// Without a calibrated k1: how far the distortion bound
     /// (`camera.distortion_bound_px` at the image corner) moves the scale,
     /// v_impact, δmax and τc; each enters its `_err` as a systematic term
-    /// (÷√3, k1 anywhere between ± the bound). See `lens.rs`.
+    /// (÷√3, k1 anywhere between ± the bound). See `calibrate/lens.rs`.
     #[serde(default)]
     pub distortion_mm_per_px: Option<f64>,
     /// How far the distortion left unknown changes v_impact, m/s (see `distortion_mm_per_px`).

@@ -4,11 +4,11 @@
 use super::checks::{frame_rate_checks, saturated_share};
 use super::types::{ProcessError, RunOutcome, TRACK_CSV_IN_MEMORY_MAX};
 use crate::cache::OutputFile;
+use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
 use crate::manifest::RunSpec;
 use crate::quality;
-use crate::setup_infer::SceneSignature;
 use crate::track::{FrameTrack, Track, TrackSettings};
 use crate::util::io::{Durable, Spool};
 use std::io::Write;
@@ -235,7 +235,7 @@ pub(super) struct RecordingRow<'a> {
     pub(super) cfg: &'a PipelineConfig,
     pub(super) meta: &'a crate::source::SourceMeta,
     pub(super) tr: &'a Track,
-    pub(super) sc: &'a crate::scale::Scale,
+    pub(super) sc: &'a crate::calibrate::scale::Scale,
     /// Apparent minus true radius and its error, px.
     pub(super) edge_offset: Option<(f64, f64)>,
     pub(super) fps_source: &'a str,

@@ -3,12 +3,12 @@
 
 use super::failure::{Recording, RunFailure};
 use super::points::{bounded_points, exclude_frames, held_points};
+use crate::calibrate::free_fall::{free_fall_curvature, Curvature};
+use crate::calibrate::lens::{undistort_track, Lens};
+use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::events::EventConfig;
-use crate::lens::{undistort_track, Lens};
 use crate::manifest::RunSpec;
-use crate::scale::{free_fall_curvature, Curvature};
-use crate::setup_infer::SceneSignature;
 use crate::source::open;
 use crate::stage_settings::open_options;
 use crate::track::{track, Track, TrackSettings};
@@ -24,7 +24,7 @@ pub(super) struct Tracked {
     pub(super) curvature: Option<Curvature>,
     /// The track through a lens at `camera.distortion_bound_px`, when no
     /// k1 is given and the bound is not 0.
-    pub(super) bounded: Option<crate::lens::Bounded>,
+    pub(super) bounded: Option<crate::calibrate::lens::Bounded>,
     /// Where `meta.fps` came from (the `fps_source` word, [`open_run`]).
     pub(super) fps_source: String,
 }
@@ -109,7 +109,7 @@ pub(super) fn bounded_of(
     tr: &Track,
     meta: &crate::source::SourceMeta,
     cfg: &PipelineConfig,
-) -> Option<crate::lens::Bounded> {
+) -> Option<crate::calibrate::lens::Bounded> {
     use crate::util::timings::{time, Stage};
     let lens = match lens_of(tr, meta, cfg) {
         LensUsed::Measured { err, .. } => Lens::new(-err * 3f64.sqrt(), meta.width, meta.height),
@@ -118,7 +118,7 @@ pub(super) fn bounded_of(
     };
     Some({
         let (surface, radius_px, curvature) = time(Stage::Events, || {
-            let (surface, radius_px) = crate::lens::undistorted_line(tr, &lens);
+            let (surface, radius_px) = crate::calibrate::lens::undistorted_line(tr, &lens);
             let c = free_fall_curvature(
                 || bounded_points(tr, &lens, radius_px),
                 |x| surface.row_at(x),
@@ -126,7 +126,7 @@ pub(super) fn bounded_of(
             );
             (surface, radius_px, c)
         });
-        crate::lens::Bounded {
+        crate::calibrate::lens::Bounded {
             lens,
             surface_row0_px: surface.row0_px,
             surface_slope: surface.slope,
@@ -242,7 +242,7 @@ pub(super) fn lens_of(
         return LensUsed::None;
     }
     let bound = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
-    match crate::lens::k1_from_bow(&tr.surface, meta.width, meta.height) {
+    match crate::calibrate::lens::k1_from_bow(&tr.surface, meta.width, meta.height) {
         Some((k1, err)) if err * 3f64.sqrt() < bound.k1_per_px2.abs() => {
             LensUsed::Measured { k1, err }
         }

@@ -1,8 +1,8 @@
 //! What one run gives ([`RunOutcome`]) and why runs cannot be processed
 //! ([`ProcessError`]).
 
+use crate::calibrate::setup_infer::SceneSignature;
 use crate::dataset::DropRecord;
-use crate::setup_infer::SceneSignature;
 use crate::util::io::Spool;
 use std::path::PathBuf;
 

@@ -265,7 +265,7 @@ fn decode(inputs: &[PathBuf], threads: usize) -> (f64, f64, usize) {
                     let m = srcs.iter().flatten().next().map(|s| s.meta().clone());
                     let mut buf =
                         m.map_or(Frame::zeros((1, 1)), |m| Frame::zeros((m.height, m.width)));
-                    let c0 = dropscope::timings::thread_cpu_s();
+                    let c0 = dropscope::util::timings::thread_cpu_s();
                     let t0 = Instant::now();
                     for &(i, f, _) in job {
                         srcs[i]
@@ -274,7 +274,11 @@ fn decode(inputs: &[PathBuf], threads: usize) -> (f64, f64, usize) {
                             .read_into(f, &mut buf)
                             .expect("read");
                     }
-                    (t0, Instant::now(), dropscope::timings::thread_cpu_s() - c0)
+                    (
+                        t0,
+                        Instant::now(),
+                        dropscope::util::timings::thread_cpu_s() - c0,
+                    )
                 })
             })
             .collect();

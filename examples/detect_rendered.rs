@@ -228,7 +228,7 @@ fn run(dir: &Path, pool: &mut Pool) -> anyhow::Result<()> {
                 );
                 let path =
                     Path::new(&out).join(format!("{}_frame{}_overlay.png", truth.run, t.frame));
-                dropscope::io_util::write_atomic(&path, &overlay::encode_png(&img)?)?;
+                dropscope::util::io::write_atomic(&path, &overlay::encode_png(&img)?)?;
                 println!("  overlay: {}", path.display());
             }
         }

@@ -19,7 +19,7 @@ use crate::manifest::{read_job_manifest, RunSpec};
 use crate::process::{process_setup, write_file, write_run_outputs};
 use crate::source::listing::{recording_kind, Listing};
 use crate::source::SourceError;
-use crate::timings::{self, Stage};
+use crate::util::timings::{self, Stage};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -382,7 +382,7 @@ fn run_setup(
                             "{}: changed since dropscope wrote it (its content no longer \
                              matches its entry_sha256): run {} is measured again",
                             path.display(),
-                            crate::text::terminal(&r.run)
+                            crate::util::text::terminal(&r.run)
                         )));
                         None
                     }
@@ -435,7 +435,7 @@ fn run_setup(
             scene_key: fp.as_ref().map(|fp| cache::scene_key(cfg, r, fp)),
             entry_sha256: String::new(),
         };
-        if key.is_some() && crate::run_name::check(&r.run).is_ok() {
+        if key.is_some() && crate::dataset::run_name::check(&r.run).is_ok() {
             cache::store(out, &entry).map_err(|source| BatchError::Io {
                 path: out.join("runs").join(&r.run),
                 source,
@@ -628,7 +628,7 @@ impl Review {
             notice(&format!(
                 "{}: decisions about {} not in this job ({}) are not used",
                 self.path.display(),
-                crate::plural(others.len(), "run"),
+                crate::util::text::plural(others.len(), "run"),
                 others.join(", ")
             ));
         }
@@ -779,7 +779,8 @@ pub fn run_job(
         options.shard.map(|s| s.to_string()),
     );
     let _held = crate::lock::acquire(out, &me, options.wait, &|m| events(RunEvent::Notice(m)))?;
-    crate::io_util::remove_stale_temporaries(out, &crate::lock::writer_is_gone).map_err(io(out))?;
+    crate::util::io::remove_stale_temporaries(out, &crate::lock::writer_is_gone)
+        .map_err(io(out))?;
     let runs = match options.shard {
         Some(shard) => crate::shard::select(&runs, shard, cfg.camera.infer_setups),
         None => runs,

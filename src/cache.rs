@@ -12,10 +12,10 @@
 //! each run either committed (whole) or not started, so starting it again
 //! finishes with the outputs of an uninterrupted job.
 
+use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::dataset::DropRecord;
 use crate::manifest::RunSpec;
-use crate::setup_infer::SceneSignature;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::fs::File;
@@ -162,7 +162,7 @@ fn hex(bytes: &[u8]) -> String {
 /// SHA-256 (hex) of a whole file's bytes.
 pub fn sha256_file(path: &Path) -> std::io::Result<String> {
     let mut h = Sha256::new();
-    std::io::copy(&mut crate::io_util::open_regular(path)?, &mut h)?;
+    std::io::copy(&mut crate::util::io::open_regular(path)?, &mut h)?;
     Ok(hex(&h.finalize()))
 }
 
@@ -213,7 +213,7 @@ pub fn fingerprint(path: &Path) -> std::io::Result<Fingerprint> {
     let mut buf = vec![0u8; HASH_PIECE_BYTES];
     if !md.is_dir() {
         let size = md.len();
-        let mut f = crate::io_util::open_regular(path)?;
+        let mut f = crate::util::io::open_regular(path)?;
         hash_range(&mut h, &mut f, 0, CINE_HEAD_BYTES, &mut buf)?;
         if size > CINE_HEAD_BYTES {
             for k in 0..SAMPLES {
@@ -284,7 +284,7 @@ pub fn fingerprint(path: &Path) -> std::io::Result<Fingerprint> {
         picked.extend(idx.into_iter().map(|i| frames[i]));
     }
     for name in picked {
-        let mut f = crate::io_util::open_regular(&path.join(name))?;
+        let mut f = crate::util::io::open_regular(&path.join(name))?;
         let size = f.metadata()?.len();
         if size <= 2 * SAMPLE_BYTES || is_side(name) {
             hash_range(&mut h, &mut f, 0, size, &mut buf)?;
@@ -438,7 +438,7 @@ pub fn cached_scene(out: &Path, cfg: &PipelineConfig, run: &RunSpec) -> Option<S
 /// Where the entry of run `run` lives (`runs/<run>.json`), checked to be
 /// inside `out`.
 pub fn entry_path(out: &Path, run: &str) -> std::io::Result<PathBuf> {
-    crate::io_util::inside(out, &format!("runs/{run}.json"))
+    crate::util::io::inside(out, &format!("runs/{run}.json"))
 }
 
 /// An entry larger than this is not read (its record and a few file names).
@@ -515,7 +515,7 @@ pub fn store(out: &Path, entry: &Entry) -> std::io::Result<()> {
     // job's drops.csv (`process::sync_outputs`); an entry a crash left
     // short does not parse and is a miss, one whose outputs a crash left
     // short fails their SHA-256 and is a miss.
-    crate::out_folder::write_as(out, &rel, crate::io_util::Durable::WithTheJob, |f| {
+    crate::out_folder::write_as(out, &rel, crate::util::io::Durable::WithTheJob, |f| {
         std::io::Write::write_all(f, &bytes)
     })
     .map(drop)

@@ -65,7 +65,7 @@ fn write(
     bytes: &[u8],
     files: &mut Vec<PathBuf>,
 ) -> Result<(), CollapseError> {
-    per_drop::write_as(ledger, rel, bytes, files, crate::io_util::Durable::Now)
+    per_drop::write_as(ledger, rel, bytes, files, crate::util::io::Durable::Now)
 }
 
 /// The tables [`run`] writes into the output folder: `collapse.csv`, `fits.json`.
@@ -111,7 +111,7 @@ pub fn run(
 ) -> Result<CollapseSummary, CollapseError> {
     let records = dataset::read_csv(&args.drops)?;
     let dataset_id =
-        crate::dataset_id::of_file(&args.drops).map_err(|source| DatasetError::Io {
+        crate::dataset::id::of_file(&args.drops).map_err(|source| DatasetError::Io {
             path: args.drops.clone(),
             source,
         })?;
@@ -169,7 +169,7 @@ pub fn run(
     if n_rejected > 0 {
         warnings.push(format!(
             "{} rejected in review left out (listed under `skipped`)",
-            crate::plural(n_rejected, "drop")
+            crate::util::text::plural(n_rejected, "drop")
         ));
     }
     warnings.extend(fits.warnings.iter().cloned());
@@ -237,7 +237,7 @@ pub fn run(
             for (name, bytes) in crate::figures::collapse_figures(&used, &fits)? {
                 let rel = Path::new("plots").join(&name);
                 let bytes = if rel.extension().is_some_and(|e| e == "svg") {
-                    crate::dataset_id::tag_svg(bytes, &dataset_id)
+                    crate::dataset::id::tag_svg(bytes, &dataset_id)
                 } else {
                     bytes
                 };

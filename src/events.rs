@@ -13,7 +13,7 @@
 //! Rows grow downward: z increases as the sphere falls, and the penetration
 //! is δ = (z + R_px − y_s)·s, positive in contact.
 
-use crate::lsq::{LinearFit, PolyFit};
+use crate::util::lsq::{LinearFit, PolyFit};
 use nalgebra::DMatrix;
 
 /// One measured frame of a track, as detection hands it on. Frames where the
@@ -260,7 +260,7 @@ pub fn fit_flight(points: &[TrackPoint], g_px_s2: f64) -> Option<FlightFit> {
         .map(|p| p.z_px - 0.5 * g_px_s2 * (p.t_s - t_ref).powi(2))
         .collect();
     let s: Vec<f64> = points.iter().map(|p| p.sigma_z_px).collect();
-    let fit: LinearFit = crate::lsq::weighted_lsq(&a, &y, &s)?;
+    let fit: LinearFit = crate::util::lsq::weighted_lsq(&a, &y, &s)?;
     let c = fit.cov_scaled();
     let ts: Vec<f64> = points.iter().map(|p| p.t_s).collect();
     let xs: Vec<f64> = points.iter().map(|p| p.x_px).collect();

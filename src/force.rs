@@ -30,7 +30,7 @@
 
 use crate::events::{Events, Geometry, TrackPoint, FLIGHT_FRAMES};
 use crate::kinematics::{Measured, SphereParams};
-use crate::lsq::PolyFit;
+use crate::util::lsq::PolyFit;
 use nalgebra::{DMatrix, DVector};
 
 /// One row of the tabulated force curve.
@@ -469,7 +469,7 @@ fn fit_force_law_to(
     // each other (on every thread there is); then, under the best one, n
     // held at the model's 2, and the surface free too (the cross-check of
     // the image's line). The work limit counts them in that order.
-    use crate::timings::{time, Stage};
+    use crate::util::timings::{time, Stage};
     let lm = |model: ContactModel, theta: &[f64], free: &[usize]| {
         let mut ledger = Ledger::default();
         let resid = resid_of(model);

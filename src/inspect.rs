@@ -152,7 +152,7 @@ pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
     // Text from the file (a cine's camera name, file names) never reaches
     // the terminal as escape sequences; a closed pipe is no panic.
     if args.json {
-        crate::console::out_raw(&format!("{report}\n"));
+        crate::util::console::out_raw(&format!("{report}\n"));
     } else {
         crate::outln!("{report}");
     }
@@ -207,7 +207,7 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, crate::sourc
     });
     if json {
         let doc = serde_json::to_string_pretty(&value).unwrap_or_default();
-        return Ok(crate::text::json(&doc).into_owned());
+        return Ok(crate::util::text::json(&doc).into_owned());
     }
     let opt = |v: Option<String>| v.unwrap_or_else(|| "—".into());
     let mut lines = vec![
@@ -414,7 +414,7 @@ pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
             frame.mapv_inplace(|v| (u32::from(v) << shift).min(65535) as u16);
         }
         let bytes = png16(&frame).with_context(|| format!("encoding {}", path.display()))?;
-        crate::io_util::write_atomic(&path, &bytes)
+        crate::util::io::write_atomic(&path, &bytes)
             .with_context(|| format!("writing {}", path.display()))?;
         rows.push(ExportedFrame {
             file: name,
@@ -425,7 +425,7 @@ pub fn run_export(args: &ExportArgs) -> anyhow::Result<Vec<PathBuf>> {
         written.push(path);
     }
     let side = args.out.join(format!("{stem}_frames.csv"));
-    crate::io_util::write_atomic(&side, &frames_csv(&side, rows))
+    crate::util::io::write_atomic(&side, &frames_csv(&side, rows))
         .with_context(|| format!("writing {}", side.display()))?;
     Ok(written)
 }

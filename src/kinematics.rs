@@ -12,7 +12,7 @@
 //! sees both.
 
 use crate::events::{crossing_time, EventError, Events, Geometry, TrackPoint};
-use crate::lsq::{quad_form, PolyFit};
+use crate::util::lsq::{quad_form, PolyFit};
 
 use nalgebra::DMatrix;
 

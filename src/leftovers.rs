@@ -16,7 +16,7 @@
 //! A `process` job writes a new drops.csv but no collapse: the collapse
 //! files (and report) an earlier job left, computed from another drops.csv,
 //! are removed by [`remove_other_dataset`] — the files that carry another
-//! dataset id ([`crate::dataset_id`]), which only dropscope writes.
+//! dataset id ([`crate::dataset::id`]), which only dropscope writes.
 
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -58,8 +58,8 @@ impl Removed {
             format!(
                 "removed {} that the previous job in this folder wrote (its provenance.json \
                  lists them) and this one did not; {} of that job no longer in this one",
-                crate::plural(self.files, "file"),
-                crate::plural(self.runs, "run")
+                crate::util::text::plural(self.files, "file"),
+                crate::util::text::plural(self.runs, "run")
             )
         })
     }
@@ -113,7 +113,7 @@ pub fn remove(out: &Path, current: &[Entry]) -> std::io::Result<Removed> {
 }
 
 /// Remove the collapse files and report in the ledger's folder computed
-/// from another drops.csv than the dataset `id` ([`crate::dataset_id`]):
+/// from another drops.csv than the dataset `id` ([`crate::dataset::id`]):
 /// `fits.json`, `collapse.csv`, the collapse figures' SVGs and
 /// `report.html` that dropscope wrote (the ledger lists them, unchanged)
 /// and that carry another id, and the PNG twin of each figure removed (a
@@ -138,7 +138,7 @@ pub fn remove_other_dataset(ledger: &mut Ledger, id: &str) -> std::io::Result<Ve
             let start = t.find(MARK)? + MARK.len();
             return Some(t[start..].split('<').next()?.to_string());
         }
-        crate::dataset_id::of_svg(&t).map(str::to_string)
+        crate::dataset::id::of_svg(&t).map(str::to_string)
     };
     let stems = crate::figures::FIGURE_STEMS;
     let tagged = crate::collapse_job::TABLES
@@ -215,7 +215,7 @@ mod tests {
     #[test]
     fn only_files_of_another_dataset_are_removed() {
         let (_dir, out) = out_with_tracks(&[]);
-        let tag = |id: &str| crate::dataset_id::tag_svg(b"<svg><g/></svg>".to_vec(), id);
+        let tag = |id: &str| crate::dataset::id::tag_svg(b"<svg><g/></svg>".to_vec(), id);
         let mut ledger = Ledger::open(&out);
         for (rel, bytes) in [
             (
@@ -230,7 +230,7 @@ mod tests {
             ("report.html", b"<p>old page</p>".to_vec()),
         ] {
             ledger
-                .write_as(rel, &bytes, crate::io_util::Durable::Now)
+                .write_as(rel, &bytes, crate::util::io::Durable::Now)
                 .unwrap();
         }
         ledger.save().unwrap();

@@ -4,8 +4,8 @@
 //!
 //! | module | stage |
 //! | --- | --- |
+//! | [`util`] | the leaves: atomic writes and paths inside the output folder, spilled per-frame records, least squares, `--timings`, text sanitising and printing, the physical ranges of numbers |
 //! | [`config`] | `pipeline.toml` → validated [`config::PipelineConfig`] in SI units |
-//! | [`ranges`] | the physical range of every number where it enters |
 //! | [`cli_values`] | command-line flag values checked as they are parsed (`--fps`, `--radius-mm`, …) |
 //! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
@@ -13,16 +13,14 @@
 //! | [`stage_settings`] | the stages' own settings from the configuration: how a recording is opened, detected and tracked |
 //! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
-//! | [`records`] | a run's per-frame records, in a temporary file past a budget |
 //! | [`events`] | contact onset, peak and loss of contact from the track |
 //! | [`kinematics`] | v, δ, a, τc, e with jointly propagated errors |
-//! | [`scale`] | mm/px: given, from free fall (pooled per camera set-up), or from the radius |
-//! | [`lens`] | radial lens distortion: a known k1 undone on the track, or its bound as a systematic |
+//! | [`calibrate`] | mm/px (given, from free fall pooled per camera set-up, or from the radius), lens distortion, camera set-ups inferred from the images |
 //! | [`force`] | F(δ) table and the trajectory-fitted contact law |
 //! | [`flight`] | a run without a contact: its free flight (v at the last frame, g) |
 //! | [`measure`] | one drop from track to record |
 //! | [`quality`] | the quality flags of a measured drop (`flags` in drops.csv) |
-//! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv` |
+//! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv`, the id of a `drops.csv`, run names that are file names |
 //! | [`pictures`] | a run's overlays with their captions, and its animated impact |
 //! | [`process`] | one run (or camera set-up) → record, track, overlays; runs in parallel |
 //! | [`process_job`] | `dropscope process`: the runs through the main job's cache → drops.csv, per-drop figures |
@@ -42,9 +40,6 @@
 //! | [`review`] | `dropscope review`: every frame of a drop in a local web page, and `review.csv`, the decisions `process` and `run` apply |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | the drawing kit: SVG + PNG bytes from plain data, embedded font |
-//! | [`run_name`] | run names that are file names, never paths |
-//! | [`lsq`], [`io_util`] | weighted least squares; atomic writes, paths kept inside the output folder |
-//! | [`text`], [`console`] | one sanitiser for text bound for a terminal or a CSV cell; printing that never panics |
 //! | [`out_folder`] | every write, read-back and removal inside the output folder: no link followed, only dropscope's own files removed |
 //!
 //! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
@@ -56,26 +51,21 @@
 
 pub mod batch;
 pub mod cache;
+pub mod calibrate;
 pub mod cli_values;
 pub mod collapse;
 pub mod collapse_job;
 pub mod config;
-pub mod config_toml;
-pub mod console;
 pub mod dataset;
-pub mod dataset_id;
 pub mod detect;
 pub mod events;
 pub mod figures;
 pub mod flight;
 pub mod force;
 pub mod inspect;
-pub mod io_util;
 pub mod kinematics;
 pub mod leftovers;
-pub mod lens;
 pub mod lock;
-pub mod lsq;
 pub mod manifest;
 pub mod measure;
 pub mod out_folder;
@@ -86,14 +76,9 @@ pub mod process;
 pub mod process_job;
 pub mod progress;
 pub mod quality;
-pub mod ranges;
-pub mod records;
 pub mod render;
 pub mod report;
 pub mod review;
-pub mod run_name;
-pub mod scale;
-pub mod setup_infer;
 pub mod shard;
 pub mod shelf;
 pub mod slurm;
@@ -101,15 +86,5 @@ pub mod source;
 pub mod stage_settings;
 #[cfg(test)]
 mod test_support;
-pub mod text;
-pub mod timings;
 pub mod track;
-
-/// "1 drop", "3 drops": a count with its noun for messages.
-pub fn plural(n: usize, noun: &str) -> String {
-    if n == 1 {
-        format!("1 {noun}")
-    } else {
-        format!("{n} {noun}s")
-    }
-}
+pub mod util;

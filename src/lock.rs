@@ -25,7 +25,7 @@
 //! live; the refusal says which file to remove if that job is gone. On
 //! release the holder removes its ticket, and the folder once it is empty.
 
-use crate::io_util;
+use crate::util;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -65,7 +65,7 @@ impl Holder {
             job: job.to_string(),
             shard,
             pid,
-            host: io_util::this_host().to_string(),
+            host: util::io::this_host().to_string(),
             start_ticks: start_ticks(pid),
             command: std::env::args().collect::<Vec<_>>().join(" "),
             held: false,
@@ -80,7 +80,7 @@ impl Holder {
     /// Whether the process is known to be gone: on this host, and its pid
     /// not running or running a process started at another time.
     pub fn is_gone(&self) -> bool {
-        if self.host != io_util::this_host() {
+        if self.host != util::io::this_host() {
             return false;
         }
         if !pid_running(self.pid) {
@@ -259,9 +259,9 @@ fn pid_running(pid: u32) -> bool {
 }
 
 /// Whether the writer of a temporary, process `pid` on `host`, is known to
-/// have ended (see [`crate::io_util::remove_stale_temporaries`]).
+/// have ended (see [`crate::util::io::remove_stale_temporaries`]).
 pub fn writer_is_gone(pid: u32, host: &str) -> bool {
-    host == io_util::this_host() && !pid_running(pid)
+    host == util::io::this_host() && !pid_running(pid)
 }
 
 /// Start time of process `pid` in clock ticks since boot (field 22 of
@@ -309,7 +309,7 @@ fn take_ticket(dir: &Path, me: &Holder) -> std::io::Result<(u64, PathBuf)> {
     // Unique per process (pid, host) and per call (threads of one process).
     static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let tmp = io_util::temporary_path(&dir.join(format!("ticket{call}")))?;
+    let tmp = util::io::temporary_path(&dir.join(format!("ticket{call}")))?;
     std::fs::write(&tmp, ticket_bytes(me)?)?;
     let taken = (|| {
         let mut n = tickets(dir)?.last().map_or(1, |(n, _)| n + 1);
@@ -359,7 +359,7 @@ fn blocker(
             // empty or damaged one is what a power cut or a full disk
             // left, and names no process to wait for.
             Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
-                io_util::remove_if_present(&path).map_err(io(&path))?;
+                util::io::remove_if_present(&path).map_err(io(&path))?;
                 notify(&format!(
                     "{}: took over the lock: its ticket {} was empty or damaged, as a power \
                      cut or a full disk leaves it (removed)",
@@ -371,7 +371,7 @@ fn blocker(
             Err(e) => return Err(io(&path)(e)),
         };
         if holder.is_gone() {
-            io_util::remove_if_present(&path).map_err(io(&path))?;
+            util::io::remove_if_present(&path).map_err(io(&path))?;
             notify(&format!(
                 "{}: took over the lock of {}: that process is gone",
                 out.display(),
@@ -440,7 +440,7 @@ pub fn acquire_in(
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && !not_a_folder() => continue,
             r => r.map_err(io(&dir))?,
         }
-        match io_util::remove_stale_temporaries(&dir, &writer_is_gone) {
+        match util::io::remove_stale_temporaries(&dir, &writer_is_gone) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
             r => r.map(drop).map_err(io(&dir))?,
         }
@@ -456,7 +456,7 @@ pub fn acquire_in(
                 held: true,
                 ..me.clone()
             };
-            let marked = ticket_bytes(&held).and_then(|b| io_util::write_atomic(&ticket, &b));
+            let marked = ticket_bytes(&held).and_then(|b| util::io::write_atomic(&ticket, &b));
             if let Err(source) = marked {
                 let _ = std::fs::remove_file(&ticket);
                 return Err(LockError::Io {
@@ -473,7 +473,7 @@ pub fn acquire_in(
             let slot = on_signal::remember(&ticket, &dir);
             return Ok(FolderLock { ticket, dir, slot });
         };
-        io_util::remove_if_present(&ticket).map_err(io(&ticket))?;
+        util::io::remove_if_present(&ticket).map_err(io(&ticket))?;
         if !wait {
             let _ = std::fs::remove_dir(&dir);
             return Err(LockError::Busy {

@@ -157,7 +157,7 @@ fn job_counts(job: &dropscope::batch::JobSummary) -> String {
     use dropscope::dataset::DropStatus;
     format!(
         "{}: {} measured, {} with warnings, {}{} failed{}, {} reused from the cache; {}",
-        dropscope::plural(job.records.len(), "run"),
+        dropscope::util::text::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
         tracked_count(job.count(DropStatus::Tracked)),
@@ -217,7 +217,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         .transpose()?;
     let start = std::time::Instant::now();
     if args.timings {
-        dropscope::timings::enable();
+        dropscope::util::timings::enable();
     }
     let progress = dropscope::progress::JobProgress::new();
     let options = dropscope::batch::JobOptions {
@@ -233,7 +233,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     progress.finish();
     let job = job?;
     let timings = args.timings.then(|| {
-        dropscope::timings::table(
+        dropscope::util::timings::table(
             job.records.len() - job.cached,
             start.elapsed().as_secs_f64(),
             job.threads,
@@ -285,7 +285,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     use dropscope::dataset::DropStatus;
     let start = std::time::Instant::now();
     if args.timings {
-        dropscope::timings::enable();
+        dropscope::util::timings::enable();
     }
     dropscope::batch::check_threads(args.threads.map(usize::from))?;
     let (mut cfg, name) = load_config(args.config.as_deref())?;
@@ -331,7 +331,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     dropscope::errln!(
         "{}: {} measured, {} with warnings, {}{} failed{}, {} reused from the cache; {}; \
          results in {}",
-        dropscope::plural(job.records.len(), "run"),
+        dropscope::util::text::plural(job.records.len(), "run"),
         job.count(DropStatus::Ok),
         job.count(DropStatus::Warning),
         tracked_count(job.count(DropStatus::Tracked)),
@@ -347,7 +347,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     if args.timings {
         dropscope::errln!(
             "{}",
-            dropscope::timings::table(
+            dropscope::util::timings::table(
                 job.records.len() - job.cached,
                 start.elapsed().as_secs_f64(),
                 job.threads
@@ -370,7 +370,7 @@ fn speed(frames: usize, secs: f64, threads: usize) -> String {
     }
     format!(
         "{frames} frames read in {secs:.2} s on {} ({:.0} frames/s)",
-        dropscope::plural(threads, "thread"),
+        dropscope::util::text::plural(threads, "thread"),
         frames as f64 / secs.max(1e-9)
     )
 }
@@ -391,7 +391,7 @@ fn run_collapse(
     }
     say(format_args!(
         "collapse: {} used, {} skipped{}; {} files in {}\n",
-        dropscope::plural(s.n_used, "drop"),
+        dropscope::util::text::plural(s.n_used, "drop"),
         s.n_skipped,
         if s.n_rejected > 0 {
             format!(", {} rejected in review", s.n_rejected)
@@ -422,7 +422,7 @@ fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> 
     let frames = report.frames();
     dropscope::errln!(
         "rendered {}, {frames} frames into {} in {secs:.2} s ({:.0} frames/s){}",
-        dropscope::plural(report.drops.len(), "drop"),
+        dropscope::util::text::plural(report.drops.len(), "drop"),
         args.out.display(),
         frames as f64 / secs.max(1e-9),
         report
@@ -634,12 +634,12 @@ fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
 struct StdoutClosed;
 
 /// Write `text` to stdout, made safe for a terminal
-/// ([`dropscope::text::terminal`]). A closed pipe is [`StdoutClosed`], not
+/// ([`dropscope::util::text::terminal`]). A closed pipe is [`StdoutClosed`], not
 /// the panic of `print!`.
 fn say(text: impl std::fmt::Display) -> anyhow::Result<()> {
     use std::io::Write;
     let text = text.to_string();
-    let text = dropscope::text::terminal(&text);
+    let text = dropscope::util::text::terminal(&text);
     let mut out = std::io::stdout().lock();
     match write!(out, "{text}").and_then(|()| out.flush()) {
         // A closed pipe, a full disk: what could be written was; the

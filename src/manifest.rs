@@ -173,7 +173,7 @@ pub fn read_job_manifest(path: &Path) -> Result<Vec<RunSpec>, ManifestError> {
 
 /// Read and validate a manifest.
 pub fn read_manifest(path: &Path) -> Result<Vec<RunSpec>, ManifestError> {
-    let bytes = crate::io_util::read_input(path, crate::io_util::TEXT_INPUT_MAX_BYTES).map_err(
+    let bytes = crate::util::io::read_input(path, crate::util::io::TEXT_INPUT_MAX_BYTES).map_err(
         |source| ManifestError::Io {
             path: path.to_path_buf(),
             source,
@@ -213,13 +213,14 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
         let r: ManifestRow = rec
             .deserialize(headers.as_ref())
             .map_err(|e| row_err(row, value_message(&e, &rec, headers.as_ref())))?;
-        crate::run_name::check(&r.run).map_err(|e| row_err(row, format!("column `run`: {e}")))?;
+        crate::dataset::run_name::check(&r.run)
+            .map_err(|e| row_err(row, format!("column `run`: {e}")))?;
         if runs.iter().any(|x| x.run == r.run) {
             return Err(row_err(row, format!("run `{}` is listed twice", r.run)));
         }
-        // Each number within its physical range ([`crate::ranges`]).
+        // Each number within its physical range ([`crate::util::ranges`]).
         let ranged = |col: &str,
-                      range: crate::ranges::Range,
+                      range: crate::util::ranges::Range,
                       v: Option<f64>|
          -> Result<Option<f64>, ManifestError> {
             match v {
@@ -231,13 +232,18 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
                     Ok(_) => Ok(v),
                     Err(allowed) => Err(row_err(
                         row,
-                        format!("column `{col}` = {}: {allowed}", crate::ranges::show(x)),
+                        format!(
+                            "column `{col}` = {}: {allowed}",
+                            crate::util::ranges::show(x)
+                        ),
                     )),
                 },
                 None => Ok(v),
             }
         };
-        use crate::ranges::{DENSITY_KG_M3, DROP_HEIGHT_CM, FPS, MM_PER_PX, SPHERE_RADIUS_MM};
+        use crate::util::ranges::{
+            DENSITY_KG_M3, DROP_HEIGHT_CM, FPS, MM_PER_PX, SPHERE_RADIUS_MM,
+        };
         ranged(
             "sphere_radius_mm",
             SPHERE_RADIUS_MM,
@@ -261,20 +267,20 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
                 row,
                 format!(
                     "column `path` = {:?}: holds a control character",
-                    crate::text::one_line(&r.path.to_string_lossy())
+                    crate::util::text::one_line(&r.path.to_string_lossy())
                 ),
             ));
         }
         for (col, v) in [("surface", &r.surface), ("setup", &r.setup)] {
             if let Some(v) = v.as_deref().filter(|v| {
                 v.chars()
-                    .any(|c| c.is_control() || crate::text::is_format(c))
+                    .any(|c| c.is_control() || crate::util::text::is_format(c))
             }) {
                 return Err(row_err(
                     row,
                     format!(
                         "column `{col}` = {:?}: holds a control or invisible format character",
-                        crate::text::one_line(v)
+                        crate::util::text::one_line(v)
                     ),
                 ));
             }

@@ -1,7 +1,7 @@
 //! The output folder: the one way a job writes, reads back or removes a
 //! file inside it.
 //!
-//! - A path inside the folder is plain names only ([`crate::io_util::inside`]).
+//! - A path inside the folder is plain names only ([`crate::util::io::inside`]).
 //! - No link under the folder is followed: every folder between the output
 //!   folder and the file must be a real folder (`symlink_metadata`), folders
 //!   are made one at a time, a temporary is created with `O_EXCL |
@@ -24,12 +24,12 @@ use std::path::{Component, Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::io_util::Durable;
+use crate::util::io::Durable;
 
 /// `out/rel` once `rel` is checked to be plain names and no existing
 /// component below `out` (the file's own name included) is a link.
 pub fn path(out: &Path, rel: &str) -> io::Result<PathBuf> {
-    let full = crate::io_util::inside(out, rel)?;
+    let full = crate::util::io::inside(out, rel)?;
     let mut at = out.to_path_buf();
     for c in Path::new(rel).components() {
         let Component::Normal(name) = c else {
@@ -67,7 +67,7 @@ pub fn create_dirs(out: &Path, rel_dir: &str) -> io::Result<PathBuf> {
     if rel_dir.is_empty() {
         return Ok(out.to_path_buf());
     }
-    let full = crate::io_util::inside(out, rel_dir)?;
+    let full = crate::util::io::inside(out, rel_dir)?;
     let mut at = out.to_path_buf();
     for c in Path::new(rel_dir).components() {
         let Component::Normal(name) = c else {
@@ -97,7 +97,7 @@ pub fn create_dirs(out: &Path, rel_dir: &str) -> io::Result<PathBuf> {
 }
 
 /// Write what `write` writes to `out/rel` atomically
-/// ([`crate::io_util::write_atomic_as`]), making its folders
+/// ([`crate::util::io::write_atomic_as`]), making its folders
 /// ([`create_dirs`]); returns the full path.
 pub fn write_as(
     out: &Path,
@@ -108,7 +108,7 @@ pub fn write_as(
     let parent = Path::new(rel).parent().unwrap_or(Path::new(""));
     create_dirs(out, &parent.to_string_lossy())?;
     let full = path(out, rel)?;
-    crate::io_util::write_atomic_as(&full, durable, write)?;
+    crate::util::io::write_atomic_as(&full, durable, write)?;
     Ok(full)
 }
 

@@ -10,8 +10,8 @@ use crate::collapse::diagnostics::{self, DropDiagnostics};
 use crate::collapse::CollapseError;
 use crate::config::{PipelineConfig, Surface};
 use crate::dataset::DropRecord;
-use crate::io_util::Durable;
 use crate::out_folder::Ledger;
+use crate::util::io::Durable;
 
 /// The diagnostics of the drops of `records` (the rows of `drops_csv`)
 /// that were measured and have a track beside it; `surface_of(i, record)`
@@ -27,7 +27,7 @@ pub fn diagnose_all<'a>(
     let mut todo = Vec::new();
     for (i, rec) in records.iter().enumerate() {
         // A run name that is not a file name never reaches outside tracks/.
-        if crate::run_name::check(&rec.run).is_err() || !rec.status.measured() {
+        if crate::dataset::run_name::check(&rec.run).is_err() || !rec.status.measured() {
             continue;
         }
         let Some(p) = crate::out_folder::path(&tracks_dir, &format!("{}.csv", rec.run))
@@ -68,7 +68,7 @@ pub fn figures(
     let drawn: Vec<_> = diags
         .into_par_iter()
         .map(|d| {
-            crate::timings::time(crate::timings::Stage::Figures, || {
+            crate::util::timings::time(crate::util::timings::Stage::Figures, || {
                 // Named after the run, as its track and overlay are (spaces
                 // and non-ASCII letters included): its name passed
                 // `run_name::check` in `diagnose_all`.
@@ -90,7 +90,7 @@ pub fn figures(
         for (name, bytes) in d? {
             let rel = Path::new("plots").join("drops").join(name);
             let bytes = if rel.extension().is_some_and(|e| e == "svg") {
-                crate::dataset_id::tag_svg(bytes, dataset_id)
+                crate::dataset::id::tag_svg(bytes, dataset_id)
             } else {
                 bytes
             };
@@ -125,7 +125,7 @@ pub fn draw(
 
 /// Write `figures` (paths under `plots/drops/`) through the output
 /// folder's `ledger`, each atomically (and all synced at once,
-/// [`crate::io_util::sync_file_system`]), adding them to `files`, then
+/// [`crate::util::io::sync_file_system`]), adding them to `files`, then
 /// remove the other per-drop figures an earlier job wrote (those the ledger
 /// lists, unchanged): those of drops no longer measured or no longer in
 /// the job. A reader sees the old figure or the new one, never none; any
@@ -149,7 +149,7 @@ pub fn replace(
         source,
     };
     if any {
-        crate::io_util::sync_file_system(&out_dir).map_err(gone)?;
+        crate::util::io::sync_file_system(&out_dir).map_err(gone)?;
     }
     let earlier: Vec<String> = ledger
         .listed()
@@ -162,7 +162,7 @@ pub fn replace(
     Ok(())
 }
 
-/// `rel` written through `ledger` and added to `files`, synced now or left for one [`crate::io_util::sync_file_system`]
+/// `rel` written through `ledger` and added to `files`, synced now or left for one [`crate::util::io::sync_file_system`]
 /// of them all ([`Durable`]): through the output folder's ledger
 /// ([`crate::out_folder`]), which lists it as dropscope's.
 pub(crate) fn write_as(

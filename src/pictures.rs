@@ -55,7 +55,7 @@ impl Pictures<'_> {
 
     /// The overlay of `ft` as PNG bytes.
     pub fn still(&mut self, ft: &FrameTrack) -> Option<Vec<u8>> {
-        let _timed = crate::timings::start(crate::timings::Stage::Overlays);
+        let _timed = crate::util::timings::start(crate::util::timings::Stage::Overlays);
         let mut frame = Frame::zeros((self.meta.height, self.meta.width));
         let (source, on) = self.split();
         let img = on.draw(
@@ -92,7 +92,7 @@ impl Pictures<'_> {
     /// [`MOVIE_ZOOM`], [`MOVIE_FRAME_MS`] per frame, looping. `None` with
     /// fewer than 2 frames drawn.
     pub fn impact(&mut self, t_contact_s: f64, t_rebound_s: Option<f64>) -> Option<Vec<u8>> {
-        use crate::timings::{start, Stage};
+        use crate::util::timings::{start, Stage};
         let _timed = start(Stage::Animation);
         let frames = self.impact_frames(t_contact_s, t_rebound_s);
         let circles: Vec<_> = frames
@@ -226,7 +226,7 @@ impl Drawn<'_> {
         let crop = view.x0..view.x0 + view.width;
         let strip = self.track.background.region.strip_px.min(width);
         let cols = window_columns(crop.clone(), strip, width);
-        crate::timings::time(crate::timings::Stage::Read, || {
+        crate::util::timings::time(crate::util::timings::Stage::Read, || {
             source.read_window_into(ft.index, 0, &cols, &mut frame.view_mut())
         })
         .ok()?;

@@ -15,7 +15,7 @@ use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::RunSpec;
 use crate::out_folder::Ledger;
 use crate::process::write_file;
-use crate::timings::{time, Stage};
+use crate::util::timings::{time, Stage};
 
 /// What a `process` job did.
 #[derive(Debug, Clone)]
@@ -61,12 +61,12 @@ fn remove_other_collapse(
             removed.iter().partition(|f| f.starts_with("plots/"));
         let mut named: Vec<String> = files.iter().map(|f| f.to_string()).collect();
         if !figures.is_empty() {
-            named.push(crate::plural(figures.len(), "figure"));
+            named.push(crate::util::text::plural(figures.len(), "figure"));
         }
         events(RunEvent::Notice(&format!(
             "removed {} ({}) that an earlier job computed from another drops.csv; `dropscope \
              collapse {}` computes them for this one",
-            crate::plural(removed.len(), "file"),
+            crate::util::text::plural(removed.len(), "file"),
             named.join(", "),
             out.join("drops.csv").display()
         )));
@@ -100,7 +100,7 @@ fn run_on_pool(
     overlay_frames: &[i64],
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<ProcessSummary, BatchError> {
-    crate::io_util::remove_stale_temporaries(out, &crate::lock::writer_is_gone).map_err(
+    crate::util::io::remove_stale_temporaries(out, &crate::lock::writer_is_gone).map_err(
         |source| BatchError::Io {
             path: out.to_path_buf(),
             source,
@@ -121,7 +121,7 @@ fn run_on_pool(
     let entries: Vec<_> = done.into_iter().map(|(e, _)| e).collect();
     let records: Vec<DropRecord> = entries.iter().map(|e| e.record.clone()).collect();
     let drops = crate::dataset::to_csv_bytes(&records);
-    let id = crate::dataset_id::of_bytes(&drops);
+    let id = crate::dataset::id::of_bytes(&drops);
     // The per-drop figures are drawn from the tracks while the runs' files
     // are synced and drops.csv and provenance.json written; they are
     // written after drops.csv. The syncs wait on the disk on a thread of

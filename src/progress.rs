@@ -91,7 +91,7 @@ pub fn closing_warnings(records: &[DropRecord]) -> Vec<String> {
             out.push(format!(
                 "frame rate assumed for {} holding none: {} frames/s (fps_source {source}), \
                  {from}: {}",
-                crate::plural(runs.len(), "recording"),
+                crate::util::text::plural(runs.len(), "recording"),
                 first.fps.unwrap_or(f64::NAN),
                 names(&runs)
             ));
@@ -176,7 +176,7 @@ impl JobProgress {
                         ProgressStyle::with_template("  {spinner} {msg} {elapsed}")
                             .unwrap_or_else(|_| ProgressStyle::default_spinner()),
                     );
-                    s.set_message(crate::text::terminal(run).into_owned());
+                    s.set_message(crate::util::text::terminal(run).into_owned());
                     s.enable_steady_tick(Duration::from_millis(120));
                     if let Ok(mut m) = b.running.lock() {
                         m.insert(run.to_string(), s);
@@ -186,7 +186,7 @@ impl JobProgress {
             RunEvent::Notice(message) => match &self.bars {
                 None => crate::errln!("{message}"),
                 Some(b) => {
-                    let _ = b.multi.println(crate::text::terminal(message));
+                    let _ = b.multi.println(crate::util::text::terminal(message));
                 }
             },
             RunEvent::Collapsing => match &self.bars {
@@ -220,9 +220,9 @@ impl JobProgress {
                             b.failed.fetch_add(1, Ordering::Relaxed);
                         }
                         if !record.status.measured() {
-                            let _ = b
-                                .multi
-                                .println(crate::text::terminal(&run_line(record, frames, seconds)));
+                            let _ = b.multi.println(crate::util::text::terminal(&run_line(
+                                record, frames, seconds,
+                            )));
                         }
                         b.overall.set_message(format!(
                             "({} failed, {} cached)",

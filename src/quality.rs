@@ -40,7 +40,7 @@ pub const FPS_ASSUMED: &str = "fps_assumed";
 pub const TIME_IRREGULAR: &str = "time_irregular";
 /// The sphere's apparent size per mm of its radius disagrees with its
 /// set-up's other runs beyond their errors: a wrong `sphere_radius_mm`, or
-/// a run in the wrong set-up ([`crate::scale::size_disagreements`]).
+/// a run in the wrong set-up ([`crate::calibrate::scale::size_disagreements`]).
 pub const RADIUS_DISAGREEMENT: &str = "radius_disagreement";
 /// The contact law could not be fitted (or its fit hit its limits).
 pub const NO_FORCE_LAW: &str = "no_force_law";

@@ -16,9 +16,9 @@
 use std::fs::File;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::io_util::{read_at, write_at};
-use crate::records::{Record, Records};
 use crate::track::{FrameTrack, Track};
+use crate::util::io::{read_at, write_at};
+use crate::util::records::{Record, Records};
 
 /// One job's shelf: an unnamed temporary file written at the end.
 pub struct Shelf {

@@ -86,11 +86,11 @@ fn check_field(
         None if !value.is_empty() => Ok(()),
         found => Err(SlurmError::Value(format!(
             "{field} {:?}: {} (a value written into the Slurm scripts may hold only {allowed})",
-            crate::text::one_line(value),
+            crate::util::text::one_line(value),
             match found {
                 Some(c) => format!(
                     "the character {:?} is not allowed",
-                    crate::text::one_line(&c.to_string())
+                    crate::util::text::one_line(&c.to_string())
                 ),
                 None => "is empty".to_string(),
             }
@@ -105,7 +105,7 @@ const SBATCH_PATH: &str =
     "letters, digits and _ . / - + , @ : = ~ (no space, quote, $, %, \\ or control character)";
 
 fn sbatch_path_char(c: char) -> bool {
-    c.is_alphanumeric() && !crate::text::is_format(c) || "_./-+,@:=~".contains(c)
+    c.is_alphanumeric() && !crate::util::text::is_format(c) || "_./-+,@:=~".contains(c)
 }
 
 /// Check every value `args` and `plan` put into the scripts: `--partition`
@@ -158,7 +158,7 @@ pub fn check_values(args: &SlurmArgs, plan: &Plan) -> Result<(), SlurmError> {
             sbatch_path_char,
         )?;
     }
-    let quoted = |c: char| !c.is_control() && !crate::text::is_format(c);
+    let quoted = |c: char| !c.is_control() && !crate::util::text::is_format(c);
     let allowed = "any character but a control or format character";
     check_field(
         "the output folder",
@@ -346,7 +346,7 @@ pub fn write_scripts(args: &SlurmArgs, plan: &Plan) -> Result<Scripts, SlurmErro
         (&scripts.array, array_script(args, plan)),
         (&scripts.finish, finish_script(args, plan)),
     ] {
-        crate::io_util::write_atomic(path, text.as_bytes()).map_err(io(path))?;
+        crate::util::io::write_atomic(path, text.as_bytes()).map_err(io(path))?;
     }
     Ok(scripts)
 }

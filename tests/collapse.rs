@@ -875,7 +875,7 @@ fn outputs_of_two_datasets_cannot_be_mixed() {
     let (code, text) = go(&["report", "a"]);
     assert_eq!(code, Some(0), "{text}");
     let page = std::fs::read_to_string(dir.path().join("a/report.html")).unwrap();
-    let id = dropscope::dataset_id::of_file(&dir.path().join("a/drops.csv")).unwrap();
+    let id = dropscope::dataset::id::of_file(&dir.path().join("a/drops.csv")).unwrap();
     assert!(page.contains(&id), "the page names its dataset");
 
     // One figure of b's collapse dropped into a.

@@ -148,10 +148,10 @@ fn process_draws_the_per_drop_figures_without_a_collapse() {
         err.contains("3 runs: 2 measured, 1 with warnings, 0 failed"),
         "{err}"
     );
-    let id = dropscope::dataset_id::of_file(&out.join("drops.csv")).unwrap();
+    let id = dropscope::dataset::id::of_file(&out.join("drops.csv")).unwrap();
     for run in ["R3mm_H1.5cm_01", "R4.5mm_H12cm_01", "R7mm_H50cm_01"] {
         let svg = std::fs::read_to_string(out.join(format!("plots/drops/{run}.svg"))).unwrap();
-        assert_eq!(dropscope::dataset_id::of_svg(&svg), Some(id.as_str()));
+        assert_eq!(dropscope::dataset::id::of_svg(&svg), Some(id.as_str()));
         assert!(svg.contains("penetration"), "{run}");
         let png = image::open(out.join(format!("plots/drops/{run}.png")))
             .unwrap()

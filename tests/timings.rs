@@ -2,7 +2,7 @@
 //! time went, stage by stage, and write the same bytes as without it.
 
 use crate::run::{assert_same_tree, fixture_manifest, run, stderr, tree, write_config};
-use dropscope::timings::Stage;
+use dropscope::util::timings::Stage;
 use std::path::Path;
 use std::process::Command;
 

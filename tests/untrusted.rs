@@ -214,9 +214,9 @@ fn a_foreign_svg_never_brings_its_script_into_the_report() {
         .output()
         .unwrap();
     assert!(o.status.code().is_some_and(|c| c < 2), "{}", stderr(&o));
-    let id = dropscope::dataset_id::of_file(&out.join("drops.csv")).unwrap();
+    let id = dropscope::dataset::id::of_file(&out.join("drops.csv")).unwrap();
     let evil = |n: u32| {
-        dropscope::dataset_id::tag_svg(
+        dropscope::dataset::id::tag_svg(
             format!("<svg xmlns=\"http://www.w3.org/2000/svg\"><script>alert({n})</script></svg>")
                 .into_bytes(),
             &id,

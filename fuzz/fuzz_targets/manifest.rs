@@ -8,7 +8,7 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(runs) = dropscope::manifest::parse_manifest(data, std::path::Path::new("/m/runs.csv"))
     {
         for r in runs {
-            assert!(dropscope::run_name::check(&r.run).is_ok(), "{:?}", r.run);
+            assert!(dropscope::dataset::run_name::check(&r.run).is_ok(), "{:?}", r.run);
         }
     }
 });

@@ -12,8 +12,8 @@ use super::fit::Estimate;
 use super::stats::weighted_poly_fit;
 use crate::config::Surface;
 use crate::dataset::{DropRecord, TrackRow};
-use crate::lsq::RowQr;
-use crate::records::{Put, Record, Records, Take};
+use crate::util::lsq::RowQr;
+use crate::util::records::{Put, Record, Records, Take};
 
 /// z(t) = c0 + c1 (t − t0) + c2 (t − t0)², z in px, t in s.
 #[derive(Debug, Clone, PartialEq)]

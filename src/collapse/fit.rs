@@ -357,7 +357,7 @@ fn fit_and_bootstrap(
             "{}: unweighted least squares (some of its {} have no uncertainty, \
              or a zero one)",
             display_name(name),
-            crate::plural(obs.len(), "drop")
+            crate::util::text::plural(obs.len(), "drop")
         ));
     }
     let (boot, failed) = bootstrap(obs, degree, settings, name, derive);
@@ -403,7 +403,7 @@ fn series(
         warnings.push(format!(
             "{}: {}, at least 4 are needed for three coefficients with errors",
             display_name(name),
-            crate::plural(obs.len(), "drop")
+            crate::util::text::plural(obs.len(), "drop")
         ));
         return None;
     }
@@ -471,7 +471,7 @@ fn asymptote(
         warnings.push(format!(
             "{}: {} selected, need 2",
             display_name(name),
-            crate::plural(obs.len(), "drop")
+            crate::util::text::plural(obs.len(), "drop")
         ));
         return None;
     }
@@ -536,7 +536,7 @@ fn exponents(
             few.push(warnings.len());
             warnings.push(format!(
                 "{name}: {} {what}, need 3 for an exponent",
-                crate::plural(obs.len(), "drop")
+                crate::util::text::plural(obs.len(), "drop")
             ));
             return None;
         }
@@ -766,7 +766,7 @@ fn few_drops_text(groups: &[DropGroups]) -> String {
          measure a campaign: `dropscope render --campaign --repeats 2 --out campaign` \
          (60 drops), then `dropscope process --manifest campaign/runs.csv --out \
          campaign-results` and `dropscope collapse campaign-results/drops.csv`",
-        crate::plural(groups.len(), "drop"),
+        crate::util::text::plural(groups.len(), "drop"),
         match by_r.len() {
             1 => "1 radius".to_string(),
             n => format!("{n} radii"),

@@ -208,11 +208,22 @@ pub fn compute(
     // A hand-made drops.csv's radius and density within their physical
     // ranges, so that every group below is a finite number.
     for (name, range, x) in [
-        ("sphere_radius_mm", crate::ranges::SPHERE_RADIUS_MM, r_mm),
-        ("sphere_density_kg_m3", crate::ranges::DENSITY_KG_M3, rho),
+        (
+            "sphere_radius_mm",
+            crate::util::ranges::SPHERE_RADIUS_MM,
+            r_mm,
+        ),
+        (
+            "sphere_density_kg_m3",
+            crate::util::ranges::DENSITY_KG_M3,
+            rho,
+        ),
     ] {
         range.check(x).map_err(|allowed| {
-            SkipReason(format!("{name} = {}: {allowed}", crate::ranges::show(x)))
+            SkipReason(format!(
+                "{name} = {}: {allowed}",
+                crate::util::ranges::show(x)
+            ))
         })?;
     }
     let v = positive("v_impact_m_s", rec.v_impact_m_s)?;
@@ -303,7 +314,7 @@ pub fn compute(
             return Err(SkipReason(format!(
                 "{name} = {} is not a finite positive number (a value of the row is out of \
                  any physical range)",
-                crate::ranges::show(x)
+                crate::util::ranges::show(x)
             )));
         }
     }

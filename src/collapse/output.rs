@@ -42,7 +42,7 @@ struct Row<'a> {
     Pi_prime_err: Option<f64>,
     kappa_prime: Option<f64>,
     kappa_prime_err: Option<f64>,
-    /// The drops.csv this row was computed from ([`crate::dataset_id`]).
+    /// The drops.csv this row was computed from ([`crate::dataset::id`]).
     dataset_id: &'a str,
 }
 
@@ -62,12 +62,12 @@ pub fn collapse_csv(outcomes: &[DropOutcome], dataset_id: &str) -> Vec<u8> {
             Ok(_) => "",
             Err(reason) => reason.0.as_str(),
         };
-        // Text cells: nothing a spreadsheet runs ([`crate::text::csv_cell`]).
+        // Text cells: nothing a spreadsheet runs ([`crate::util::text::csv_cell`]).
         let (run, surface) = (
-            crate::text::csv_cell(&o.run),
-            crate::text::csv_cell(&o.surface),
+            crate::util::text::csv_cell(&o.run),
+            crate::util::text::csv_cell(&o.surface),
         );
-        let note = crate::text::csv_cell(note);
+        let note = crate::util::text::csv_cell(note);
         let row = Row {
             row: o.row,
             run: &run,
@@ -184,7 +184,7 @@ pub struct Provenance {
     /// The input table's file name (not its path: the same data in two
     /// folders gives the same bytes).
     pub drops_csv: String,
-    /// [`crate::dataset_id`] of the drops.csv read.
+    /// [`crate::dataset::id`] of the drops.csv read.
     pub dataset_id: String,
     /// Which contact radius was asked for: `measured` or `geometric` (`--contact-radius`).
     pub contact_radius: &'static str,

@@ -42,7 +42,7 @@ impl LsFit {
 }
 
 /// Weighted least squares of `y` on `1, x, …, x^degree` (through
-/// [`crate::lsq::weighted_lsq`], a QR solve). `w` are the weights (1/σ²);
+/// [`crate::util::lsq::weighted_lsq`], a QR solve). `w` are the weights (1/σ²);
 /// `None` means all equal. Returns `None` when fewer points than parameters,
 /// a weight or value is not finite (weights also positive), or the design
 /// matrix is (numerically) singular, e.g. all `x` equal.
@@ -69,7 +69,7 @@ pub fn weighted_poly_fit(x: &[f64], y: &[f64], w: Option<&[f64]>, degree: usize)
         Some(w) => w.iter().map(|wi| 1.0 / wi.sqrt()).collect(),
         None => vec![1.0; n],
     };
-    let fit = crate::lsq::weighted_lsq(&design, y, &sigma)?;
+    let fit = crate::util::lsq::weighted_lsq(&design, y, &sigma)?;
     let sk: Vec<f64> = (0..p).map(|k| scale.powi(k as i32)).collect();
     let coef: Vec<f64> = (0..p).map(|r| fit.coef[r] / sk[r]).collect();
     if fit.dof == 0 {

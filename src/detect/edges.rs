@@ -451,7 +451,7 @@ const INTERIOR_INNER_FRACTION: f64 = 0.6;
 /// disk: the level nearer the edges, and less of the highlight (over the
 /// upper half-disk the apparent radii of one set-up's drops spread by up
 /// to 0.56 px with the highlight's strength, beyond what
-/// [`crate::setup_infer::EDGE_SPREAD_PX`] allows; over the ring 0.49,
+/// [`crate::calibrate::setup_infer::EDGE_SPREAD_PX`] allows; over the ring 0.49,
 /// the whole disk's 0.45).
 #[allow(clippy::too_many_arguments)]
 fn transmission(

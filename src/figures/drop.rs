@@ -437,7 +437,7 @@ mod tests {
         use crate::collapse::diagnostics::TrackSample;
         // The samples held in memory, or in a file past `memory_max`.
         let figure = |frames: usize, memory_max: usize| {
-            let mut samples = crate::records::Records::new(memory_max);
+            let mut samples = crate::util::records::Records::new(memory_max);
             for s in (0..frames).map(|k| {
                 let t_s = 2.0 * k as f64 / frames as f64;
                 let u = (t_s * 4.0).fract();

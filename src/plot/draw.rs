@@ -138,9 +138,9 @@ where
         drop(root);
         Ok(with_hover(svg, &targets))
     };
-    let stage = crate::timings::current();
+    let stage = crate::util::timings::current();
     let png = || -> Result<Vec<u8>, PlotError> {
-        let _timed = stage.and_then(crate::timings::start);
+        let _timed = stage.and_then(crate::util::timings::start);
         let mut rgb = vec![255u8; size.0 as usize * size.1 as usize * 3];
         {
             let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();

@@ -7,7 +7,7 @@ use crate::events::Geometry;
 /// With a given scale and a lens that is not corrected (`corrected`:
 /// calibrated or measured by the surface's bow, the track then in the
 /// scene's pixels, where the given scale holds at the impact as anywhere),
-/// the speeds use [`crate::scale::Scale::for_speeds`]:
+/// the speeds use [`crate::calibrate::scale::Scale::for_speeds`]:
 /// the magnification at the impact that free fall measures, where it is
 /// precise and disagrees with the given one. Where free fall is too
 /// imprecise to be used (one drop's own flight), its disagreement beyond
@@ -17,7 +17,7 @@ use crate::events::Geometry;
 /// the given scale alone.
 pub(super) fn speeds_at_the_impact_scale(
     record: &mut DropRecord,
-    sc: &crate::scale::Scale,
+    sc: &crate::calibrate::scale::Scale,
     corrected: bool,
 ) {
     if corrected {
@@ -39,8 +39,8 @@ pub(super) fn speeds_at_the_impact_scale(
 /// magnification, and the relative error that adds (see
 /// [`speeds_at_the_impact_scale`]); (1, 0) unless the scale is given and
 /// free fall measured one.
-pub(super) fn speed_factor(sc: &crate::scale::Scale) -> (f64, f64) {
-    let (crate::scale::ScaleSource::Given, Some((ff, ff_err))) =
+pub(super) fn speed_factor(sc: &crate::calibrate::scale::Scale) -> (f64, f64) {
+    let (crate::calibrate::scale::ScaleSource::Given, Some((ff, ff_err))) =
         (sc.source, sc.free_fall_mm_per_px)
     else {
         return (1.0, 0.0);
@@ -54,11 +54,14 @@ pub(super) fn speed_factor(sc: &crate::scale::Scale) -> (f64, f64) {
     }
 }
 
-/// Add the distortion bound's [`Shift`](crate::lens::Shift) to the errors
+/// Add the distortion bound's [`Shift`](crate::calibrate::lens::Shift) to the errors
 /// as a systematic term: k1 anywhere between minus and plus the bound,
 /// uniformly, moves each number by up to the shift, a standard deviation
 /// of |shift| / √3. The shifts are written beside them.
-pub(super) fn distortion_systematic(record: &mut DropRecord, shift: &crate::lens::Shift) {
+pub(super) fn distortion_systematic(
+    record: &mut DropRecord,
+    shift: &crate::calibrate::lens::Shift,
+) {
     let sd = |d: f64| d.abs() / 3f64.sqrt();
     let widen = |err: &mut Option<f64>, d: f64| *err = err.map(|e| e.hypot(sd(d)));
     widen(&mut record.mm_per_px_err, shift.mm_per_px);

@@ -7,7 +7,7 @@ use crate::manifest::RunSpec;
 use std::path::{Path, PathBuf};
 
 /// The runs named on the command line: each INPUT one run named after its
-/// folder or `.cine` file ([`crate::run_name::from_input`]), with the radius
+/// folder or `.cine` file ([`crate::dataset::run_name::from_input`]), with the radius
 /// from `--radius-mm` or the configuration. An INPUT that is not there, or
 /// is neither a folder nor a cine ([`crate::source::input_kind`]), is an
 /// error ([`ProcessError::Input`]), not a run: what is inside an input is
@@ -36,7 +36,7 @@ pub fn runs_from_inputs(
     let mut runs: Vec<RunSpec> = Vec::with_capacity(inputs.len());
     for p in inputs {
         check_input(p)?;
-        let base = crate::run_name::from_input(p);
+        let base = crate::dataset::run_name::from_input(p);
         let mut run = base.clone();
         let mut k = 1;
         while runs.iter().any(|r| r.run == run) {

@@ -8,13 +8,14 @@ use super::outputs::{track_row, with_files, Files, RecordingRow};
 use super::points::{bounded_points, held_points};
 use super::tracked::{lens_of, LensUsed, Tracked};
 use super::types::RunOutcome;
+use crate::calibrate::free_fall::Curvature;
+use crate::calibrate::scale::ScaleInputs;
 use crate::config::PipelineConfig;
 use crate::dataset::DropRecord;
 use crate::events::{EventConfig, Geometry, TrackPoint};
 use crate::manifest::RunSpec;
 use crate::measure::{annotate_track, measure_drop, measure_drop_with, DropInfo};
 use crate::quality;
-use crate::scale::{Curvature, ScaleInputs};
 use crate::track::FrameTrack;
 
 pub(super) fn measure_run(
@@ -49,11 +50,11 @@ pub(super) fn measure_run(
         own: curvature,
         r_app_px: tr.radius_px,
         r_app_err_px: tr.radius_err_px,
-        edge_offset: crate::scale::EdgeOffset::from_config(&cfg.camera),
+        edge_offset: crate::calibrate::scale::EdgeOffset::from_config(&cfg.camera),
         setup_at_bound,
         own_at_bound: bounded.as_ref().and_then(|b| b.curvature),
     };
-    let sc = crate::scale::resolve(&inputs);
+    let sc = crate::calibrate::scale::resolve(&inputs);
     let (radius_px, radius_err_px) = sc.radius_px(&inputs);
     let edge_offset = sc.edge_offset_px(&inputs);
     let mut held = 0usize;
@@ -203,7 +204,7 @@ pub(super) fn measure_run(
     if let Some(b) = &bounded {
         // The first look's points (their half-widths on the image's line)
         // and the lens's, each under the geometry measured on them.
-        let shift = crate::lens::shift_at_bound(
+        let shift = crate::calibrate::lens::shift_at_bound(
             |g| window(&first_geom, g).ok(),
             |g| {
                 let held = bounded_points(&tr, &b.lens, b.radius_px);

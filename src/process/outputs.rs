@@ -4,13 +4,13 @@
 use super::checks::{frame_rate_checks, saturated_share};
 use super::types::{ProcessError, RunOutcome, TRACK_CSV_IN_MEMORY_MAX};
 use crate::cache::OutputFile;
+use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
-use crate::io_util::{Durable, Spool};
 use crate::manifest::RunSpec;
 use crate::quality;
-use crate::setup_infer::SceneSignature;
 use crate::track::{FrameTrack, Track, TrackSettings};
+use crate::util::io::{Durable, Spool};
 use std::io::Write;
 use std::path::Path;
 
@@ -153,7 +153,7 @@ pub(super) fn write_file_as(
 /// them. Until then an operating-system crash may leave a run's file short;
 /// the cache finds it by its SHA-256 and processes the run again.
 pub fn sync_outputs(out: &Path) -> Result<(), ProcessError> {
-    crate::io_util::sync_file_system(out).map_err(|source| ProcessError::Write {
+    crate::util::io::sync_file_system(out).map_err(|source| ProcessError::Write {
         path: out.to_path_buf(),
         source,
     })
@@ -171,7 +171,7 @@ pub fn sync_outputs(out: &Path) -> Result<(), ProcessError> {
 /// relative to `out`, with the SHA-256 of their bytes.
 pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, ProcessError> {
     let run = &o.record.run;
-    if crate::run_name::check(run).is_err() {
+    if crate::dataset::run_name::check(run).is_err() {
         // Its row says why it failed; it has no files and removes none.
         return Ok(Vec::new());
     }
@@ -235,7 +235,7 @@ pub(super) struct RecordingRow<'a> {
     pub(super) cfg: &'a PipelineConfig,
     pub(super) meta: &'a crate::source::SourceMeta,
     pub(super) tr: &'a Track,
-    pub(super) sc: &'a crate::scale::Scale,
+    pub(super) sc: &'a crate::calibrate::scale::Scale,
     /// Apparent minus true radius and its error, px.
     pub(super) edge_offset: Option<(f64, f64)>,
     pub(super) fps_source: &'a str,

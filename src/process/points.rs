@@ -1,8 +1,8 @@
 //! A track's held fits as the event stage's points, the excluded frames left
 //! out.
 
+use crate::calibrate::lens::Lens;
 use crate::events::TrackPoint;
-use crate::lens::Lens;
 use crate::track::{FrameTrack, Track};
 
 /// Mark the frames a person excluded (`review.csv`) in `tr`: their fits
@@ -36,20 +36,21 @@ pub(super) fn held_points<'a>(
     )
 }
 
-/// The held fits through `lens` ([`crate::lens::undistort_held`]) as points
+/// The held fits through `lens` ([`crate::calibrate::lens::undistort_held`]) as points
 /// without half-widths, as they are walked.
 pub(super) fn bounded_points<'a>(
     tr: &'a Track,
     lens: &'a Lens,
     r_px: f64,
 ) -> impl Iterator<Item = TrackPoint> + 'a {
-    points_of(crate::lens::undistort_held(tr, lens, r_px), |_| {
-        (None, None)
-    })
+    points_of(
+        crate::calibrate::lens::undistort_held(tr, lens, r_px),
+        |_| (None, None),
+    )
 }
 
 /// [`held_points`] of frames given with their held fits (the track's, or
-/// moved by a lens: [`crate::lens::undistort_held`]); a circle leaving the
+/// moved by a lens: [`crate::calibrate::lens::undistort_held`]); a circle leaving the
 /// frame is no point, nor a frame the tracker found off its neighbours'
 /// flight ([`crate::track::Flag::Outlier`]), nor one a person excluded
 /// ([`crate::track::Flag::Excluded`]).

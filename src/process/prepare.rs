@@ -3,10 +3,10 @@
 
 use super::failure::{caught, RunFailure};
 use super::tracked::{bounded_of, open_run, track_run, Tracked};
+use crate::calibrate::free_fall::Curvature;
+use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::manifest::RunSpec;
-use crate::scale::Curvature;
-use crate::setup_infer::SceneSignature;
 use crate::shelf::{Shelf, ShelvedTrack};
 use crate::track::TrackSettings;
 use rayon::prelude::*;
@@ -15,10 +15,10 @@ use std::sync::Arc;
 /// A job's runs and configuration as they are processed.
 pub struct Prepared {
     /// The runs, with the camera set-ups their images show filled in where
-    /// the manifest names none ([`crate::setup_infer`], `camera.infer_setups`).
+    /// the manifest names none ([`crate::calibrate::setup_infer`], `camera.infer_setups`).
     pub runs: Vec<RunSpec>,
     /// The configuration, with the edge offset the runs measured
-    /// ([`crate::scale::EdgeOffset::measure`]) where it gives none.
+    /// ([`crate::calibrate::scale::EdgeOffset::measure`]) where it gives none.
     pub cfg: PipelineConfig,
     /// The runs tracked to read their scenes, kept for [`process_setup`].
     pub kept: KeptRuns,
@@ -69,7 +69,9 @@ impl KeptRun {
             Err(e) => return Some(KeptRun(Err(e))),
         };
         let shelf = shelf?;
-        let track = crate::timings::time(crate::timings::Stage::Shelf, || shelf.put(t.tr)).ok()?;
+        let track =
+            crate::util::timings::time(crate::util::timings::Stage::Shelf, || shelf.put(t.tr))
+                .ok()?;
         Some(KeptRun(Ok(ShelvedRun {
             shelf: Arc::clone(shelf),
             meta: t.meta,
@@ -92,8 +94,10 @@ impl KeptRun {
             Ok(s) => s,
             Err(e) => return Some(Err(e)),
         };
-        let tr =
-            crate::timings::time(crate::timings::Stage::Shelf, || s.shelf.take(s.track)).ok()?;
+        let tr = crate::util::timings::time(crate::util::timings::Stage::Shelf, || {
+            s.shelf.take(s.track)
+        })
+        .ok()?;
         Some(caught(run, || {
             // The same recording, opened again: its frame rate is the one
             // it was tracked at.
@@ -122,7 +126,7 @@ impl KeptRun {
 /// gives a run's scene when it is already known (a cache). A run that cannot be
 /// tracked stays without a set-up (its processing says why). The edge
 /// offset is measured on those runs whose own free fall gives their scale
-/// within [`crate::scale::EDGE_OFFSET_FREE_FALL_REL_ERR`].
+/// within [`crate::calibrate::scale::EDGE_OFFSET_FREE_FALL_REL_ERR`].
 pub fn prepare(
     runs: &[RunSpec],
     cfg: &PipelineConfig,
@@ -168,9 +172,9 @@ pub fn prepare(
         out.kept.runs[i] = std::sync::Mutex::new(k);
     }
     let taken: Vec<&str> = runs.iter().filter_map(|r| r.setup.as_deref()).collect();
-    let groups = crate::setup_infer::infer_groups(&scenes);
+    let groups = crate::calibrate::setup_infer::infer_groups(&scenes);
     for (k, group) in groups.iter().enumerate() {
-        let name = crate::setup_infer::setup_name(k + 1, &taken);
+        let name = crate::calibrate::setup_infer::setup_name(k + 1, &taken);
         for &j in group {
             out.runs[open[j]].setup = Some(name.clone());
         }
@@ -190,11 +194,11 @@ pub fn prepare(
             .flatten()
             .filter_map(|sc| {
                 let (s, err) = sc.free_fall_mm_per_px?;
-                (err < crate::scale::EDGE_OFFSET_FREE_FALL_REL_ERR * s)
+                (err < crate::calibrate::scale::EDGE_OFFSET_FREE_FALL_REL_ERR * s)
                     .then(|| sc.r_app_px - sc.radius_mm / s)
             })
             .collect();
-        if let Some(e) = crate::scale::EdgeOffset::measure(&offsets) {
+        if let Some(e) = crate::calibrate::scale::EdgeOffset::measure(&offsets) {
             out.cfg.camera.edge_offset_px = Some(e.offset_px);
             out.cfg.camera.edge_offset_spread_px = Some(e.spread_px);
             notice(&format!(

@@ -8,12 +8,12 @@ use super::outputs::{sync_outputs, write_file, write_run_outputs};
 use super::prepare::{prepare, KeptRun, Prepared};
 use super::tracked::{open_run, track_run, Tracked};
 use super::types::{ProcessError, RunOutcome};
+use crate::calibrate::free_fall::Curvature;
 use crate::config::PipelineConfig;
 use crate::dataset::DropRecord;
-use crate::io_util::Spool;
 use crate::manifest::RunSpec;
 use crate::quality;
-use crate::scale::Curvature;
+use crate::util::io::Spool;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -29,7 +29,7 @@ pub fn process_run(run: &RunSpec, cfg: &PipelineConfig, overlay_frames: &[i64]) 
 /// Process runs that share one camera set-up (the manifest's `setup`
 /// column; a run without one is a set-up of its own): each is tracked, the
 /// curvatures of their free flights are pooled into one scale (see
-/// [`crate::scale`]), and each is measured with it. Never fails: a run that
+/// [`crate::calibrate::scale`]), and each is measured with it. Never fails: a run that
 /// cannot be measured, or panics, gets a `failed` record; the outcomes come in `runs`'
 /// order.
 ///
@@ -64,7 +64,7 @@ pub fn process_setup(
         .collect();
     let pool = |curvatures: Vec<Curvature>| {
         (curvatures.len() >= 2)
-            .then(|| crate::scale::pool(&curvatures))
+            .then(|| crate::calibrate::free_fall::pool(&curvatures))
             .flatten()
     };
     let pooled_at_bound = pool(
@@ -77,12 +77,12 @@ pub fn process_setup(
     );
     let pooled = pool(curvatures);
     // The members' apparent sizes per mm, compared once all are measured.
-    let sizes: Vec<Option<crate::scale::ApparentSize>> = tracked
+    let sizes: Vec<Option<crate::calibrate::scale::ApparentSize>> = tracked
         .iter()
         .zip(runs)
         .map(|(t, r)| {
             let t = t.as_ref().ok().filter(|_| pooled_in(r))?;
-            Some(crate::scale::ApparentSize {
+            Some(crate::calibrate::scale::ApparentSize {
                 r_app_px: t.tr.radius_px,
                 r_app_err_px: t.tr.radius_err_px,
                 radius_mm: r.sphere_radius_mm,
@@ -100,7 +100,7 @@ pub fn process_setup(
                 Err(f) => f.recording.clone(),
             };
             let mut o = caught(run, || {
-                let _timed = crate::timings::start(crate::timings::Stage::Events);
+                let _timed = crate::util::timings::start(crate::util::timings::Stage::Events);
                 measure_run(
                     t.map_err(|f| f.reason)?,
                     run,
@@ -118,9 +118,9 @@ pub fn process_setup(
         })
         .collect();
     if runs.len() >= 2 {
-        let found = crate::scale::size_disagreements(
+        let found = crate::calibrate::scale::size_disagreements(
             &sizes,
-            crate::scale::EdgeOffset::from_config(&cfg.camera),
+            crate::calibrate::scale::EdgeOffset::from_config(&cfg.camera),
         );
         for ((o, run), d) in outcomes.iter_mut().zip(runs).zip(found) {
             if let Some(d) = d {

@@ -1,7 +1,7 @@
 use super::{failure::*, inputs::*, prepare::*, run::*, tracked::*, types::*};
 use crate::dataset::DropRecord;
-use crate::io_util::Spool;
 use crate::shelf::Shelf;
+use crate::util::io::Spool;
 use std::path::{Path, PathBuf};
 
 #[test]
@@ -80,7 +80,7 @@ fn a_track_kept_from_reading_the_scenes_is_the_track_made_again() {
     let shelf = Shelf::new().unwrap();
     let mut t = track_run(&p.runs[1], &p.cfg).unwrap();
     let expected = format!("{:?}", t.tr);
-    let mut spilled = crate::records::Records::new(10);
+    let mut spilled = crate::util::records::Records::new(10);
     for r in t.tr.frames.iter() {
         spilled.push(r).unwrap();
     }

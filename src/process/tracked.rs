@@ -3,12 +3,12 @@
 
 use super::failure::{Recording, RunFailure};
 use super::points::{bounded_points, exclude_frames, held_points};
+use crate::calibrate::free_fall::{free_fall_curvature, Curvature};
+use crate::calibrate::lens::{undistort_track, Lens};
+use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::events::EventConfig;
-use crate::lens::{undistort_track, Lens};
 use crate::manifest::RunSpec;
-use crate::scale::{free_fall_curvature, Curvature};
-use crate::setup_infer::SceneSignature;
 use crate::source::open;
 use crate::stage_settings::open_options;
 use crate::track::{track, Track, TrackSettings};
@@ -24,7 +24,7 @@ pub(super) struct Tracked {
     pub(super) curvature: Option<Curvature>,
     /// The track through a lens at `camera.distortion_bound_px`, when no
     /// k1 is given and the bound is not 0.
-    pub(super) bounded: Option<crate::lens::Bounded>,
+    pub(super) bounded: Option<crate::calibrate::lens::Bounded>,
     /// Where `meta.fps` came from (the `fps_source` word, [`open_run`]).
     pub(super) fps_source: String,
 }
@@ -77,7 +77,9 @@ pub(super) fn open_run(
     use crate::config::FpsSource;
     let open_with = |fps_fallback: Option<f64>| {
         let options = open_options(cfg, run.number_digits, fps_fallback);
-        crate::timings::time(crate::timings::Stage::Open, || open(&run.path, &options))
+        crate::util::timings::time(crate::util::timings::Stage::Open, || {
+            open(&run.path, &options)
+        })
     };
     let has_fps = |m: &crate::source::SourceMeta| m.fps.is_finite() && m.fps > 0.0;
     match open_with(None) {
@@ -107,8 +109,8 @@ pub(super) fn bounded_of(
     tr: &Track,
     meta: &crate::source::SourceMeta,
     cfg: &PipelineConfig,
-) -> Option<crate::lens::Bounded> {
-    use crate::timings::{time, Stage};
+) -> Option<crate::calibrate::lens::Bounded> {
+    use crate::util::timings::{time, Stage};
     let lens = match lens_of(tr, meta, cfg) {
         LensUsed::Measured { err, .. } => Lens::new(-err * 3f64.sqrt(), meta.width, meta.height),
         LensUsed::Bound(lens) => lens,
@@ -116,7 +118,7 @@ pub(super) fn bounded_of(
     };
     Some({
         let (surface, radius_px, curvature) = time(Stage::Events, || {
-            let (surface, radius_px) = crate::lens::undistorted_line(tr, &lens);
+            let (surface, radius_px) = crate::calibrate::lens::undistorted_line(tr, &lens);
             let c = free_fall_curvature(
                 || bounded_points(tr, &lens, radius_px),
                 |x| surface.row_at(x),
@@ -124,7 +126,7 @@ pub(super) fn bounded_of(
             );
             (surface, radius_px, c)
         });
-        crate::lens::Bounded {
+        crate::calibrate::lens::Bounded {
             lens,
             surface_row0_px: surface.row0_px,
             surface_slope: surface.slope,
@@ -135,7 +137,7 @@ pub(super) fn bounded_of(
 }
 
 pub(super) fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, RunFailure> {
-    crate::run_name::check(&run.run)?;
+    crate::dataset::run_name::check(&run.run)?;
     let surface_name = run
         .surface
         .clone()
@@ -147,7 +149,7 @@ pub(super) fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, 
         )
         .into());
     }
-    use crate::timings::{time, Stage};
+    use crate::util::timings::{time, Stage};
     let (mut source, fps_source) = open_run(run, cfg)?;
     let meta = source.meta().clone();
     // A failure from here on has a recording: its frames and frame rate
@@ -240,7 +242,7 @@ pub(super) fn lens_of(
         return LensUsed::None;
     }
     let bound = Lens::barrel_at_corner(camera.distortion_bound_px, meta.width, meta.height);
-    match crate::lens::k1_from_bow(&tr.surface, meta.width, meta.height) {
+    match crate::calibrate::lens::k1_from_bow(&tr.surface, meta.width, meta.height) {
         Some((k1, err)) if err * 3f64.sqrt() < bound.k1_per_px2.abs() => {
             LensUsed::Measured { k1, err }
         }

@@ -1,9 +1,9 @@
 //! What one run gives ([`RunOutcome`]) and why runs cannot be processed
 //! ([`ProcessError`]).
 
+use crate::calibrate::setup_infer::SceneSignature;
 use crate::dataset::DropRecord;
-use crate::io_util::Spool;
-use crate::setup_infer::SceneSignature;
+use crate::util::io::Spool;
 use std::path::PathBuf;
 
 /// The outcome of one run.

@@ -20,8 +20,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::truth::Truth;
-use crate::io_util::{write_atomic, write_atomic_unsynced};
 use crate::source::Frame;
+use crate::util::io::{write_atomic, write_atomic_unsynced};
 
 /// Why an output could not be written.
 #[derive(Debug, thiserror::Error)]

@@ -166,7 +166,7 @@ fn write_manifest(
             .collect();
         crate::manifest::to_csv_bytes(&rows)
     };
-    crate::io_util::write_atomic(path, &bytes).map_err(|source| {
+    crate::util::io::write_atomic(path, &bytes).map_err(|source| {
         RenderError::Export(export::ExportError::Io {
             path: path.to_path_buf(),
             source,

@@ -31,7 +31,7 @@ const THUMB_QUALITY: u8 = 75;
 /// could point outside `plots/`), the run was measured (a failed run's
 /// files, if any, are from an earlier job) and the file is there.
 fn figure(out_dir: &Path, rec: &DropRecord, sub: &str, ext: &str) -> Option<String> {
-    if rec.status == DropStatus::Failed || crate::run_name::check(&rec.run).is_err() {
+    if rec.status == DropStatus::Failed || crate::dataset::run_name::check(&rec.run).is_err() {
         return None;
     }
     let rel = format!("plots/{sub}/{}.{ext}", rec.run);

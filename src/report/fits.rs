@@ -302,7 +302,7 @@ fn force_laws(out: &mut String, doc: &Value) {
         "<details class=\"section\"{}><summary><h3>Contact law F = K δ<sup>n</sup> per drop \
          ({})</h3></summary>",
         if list.len() <= 10 { " open" } else { "" },
-        crate::plural(list.len(), "drop")
+        crate::util::text::plural(list.len(), "drop")
     );
     out.push_str(
         "<table class=\"fits\"><thead><tr><th>run</th><th>points</th><th>n (model: 2)</th><th>K (N/mm<sup>n</sup>)</th>\
@@ -341,7 +341,9 @@ fn provenance(out: &mut String, doc: &Value) {
          Contact radius: {}; bootstrap: {} resamples, seed {}. Surfaces: {}.</p>",
         doc.get("n_used")
             .and_then(Value::as_u64)
-            .map_or(NONE.into(), |n| crate::plural(n as usize, "drop")),
+            .map_or(NONE.into(), |n| crate::util::text::plural(
+                n as usize, "drop"
+            )),
         count(doc, "n_skipped"),
         count(doc, "n_geometric_contact_radius"),
         escape(s(p, "contact_radius")),

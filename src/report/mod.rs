@@ -48,7 +48,7 @@ pub enum ReportError {
     },
     /// The collapse files are another dataset's than the folder's drops.csv.
     #[error(transparent)]
-    Mixed(#[from] crate::dataset_id::Mixed),
+    Mixed(#[from] crate::dataset::id::Mixed),
     /// A file the report shows could not be read.
     #[error("{path}: cannot read: {source}")]
     Read {
@@ -62,11 +62,11 @@ pub enum ReportError {
 
 /// Refuse a folder whose collapse files (`fits.json`, `collapse.csv`, the
 /// SVG figures) were computed from another drops.csv than the one in it
-/// ([`crate::dataset_id`]). A folder without fits.json has nothing to mix;
+/// ([`crate::dataset::id`]). A folder without fits.json has nothing to mix;
 /// an SVG that carries no dataset id is not dropscope's (a figure of
 /// yours) and not looked at.
 pub fn check_one_dataset(out_dir: &Path) -> Result<(), ReportError> {
-    use crate::dataset_id::{check, of_svg};
+    use crate::dataset::id::{check, of_svg};
     let fits_path = out_dir.join("fits.json");
     let Ok(fits) = std::fs::read(&fits_path) else {
         return Ok(());
@@ -78,7 +78,7 @@ pub fn check_one_dataset(out_dir: &Path) -> Result<(), ReportError> {
             source,
         })
     };
-    let expected = crate::dataset_id::of_bytes(&read(&drops)?);
+    let expected = crate::dataset::id::of_bytes(&read(&drops)?);
     let doc: serde_json::Value = serde_json::from_slice(&fits).unwrap_or_default();
     let found = doc["provenance"]["dataset_id"].as_str();
     check(&fits_path, found, &drops, &expected)?;
@@ -250,7 +250,7 @@ fn collapse_plots(out_dir: &Path, ledger: &Ledger, dataset: Option<&str>) -> Vec
             }
             let bytes = crate::out_folder::read(out_dir, &rel, SVG_MAX_BYTES).ok()??;
             let ours = dataset.is_some()
-                && crate::dataset_id::of_svg(&String::from_utf8_lossy(&bytes)) == dataset;
+                && crate::dataset::id::of_svg(&String::from_utf8_lossy(&bytes)) == dataset;
             let known = KNOWN_PLOTS.iter().any(|(k, _)| *k == stem);
             (ours && known).then(|| (stem.clone(), Plot::Referenced(rel)))
         })
@@ -274,7 +274,7 @@ fn collapse_rows(out_dir: &Path) -> Option<Vec<(String, bool)>> {
     r.records()
         .map(|row| {
             let row = row.ok()?;
-            let name = crate::text::csv_cell_back(row.get(run)?);
+            let name = crate::util::text::csv_cell_back(row.get(run)?);
             Some((name.to_string(), row.get(used)? == "true"))
         })
         .collect()
@@ -349,7 +349,7 @@ fn header(out: &mut String, out_dir: &Path, config_name: &str, records: &[DropRe
     } else {
         String::new()
     };
-    let dataset = crate::dataset_id::of_file(&out_dir.join("drops.csv"))
+    let dataset = crate::dataset::id::of_file(&out_dir.join("drops.csv"))
         .map(|id| format!(" · dataset <code title=\"SHA-256 of drops.csv\">{id}</code>"))
         .unwrap_or_default();
     let _ = write!(
@@ -433,7 +433,7 @@ fn collapse_section(out: &mut String, out_dir: &Path, records: &[DropRecord]) {
     }
     // The collapse writes fits.json first: plots without it are an earlier job's.
     let plots = if fits_bytes.is_some() {
-        let dataset = crate::dataset_id::of_file(&out_dir.join("drops.csv")).ok();
+        let dataset = crate::dataset::id::of_file(&out_dir.join("drops.csv")).ok();
         collapse_plots(out_dir, &Ledger::open(out_dir), dataset.as_deref())
     } else {
         Vec::new()
@@ -515,7 +515,7 @@ pub fn write_report(
     let path = out_dir.join("report.html");
     let bytes = render_report(out_dir, config_name, records);
     ledger
-        .write_as("report.html", &bytes, crate::io_util::Durable::Now)
+        .write_as("report.html", &bytes, crate::util::io::Durable::Now)
         .and_then(|_| ledger.save())
         .map_err(|source| ReportError::Write {
             path: path.clone(),

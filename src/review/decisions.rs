@@ -23,7 +23,7 @@
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
-use crate::text::{csv_cell, csv_cell_back};
+use crate::util::text::{csv_cell, csv_cell_back};
 
 /// The decisions file's name in an output folder.
 pub const REVIEW_FILE: &str = "review.csv";
@@ -176,7 +176,7 @@ impl Decision {
     /// Whether the row is complete and consistent: a run name, a reason,
     /// frames for `exclude` only, a finite value for `surface` only.
     pub fn check(&self) -> Result<(), String> {
-        crate::run_name::check(&self.run)?;
+        crate::dataset::run_name::check(&self.run)?;
         let word = self.decision.word();
         if self.reason.trim().is_empty() {
             return Err(format!("`{word}` needs a reason"));
@@ -452,7 +452,7 @@ impl Decisions {
             Err(e) => return Err(io(e)),
             Ok(_) => {}
         }
-        let bytes = crate::io_util::read_bounded(path, MAX_FILE_BYTES)
+        let bytes = crate::util::io::read_bounded(path, MAX_FILE_BYTES)
             .map_err(io)?
             .ok_or_else(|| ReviewError::TooLarge {
                 path: path.to_path_buf(),
@@ -567,7 +567,7 @@ pub fn review_rel(configured: Option<&Path>, out: &Path) -> Result<String, Revie
         });
     below
         .and_then(|rel| rel.to_str().map(str::to_string))
-        .filter(|rel| crate::io_util::inside(out, rel).is_ok())
+        .filter(|rel| crate::util::io::inside(out, rel).is_ok())
         .ok_or_else(|| ReviewError::Outside {
             path: path.to_path_buf(),
             out: out.to_path_buf(),

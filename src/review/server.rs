@@ -341,9 +341,9 @@ fn handle(state: &State, req: &Request) -> Response {
 }
 
 /// `s` on one line and short, for a message: control and format
-/// characters shown as `\u{…}` ([`crate::text::one_line`]).
+/// characters shown as `\u{…}` ([`crate::util::text::one_line`]).
 fn one_line(s: &str) -> String {
-    let flat = crate::text::one_line(s);
+    let flat = crate::util::text::one_line(s);
     match flat.char_indices().nth(80) {
         Some((i, _)) => format!("{}…", &flat[..i]),
         None => flat.into_owned(),
@@ -476,7 +476,7 @@ impl State {
     /// when its track CSV changed; at most [`RUNS_OPEN`] held.
     fn opened(&self, rec: &DropRecord) -> Result<Arc<Mutex<Opened>>, Response> {
         let track_rel = format!("tracks/{}.csv", rec.run);
-        let track = crate::io_util::inside(&self.out, &track_rel)
+        let track = crate::util::io::inside(&self.out, &track_rel)
             .map_err(|e| Response::error(400, e.to_string()))?;
         let now = stamp(&track);
         {
@@ -550,7 +550,7 @@ fn check_run_name(run: &str) -> Result<(), Response> {
             format!("run `{}`: a run name, not a path", one_line(run)),
         ));
     }
-    crate::run_name::check(run).map_err(|e| Response::error(400, e))
+    crate::dataset::run_name::check(run).map_err(|e| Response::error(400, e))
 }
 
 /// The rows of the track CSV `out/rel`, read through no link below the

@@ -212,7 +212,7 @@ impl ValuesInFile {
         let width = self.stored.bytes();
         let at = self.start + (lo * width) as u64;
         let mut bytes = vec![0u8; (hi - lo) * width];
-        crate::io_util::read_at(&self.file, at, &mut bytes).map_err(|e| SourceError::Frame {
+        crate::util::io::read_at(&self.file, at, &mut bytes).map_err(|e| SourceError::Frame {
             path: self.path.clone(),
             index: asked,
             reason: format!(

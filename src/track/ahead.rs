@@ -7,7 +7,7 @@ use super::pass1::Pass1State;
 use super::walk::Walk;
 use crate::source::FrameSource;
 use crate::source::SourceMeta;
-use crate::timings::{self, Stage};
+use crate::util::timings::{self, Stage};
 
 /// Chunks of pass 1 per thread in a round: the threads take them as they
 /// become free, so the round ends within about one chunk of even (a

@@ -7,7 +7,7 @@ use crate::detect::background_rows::{from_sample_rows, SampleRows};
 use crate::detect::surface::fit_surface;
 use crate::detect::{Background, SurfaceLine};
 use crate::source::{FrameSource, SourceError};
-use crate::timings::{self, Stage};
+use crate::util::timings::{self, Stage};
 
 /// Stage 1 of [`track`]: the background from `st.background_frames` whole
 /// frames spread evenly over the movie, with the sphere masked out of each

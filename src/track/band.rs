@@ -10,7 +10,7 @@ use crate::detect::{
     measure_circle, Background, Band, Circle, CircleFit, EdgePoint, EdgeScratch, SurfaceLine,
 };
 use crate::source::{Frame, FrameSource};
-use crate::timings::{self, Stage};
+use crate::util::timings::{self, Stage};
 use ndarray::s;
 
 /// Read the band of rows around `p` and measure the circle there.

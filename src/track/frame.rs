@@ -1,10 +1,10 @@
 //! What the tracker found in one frame ([`FrameTrack`]), and how a
 //! frame's record is stored in a run's spool of records
-//! ([`crate::records`]): as the bits of its fields, so that what is read
+//! ([`crate::util::records`]): as the bits of its fields, so that what is read
 //! back is the same value.
 
 use crate::detect::{CircleFit, Covariance};
-use crate::records::{Put, Record, Take};
+use crate::util::records::{Put, Record, Take};
 
 /// What the tracker found in one frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -186,7 +186,7 @@ impl Record for FrameTrack {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::records::{Records, BLOCK};
+    use crate::util::records::{Records, BLOCK};
 
     fn fit(i: usize, full: bool) -> CircleFit {
         let v = |k: usize| (i * 7 + k) as f64 / 3.0 - 5.0;

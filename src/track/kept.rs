@@ -2,7 +2,7 @@
 
 use super::look::Look;
 use crate::detect::Circle;
-use crate::records::{Put, Record, Take};
+use crate::util::records::{Put, Record, Take};
 
 /// What pass 1 keeps of a frame with a fit for pass 2.
 #[derive(Debug, Clone, Copy)]

@@ -7,7 +7,7 @@ use super::settings::TrackSettings;
 use crate::detect::coarse::{detect_coarse, BinnedBackground, CoarseScratch};
 use crate::detect::{Background, Band, Circle, CircleFit, EdgeScratch, SurfaceLine};
 use crate::source::{Frame, FrameSource};
-use crate::timings::{self, Stage};
+use crate::util::timings::{self, Stage};
 
 /// How pass 1 looks for the sphere in one frame.
 #[derive(Debug, Clone, Copy)]

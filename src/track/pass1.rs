@@ -168,7 +168,7 @@ impl Pass1State {
             .skip(n - used)
             .map(|&(t, bottom)| (t, bottom - ENTRY_ROW_PX))
             .unzip();
-        let fit = crate::lsq::PolyFit::fit(&t, &h, &vec![1.0; used], 2, t_last)?;
+        let fit = crate::util::lsq::PolyFit::fit(&t, &h, &vec![1.0; used], 2, t_last)?;
         let (a, b, c, span) = (fit.coef()[0], fit.coef()[1], fit.coef()[2], fit.x_scale);
         // Rising (h falls) at the last fit, and falling back (h″ > 0).
         if b >= 0.0 || c <= 0.0 || b.is_nan() || c.is_nan() {
@@ -186,7 +186,7 @@ impl Pass1State {
         // scatter (their stated σ of 1 px is no measurement).
         let cov = &fit.fit.cov * fit.fit.chi2_red();
         let g = [1.0 / root, u / root, u * u / root];
-        let var_u = crate::lsq::quad_form(&g, &cov);
+        let var_u = crate::util::lsq::quad_form(&g, &cov);
         // A systematic bend of the heights the fit cannot take up in a and
         // b: RISE_SYSTEMATIC_PX times the shifted Legendre P₂(2u + 1) =
         // 6u² + 6u + 1 over the fitted span (u from −1 to 0).

@@ -10,10 +10,10 @@ use super::settings::TrackSettings;
 use crate::detect::circle::FitScratch;
 use crate::detect::EdgeScratch;
 use crate::detect::{fit_circle, Circle, CircleFit, EdgePoint, FitOptions};
-use crate::records::Records;
 use crate::source::Frame;
 use crate::source::FrameSource;
-use crate::timings::{self, Stage};
+use crate::util::records::Records;
+use crate::util::timings::{self, Stage};
 
 /// Pass 2's result `h` put into the frame's record (a fit that failed flags
 /// it `missing`), or the circle to read the frame again around.

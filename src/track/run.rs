@@ -13,9 +13,9 @@ use super::types::Track;
 use super::walk::Walk;
 use crate::detect::calibrate::{calibrate_radius, full_circle, RadiusCalibration};
 use crate::detect::{Background, CircleFit, SurfaceLine};
-use crate::records::Records;
 use crate::source::FrameSource;
-use crate::timings::{self, Stage};
+use crate::util::records::Records;
+use crate::util::timings::{self, Stage};
 
 /// Systematic uncertainty of the calibrated R_px (see `track`).
 pub const RADIUS_SYSTEMATIC_PX: f64 = 0.002;

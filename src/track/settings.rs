@@ -33,7 +33,7 @@ pub struct TrackSettings {
     pub chunk_frames_max: usize,
     /// Most frames whose records (the track's, and what pass 1 keeps of
     /// each for pass 2) are held in memory; past it, all of them go to a
-    /// temporary file ([`crate::records`]) and are read back a block at a
+    /// temporary file ([`crate::util::records`]) and are read back a block at a
     /// time, so that they do not grow the memory with the movie's length.
     pub frames_in_memory_max: usize,
     /// Frames are not looked at while a sphere that left through the top of

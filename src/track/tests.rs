@@ -3,10 +3,10 @@ use super::{ahead::*, kept::*, look::*, pass1::*, walk::*};
 use crate::config::DetectConfig;
 use crate::detect::synth::{self, PillarBand, Scene};
 use crate::detect::{Background, Circle, CircleFit, EdgeParams, SurfaceLine};
-use crate::records::Record;
 use crate::source::memory::MemorySource;
 use crate::source::SourceMeta;
 use crate::source::{Frame, FrameSource, SourceError};
+use crate::util::records::Record;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -2,7 +2,7 @@
 
 use super::frame::FrameTrack;
 use crate::detect::{Background, SurfaceLine};
-use crate::records::Records;
+use crate::util::records::Records;
 
 /// A tracked run.
 #[derive(Debug)]

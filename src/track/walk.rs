@@ -7,10 +7,10 @@ use super::kept::Kept;
 use super::look::{Look, LookScratch, Pass1, ScratchPool, Seen};
 use super::pass1::Pass1State;
 use super::settings::{search_stride, TrackSettings};
-use crate::records::Records;
 use crate::source::FrameSource;
 use crate::source::SourceMeta;
-use crate::timings::{self, Stage};
+use crate::util::records::Records;
+use crate::util::timings::{self, Stage};
 
 /// Pass 1 in order, frame by frame.
 pub(super) struct Walk {

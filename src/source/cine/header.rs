@@ -12,7 +12,7 @@ use crate::source::ColourInput;
 /// Does the file start with the cine magic `"CI"`?
 pub fn has_cine_magic(path: &Path) -> bool {
     let mut magic = [0u8; 2];
-    crate::io_util::open_regular(path)
+    crate::util::io::open_regular(path)
         .and_then(|mut f| f.read_exact(&mut magic))
         .is_ok()
         && &magic == b"CI"

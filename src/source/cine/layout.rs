@@ -20,7 +20,7 @@ pub trait ReadAt {
 
 impl ReadAt for File {
     fn read_at(&self, offset: u64, dst: &mut [u8]) -> std::io::Result<()> {
-        crate::io_util::read_at(self, offset, dst)
+        crate::util::io::read_at(self, offset, dst)
     }
 }
 

@@ -10,7 +10,6 @@ use ndarray::ArrayViewMut2;
 
 use super::header::{CineLayout, CineStorage};
 use super::layout::{parse_layout_at, read_offsets, OFFSETS_BLOCK};
-use crate::io_util::read_at;
 use crate::source::colour::{self, Bayer};
 use crate::source::index::{Stored, ValuesInFile};
 use crate::source::p10_lut::P10_TO_LINEAR12;
@@ -19,6 +18,7 @@ use crate::source::{
     check_band, fill_rows, for_cols, grown, FrameNumbers, FrameSource, FrameValues, OpenOptions,
     P10Mode, SourceDetails, SourceError, SourceMeta,
 };
+use crate::util::io::read_at;
 
 /// Largest accepted per-image annotation (bytes); 8 in every file seen.
 const MAX_ANNOTATION: u32 = 1 << 20;
@@ -70,7 +70,7 @@ impl CineSource {
                 }
             }
         };
-        let file = crate::io_util::open_regular(path).map_err(io)?;
+        let file = crate::util::io::open_regular(path).map_err(io)?;
         let file_len = file.metadata().map_err(io)?.len();
         let layout = parse_layout_at(&file, file_len).map_err(fmt)?;
         let mut meta = build_meta(path, &layout, options, &file).map_err(io)?;

@@ -244,7 +244,7 @@ pub(super) fn pick_xml(
         if !look.chd {
             continue; // some other XML, not PCC's
         }
-        let file = crate::io_util::open_regular(&path).map_err(io_err(&path))?;
+        let file = crate::util::io::open_regular(&path).map_err(io_err(&path))?;
         let x = pcc_xml::read(std::io::BufReader::with_capacity(1 << 16, file))
             .map_err(|r| format_err(&path, r))?;
         parsed.push((path, x));
@@ -285,7 +285,7 @@ pub(super) struct XmlLook {
 pub(super) fn look_through(path: &Path) -> std::io::Result<XmlLook> {
     use std::io::Read;
     const KEPT: usize = 3;
-    let mut file = crate::io_util::open_regular(path)?;
+    let mut file = crate::util::io::open_regular(path)?;
     let mut buf = vec![0u8; (1 << 16) + KEPT];
     let mut look = XmlLook {
         utf8: true,

@@ -193,7 +193,7 @@ fn open_and_probe(
     kind: ImageKind,
     decoder: &mut FrameDecoder,
 ) -> Result<Probe, SourceError> {
-    let (mut file, len) = crate::io_util::open_regular_len(path).map_err(io_err(path))?;
+    let (mut file, len) = crate::util::io::open_regular_len(path).map_err(io_err(path))?;
     decoder.probe(path, &mut file, len, kind)
 }
 
@@ -243,7 +243,7 @@ impl FolderSource {
     ) -> Result<(), SourceError> {
         check_band(&self.meta, index, row0, out)?;
         let path = &self.file(index);
-        let (mut file, len) = crate::io_util::open_regular_len(path).map_err(io_err(path))?;
+        let (mut file, len) = crate::util::io::open_regular_len(path).map_err(io_err(path))?;
         let first = self.file(0);
         let shape = Shape {
             width: self.meta.width,

@@ -14,11 +14,11 @@ use std::path::{Path, PathBuf};
 use ndarray::ArrayViewMut2;
 
 use super::cih::{self, BitSide, Cih};
-use crate::io_util::read_at;
 use crate::source::{
     check_band, fill_rows, grown, FrameNumbers, FrameSource, OpenOptions, SourceDetails,
     SourceError, SourceMeta,
 };
+use crate::util::io::read_at;
 
 /// The extensions of a Photron header, preferred first.
 const HEADER_EXTENSIONS: [&str; 2] = ["cihx", "cih"];
@@ -114,7 +114,7 @@ impl PhotronSource {
                 source,
             }
         };
-        let bytes = crate::io_util::read_bounded(&header, cih::MAX_HEADER_BYTES)
+        let bytes = crate::util::io::read_bounded(&header, cih::MAX_HEADER_BYTES)
             .map_err(io(&header))?
             .ok_or_else(|| SourceError::Format {
                 path: header.clone(),
@@ -134,7 +134,7 @@ impl PhotronSource {
                     reason,
                 },
             })?;
-        let (file, len) = crate::io_util::open_regular_len(&mraw).map_err(io(&mraw))?;
+        let (file, len) = crate::util::io::open_regular_len(&mraw).map_err(io(&mraw))?;
         let frame_bytes = cih.frame_bytes();
         let need = frame_bytes.saturating_mul(cih.total_frames);
         let mut warnings = Vec::new();

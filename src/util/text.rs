@@ -14,7 +14,7 @@
 //!   OWASP guidance on CSV injection lists) gets a `'` in front, as does one
 //!   starting with `'`; [`csv_cell_back`] removes it, so a run name survives
 //!   the round trip. Numeric columns are written as numbers and never touched.
-//! - **Run names** ([`crate::run_name::check`]) refuse control and format
+//! - **Run names** ([`crate::dataset::run_name::check`]) refuse control and format
 //!   characters outright.
 
 use std::borrow::Cow;
@@ -138,6 +138,15 @@ pub fn csv_cell_back(s: &str) -> &str {
             rest
         }
         _ => s,
+    }
+}
+
+/// "1 drop", "3 drops": a count with its noun for messages.
+pub fn plural(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
     }
 }
 

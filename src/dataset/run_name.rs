@@ -22,12 +22,12 @@ pub fn check(name: &str) -> Result<(), String> {
         "holds a path separator (a run name names files inside the output folder)"
     } else if name.chars().any(char::is_control) {
         "holds a control character"
-    } else if let Some(c) = name.chars().find(|&c| crate::text::is_format(c)) {
+    } else if let Some(c) = name.chars().find(|&c| crate::util::text::is_format(c)) {
         return Err(format!(
             "run name {:?} holds the invisible format character U+{:04X} (a zero-width or \
              text-direction character: it makes one name look like another); retype the name \
              without it",
-            crate::text::one_line(name),
+            crate::util::text::one_line(name),
             c as u32
         ));
     } else if name.starts_with('.') {
@@ -35,7 +35,10 @@ pub fn check(name: &str) -> Result<(), String> {
     } else {
         return Ok(());
     };
-    Err(format!("run name {:?} {why}", crate::text::one_line(name)))
+    Err(format!(
+        "run name {:?} {why}",
+        crate::util::text::one_line(name)
+    ))
 }
 
 /// The run name of an input given without a manifest: its folder's whole
@@ -50,7 +53,7 @@ pub fn from_input(path: &Path) -> String {
     let mut name: String = raw
         .chars()
         .map(|c| {
-            if c == '/' || c == '\\' || c.is_control() || crate::text::is_format(c) {
+            if c == '/' || c == '\\' || c.is_control() || crate::util::text::is_format(c) {
                 '_'
             } else {
                 c

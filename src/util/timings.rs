@@ -243,7 +243,7 @@ pub fn table(drops: usize, job_wall_s: f64, threads: usize) -> String {
     let mut t = format!(
         "timings, summed over runs and threads ({} measured):\n\
          {:<36} {:>9} {:>7} {:>9} {:>7} {:>12} {:>11}\n",
-        crate::plural(drops, "drop"),
+        crate::util::text::plural(drops, "drop"),
         "stage",
         "wall s",
         "share",
@@ -269,9 +269,9 @@ pub fn table(drops: usize, job_wall_s: f64, threads: usize) -> String {
     let _ = write!(
         t,
         "job: {job_wall_s:.3} s wall on {} ({:.3} thread-seconds); its stages ran on {}",
-        crate::plural(threads, "thread"),
+        crate::util::text::plural(threads, "thread"),
         job_wall_s * threads as f64,
-        crate::plural(WORKERS.load(Ordering::Relaxed) as usize, "worker thread")
+        crate::util::text::plural(WORKERS.load(Ordering::Relaxed) as usize, "worker thread")
     );
     t
 }

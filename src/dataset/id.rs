@@ -20,9 +20,9 @@ pub fn of_bytes(bytes: &[u8]) -> String {
 
 /// The id of the drops.csv at `path`.
 pub fn of_file(path: &Path) -> std::io::Result<String> {
-    Ok(of_bytes(&crate::io_util::read_input(
+    Ok(of_bytes(&crate::util::io::read_input(
         path,
-        crate::io_util::TEXT_INPUT_MAX_BYTES,
+        crate::util::io::TEXT_INPUT_MAX_BYTES,
     )?))
 }
 

@@ -1,5 +1,5 @@
 //! What dropscope prints on its standard output and error: each text made
-//! safe for a terminal ([`crate::text::terminal`]: no escape sequence from a
+//! safe for a terminal ([`crate::util::text::terminal`]: no escape sequence from a
 //! file name or a cine's camera text reaches it), and written without ever
 //! panicking. `println!` panics when the write fails: a closed pipe
 //! (`dropscope run | head -c 600`), a full disk (`2>/dev/full`). Here a
@@ -18,7 +18,7 @@ fn put(mut w: impl Write, text: &str) {
 
 /// `text` on standard output, made safe for a terminal.
 pub fn out(text: &str) {
-    put(std::io::stdout().lock(), &crate::text::terminal(text));
+    put(std::io::stdout().lock(), &crate::util::text::terminal(text));
 }
 
 /// `text` on standard output as it is (text dropscope made, nothing from a file).
@@ -28,14 +28,14 @@ pub fn out_raw(text: &str) {
 
 /// `text` on standard error, made safe for a terminal.
 pub fn err(text: &str) {
-    put(std::io::stderr().lock(), &crate::text::terminal(text));
+    put(std::io::stderr().lock(), &crate::util::text::terminal(text));
 }
 
 /// `println!` through [`out`]: never panics, escapes what a terminal would run.
 #[macro_export]
 macro_rules! outln {
     ($($arg:tt)*) => {
-        $crate::console::out(&format!("{}\n", format_args!($($arg)*)))
+        $crate::util::console::out(&format!("{}\n", format_args!($($arg)*)))
     };
 }
 
@@ -43,6 +43,6 @@ macro_rules! outln {
 #[macro_export]
 macro_rules! errln {
     ($($arg:tt)*) => {
-        $crate::console::err(&format!("{}\n", format_args!($($arg)*)))
+        $crate::util::console::err(&format!("{}\n", format_args!($($arg)*)))
     };
 }

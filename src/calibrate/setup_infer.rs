@@ -4,7 +4,7 @@
 //! Runs filmed through one camera set-up (same zoom, same position) share
 //! one scale, and their free flights pooled measure it 10–100× better than
 //! a fast drop's own short flight or its apparent radius (see
-//! [`crate::scale`]). The manifest's `setup` column says which runs do;
+//! [`crate::calibrate::scale`]). The manifest's `setup` column says which runs do;
 //! without it, the images do: a set-up fixes the frame's size, where the
 //! surface line lies and how many pixels a millimetre is, and so
 //!

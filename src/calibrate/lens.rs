@@ -26,10 +26,11 @@
 //! preset the per-drop free-fall scale differs from the magnification at
 //! the impact by 1–4e-4, more than the speeds' statistical errors.
 
+use super::free_fall::Curvature;
+use super::scale::{resolve, Scale, ScaleInputs};
 use crate::detect::{CircleFit, SurfaceLine};
 use crate::events::{find_events, EventConfig, Geometry, TrackPoint};
 use crate::kinematics::{kinematics, SphereParams};
-use crate::scale::{resolve, Curvature, Scale, ScaleInputs};
 use crate::track::{FrameTrack, Track};
 
 /// The lens `k1` (1/px²) that the surface line's bow measures, and its

@@ -9,7 +9,7 @@
 
 use std::fs::File;
 
-use crate::io_util::{read_at, write_at};
+use crate::util::io::{read_at, write_at};
 
 /// A record of a fixed number of bytes in the file.
 pub trait Record: Clone {

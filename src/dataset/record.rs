@@ -65,7 +65,7 @@ impl DropStatus {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DropRecord {
     /// Run name (the manifest's `run` column, or the folder / file stem);
-    /// in the file as a text cell ([`crate::text::csv_cell`]).
+    /// in the file as a text cell ([`crate::util::text::csv_cell`]).
     #[serde(serialize_with = "text_out", deserialize_with = "text_in")]
     pub run: String,
     /// Sphere radius R, mm, as the run was given it (manifest, `--radius-mm` or `sphere.radius_mm`).
@@ -154,7 +154,7 @@ pub struct DropRecord {
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub setup: String,
     /// Where `mm_per_px` came from: `given`, `setup_free_fall`, `free_fall`
-    /// or `radius` (see `scale.rs`).
+    /// or `radius` (see `calibrate/scale.rs`).
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub scale_source: String,
     /// The scale from free fall (the set-up's pooled, else the run's own),
@@ -205,7 +205,7 @@ pub struct DropRecord {
     /// Without a calibrated k1: how far the distortion bound
     /// (`camera.distortion_bound_px` at the image corner) moves the scale,
     /// v_impact, δmax and τc; each enters its `_err` as a systematic term
-    /// (÷√3, k1 anywhere between ± the bound). See `lens.rs`.
+    /// (÷√3, k1 anywhere between ± the bound). See `calibrate/lens.rs`.
     #[serde(default)]
     pub distortion_mm_per_px: Option<f64>,
     /// How far the distortion left unknown changes v_impact, m/s (see `distortion_mm_per_px`).
@@ -472,15 +472,15 @@ pub struct TrackRow {
 pub const NO_TEXT: &str = "-";
 
 /// A text cell: no control or format character, and nothing a spreadsheet
-/// runs as a formula ([`crate::text::csv_cell`]).
+/// runs as a formula ([`crate::util::text::csv_cell`]).
 fn text_out<S: serde::Serializer>(text: &str, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_str(&crate::text::csv_cell(text))
+    s.serialize_str(&crate::util::text::csv_cell(text))
 }
 
-/// A text cell back ([`crate::text::csv_cell_back`]).
+/// A text cell back ([`crate::util::text::csv_cell_back`]).
 fn text_in<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
     let text = String::deserialize(d)?;
-    Ok(crate::text::csv_cell_back(&text).to_string())
+    Ok(crate::util::text::csv_cell_back(&text).to_string())
 }
 
 /// A text cell that may hold none ([`NO_TEXT`]).
@@ -494,7 +494,7 @@ fn dash_in<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
     Ok(if text.trim() == NO_TEXT {
         String::new()
     } else {
-        crate::text::csv_cell_back(&text).to_string()
+        crate::util::text::csv_cell_back(&text).to_string()
     })
 }
 
@@ -534,7 +534,7 @@ pub fn csv_bytes<T: Serialize>(rows: impl IntoIterator<Item = T>) -> Vec<u8> {
 }
 
 /// [`csv_bytes`] written into `out` as they are made (a long movie's track
-/// into an [`crate::io_util::Spool`]).
+/// into an [`crate::util::io::Spool`]).
 pub fn write_csv_rows<T: Serialize>(
     out: impl std::io::Write,
     rows: impl IntoIterator<Item = T>,
@@ -553,7 +553,7 @@ pub fn to_csv_bytes(records: &[DropRecord]) -> Vec<u8> {
 
 /// Write `drops.csv` whole or not at all.
 pub fn write_csv(path: &Path, records: &[DropRecord]) -> Result<(), DatasetError> {
-    crate::io_util::write_atomic(path, &to_csv_bytes(records)).map_err(|source| DatasetError::Io {
+    crate::util::io::write_atomic(path, &to_csv_bytes(records)).map_err(|source| DatasetError::Io {
         path: path.to_path_buf(),
         source,
     })
@@ -564,7 +564,7 @@ pub fn write_csv(path: &Path, records: &[DropRecord]) -> Result<(), DatasetError
 pub fn read_csv(path: &Path) -> Result<Vec<DropRecord>, DatasetError> {
     // Opened here, not by csv, so that a missing file is an I/O error on
     // the path rather than a CSV error in "row 0".
-    let bytes = crate::io_util::read_input(path, crate::io_util::TEXT_INPUT_MAX_BYTES).map_err(
+    let bytes = crate::util::io::read_input(path, crate::util::io::TEXT_INPUT_MAX_BYTES).map_err(
         |source| DatasetError::Io {
             path: path.to_path_buf(),
             source,

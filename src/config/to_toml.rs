@@ -3,7 +3,7 @@
 //! SI names dropscope uses inside (`radius_m`, `surfaces`): what
 //! `dropscope check-config` prints, ready to be saved and edited.
 
-use crate::config::PipelineConfig;
+use super::settings::PipelineConfig;
 use toml::Value;
 
 /// A length in metres as millimetres, to 10 significant digits (so that

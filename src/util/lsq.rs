@@ -55,7 +55,7 @@ pub fn weighted_lsq(design: &DMatrix<f64>, y: &[f64], sigma: &[f64]) -> Option<L
 /// with a design held by the caller and copied). The same numbers, bit for
 /// bit: the same operations on the same values. A run's free-fall fit has a
 /// row per frame in flight and two columns per flight
-/// ([`crate::scale::free_fall_curvature`]): 7.5 MB a copy for a
+/// ([`crate::calibrate::free_fall::free_fall_curvature`]): 7.5 MB a copy for a
 /// 124 166-frame movie.
 pub fn weighted_lsq_built(
     build: impl Fn() -> DMatrix<f64>,

@@ -2,7 +2,7 @@
 //! → [`DropRecord`] and the per-frame [`TrackRow`]s. Pure: no I/O.
 
 use crate::dataset::{DropRecord, DropStatus, TrackRow};
-use crate::events::{find_events, EventConfig, EventError, Geometry, TrackPoint};
+use crate::events::{find_events, EventConfig, EventError, Geometry, SurfaceFrame, TrackPoint};
 use crate::force::{fit_force_law, force_table, Damping, ForceFitError, ForceLaw};
 use crate::kinematics::{kinematics, Measured, SphereParams};
 use crate::quality;
@@ -68,6 +68,12 @@ pub fn measure_drop_with(
     law: Option<&Result<ForceLaw, ForceFitError>>,
 ) -> Result<DropMeasurement, EventError> {
     let sphere = info.sphere();
+    // Measured in the surface's frame (normal speeds and penetration); the
+    // surface row reported is the image's, at the impact column.
+    let image_geom = geom;
+    let frame = surface_frame(track, geom);
+    let level: Vec<TrackPoint> = track.iter().map(|p| frame.level(p)).collect();
+    let (track, geom) = (&level[..], &frame.level_geometry(geom));
     let ev = find_events(track, geom, cfg)?;
     let kin = kinematics(track, &ev, geom, &sphere, cfg.exposure_s)?;
     // Physically impossible: the numbers are no measurement.
@@ -210,7 +216,7 @@ pub fn measure_drop_with(
         } else {
             geom.mm_per_px_err
         }),
-        surface_row_px: Some(ev.surface_row_at_impact_px),
+        surface_row_px: Some(image_geom.surface_row_at(frame.image_col(ev.impact_column_px))),
         surface_row_px_err: Some(geom.surface_row_err_px),
         t_max_s: Some(kin.t_max_s),
         second_contact_s: ev.second_contact_s,
@@ -241,6 +247,19 @@ pub fn measure_drop_with(
         forces: table.iter().map(|p| (p.frame, p.force_n)).collect(),
         in_contact: track[c0..=c1].iter().map(|p| p.frame).collect(),
     })
+}
+
+/// The surface's frame for `track`, pivoting at the column of its deepest
+/// point (the impact's, where the turn moves nothing).
+fn surface_frame(track: &[TrackPoint], geom: &Geometry) -> SurfaceFrame {
+    let deepest = track
+        .iter()
+        .max_by(|a, b| {
+            geom.penetration_px(a.x_px, a.z_px)
+                .total_cmp(&geom.penetration_px(b.x_px, b.z_px))
+        })
+        .map_or(0.0, |p| p.x_px);
+    SurfaceFrame::of(geom, deepest)
 }
 
 /// The contact law's cross-check of the image's surface line: a flag

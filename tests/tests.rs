@@ -25,6 +25,7 @@ mod collapse;
 mod detect;
 mod footage;
 mod hostile;
+mod independent;
 mod layers;
 mod parallel;
 mod pcc_xml;

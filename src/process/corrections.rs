@@ -112,14 +112,16 @@ pub(super) fn widen_a_max_err(record: &mut DropRecord, geom: &Geometry, edge_off
     record.a_max_mm_err = Some(err_mm.hypot(from_surface * s).hypot(from_edge * s));
 }
 
-/// a = √(r² − d²), d = y_s(x) − z, with r the fit's radius less the
+/// a = √(r² − d²), d = (y_s(x) − z)·cos θ, with r the fit's radius less the
 /// silhouette's edge offset, and its σ from the fit's covariance.
 pub(super) fn half_width(
     f: &crate::detect::CircleFit,
     edge_offset_px: f64,
     geom: &Geometry,
 ) -> (Option<f64>, Option<f64>) {
-    let d = geom.surface_row_at(f.x_px) - f.z_px;
+    // The centre's distance from the line along its normal.
+    let cos = geom.cos_tilt();
+    let d = (geom.surface_row_at(f.x_px) - f.z_px) * cos;
     let r = f.r_px - edge_offset_px;
     if d.abs() >= r {
         return (None, None);
@@ -127,7 +129,7 @@ pub(super) fn half_width(
     let a = (r * r - d * d).sqrt();
     let err = match f.cov {
         crate::detect::Covariance::Full([_, _, _, zz, zr, rr]) => {
-            let (gr, gz) = (r / a, d / a);
+            let (gr, gz) = (r / a, d / a * cos);
             (gr * gr * rr + gz * gz * zz + 2.0 * gr * gz * zr)
                 .max(0.0)
                 .sqrt()

@@ -7,7 +7,7 @@ use crate::calibrate::free_fall::{free_fall_curvature, Curvature};
 use crate::calibrate::lens::{undistort_track, Lens};
 use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
-use crate::events::EventConfig;
+use crate::events::{EventConfig, SurfaceFrame};
 use crate::manifest::RunSpec;
 use crate::source::open;
 use crate::stage_settings::open_options;
@@ -119,9 +119,10 @@ pub(super) fn bounded_of(
     Some({
         let (surface, radius_px, curvature) = time(Stage::Events, || {
             let (surface, radius_px) = crate::calibrate::lens::undistorted_line(tr, &lens);
+            let level = SurfaceFrame::of_line(surface.row0_px, surface.slope, 0.0);
             let c = free_fall_curvature(
-                || bounded_points(tr, &lens, radius_px),
-                |x| surface.row_at(x),
+                || bounded_points(tr, &lens, radius_px).map(|p| level.level(&p)),
+                |_| level.row_px,
                 radius_px,
             );
             (surface, radius_px, c)
@@ -175,9 +176,11 @@ pub(super) fn track_run(run: &RunSpec, cfg: &PipelineConfig) -> Result<Tracked, 
     let (curvature, bounded) = rayon::join(
         || {
             time(Stage::Events, || {
+                // Along the surface's normal, as the drops are measured.
+                let level = SurfaceFrame::of_line(tr.surface.row0_px, tr.surface.slope, 0.0);
                 free_fall_curvature(
-                    || held_points(&tr, |_| (None, None)),
-                    |x| tr.surface.row_at(x),
+                    || held_points(&tr, |_| (None, None)).map(|p| level.level(&p)),
+                    |_| level.row_px,
                     tr.radius_px,
                 )
             })

@@ -345,7 +345,7 @@ pub const FORCE_FIT_TIME_LIMIT_S: f64 = 20.0;
 /// flight fits' frames (a second bounce is left out). `exposure_s` is a
 /// frame's exposure time (0: the frames are instants). The fit stops with
 /// [`ForceFitError::Limit`] after `max_trajectories` trajectories' work
-/// (the product's is [`FORCE_FIT_MAX_TRAJECTORIES`], set by
+/// (the product's is `FORCE_FIT_MAX_TRAJECTORIES`, set by
 /// `EventConfig::force_fit_max_trajectories`) or [`FORCE_FIT_TIME_LIMIT_S`].
 pub fn fit_force_law(
     track: &[TrackPoint],

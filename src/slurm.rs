@@ -112,7 +112,7 @@ fn sbatch_path_char(c: char) -> bool {
 /// (letters, digits, `_ . , -`), `--time` (digits, `:` and `-`, or
 /// UNLIMITED), `--mem` (digits with an optional K, M, G or T), the working
 /// folder and the logs' folder (written into `#SBATCH` lines:
-/// [`SBATCH_PATH`]), and the binary, configuration and output folder
+/// `SBATCH_PATH`), and the binary, configuration and output folder
 /// (quoted in the command line: any character but a control or format one).
 pub fn check_values(args: &SlurmArgs, plan: &Plan) -> Result<(), SlurmError> {
     if let Some(p) = &args.partition {

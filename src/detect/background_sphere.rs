@@ -26,7 +26,7 @@ impl Background {
     ///    about two noise σ, harmless for a coarse threshold); pixels covered
     ///    in every frame (darker than half their row's 90th percentile,
     ///    taken over every 4th pixel), and the ring around them that only
-    ///    the sphere's blurred edge uncovers ([`grow_unseen`]), are filled
+    ///    the sphere's blurred edge uncovers (`grow_unseen`), are filled
     ///    along their row;
     /// 2. in each frame, the sphere's coarse circle against that maximum
     ///    ([`super::coarse::detect_coarse`], above a preliminary surface

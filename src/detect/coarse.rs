@@ -7,7 +7,7 @@
 //! `min_area_px` (dust) are ignored. Its outline — every pixel of the group
 //! next to a non-group pixel that is itself inside the frame, above the
 //! surface and outside the group, not in a hole of it (a polished ball's
-//! glint: [`mark_outside`]) — gives boundary points placed at the
+//! glint: `mark_outside`) — gives boundary points placed at the
 //! linear-interpolated threshold crossing between the two pixels, and a
 //! robust circle fit
 //! ([`fit_circle`]) through them gives the coarse circle. Boundary points

@@ -66,7 +66,7 @@ fn widened((lo, hi): (usize, usize), width: usize, min: usize) -> (usize, usize)
 
 /// The columns a band around the sphere needs: `window` and the strips of
 /// `strip` columns at each edge of a `width`-wide frame, in increasing
-/// order, merged where they overlap or lie less than [`WINDOW_GAP_PX`]
+/// order, merged where they overlap or lie less than `WINDOW_GAP_PX`
 /// apart (converting a short gap costs less than another run).
 pub fn window_columns(
     window: std::ops::Range<usize>,

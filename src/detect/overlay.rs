@@ -103,7 +103,7 @@ impl Mark {
         }
     }
 
-    /// Its index in the animation's palette (after the [`GREYS`] greys).
+    /// Its index in the animation's palette (after the `GREYS` greys).
     pub const fn index(self) -> u8 {
         GREYS as u8 + self as u8
     }
@@ -374,7 +374,7 @@ pub fn to_indexed(img: &RgbImage) -> IndexedFrame {
 /// The frames are compressed each on its own, on every thread: APNG
 /// compresses each frame's data stream separately, so the streams are
 /// made as the `png` crate's writer makes them (its filter, its fast
-/// deflate, stored where that is smaller; [`frame_stream`]) and the chunks
+/// deflate, stored where that is smaller; `frame_stream`) and the chunks
 /// written in order through it: the same bytes as that writer fed the
 /// frames one after the other (a test), which left an animation's
 /// compression, a twelfth of a short drop's CPU, on one thread.

@@ -29,7 +29,7 @@ pub struct ProcessArgs {
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub overlay_frames: Vec<i64>,
     /// Reprocess every run, even those whose result from an earlier job
-    /// into this folder (OUT/runs/<run>.json) is still valid.
+    /// into this folder (`OUT/runs/<run>.json`) is still valid.
     #[arg(long)]
     pub force: bool,
     /// Worker threads (default: one per core).

@@ -20,13 +20,13 @@ pub struct Prepared {
     /// The configuration, with the edge offset the runs measured
     /// ([`crate::calibrate::scale::EdgeOffset::measure`]) where it gives none.
     pub cfg: PipelineConfig,
-    /// The runs tracked to read their scenes, kept for [`process_setup`].
+    /// The runs tracked to read their scenes, kept for `process_setup`.
     pub kept: KeptRuns,
 }
 
 /// The runs [`prepare`] tracked, by their index in its runs: each track on
 /// a [`Shelf`] (its background and records in the job's temporary file),
-/// or the reason it could not be made, for [`process_setup`] to take
+/// or the reason it could not be made, for `process_setup` to take
 /// instead of tracking the run again. A run whose track could not be
 /// shelved (no temporary file) is not kept: it is tracked again.
 #[derive(Default)]

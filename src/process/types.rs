@@ -23,7 +23,7 @@ pub struct RunOutcome {
     /// The animated overlay of the impact (animated PNG bytes).
     pub impact: Option<Vec<u8>>,
     /// What the run's images say of its camera set-up (kept in the cache
-    /// for [`prepare`]).
+    /// for `prepare`).
     pub scene: Option<SceneSignature>,
     /// Seconds spent on this run (tracking and measuring), for the speed
     /// shown to the user; no output depends on it.

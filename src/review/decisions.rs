@@ -17,7 +17,7 @@
 //! in front, which reading takes off again) and on one line (control and
 //! format characters as `\u{…}`).
 //!
-//! Pure but for [`Decisions::read`] and [`Decisions::write`]: bytes in,
+//! Pure but for [`Decisions::read`] and `Decisions::write`: bytes in,
 //! bytes out, the file written whole or not at all.
 
 use serde::Serialize;

@@ -81,7 +81,7 @@ pub struct SourceDetails {
     pub side_file: Option<PathBuf>,
     /// Non-fatal oddities found while opening (e.g. a corrupt ImageSize field).
     pub warnings: Vec<String>,
-    /// A colour input read as grey luminance ([`colour`]); `None`: grey.
+    /// A colour input read as grey luminance (`colour`); `None`: grey.
     pub colour: Option<ColourInput>,
     /// How a folder's frame files are named; `None` for a recording file.
     pub frame_names: Option<FrameNames>,
@@ -129,11 +129,11 @@ pub struct OpenOptions {
     pub p10: P10Mode,
     /// Folders of frames: how many digits at the end of a file's name are
     /// its number (the manifest's `number_digits`); `None`: all of them,
-    /// unless the names can be read two ways ([`folder::number_split`]).
+    /// unless the names can be read two ways (`folder::number_split`).
     pub number_digits: Option<usize>,
 }
 
-/// What kind of input a path is ([`input_kind`]).
+/// What kind of input a path is (`input_kind`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum InputKind {
     /// A directory: one PCC-style image sequence, or the one recording file in it.
@@ -163,7 +163,7 @@ impl SourceMeta {
 
     /// Bytes the per-frame index holds on the heap: image numbers, gaps,
     /// times and exposures (a `.cine`'s stay in the file; a thread that
-    /// looks them up keeps a few blocks of them besides, [`index`]).
+    /// looks them up keeps a few blocks of them besides, `index`).
     pub fn index_heap_bytes(&self) -> usize {
         self.frame_numbers.heap_bytes()
             + self.gaps.capacity() * std::mem::size_of::<(i64, i64)>()

@@ -9,7 +9,7 @@ use crate::detect::{Background, SurfaceLine};
 use crate::source::{FrameSource, SourceError};
 use crate::util::timings::{self, Stage};
 
-/// Stage 1 of [`track`]: the background from `st.background_frames` whole
+/// Stage 1 of `track`: the background from `st.background_frames` whole
 /// frames spread evenly over the movie, with the sphere masked out of each
 /// (the plain median when no sphere is found in them), read a band of rows
 /// at a time on every thread ([`from_sample_rows`]), and the surface line

@@ -8,7 +8,7 @@
 //!    the frame binned 2×2), then followed frame to frame. The next centre is predicted from the last
 //!    three fits (constant acceleration: ballistic in flight, the contact's
 //!    deceleration in contact), and only the band of rows around the
-//!    predicted circle is read, through [`FrameSource::read_window_into`]:
+//!    predicted circle is read, through `FrameSource::read_window_into`:
 //!    of its rows only the columns within the same reach of the circle and
 //!    the flicker reference strips at the frame's edges are converted, so
 //!    the cost per frame follows the sphere, not the sensor (except the
@@ -19,13 +19,13 @@
 //!    where the sphere was lost rising through the top of the frame: the
 //!    parabola of its rise says when it is back at that height, and the
 //!    frames until the last quarter of that time are not looked at
-//!    ([`Look::Away`]). A long movie's bounces out of view cost nothing
+//!    (`Look::Away`). A long movie's bounces out of view cost nothing
 //!    then. What a search would still have found there is a sliver of the
 //!    sphere's cap just after the loss (fits with σ_z of pixels, marked
 //!    `missing` by pass 2), and the first predictions after the return,
 //!    made from the last fits, differ with it: on one real-preset drop of
 //!    60, 34 poor frames moved, and one field of drops.csv in its 16th digit.
-//! 3. Calibration ([`calibrate_radius`]): R_px is the median radius of the
+//! 3. Calibration (`calibrate_radius`): R_px is the median radius of the
 //!    pass-1 fits whose whole circle is in view, clear of the frame's border
 //!    and of the surface line.
 //! 4. Pass 2: every frame refitted with the radius held at R_px (centre
@@ -40,7 +40,7 @@
 //!    the window sits, and a centre off by `e` moves the points by
 //!    `O(e σ²/R²)` only (see [`crate::detect::edges`]), so the points of
 //!    normals centred on the free circle serve the held fit as well as new
-//!    ones, under the same rule as [`measure_circle`]: they are used when
+//!    ones, under the same rule as `measure_circle`: they are used when
 //!    the held circle lies within `edge.recentre_px` of the circle their
 //!    normals were centred on (centre and radius). Otherwise (a free radius
 //!    far off on a short arc, or a failed fit) the frame's band is read

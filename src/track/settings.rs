@@ -22,12 +22,12 @@ pub struct TrackSettings {
     pub band_margin_px: f64,
     /// Most edge points pass 1 keeps for pass 2 (8 bytes each). Past it, a
     /// frame keeps only how pass 1 looked at it, and pass 2 measures it
-    /// again that way: the same points, bit for bit (see [`Track`]'s
+    /// again that way: the same points, bit for bit (see `Track`'s
     /// `remeasured_frames`), so that the memory does not grow with the
     /// movie's length beyond this.
     pub kept_points_max: usize,
     /// Most frames in one chunk of pass 1 measured ahead by another thread
-    /// (see [`speculate`]): what is measured ahead and not yet taken is at
+    /// (see `speculate`): what is measured ahead and not yet taken is at
     /// most `CHUNKS_PER_THREAD × threads − 1` such chunks, whatever the
     /// movie's length.
     pub chunk_frames_max: usize,
@@ -37,12 +37,12 @@ pub struct TrackSettings {
     /// time, so that they do not grow the memory with the movie's length.
     pub frames_in_memory_max: usize,
     /// Frames are not looked at while a sphere that left through the top of
-    /// the frame is on its way back ([`Look::Away`]); off, every frame
+    /// the frame is on its way back (`Look::Away`); off, every frame
     /// without the sphere is searched whole.
     pub skip_away: bool,
     /// While no sphere is followed, one frame in a
     /// [`search_stride`] is searched whole, and on a find the frames since
-    /// the last empty search are searched one by one ([`Walk::frame`]);
+    /// the last empty search are searched one by one (`Walk::frame`);
     /// off, every such frame is searched.
     pub probe_searches: bool,
 }

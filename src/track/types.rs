@@ -18,7 +18,7 @@ pub struct Track {
     /// Frames whose full circle gave the radius.
     pub radius_frames: usize,
     /// A record a frame, in memory or in a temporary file past
-    /// [`TrackSettings::frames_in_memory_max`]: walk them with
+    /// `TrackSettings::frames_in_memory_max`: walk them with
     /// [`Records::iter`], then [`Records::check`] that none failed to be
     /// read back.
     pub frames: Records<FrameTrack>,
@@ -27,10 +27,10 @@ pub struct Track {
     /// Frames that pass 2 had to read again (see the module doc, step 4).
     pub reread_frames: usize,
     /// Frames of pass 1 measured ahead by other threads and taken as they
-    /// were (see [`speculate`]); 0 on one thread.
+    /// were (see `speculate`); 0 on one thread.
     pub measured_ahead: usize,
     /// Edge points pass 1 kept for pass 2 (at most
-    /// [`TrackSettings::kept_points_max`]).
+    /// `TrackSettings::kept_points_max`).
     pub kept_points: usize,
     /// Frames with a fit whose points were past that budget: pass 2
     /// measured them again as pass 1 did (the same points).
@@ -39,16 +39,16 @@ pub struct Track {
     /// one thread).
     pub ahead_frames_max: usize,
     /// Frames pass 1 did not look at: the sphere was away above the frame
-    /// ([`TrackSettings::skip_away`]).
+    /// (`TrackSettings::skip_away`).
     pub away_frames: usize,
     /// Frames of pass 1 searched whole on every thread at once, ahead of
-    /// the walk in order, and taken (see [`Walk::search_ahead`]); 0 on one
+    /// the walk in order, and taken (see `Walk::search_ahead`); 0 on one
     /// thread.
     pub searched_ahead: usize,
     /// Frames pass 1 did not search: a search further on, within a
-    /// [`search_stride`], found nothing ([`TrackSettings::probe_searches`]).
+    /// `search_stride`, found nothing (`TrackSettings::probe_searches`).
     pub unsearched_frames: usize,
-    /// Frames flagged [`Flag::Outlier`].
+    /// Frames flagged `Flag::Outlier`.
     pub outlier_frames: usize,
 }
 

@@ -91,7 +91,7 @@ impl CircleFit {
     }
 }
 
-/// Settings of [`fit_circle`].
+/// Settings of `fit_circle`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitOptions {
     /// Hold the radius at this value and fit only the centre.

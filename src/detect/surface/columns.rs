@@ -104,14 +104,14 @@ pub fn column_edges(bg: &Background, params: &SurfaceParams) -> Vec<ColumnEdge> 
 }
 
 /// The flank fit's blur σ (px) from which a column's step may be wider than
-/// the fit's window ([`wide_step_sigma`] decides).
+/// the fit's window (`wide_step_sigma` decides).
 pub const WIDE_STEP_SIGMA_PX: f64 = 1.3;
 
 /// Full width at half maximum (rows) of a column's largest step down,
 /// `B(z) − B(z + 1)`, from which the band's top counts as blurred beyond
 /// the flank fit's window (`half_window` rows above, 2 below): a Gaussian
 /// blur of σ = FWHM / 2.355 ≥ 1.7 px, a defocused band top. The windows are
-/// then made as wide as the step ([`wide_step_edge`]).
+/// then made as wide as the step (`wide_step_edge`).
 pub const WIDE_STEP_FWHM_ROWS: usize = 4;
 
 /// The blur σ (px) of column `j`'s largest step at `best_row` (`best` its

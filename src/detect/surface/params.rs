@@ -1,6 +1,6 @@
 //! The settings of the surface line's fit.
 
-/// Settings of [`fit_surface`].
+/// Settings of `fit_surface`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SurfaceParams {
     /// Rows searched for the band's top (default: the whole frame).

@@ -202,11 +202,11 @@ pub(super) fn two_step_levels(
 /// δmax from 8e-4 to 7e-3 off by hiding its band top's disagreement).
 /// `None` too when the strip is not told from noise: the two-step model must explain the samples better than one
 /// step does on the same rows by more than its two further parameters
-/// would by chance ([`strip_is_resolved`]); else noise below the top makes
+/// would by chance (`strip_is_resolved`); else noise below the top makes
 /// the strip search try columns with none, and the two-step fit splits
 /// their one blurred step into two sharper ones and returns the upper, up
 /// to 0.4 px above the edge. The fit is given up (`None`) as soon as it has
-/// settled above the cost the F-test needs ([`TwoStepFit::gave_up`]): most
+/// settled above the cost the F-test needs (`TwoStepFit::gave_up`): most
 /// strips the search tries are not there, and running their fits to the
 /// last digit, only to reject them, was most of the surface line's cost.
 /// `first_row` is a row number (an integer).

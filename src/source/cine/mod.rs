@@ -10,9 +10,9 @@
 //! Pixels: 8-bit and 16-bit (LE, LSB-aligned) rows are stored **bottom-up**;
 //! packed P10 (biCompression 256) and P12L (1024) rows **top-down**. Frames
 //! are returned top-down in storage orientation; the viewer flips `bFlipV` /
-//! `bFlipH` are reported in [`SourceMeta::details`] and applied only with
-//! [`OpenOptions::apply_flips`]. P10 codes are raw unless
-//! [`OpenOptions::p10`] asks for the linearisation table.
+//! `bFlipH` are reported in `SourceMeta::details` and applied only with
+//! `OpenOptions::apply_flips`. P10 codes are raw unless
+//! `OpenOptions::p10` asks for the linearisation table.
 //!
 //! Every size and count is checked against the file length before anything
 //! is allocated; all seeks are 64-bit, so files over 4 GB work.

@@ -13,13 +13,8 @@
 //! | [`stage_settings`] | the stages' own settings from the configuration: how a recording is opened, detected and tracked |
 //! | [`detect`] | per frame: background, surface line, coarse and sub-pixel sphere circle |
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
-//! | [`events`] | contact onset, peak and loss of contact from the track |
-//! | [`kinematics`] | v, δ, a, τc, e with jointly propagated errors |
 //! | [`calibrate`] | mm/px (given, from free fall pooled per camera set-up, or from the radius), lens distortion, camera set-ups inferred from the images |
-//! | [`force`] | F(δ) table and the trajectory-fitted contact law |
-//! | [`flight`] | a run without a contact: its free flight (v at the last frame, g) |
-//! | [`measure`] | one drop from track to record |
-//! | [`quality`] | the quality flags of a measured drop (`flags` in drops.csv) |
+//! | [`measure`] | one drop from track to record: the surface's frame and the events, kinematics, force law, free flight alone, quality flags |
 //! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv`, the id of a `drops.csv`, run names that are file names |
 //! | [`pictures`] | a run's overlays with their captions, and its animated impact |
 //! | [`process`] | one run (or camera set-up) → record, track, overlays; runs in parallel |
@@ -58,12 +53,8 @@ pub mod collapse_job;
 pub mod config;
 pub mod dataset;
 pub mod detect;
-pub mod events;
 pub mod figures;
-pub mod flight;
-pub mod force;
 pub mod inspect;
-pub mod kinematics;
 pub mod leftovers;
 pub mod lock;
 pub mod manifest;
@@ -75,7 +66,6 @@ pub mod plot;
 pub mod process;
 pub mod process_job;
 pub mod progress;
-pub mod quality;
 pub mod render;
 pub mod report;
 pub mod review;

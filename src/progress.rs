@@ -84,7 +84,7 @@ pub fn closing_warnings(records: &[DropRecord]) -> Vec<String> {
              that is not theirs)",
         ),
     ] {
-        let runs: Vec<&DropRecord> = flagged(records, crate::quality::FPS_ASSUMED)
+        let runs: Vec<&DropRecord> = flagged(records, crate::measure::quality::FPS_ASSUMED)
             .filter(|r| r.fps_source == source)
             .collect();
         if let Some(first) = runs.first() {
@@ -97,7 +97,7 @@ pub fn closing_warnings(records: &[DropRecord]) -> Vec<String> {
             ));
         }
     }
-    for r in flagged(records, crate::quality::RADIUS_DISAGREEMENT) {
+    for r in flagged(records, crate::measure::quality::RADIUS_DISAGREEMENT) {
         if let Some(s) = r
             .reason
             .split("; ")
@@ -106,7 +106,7 @@ pub fn closing_warnings(records: &[DropRecord]) -> Vec<String> {
             out.push(format!("{} (set-up {}): {s}", r.run, r.setup));
         }
     }
-    for r in flagged(records, crate::quality::FPS_MISMATCH) {
+    for r in flagged(records, crate::measure::quality::FPS_MISMATCH) {
         if let Some(s) = r
             .reason
             .split("; ")

@@ -3,8 +3,8 @@
 //! that compare a vector path with its portable twin.
 
 use crate::config::Surface;
-use crate::events::{Geometry, TrackPoint};
-use crate::kinematics::SphereParams;
+use crate::measure::events::{Geometry, TrackPoint};
+use crate::measure::kinematics::SphereParams;
 use crate::render::physics::{ContactLaw, DropParams, Trajectory};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};

@@ -24,7 +24,7 @@
 #![no_main]
 
 use dropscope::config::Surface;
-use dropscope::events::{EventConfig, Geometry, TrackPoint};
+use dropscope::measure::events::{EventConfig, Geometry, TrackPoint};
 use dropscope::measure::{measure_drop, DropInfo};
 use dropscope::render::physics::{ContactLaw, DropParams, Trajectory};
 use libfuzzer_sys::fuzz_target;

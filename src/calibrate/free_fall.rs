@@ -3,7 +3,7 @@
 //! set-up's runs. The frame rate is exact, so s = g / z̈ (mm/px) with its
 //! error ([`Curvature::mm_per_px`]).
 
-use crate::events::TrackPoint;
+use crate::measure::events::TrackPoint;
 use crate::util::lsq::{weighted_lsq_built, RowQr};
 use nalgebra::DMatrix;
 

@@ -29,8 +29,8 @@
 use super::free_fall::Curvature;
 use super::scale::{resolve, Scale, ScaleInputs};
 use crate::detect::{CircleFit, SurfaceLine};
-use crate::events::{find_events, EventConfig, Geometry, TrackPoint};
-use crate::kinematics::{kinematics, SphereParams};
+use crate::measure::events::{find_events, EventConfig, Geometry, TrackPoint};
+use crate::measure::kinematics::{kinematics, SphereParams};
 use crate::track::{FrameTrack, Track};
 
 /// The lens `k1` (1/px²) that the surface line's bow measures, and its
@@ -278,7 +278,7 @@ pub struct Shift {
 /// without it (on `geom` at the scale `sc` resolved from `inputs`).
 /// `points_at(geom)` and `bounded_points_at(geom)` give the track's points
 /// and its points through the lens that the events under `geom` use
-/// ([`crate::events::first_contact_window`]). `surface_shift_px` is what
+/// ([`crate::measure::events::first_contact_window`]). `surface_shift_px` is what
 /// the measurement moved the image's line by (the contact law), kept.
 /// `None` when either side cannot be measured.
 #[allow(clippy::too_many_arguments)]

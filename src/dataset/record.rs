@@ -231,7 +231,7 @@ pub struct DropRecord {
     #[serde(default)]
     pub g_fit_m_s2_err: Option<f64>,
     /// Status `tracked` only: the vertical velocity (positive downward) at
-    /// the last tracked frame, from its free flight ([`crate::flight`]).
+    /// the last tracked frame, from its free flight ([`crate::measure::flight`]).
     #[serde(default)]
     pub v_last_m_s: Option<f64>,
     /// One-sigma error of `v_last_m_s`, m/s.
@@ -286,7 +286,7 @@ pub struct DropRecord {
     pub reading: String,
     /// Outcome of the run: measured, flagged, tracked only, failed, or decided in review.
     pub status: DropStatus,
-    /// Quality flags, space-separated words ([`crate::quality::FLAGS`]);
+    /// Quality flags, space-separated words ([`crate::measure::quality::FLAGS`]);
     /// empty (written `-`) when nothing weakens the measurement. Any flag makes the
     /// status `warning`, with its sentence in `reason`.
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]

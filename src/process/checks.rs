@@ -3,7 +3,7 @@
 use crate::config::PipelineConfig;
 use crate::dataset::DropRecord;
 use crate::manifest::RunSpec;
-use crate::quality;
+use crate::measure::quality;
 use crate::track::Track;
 
 /// Fill the row's `fps` and `fps_source` and flag what is doubtful about

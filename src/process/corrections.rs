@@ -2,7 +2,7 @@
 //! lens's distortion and the edge model's systematic error of a_max.
 
 use crate::dataset::DropRecord;
-use crate::events::Geometry;
+use crate::measure::events::Geometry;
 
 /// With a given scale and a lens that is not corrected (`corrected`:
 /// calibrated or measured by the surface's bow, the track then in the

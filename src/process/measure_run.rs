@@ -12,10 +12,10 @@ use crate::calibrate::free_fall::Curvature;
 use crate::calibrate::scale::ScaleInputs;
 use crate::config::PipelineConfig;
 use crate::dataset::DropRecord;
-use crate::events::{EventConfig, Geometry, TrackPoint};
 use crate::manifest::RunSpec;
+use crate::measure::events::{EventConfig, Geometry, TrackPoint};
+use crate::measure::quality;
 use crate::measure::{annotate_track, measure_drop, measure_drop_with, DropInfo};
-use crate::quality;
 use crate::track::FrameTrack;
 
 pub(super) fn measure_run(
@@ -85,7 +85,7 @@ pub(super) fn measure_run(
     // when needed, never every frame's.
     let window = |half_widths: &Geometry, geom: &Geometry| {
         let held = held_points(&tr, |f| half_width(f, offset_px_edge, half_widths));
-        crate::events::first_contact_window(held, geom, &event_cfg)
+        crate::measure::events::first_contact_window(held, geom, &event_cfg)
     };
     let first_geom = geom;
     let info = DropInfo {
@@ -94,9 +94,9 @@ pub(super) fn measure_run(
         sphere_density_kg_m3: run.sphere_density_kg_m3.unwrap_or(cfg.sphere.density_kg_m3),
         surface: surface_name,
     };
-    let failed = |e: crate::events::EventError| format!("{}: {e}", run.path.display());
+    let failed = |e: crate::measure::events::EventError| format!("{}: {e}", run.path.display());
     let points = match window(&geom, &geom) {
-        Err(e @ crate::events::EventError::NeverLands { .. }) => {
+        Err(e @ crate::measure::events::EventError::NeverLands { .. }) => {
             // Tracked, never landing: its free flight and files, no impact.
             let row_of = |f: &FrameTrack| {
                 let mut row = track_row(f);
@@ -208,7 +208,7 @@ pub(super) fn measure_run(
             |g| window(&first_geom, g).ok(),
             |g| {
                 let held = bounded_points(&tr, &b.lens, b.radius_px);
-                crate::events::first_contact_window(held, g, &event_cfg).ok()
+                crate::measure::events::first_contact_window(held, g, &event_cfg).ok()
             },
             &geom,
             &sc,
@@ -260,7 +260,7 @@ pub(super) fn measure_run(
 }
 
 /// The outcome of a run whose sphere was tracked but never reached the
-/// surface (`why`): status `tracked`, its free flight ([`crate::flight`]:
+/// surface (`why`): status `tracked`, its free flight ([`crate::measure::flight`]:
 /// v at the last tracked frame, g) at the run's scale, its scale and frame
 /// rate columns, its track (δ negative: the clearance) and the overlay of
 /// its last tracked frame, no impact.
@@ -285,22 +285,23 @@ pub(super) fn tracked_only(
         .or(Some(geom.surface_row_px));
     record.surface_row_px_err = Some(geom.surface_row_err_px);
     record.surface_source = "image".into();
-    record.reason = match crate::flight::free_flight(&points, sc.mm_per_px, sc.rel_err, g_m_s2) {
-        Ok(ff) => {
-            // To the nanosecond, as the track's times.
-            record.t_last_s = Some((ff.t_last_s * 1e9).round() / 1e9);
-            record.v_last_m_s = Some(ff.v_last_m_s.value);
-            record.v_last_m_s_err = Some(ff.v_last_m_s.err);
-            record.g_fit_m_s2 = ff.g_fit_m_s2.map(|g| g.value);
-            record.g_fit_m_s2_err = ff.g_fit_m_s2.map(|g| g.err);
-            format!(
-                "{why}: tracked only, no impact measured: {} frames of free flight, v = \
+    record.reason =
+        match crate::measure::flight::free_flight(&points, sc.mm_per_px, sc.rel_err, g_m_s2) {
+            Ok(ff) => {
+                // To the nanosecond, as the track's times.
+                record.t_last_s = Some((ff.t_last_s * 1e9).round() / 1e9);
+                record.v_last_m_s = Some(ff.v_last_m_s.value);
+                record.v_last_m_s_err = Some(ff.v_last_m_s.err);
+                record.g_fit_m_s2 = ff.g_fit_m_s2.map(|g| g.value);
+                record.g_fit_m_s2_err = ff.g_fit_m_s2.map(|g| g.err);
+                format!(
+                    "{why}: tracked only, no impact measured: {} frames of free flight, v = \
                  {:.4} ± {:.4} m/s at the last one",
-                ff.frames, ff.v_last_m_s.value, ff.v_last_m_s.err
-            )
-        }
-        Err(e) => format!("{why}: tracked only, no impact measured; no free-flight fit: {e}"),
-    };
+                    ff.frames, ff.v_last_m_s.value, ff.v_last_m_s.err
+                )
+            }
+            Err(e) => format!("{why}: tracked only, no impact measured; no free-flight fit: {e}"),
+        };
     if let Some(g) = record.g_fit_m_s2.zip(record.g_fit_m_s2_err) {
         // As a drop's flight is checked (crate::measure).
         let off = g.0 / g_m_s2 - 1.0;

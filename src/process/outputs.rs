@@ -8,7 +8,7 @@ use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, TrackRow};
 use crate::manifest::RunSpec;
-use crate::quality;
+use crate::measure::quality;
 use crate::track::{FrameTrack, Track, TrackSettings};
 use crate::util::io::{Durable, Spool};
 use std::io::Write;

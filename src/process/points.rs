@@ -2,7 +2,7 @@
 //! out.
 
 use crate::calibrate::lens::Lens;
-use crate::events::TrackPoint;
+use crate::measure::events::TrackPoint;
 use crate::track::{FrameTrack, Track};
 
 /// Mark the frames a person excluded (`review.csv`) in `tr`: their fits

@@ -12,7 +12,7 @@ use crate::calibrate::free_fall::Curvature;
 use crate::config::PipelineConfig;
 use crate::dataset::DropRecord;
 use crate::manifest::RunSpec;
-use crate::quality;
+use crate::measure::quality;
 use crate::util::io::Spool;
 use rayon::prelude::*;
 use std::path::Path;

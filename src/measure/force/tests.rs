@@ -1,7 +1,7 @@
-//! Tests of [`crate::force`].
+//! Tests of [`crate::measure::force`].
 
 use super::*;
-use crate::events::FORCE_FIT_MAX_TRAJECTORIES;
+use crate::measure::events::FORCE_FIT_MAX_TRAJECTORIES;
 
 /// The product's fit: [`fit_force_law`] on the test sphere at g = 9.81
 /// with the default work limit.
@@ -21,7 +21,7 @@ fn fit(
         FORCE_FIT_MAX_TRAJECTORIES,
     )
 }
-use crate::events::{find_events, EventConfig};
+use crate::measure::events::{find_events, EventConfig};
 use crate::test_support::{geometry, sphere, track, Drop};
 
 fn k_model() -> f64 {

@@ -5,7 +5,7 @@
 //! [`FLAGS`] with what each means.
 
 use crate::dataset::{DropRecord, DropStatus};
-use crate::events::TrackPoint;
+use crate::measure::events::TrackPoint;
 
 /// Frames missing (not in the file, or not measured) between the last
 /// flight frame before contact and the first one after it.

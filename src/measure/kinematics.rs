@@ -11,7 +11,7 @@
 //! lower surface line delays the contact and advances the rebound, and τc
 //! sees both.
 
-use crate::events::{crossing_time, EventError, Events, Geometry, TrackPoint};
+use crate::measure::events::{crossing_time, EventError, Events, Geometry, TrackPoint};
 use crate::util::lsq::{quad_form, PolyFit};
 
 use nalgebra::DMatrix;
@@ -175,7 +175,7 @@ pub fn kinematics(
         peak.fit
             .coef
             .copy_from_slice(&q[lay.peak..lay.peak + lay.n_peak]);
-        let t_max = crate::events::poly_max(
+        let t_max = crate::measure::events::poly_max(
             &peak,
             ev.peak.t_max_s,
             ev.peak.t_max_s - 1e-3,
@@ -237,7 +237,7 @@ pub fn kinematics(
         }
     };
     let s_m = geom.mm_per_px * 1e-3;
-    let g_fit = |f: &crate::events::FlightFit| {
+    let g_fit = |f: &crate::measure::events::FlightFit| {
         f.g_free_px_s2.map(|(g, e)| Measured {
             value: g * s_m,
             err: e * s_m,
@@ -250,7 +250,7 @@ pub fn kinematics(
     // depends on that choice: the excess curvature times the time from the
     // fit's centre to the crossing enters the speed's error.
     let to_m_s = geom.mm_per_px * 1e-3;
-    let flight_sys = |f: &crate::events::FlightFit, t_cross_s: f64| -> f64 {
+    let flight_sys = |f: &crate::measure::events::FlightFit, t_cross_s: f64| -> f64 {
         f.g_free_px_s2.map_or(0.0, |(g, e)| {
             let excess = ((g - f.g_px_s2).abs() - e).max(0.0);
             excess * (t_cross_s - f.t_ref_s).abs() * to_m_s
@@ -318,7 +318,7 @@ fn half_width_fit(track: &[TrackPoint], ev: &Events) -> Option<PolyFit> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::events::{find_events, EventConfig};
+    use crate::measure::events::{find_events, EventConfig};
     use crate::test_support::{geometry, sphere, track, Drop};
 
     #[test]
@@ -413,7 +413,7 @@ mod tests {
             .collect();
         let e = find_events(&tr, &geom, &EventConfig::default()).unwrap_err();
         assert!(
-            matches!(e, crate::events::EventError::NeverLands { .. }),
+            matches!(e, crate::measure::events::EventError::NeverLands { .. }),
             "{e}"
         );
         assert!(e.to_string().contains("never reaches the surface"));
@@ -429,7 +429,7 @@ mod tests {
             .collect();
         let e = find_events(&tr, &geom, &EventConfig::default()).unwrap_err();
         assert!(
-            matches!(e, crate::events::EventError::NoRebound { .. }),
+            matches!(e, crate::measure::events::EventError::NoRebound { .. }),
             "{e}"
         );
     }

@@ -3,7 +3,7 @@
 //! flight alone, as the `tracked` row gives it.
 //!
 //! The centre row is fitted with the same parabola as a drop's flights
-//! ([`crate::events::fit_flight`]): z(t) = z0 + v0·τ + ½·g_px·τ², g_px = g /
+//! ([`crate::measure::events::fit_flight`]): z(t) = z0 + v0·τ + ½·g_px·τ², g_px = g /
 //! s with g known, and the vertical velocity (positive downward) is read at
 //! the last tracked frame. In metres per second v = s·v(t_last) =
 //! s·v0 + g·(t_last − t_ref): the scale s enters through s·v0 only, and its
@@ -13,8 +13,8 @@
 //! position is z(t) + z̈·T²/24, a constant shift of a parabola: the
 //! velocity is unchanged.
 
-use crate::events::{fit_flight, TrackPoint};
-use crate::kinematics::Measured;
+use crate::measure::events::{fit_flight, TrackPoint};
+use crate::measure::kinematics::Measured;
 
 /// The free flight of a run without a contact.
 #[derive(Debug, Clone, PartialEq)]

@@ -28,8 +28,8 @@
 //!   frames' own scatter does not show. Each enters through the fit's
 //!   linear response, `Δθ = −(JᵀJ)⁻¹Jᵀ ∂r/∂q · Δq`.
 
-use crate::events::{Events, Geometry, TrackPoint, FLIGHT_FRAMES};
-use crate::kinematics::{Measured, SphereParams};
+use crate::measure::events::{Events, Geometry, TrackPoint, FLIGHT_FRAMES};
+use crate::measure::kinematics::{Measured, SphereParams};
 use crate::util::lsq::PolyFit;
 use nalgebra::{DMatrix, DVector};
 

@@ -2,10 +2,12 @@
 //! → [`DropRecord`] and the per-frame [`TrackRow`]s. Pure: no I/O.
 
 use crate::dataset::{DropRecord, DropStatus, TrackRow};
-use crate::events::{find_events, EventConfig, EventError, Geometry, SurfaceFrame, TrackPoint};
-use crate::force::{fit_force_law, force_table, Damping, ForceFitError, ForceLaw};
-use crate::kinematics::{kinematics, Measured, SphereParams};
-use crate::quality;
+use crate::measure::events::{
+    find_events, EventConfig, EventError, Geometry, SurfaceFrame, TrackPoint,
+};
+use crate::measure::force::{fit_force_law, force_table, Damping, ForceFitError, ForceLaw};
+use crate::measure::kinematics::{kinematics, Measured, SphereParams};
+use crate::measure::quality;
 
 /// What the measurement of one drop produced.
 #[derive(Debug, Clone, PartialEq)]
@@ -368,15 +370,15 @@ pub fn annotate_track(rows: &mut [TrackRow], m: &DropMeasurement, geom: &Geometr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::events::TrackPoint;
-    use crate::kinematics::Measured;
+    use crate::measure::events::TrackPoint;
+    use crate::measure::kinematics::Measured;
     use crate::test_support::{geometry, track, Drop};
 
     /// A contact law with the given surface cross-check (offset, its σ).
     fn law_with(n: f64, damping: f64, offset: Option<(f64, f64)>) -> ForceLaw {
         let m = |value, err| Measured { value, err };
         ForceLaw {
-            model: crate::force::ContactModel::ALL[0],
+            model: crate::measure::force::ContactModel::ALL[0],
             k: m(1e9, 1e8),
             n: m(n, 0.5),
             damping: m(damping, 0.01),
@@ -435,7 +437,7 @@ mod tests {
 
     #[test]
     fn a_long_movie_is_measured_on_its_first_bounce_alone_to_the_same_bits() {
-        use crate::events::{find_events, first_contact_window};
+        use crate::measure::events::{find_events, first_contact_window};
         let drop = Drop::new(4.5e-3, 1.7, 0.4e-4);
         let geom = geometry();
         let cfg = EventConfig::default();
@@ -471,7 +473,7 @@ mod tests {
         // second contact's first frame and the contact law's flight frames.
         assert_eq!(w, window(&short).unwrap());
         assert!(
-            w.len() <= first.len() + crate::events::FLIGHT_FRAMES,
+            w.len() <= first.len() + crate::measure::events::FLIGHT_FRAMES,
             "{}",
             w.len()
         );

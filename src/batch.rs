@@ -219,7 +219,7 @@ impl JobSummary {
 /// Whether `dir` is an output folder dropscope wrote (it holds its
 /// `provenance.json` or the ledger of its files).
 fn is_output_folder(dir: &Path) -> bool {
-    [crate::out_folder::LEDGER_FILE, "provenance.json"]
+    [crate::util::out_folder::LEDGER_FILE, "provenance.json"]
         .iter()
         .any(|f| dir.join(f).is_file())
 }
@@ -838,7 +838,7 @@ fn job_on_pool(
     // earlier job's collapse wrote, so that no figure of a run that has
     // since failed or left the manifest survives (nor all of it when no
     // drop is measured now).
-    let mut ledger = crate::out_folder::Ledger::open(out);
+    let mut ledger = crate::util::out_folder::Ledger::open(out);
     crate::collapse_job::remove_outputs(&mut ledger)
         .and_then(|()| ledger.save())
         .map_err(io(out))?;

@@ -151,7 +151,7 @@ impl OutputFile {
 
     /// Whether the file is in `out` (and inside it) with the bytes it was written with.
     pub(crate) fn is_intact(&self, out: &Path) -> bool {
-        crate::out_folder::sha256(out, &self.path).is_ok_and(|h| h == self.sha256)
+        crate::util::out_folder::sha256(out, &self.path).is_ok_and(|h| h == self.sha256)
     }
 }
 
@@ -457,10 +457,10 @@ pub enum Miss {
 }
 
 /// The entry of `run` in `out` as [`store`] wrote it: read through no link
-/// ([`crate::out_folder::read`]), parsed, and its seal checked.
+/// ([`crate::util::out_folder::read`]), parsed, and its seal checked.
 fn read_entry(out: &Path, run: &str) -> Result<Entry, Miss> {
     let rel = format!("runs/{run}.json");
-    let bytes = crate::out_folder::read(out, &rel, ENTRY_MAX_BYTES)
+    let bytes = crate::util::out_folder::read(out, &rel, ENTRY_MAX_BYTES)
         .ok()
         .flatten()
         .ok_or(Miss::Absent)?;
@@ -515,7 +515,7 @@ pub fn store(out: &Path, entry: &Entry) -> std::io::Result<()> {
     // job's drops.csv (`process::sync_outputs`); an entry a crash left
     // short does not parse and is a miss, one whose outputs a crash left
     // short fails their SHA-256 and is a miss.
-    crate::out_folder::write_as(out, &rel, crate::util::io::Durable::WithTheJob, |f| {
+    crate::util::out_folder::write_as(out, &rel, crate::util::io::Durable::WithTheJob, |f| {
         std::io::Write::write_all(f, &bytes)
     })
     .map(drop)

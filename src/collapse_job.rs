@@ -1,7 +1,7 @@
 //! `dropscope collapse DROPS.csv`: reads drops.csv, computes the collapse
 //! ([`crate::collapse`]) and writes `collapse.csv`, `fits.json` and the
 //! figures ([`crate::figures`]) into the output folder, every file through
-//! its ledger ([`crate::out_folder`]).
+//! its ledger ([`crate::util::out_folder`]).
 
 use std::path::{Path, PathBuf};
 
@@ -9,8 +9,8 @@ use crate::collapse::groups::{ContactRadius, DropGroups};
 use crate::collapse::{compute_groups, fit, output, CollapseError};
 use crate::config::PipelineConfig;
 use crate::dataset::{self, DatasetError};
-use crate::out_folder::Ledger;
 use crate::per_drop;
+use crate::util::out_folder::Ledger;
 
 /// `dropscope collapse DROPS.csv [--out DIR] [--config FILE]`.
 #[derive(Debug, Clone, clap::Args)]

@@ -24,7 +24,7 @@ use std::path::Path;
 use serde::Deserialize;
 
 use crate::cache::{self, Entry, OutputFile};
-use crate::out_folder::Ledger;
+use crate::util::out_folder::Ledger;
 
 /// The part of an earlier `provenance.json` read here.
 #[derive(Deserialize)]
@@ -71,7 +71,7 @@ impl Removed {
 /// cannot be read, removes nothing.
 pub fn remove(out: &Path, current: &[Entry]) -> std::io::Result<Removed> {
     let previous: Previous =
-        match crate::out_folder::read(out, "provenance.json", PROVENANCE_MAX_BYTES) {
+        match crate::util::out_folder::read(out, "provenance.json", PROVENANCE_MAX_BYTES) {
             Ok(Some(bytes)) => match serde_json::from_slice(&bytes) {
                 Ok(p) => p,
                 Err(_) => return Ok(Removed::default()),
@@ -95,7 +95,7 @@ pub fn remove(out: &Path, current: &[Entry]) -> std::io::Result<Removed> {
         for f in listed.iter().filter(|f| !written.contains(f.path.as_str())) {
             // Only a plain path inside `out`, reached through no link,
             // holding the bytes listed.
-            if crate::out_folder::remove_if_holds(out, &f.path, &f.sha256).unwrap_or(false) {
+            if crate::util::out_folder::remove_if_holds(out, &f.path, &f.sha256).unwrap_or(false) {
                 removed.files += 1;
             }
         }
@@ -103,8 +103,8 @@ pub fn remove(out: &Path, current: &[Entry]) -> std::io::Result<Removed> {
             removed.runs += 1;
             if entry.is_some() {
                 let rel = format!("runs/{}.json", p.run);
-                if let Ok(hash) = crate::out_folder::sha256(out, &rel) {
-                    crate::out_folder::remove_if_holds(out, &rel, &hash)?;
+                if let Ok(hash) = crate::util::out_folder::sha256(out, &rel) {
+                    crate::util::out_folder::remove_if_holds(out, &rel, &hash)?;
                 }
             }
         }

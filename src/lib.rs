@@ -35,7 +35,6 @@
 //! | [`review`] | `dropscope review`: every frame of a drop in a local web page, and `review.csv`, the decisions `process` and `run` apply |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | the drawing kit: SVG + PNG bytes from plain data, embedded font |
-//! | [`out_folder`] | every write, read-back and removal inside the output folder: no link followed, only dropscope's own files removed |
 //!
 //! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
 //! column `x` grows to the right and row `z` grows downward. Quantities carry
@@ -59,7 +58,6 @@ pub mod leftovers;
 pub mod lock;
 pub mod manifest;
 pub mod measure;
-pub mod out_folder;
 pub mod per_drop;
 pub mod pictures;
 pub mod plot;

@@ -10,8 +10,8 @@ use crate::collapse::diagnostics::{self, DropDiagnostics};
 use crate::collapse::CollapseError;
 use crate::config::{PipelineConfig, Surface};
 use crate::dataset::DropRecord;
-use crate::out_folder::Ledger;
 use crate::util::io::Durable;
+use crate::util::out_folder::Ledger;
 
 /// The diagnostics of the drops of `records` (the rows of `drops_csv`)
 /// that were measured and have a track beside it; `surface_of(i, record)`
@@ -30,7 +30,7 @@ pub fn diagnose_all<'a>(
         if crate::dataset::run_name::check(&rec.run).is_err() || !rec.status.measured() {
             continue;
         }
-        let Some(p) = crate::out_folder::path(&tracks_dir, &format!("{}.csv", rec.run))
+        let Some(p) = crate::util::out_folder::path(&tracks_dir, &format!("{}.csv", rec.run))
             .ok()
             .filter(|p| p.is_file())
         else {
@@ -164,7 +164,7 @@ pub fn replace(
 
 /// `rel` written through `ledger` and added to `files`, synced now or left for one [`crate::util::io::sync_file_system`]
 /// of them all ([`Durable`]): through the output folder's ledger
-/// ([`crate::out_folder`]), which lists it as dropscope's.
+/// ([`crate::util::out_folder`]), which lists it as dropscope's.
 pub(crate) fn write_as(
     ledger: &mut Ledger,
     rel: &Path,

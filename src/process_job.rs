@@ -13,8 +13,8 @@ use crate::batch::{
 use crate::config::PipelineConfig;
 use crate::dataset::{DropRecord, DropStatus};
 use crate::manifest::RunSpec;
-use crate::out_folder::Ledger;
 use crate::process::write_file;
+use crate::util::out_folder::Ledger;
 use crate::util::timings::{time, Stage};
 
 /// What a `process` job did.

@@ -62,7 +62,6 @@ const JOB: &[&str] = &[
     "cache.rs",
     "leftovers.rs",
     "lock.rs",
-    "out_folder.rs",
     "progress.rs",
     "shard.rs",
     "shelf.rs",

@@ -140,7 +140,7 @@ pub(super) fn write_file_as(
     durable: Durable,
     write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
 ) -> Result<(), ProcessError> {
-    crate::out_folder::write_as(out, rel, durable, write)
+    crate::util::out_folder::write_as(out, rel, durable, write)
         .map(drop)
         .map_err(|source| ProcessError::Write {
             path: out.join(rel),
@@ -166,7 +166,7 @@ pub fn sync_outputs(out: &Path) -> Result<(), ProcessError> {
 /// drops.csv. A track, main overlay or animation that this run's previous
 /// cache entry lists, and that this outcome does not have (the run now
 /// fails), is removed while it holds the bytes written then
-/// ([`crate::out_folder::remove_if_holds`]). A run whose name
+/// ([`crate::util::out_folder::remove_if_holds`]). A run whose name
 /// is no file name writes and removes nothing. Returns the files written,
 /// relative to `out`, with the SHA-256 of their bytes.
 pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, ProcessError> {
@@ -220,7 +220,7 @@ pub(super) fn remove_if_listed(
     let Some(f) = listed.iter().find(|f| f.path == rel) else {
         return Ok(());
     };
-    crate::out_folder::remove_if_holds(out, rel, &f.sha256)
+    crate::util::out_folder::remove_if_holds(out, rel, &f.sha256)
         .map(drop)
         .map_err(|source| ProcessError::Write {
             path: out.join(rel),

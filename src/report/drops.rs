@@ -35,7 +35,7 @@ fn figure(out_dir: &Path, rec: &DropRecord, sub: &str, ext: &str) -> Option<Stri
         return None;
     }
     let rel = format!("plots/{sub}/{}.{ext}", rec.run);
-    crate::out_folder::path(out_dir, &rel)
+    crate::util::out_folder::path(out_dir, &rel)
         .is_ok_and(|p| p.is_file())
         .then_some(rel)
 }
@@ -61,7 +61,7 @@ pub fn url_path(rel: &str) -> String {
 /// The overlay at `rel` shrunk to [`THUMB_PX`] wide, as JPEG bytes.
 fn thumbnail(out_dir: &Path, rel: &str) -> Option<Vec<u8>> {
     // Read through no link, decoded within the frame readers' pixel cap.
-    let bytes = crate::out_folder::read(out_dir, rel, OVERLAY_MAX_BYTES).ok()??;
+    let bytes = crate::util::out_folder::read(out_dir, rel, OVERLAY_MAX_BYTES).ok()??;
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .ok()?;

@@ -30,7 +30,7 @@ use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
 use crate::dataset::{DropRecord, DropStatus};
-use crate::out_folder::Ledger;
+use crate::util::out_folder::Ledger;
 use html::escape;
 
 /// Why report.html could not be written (missing or unreadable collapse
@@ -96,7 +96,7 @@ pub fn check_one_dataset(out_dir: &Path) -> Result<(), ReportError> {
     // Any SVG that says it is one of dropscope's (carries a dataset id): a
     // figure of another job copied in is refused; read through no link.
     for sub in ["plots", "plots/drops"] {
-        let Ok(dir) = crate::out_folder::path(out_dir, sub) else {
+        let Ok(dir) = crate::util::out_folder::path(out_dir, sub) else {
             continue;
         };
         let Ok(entries) = std::fs::read_dir(&dir) else {
@@ -111,7 +111,8 @@ pub fn check_one_dataset(out_dir: &Path) -> Result<(), ReportError> {
         svgs.sort();
         for name in svgs {
             let rel = format!("{sub}/{name}");
-            let Ok(Some(bytes)) = crate::out_folder::read(out_dir, &rel, SVG_MAX_BYTES) else {
+            let Ok(Some(bytes)) = crate::util::out_folder::read(out_dir, &rel, SVG_MAX_BYTES)
+            else {
                 continue;
             };
             let text = String::from_utf8_lossy(&bytes);
@@ -248,7 +249,7 @@ fn collapse_plots(out_dir: &Path, ledger: &Ledger, dataset: Option<&str>) -> Vec
                     (stem, Plot::Inline(svg))
                 });
             }
-            let bytes = crate::out_folder::read(out_dir, &rel, SVG_MAX_BYTES).ok()??;
+            let bytes = crate::util::out_folder::read(out_dir, &rel, SVG_MAX_BYTES).ok()??;
             let ours = dataset.is_some()
                 && crate::dataset::id::of_svg(&String::from_utf8_lossy(&bytes)) == dataset;
             let known = KNOWN_PLOTS.iter().any(|(k, _)| *k == stem);

@@ -461,11 +461,11 @@ impl Decisions {
     }
 
     /// The decisions in `out/rel`, read through no link below the output
-    /// folder `out` ([`crate::out_folder::read`]); none when there is no
+    /// folder `out` ([`crate::util::out_folder::read`]); none when there is no
     /// such file.
     pub fn read_in(out: &Path, rel: &str) -> Result<Decisions, ReviewError> {
         let path = out.join(rel);
-        match crate::out_folder::read(out, rel, MAX_FILE_BYTES) {
+        match crate::util::out_folder::read(out, rel, MAX_FILE_BYTES) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Decisions::default()),
             Err(source) => Err(ReviewError::Io { path, source }),
             Ok(None) => Err(ReviewError::TooLarge { path }),
@@ -475,9 +475,9 @@ impl Decisions {
 
     /// Write the decisions to `out/rel`, inside the output folder `out`,
     /// whole or not at all (a temporary beside it, synced, renamed over
-    /// it), through no link ([`crate::out_folder::write`]).
+    /// it), through no link ([`crate::util::out_folder::write`]).
     pub fn write_in(&self, out: &Path, rel: &str) -> Result<(), ReviewError> {
-        crate::out_folder::write(out, rel, &self.to_csv_bytes())
+        crate::util::out_folder::write(out, rel, &self.to_csv_bytes())
             .map(|_| ())
             .map_err(|source| ReviewError::Io {
                 path: out.join(rel),

@@ -94,7 +94,7 @@ pub struct Server {
 struct State {
     out: PathBuf,
     /// The decisions file below `out`, written only through
-    /// [`crate::out_folder`].
+    /// [`crate::util::out_folder`].
     review_rel: String,
     cfg: PipelineConfig,
     number_digits: std::collections::BTreeMap<String, usize>,
@@ -554,10 +554,10 @@ fn check_run_name(run: &str) -> Result<(), Response> {
 }
 
 /// The rows of the track CSV `out/rel`, read through no link below the
-/// output folder ([`crate::out_folder::read`]); none when it is not there
+/// output folder ([`crate::util::out_folder::read`]); none when it is not there
 /// or unreadable.
 fn read_track(out: &Path, rel: &str) -> Vec<TrackRow> {
-    let Ok(Some(bytes)) = crate::out_folder::read(out, rel, 1 << 30) else {
+    let Ok(Some(bytes)) = crate::util::out_folder::read(out, rel, 1 << 30) else {
         return Vec::new();
     };
     csv::Reader::from_reader(bytes.as_slice())

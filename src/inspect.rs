@@ -14,7 +14,7 @@ use crate::source::{open, Frame, FrameSource, OpenOptions, P10Mode, SourceError,
 pub struct SourceArgs {
     /// Frame rate to assume when the input carries none (a folder without a
     /// PCC XML), a number > 0. Default: camera.fps of the configuration.
-    #[arg(long, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub fps: Option<f64>,
     /// The configuration whose camera.fps is the fallback frame rate
     /// (default: ./pipeline.toml, else the embedded default).

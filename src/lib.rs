@@ -6,7 +6,7 @@
 //! | --- | --- |
 //! | [`util`] | the leaves: atomic writes and paths inside the output folder, spilled per-frame records, least squares, `--timings`, text sanitising and printing, the physical ranges of numbers |
 //! | [`config`] | `pipeline.toml` → validated [`config::PipelineConfig`] in SI units |
-//! | [`cli_values`] | command-line flag values checked as they are parsed (`--fps`, `--radius-mm`, …) |
+//! | [`cli_values`] | `--fps`, `--mm-per-px`, `--surface-row-px` for recordings that lack them |
 //! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
 //! | [`inspect`] | `dropscope inspect` and `dropscope export`: what an input holds, its frames as 16-bit PNG |

@@ -19,7 +19,7 @@ pub struct ProcessArgs {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Sphere radius for INPUTs (default: the configuration's sphere.radius_mm).
-    #[arg(long, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub radius_mm: Option<f64>,
     /// Values for recordings that lack them (`--fps`, `--mm-per-px`, `--surface-row-px`).
     #[command(flatten)]

@@ -134,10 +134,10 @@ pub struct RenderArgs {
     #[arg(long)]
     pub campaign: bool,
     /// Radii of the campaign grid, mm (with --campaign).
-    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_RADII_MM, requires = "campaign", value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_RADII_MM, requires = "campaign", value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub radii_mm: Vec<f64>,
     /// Drop heights of the campaign grid, cm (with --campaign).
-    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_HEIGHTS_CM, requires = "campaign", value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = campaign::PAPER_HEIGHTS_CM, requires = "campaign", value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub heights_cm: Vec<f64>,
     /// Repeats of every grid point (each a new contact phase, column and noise; with --campaign).
     #[arg(long, default_value_t = 1, requires = "campaign")]
@@ -146,10 +146,10 @@ pub struct RenderArgs {
     #[arg(long = "drop", value_delimiter = ',', conflicts_with = "campaign")]
     pub drops: Vec<String>,
     /// Sphere radius of a single drop, mm.
-    #[arg(long, default_value_t = 4.5, conflicts_with_all = ["campaign", "drops"], value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 4.5, conflicts_with_all = ["campaign", "drops"], value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub radius_mm: f64,
     /// Drop height of a single drop (lowest point of the sphere to the surface), cm.
-    #[arg(long, default_value_t = 12.0, conflicts_with_all = ["campaign", "drops"], value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 12.0, conflicts_with_all = ["campaign", "drops"], value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub height_cm: f64,
     /// Seed of every random choice; the same seed gives byte-identical files.
     #[arg(long, default_value_t = 1)]
@@ -167,19 +167,19 @@ pub struct RenderArgs {
 
     // ---- physics
     /// Sphere density, kg/m³.
-    #[arg(long, default_value_t = 7800.0, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 7800.0, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub density_kg_m3: f64,
     /// Young's modulus of the pillars, Pa.
-    #[arg(long, default_value_t = 1.6e6, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1.6e6, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub modulus_pa: f64,
     /// Pillar height h, mm.
-    #[arg(long, default_value_t = 3.5, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 3.5, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub pillar_height_mm: f64,
     /// Pillar width b, mm.
-    #[arg(long, default_value_t = 2.5, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 2.5, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub pillar_width_mm: f64,
     /// Channel width c, mm (φ = b / (b + c)).
-    #[arg(long, default_value_t = 1.5, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1.5, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub channel_width_mm: f64,
     /// Coefficient of restitution (speeds where δ crosses 0); below 1 adds damping solved to give it (linear unless --damping says otherwise) [default: 1; with --contact wide: drawn in 0.3‥0.98].
     #[arg(long, allow_negative_numbers = true)]
@@ -197,7 +197,7 @@ pub struct RenderArgs {
     #[arg(long)]
     pub no_adhesion: bool,
     /// Gravity, m/s².
-    #[arg(long, default_value_t = physics::STANDARD_GRAVITY_M_S2, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = physics::STANDARD_GRAVITY_M_S2, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub gravity_m_s2: f64,
     /// Name of the surface written to runs.csv (a `[surface.<name>]` of pipeline.toml).
     #[arg(long, default_value = "pdms")]
@@ -211,13 +211,13 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 384)]
     pub height_px: usize,
     /// Frames per second.
-    #[arg(long, default_value_t = 10_000.0, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 10_000.0, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub fps: f64,
     /// Exposure time, µs.
-    #[arg(long, default_value_t = 50.0, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 50.0, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub exposure_us: f64,
     /// Scale, mm/px [default: 0.04 + 0.01 per mm of R above 3 mm: R_px 75‥87.5].
-    #[arg(long, value_parser = crate::cli_values::positive, allow_negative_numbers = true)]
+    #[arg(long, value_parser = crate::util::flag_values::positive, allow_negative_numbers = true)]
     pub mm_per_px: Option<f64>,
     /// Bits per sample, 8 or 12 [default: the preset's].
     #[arg(long)]

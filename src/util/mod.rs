@@ -10,9 +10,11 @@
 //! | [`timings`] | `--timings`: wall and CPU time per stage of a job |
 //! | [`text`] | one sanitiser for text bound for a terminal, a CSV cell or a run name; [`text::plural`] |
 //! | [`console`] | printing that never panics ([`outln!`](crate::outln), [`errln!`](crate::errln)) |
+//! | [`flag_values`] | command-line flag values checked as clap parses them (`--fps`, `--radius-mm`, …) |
 //! | [`ranges`] | the physical range of every number where it enters |
 
 pub mod console;
+pub mod flag_values;
 pub mod io;
 pub mod lsq;
 pub mod out_folder;

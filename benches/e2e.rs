@@ -35,7 +35,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use dropscope::manifest::read_manifest;
+use dropscope::dataset::manifest::read_manifest;
 use dropscope::source::{open, Frame, OpenOptions};
 
 const BIN: &str = env!("CARGO_BIN_EXE_dropscope");

@@ -21,8 +21,8 @@
 //! section) with the same statistics; on drops under the model's law, K
 //! fitted with n held at 2 against π E φ R / h.
 
+use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::{read_csv, DropRecord, DropStatus};
-use dropscope::manifest::read_manifest;
 use std::path::{Path, PathBuf};
 
 /// The p-quantile (nearest rank) of `v`.

@@ -14,8 +14,8 @@ use crate::cache::{self, Entry};
 use crate::collapse::groups::ContactRadius;
 use crate::collapse_job::CollapseArgs;
 use crate::config::PipelineConfig;
+use crate::dataset::manifest::{read_job_manifest, RunSpec};
 use crate::dataset::{DropRecord, DropStatus};
-use crate::manifest::{read_job_manifest, RunSpec};
 use crate::process::{process_setup, write_file, write_run_outputs};
 use crate::source::listing::{recording_kind, Listing};
 use crate::source::SourceError;
@@ -71,7 +71,7 @@ pub enum BatchError {
     Config(#[from] crate::config::ConfigError),
     /// The run manifest could not be read.
     #[error(transparent)]
-    Manifest(#[from] crate::manifest::ManifestError),
+    Manifest(#[from] crate::dataset::manifest::ManifestError),
     /// The processing stage could not run (an output not written, an input that is no run).
     #[error(transparent)]
     Process(#[from] crate::process::ProcessError),
@@ -103,7 +103,7 @@ pub enum BatchError {
     Lock(#[from] crate::lock::LockError),
     /// The review's decisions could not be read.
     #[error(transparent)]
-    Review(#[from] crate::review::decisions::ReviewError),
+    Review(#[from] crate::dataset::decisions::ReviewError),
     /// `--threads` asks for more than [`max_threads`].
     #[error(
         "--threads {asked}: at most {max} on this machine (4 × its {cores} cores): more threads \
@@ -525,7 +525,7 @@ pub(crate) fn provenance_json(
     #[derive(serde::Serialize)]
     struct ReviewProvenance<'a> {
         file: String,
-        decisions: &'a [crate::review::decisions::Decision],
+        decisions: &'a [crate::dataset::decisions::Decision],
     }
     let p = Provenance {
         dropscope_version: env!("CARGO_PKG_VERSION"),
@@ -598,13 +598,13 @@ pub struct Review {
     /// folder (which need not exist).
     pub path: PathBuf,
     /// The decisions read from `path` (none when it does not exist).
-    pub decisions: crate::review::decisions::Decisions,
+    pub decisions: crate::dataset::decisions::Decisions,
 }
 
 impl Review {
-    /// The decisions for a job into `out` ([`crate::review::decisions::review_path`]).
+    /// The decisions for a job into `out` ([`crate::dataset::decisions::review_path`]).
     pub fn load(cfg: &PipelineConfig, out: &Path) -> Result<Review, BatchError> {
-        use crate::review::decisions::{review_path, Decisions, REVIEW_FILE};
+        use crate::dataset::decisions::{review_path, Decisions, REVIEW_FILE};
         let path = review_path(cfg.input.review.as_deref(), out);
         // The output folder's own file is read through no link below it;
         // a file the configuration names, as any input.

@@ -14,8 +14,8 @@
 
 use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
+use crate::dataset::manifest::RunSpec;
 use crate::dataset::DropRecord;
-use crate::manifest::RunSpec;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::fs::File;

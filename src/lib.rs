@@ -7,7 +7,6 @@
 //! | [`util`] | the leaves: atomic writes and paths inside the output folder, spilled per-frame records, least squares, `--timings`, text sanitising and printing, the physical ranges of numbers |
 //! | [`config`] | `pipeline.toml` → validated [`config::PipelineConfig`] in SI units |
 //! | [`cli_values`] | `--fps`, `--mm-per-px`, `--surface-row-px` for recordings that lack them |
-//! | [`manifest`] | the run manifest `runs.csv` |
 //! | [`source`] | frame sequences: the [`source::FrameSource`] trait and its readers |
 //! | [`inspect`] | `dropscope inspect` and `dropscope export`: what an input holds, its frames as 16-bit PNG |
 //! | [`stage_settings`] | the stages' own settings from the configuration: how a recording is opened, detected and tracked |
@@ -15,7 +14,7 @@
 //! | [`track`] | per run: two-pass tracking through row bands, R_px calibration |
 //! | [`calibrate`] | mm/px (given, from free fall pooled per camera set-up, or from the radius), lens distortion, camera set-ups inferred from the images |
 //! | [`measure`] | one drop from track to record: the surface's frame and the events, kinematics, force law, free flight alone, quality flags |
-//! | [`dataset`] | the per-drop record ([`dataset::DropRecord`]) and `drops.csv`, the id of a `drops.csv`, run names that are file names |
+//! | [`dataset`] | the run manifest `runs.csv`, the per-drop record ([`dataset::DropRecord`]) and `drops.csv`, the decisions `review.csv`, the id of a `drops.csv`, run names that are file names |
 //! | [`pictures`] | a run's overlays with their captions, and its animated impact |
 //! | [`process`] | one run (or camera set-up) → record, track, overlays; runs in parallel |
 //! | [`process_job`] | `dropscope process`: the runs through the main job's cache → drops.csv, per-drop figures |
@@ -32,7 +31,7 @@
 //! | [`shard`] | `run --shard K/N`: the K-th of N frame-balanced shares of the runs |
 //! | [`slurm`] | `dropscope slurm`: the shards as a Slurm array, then a finishing job |
 //! | [`report`] | `report.html`: counts, collapse plots, fits and every drop on one self-contained page |
-//! | [`review`] | `dropscope review`: every frame of a drop in a local web page, and `review.csv`, the decisions `process` and `run` apply |
+//! | [`review`] | `dropscope review`: every frame of a drop in a local web page; a person's decisions written to `review.csv` ([`dataset::decisions`]) |
 //! | [`render`] | synthetic drops with exact truth (`dropscope render`) |
 //! | [`plot`] | the drawing kit: SVG + PNG bytes from plain data, embedded font |
 //!
@@ -56,7 +55,6 @@ pub mod figures;
 pub mod inspect;
 pub mod leftovers;
 pub mod lock;
-pub mod manifest;
 pub mod measure;
 pub mod per_drop;
 pub mod pictures;

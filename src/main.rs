@@ -140,7 +140,7 @@ fn hold_folder(
     out: &std::path::Path,
     kind: &str,
     cfg: &PipelineConfig,
-    runs: &[dropscope::manifest::RunSpec],
+    runs: &[dropscope::dataset::manifest::RunSpec],
     wait: bool,
 ) -> anyhow::Result<dropscope::lock::FolderLock> {
     std::fs::create_dir_all(out)
@@ -294,7 +294,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     cfg.camera.p10_linear &= !args.p10_codes;
     cfg.command_line = args.recording.values();
     let runs = match &args.manifest {
-        Some(m) => dropscope::manifest::read_job_manifest(m)?,
+        Some(m) => dropscope::dataset::manifest::read_job_manifest(m)?,
         None => dropscope::process::runs_from_inputs(
             &dropscope::batch::expand_inputs(&args.inputs),
             args.radius_mm,
@@ -486,7 +486,8 @@ fn run_review(
     config: Option<&std::path::Path>,
     port: u16,
 ) -> anyhow::Result<ExitCode> {
-    use dropscope::review::{decisions, server};
+    use dropscope::dataset::decisions;
+    use dropscope::review::server;
     let (cfg, name) = load_config(config)?;
     let out = dir.unwrap_or_else(|| cfg.output.dir.clone());
     let drops = out.join("drops.csv");

@@ -11,8 +11,8 @@ use crate::batch::{
     RunEvent,
 };
 use crate::config::PipelineConfig;
+use crate::dataset::manifest::RunSpec;
 use crate::dataset::{DropRecord, DropStatus};
-use crate::manifest::RunSpec;
 use crate::process::write_file;
 use crate::util::out_folder::Ledger;
 use crate::util::timings::{time, Stage};

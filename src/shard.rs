@@ -8,7 +8,7 @@
 //! then the cache entry); the whole job run afterwards finds them all in the
 //! cache and only assembles drops.csv, the collapse and the report.
 
-use crate::manifest::RunSpec;
+use crate::dataset::manifest::RunSpec;
 use crate::source::frame_decode::ImageKind;
 use std::path::Path;
 

@@ -162,8 +162,8 @@ pub fn require_avx2(what: &str) {
 }
 
 /// A manifest row `name` (path `name`, R = 3 mm) of camera set-up `setup`.
-pub fn run_spec(name: &str, setup: Option<&str>) -> crate::manifest::RunSpec {
-    crate::manifest::RunSpec {
+pub fn run_spec(name: &str, setup: Option<&str>) -> crate::dataset::manifest::RunSpec {
+    crate::dataset::manifest::RunSpec {
         run: name.into(),
         path: std::path::PathBuf::from(name),
         sphere_radius_mm: 3.0,

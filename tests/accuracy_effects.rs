@@ -12,8 +12,8 @@
 //! [`a_band_top_the_images_hide_is_flagged_and_its_errors_cover_the_truth`].
 
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
+use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::{DropRecord, DropStatus};
-use dropscope::manifest::read_manifest;
 use dropscope::process::process_all;
 use dropscope::render::render;
 use std::path::Path;

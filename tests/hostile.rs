@@ -4,8 +4,8 @@
 //! write outside the output folder, or a wrong number marked ok.
 
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
+use dropscope::dataset::manifest::{read_manifest, RunSpec};
 use dropscope::dataset::{read_csv, DropRecord, DropStatus};
-use dropscope::manifest::{read_manifest, RunSpec};
 use dropscope::process::process_all;
 use dropscope::source::cine_write::{CinePacking, CineSpec, CineWriter};
 use std::path::{Path, PathBuf};

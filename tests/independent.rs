@@ -12,8 +12,8 @@
 //! 12/12, restitution 12/12.
 
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
+use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::{DropRecord, DropStatus};
-use dropscope::manifest::read_manifest;
 use dropscope::process::process_all;
 use std::path::Path;
 

@@ -5,8 +5,8 @@
 
 use crate::render::{args, files, pool};
 use dropscope::config::{DetectConfig, PipelineConfig, EMBEDDED_DEFAULT};
+use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::DropStatus;
-use dropscope::manifest::read_manifest;
 use dropscope::process::process_all;
 use dropscope::source::{open, OpenOptions};
 use dropscope::track::{track, TrackSettings};
@@ -14,7 +14,7 @@ use std::path::Path;
 
 /// A 3 mm sphere from 1.5 cm at 60 000 frames/s, 256 × 192: ~860 frames,
 /// the sphere in every one; its manifest's runs.
-fn long_movie(data: &Path) -> Vec<dropscope::manifest::RunSpec> {
+fn long_movie(data: &Path) -> Vec<dropscope::dataset::manifest::RunSpec> {
     let dir = data.to_str().unwrap();
     pool(2)
         .install(|| {

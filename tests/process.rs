@@ -3,8 +3,8 @@
 //! with good ones, and determinism.
 
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
+use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::{read_csv, DropStatus};
-use dropscope::manifest::read_manifest;
 use dropscope::process::process_all;
 use std::path::{Path, PathBuf};
 use std::process::Command;

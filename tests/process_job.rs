@@ -234,7 +234,8 @@ fn one_rendered_drop_has_a_manifest_and_drops_csv_keeps_height_and_path() {
             .arg(dir.path()),
     );
     let manifest = dir.path().join("runs.csv");
-    let runs = dropscope::manifest::read_manifest(&manifest).expect("render wrote runs.csv");
+    let runs =
+        dropscope::dataset::manifest::read_manifest(&manifest).expect("render wrote runs.csv");
     assert_eq!(runs.len(), 1);
     assert_eq!(runs[0].drop_height_cm, Some(12.0));
     assert!(runs[0].path.is_dir(), "{}", runs[0].path.display());

@@ -583,7 +583,7 @@ fn truth_is_self_consistent_and_matches_the_files() {
         lines.next().unwrap(),
         "run,path,sphere_radius_mm,drop_height_cm,fps,mm_per_px,surface,sphere_density_kg_m3"
     );
-    let runs = dropscope::manifest::read_manifest(&dir.path().join("runs.csv")).unwrap();
+    let runs = dropscope::dataset::manifest::read_manifest(&dir.path().join("runs.csv")).unwrap();
     assert_eq!(runs.len(), 4);
     assert!(runs
         .iter()

@@ -374,8 +374,9 @@ fn a_wide_campaign_records_its_laws_and_is_deterministic() {
     }
     assert!(kinds.len() >= 4, "12 drops drew only {kinds:?}");
     // runs.csv leaves the scale to the pipeline; runs_scaled.csv gives the truth's
-    let plain = dropscope::manifest::read_manifest(&d1.path().join("runs.csv")).unwrap();
-    let scaled = dropscope::manifest::read_manifest(&d1.path().join("runs_scaled.csv")).unwrap();
+    let plain = dropscope::dataset::manifest::read_manifest(&d1.path().join("runs.csv")).unwrap();
+    let scaled =
+        dropscope::dataset::manifest::read_manifest(&d1.path().join("runs_scaled.csv")).unwrap();
     assert_eq!(plain.len(), 12);
     for ((a, b), d) in plain.iter().zip(&scaled).zip(&report.drops) {
         assert_eq!((&a.run, &a.path, a.mm_per_px), (&b.run, &b.path, None));

@@ -224,7 +224,7 @@ fn a_real_campaign_shares_camera_set_ups_per_radius() {
         csv.lines().next().unwrap(),
         "run,path,sphere_radius_mm,drop_height_cm,setup"
     );
-    let runs = dropscope::manifest::read_manifest(&dir.path().join("runs.csv")).unwrap();
+    let runs = dropscope::dataset::manifest::read_manifest(&dir.path().join("runs.csv")).unwrap();
     assert_eq!(runs.len(), 4);
     assert_eq!(runs[0].setup.as_deref(), Some("cam_R3mm_01"));
     assert_eq!(runs[1].setup, runs[0].setup);

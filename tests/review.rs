@@ -6,8 +6,8 @@
 //! on Ctrl-C.
 
 use crate::webdriver::{http, Driver};
+use dropscope::dataset::decisions::{Decisions, Frames, Kind};
 use dropscope::dataset::{read_csv, DropRecord, DropStatus, TrackRow};
-use dropscope::review::decisions::{Decisions, Frames, Kind};
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
@@ -528,7 +528,7 @@ fn the_page_in_chromium_rejects_excludes_and_sets_a_surface_and_the_job_honours_
     assert!((row - typed.parse::<f64>().unwrap()).abs() < 1e-6, "{row}");
     assert_eq!(
         s.surface_row_px_err,
-        Some(dropscope::review::decisions::HAND_SURFACE_ERR_PX)
+        Some(dropscope::dataset::decisions::HAND_SURFACE_ERR_PX)
     );
     // …and shown: the page draws the row the job used, and says where it
     // came from.

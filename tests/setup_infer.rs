@@ -5,8 +5,8 @@
 use dropscope::batch::{process_runs, JobOptions};
 use dropscope::cache::cached_scene;
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
+use dropscope::dataset::manifest::{read_manifest, RunSpec};
 use dropscope::dataset::{DropRecord, DropStatus};
-use dropscope::manifest::{read_manifest, RunSpec};
 use dropscope::render::render;
 use std::path::Path;
 

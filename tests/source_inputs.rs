@@ -176,7 +176,7 @@ fn ambiguous_frame_numbers_say_the_split_chosen_and_can_be_set() {
         ),
     )
     .unwrap();
-    let runs = dropscope::manifest::read_manifest(&manifest).unwrap();
+    let runs = dropscope::dataset::manifest::read_manifest(&manifest).unwrap();
     assert_eq!(
         runs.iter().map(|r| r.number_digits).collect::<Vec<_>>(),
         vec![None, Some(11)]
@@ -198,7 +198,7 @@ fn ambiguous_frame_numbers_say_the_split_chosen_and_can_be_set() {
     assert!(!err.contains("warning: set: the frame names"), "{err}");
     let bad = dir.path().join("bad.csv");
     std::fs::write(&bad, "run,path,sphere_radius_mm,number_digits\na,x,3,0\n").unwrap();
-    let e = dropscope::manifest::read_manifest(&bad)
+    let e = dropscope::dataset::manifest::read_manifest(&bad)
         .unwrap_err()
         .to_string();
     assert!(e.contains("row 2: column `number_digits` = 0"), "{e}");

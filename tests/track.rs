@@ -9,8 +9,8 @@
 //! ~0.05 px, so a straight line in time is the truth for the centre.
 
 use dropscope::config::{DetectConfig, PipelineConfig, EMBEDDED_DEFAULT};
+use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::DropStatus;
-use dropscope::manifest::read_manifest;
 use dropscope::process::process_all;
 use dropscope::source::memory::MemorySource;
 use dropscope::source::{open, Frame, FrameSource, OpenOptions};

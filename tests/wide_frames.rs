@@ -5,9 +5,9 @@
 
 use crate::render::args;
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
+use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::{DropRecord, DropStatus};
 use dropscope::detect::columns::REACH_RADII;
-use dropscope::manifest::read_manifest;
 use dropscope::process::process_all;
 use dropscope::render::render;
 use dropscope::source::{open, OpenOptions};

@@ -5,7 +5,7 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    if let Ok(runs) = dropscope::manifest::parse_manifest(data, std::path::Path::new("/m/runs.csv"))
+    if let Ok(runs) = dropscope::dataset::manifest::parse_manifest(data, std::path::Path::new("/m/runs.csv"))
     {
         for r in runs {
             assert!(dropscope::dataset::run_name::check(&r.run).is_ok(), "{:?}", r.run);

@@ -296,7 +296,7 @@ pub struct DropRecord {
     pub reason: String,
     /// What `dropscope review` decided about the drop (`review.csv`), in a
     /// few words: rejected, accepted, frames excluded, surface set by hand
-    /// ([`crate::review::decisions::RunReview::summary`]); empty (written
+    /// ([`crate::dataset::decisions::RunReview::summary`]); empty (written
     /// `-`) when nothing.
     #[serde(default, serialize_with = "dash_out", deserialize_with = "dash_in")]
     pub review: String,

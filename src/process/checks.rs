@@ -1,8 +1,8 @@
 //! The frame rate's and the background's checks of a run's row.
 
 use crate::config::PipelineConfig;
+use crate::dataset::manifest::RunSpec;
 use crate::dataset::DropRecord;
-use crate::manifest::RunSpec;
 use crate::measure::quality;
 use crate::track::Track;
 

@@ -1,6 +1,6 @@
 //! A run that fails: its reason caught (a panic too) into its row.
 
-use crate::manifest::RunSpec;
+use crate::dataset::manifest::RunSpec;
 use std::path::Path;
 
 /// Run `work` for `run`: its panic becomes an error naming the input.

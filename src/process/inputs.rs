@@ -3,7 +3,7 @@
 
 use super::types::ProcessError;
 use crate::config::PipelineConfig;
-use crate::manifest::RunSpec;
+use crate::dataset::manifest::RunSpec;
 use std::path::{Path, PathBuf};
 
 /// The runs named on the command line: each INPUT one run named after its

@@ -11,8 +11,8 @@ use super::types::RunOutcome;
 use crate::calibrate::free_fall::Curvature;
 use crate::calibrate::scale::ScaleInputs;
 use crate::config::PipelineConfig;
+use crate::dataset::manifest::RunSpec;
 use crate::dataset::DropRecord;
-use crate::manifest::RunSpec;
 use crate::measure::events::{EventConfig, Geometry, TrackPoint};
 use crate::measure::quality;
 use crate::measure::{annotate_track, measure_drop, measure_drop_with, DropInfo};
@@ -152,7 +152,7 @@ pub(super) fn measure_run(
         let at_impact = m.record.surface_row_px.unwrap_or(geom.surface_row_px);
         hand_offset_px = row_px - at_impact;
         geom.surface_row_px += hand_offset_px;
-        geom.surface_row_err_px = crate::review::decisions::HAND_SURFACE_ERR_PX;
+        geom.surface_row_err_px = crate::dataset::decisions::HAND_SURFACE_ERR_PX;
         surface_source = "review";
         let points = window(&geom, &geom).map_err(failed)?;
         m = measure_drop(&info, &points, &geom, &event_cfg).map_err(failed)?;

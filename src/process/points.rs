@@ -10,7 +10,7 @@ use crate::track::{FrameTrack, Track};
 /// them ([`points_of`] leaves them out).
 pub(super) fn exclude_frames(
     tr: &mut Track,
-    review: &crate::review::decisions::RunReview,
+    review: &crate::dataset::decisions::RunReview,
 ) -> std::io::Result<()> {
     if review.excluded.is_empty() {
         return Ok(());

@@ -6,7 +6,7 @@ use super::tracked::{bounded_of, open_run, track_run, Tracked};
 use crate::calibrate::free_fall::Curvature;
 use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
-use crate::manifest::RunSpec;
+use crate::dataset::manifest::RunSpec;
 use crate::shelf::{Shelf, ShelvedTrack};
 use crate::track::TrackSettings;
 use rayon::prelude::*;

@@ -55,7 +55,7 @@ fn tracked_text(t: &Tracked) -> String {
 #[test]
 fn a_track_kept_from_reading_the_scenes_is_the_track_made_again() {
     let cfg = crate::test_support::default_config();
-    let mut runs = crate::manifest::read_manifest(Path::new("fixtures/runs.csv")).unwrap();
+    let mut runs = crate::dataset::manifest::read_manifest(Path::new("fixtures/runs.csv")).unwrap();
     let mut missing = runs[0].clone();
     missing.run = "missing".into();
     missing.path = PathBuf::from("fixtures/no-such-run");

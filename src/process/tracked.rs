@@ -7,7 +7,7 @@ use crate::calibrate::free_fall::{free_fall_curvature, Curvature};
 use crate::calibrate::lens::{undistort_track, Lens};
 use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
-use crate::manifest::RunSpec;
+use crate::dataset::manifest::RunSpec;
 use crate::measure::events::{EventConfig, SurfaceFrame};
 use crate::source::open;
 use crate::stage_settings::open_options;

@@ -54,7 +54,7 @@ pub use rng::rng_for;
 
 use std::path::{Path, PathBuf};
 
-use crate::manifest::ManifestRow;
+use crate::dataset::manifest::ManifestRow;
 
 /// What a render produced.
 #[derive(Debug, Default)]
@@ -164,7 +164,7 @@ fn write_manifest(
                 number_digits: None,
             })
             .collect();
-        crate::manifest::to_csv_bytes(&rows)
+        crate::dataset::manifest::to_csv_bytes(&rows)
     };
     crate::util::io::write_atomic(path, &bytes).map_err(|source| {
         RenderError::Export(export::ExportError::Io {

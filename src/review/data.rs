@@ -5,7 +5,7 @@
 
 use serde_json::{json, Value};
 
-use super::decisions::{Decisions, Frames};
+use crate::dataset::decisions::{Decisions, Frames};
 use crate::dataset::{DropRecord, TrackRow};
 
 /// The drop list: every record of drops.csv in order, with what the page
@@ -89,7 +89,7 @@ impl RunData<'_> {
     pub fn to_json(&self) -> Value {
         let r = self.rows;
         let col = |f: &dyn Fn(&TrackRow) -> Value| Value::Array(r.iter().map(f).collect());
-        let decisions: Vec<&super::decisions::Decision> = self
+        let decisions: Vec<&crate::dataset::decisions::Decision> = self
             .decisions
             .rows
             .iter()

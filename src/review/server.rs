@@ -32,10 +32,10 @@ use serde::Deserialize;
 use serde_json::json;
 
 use super::data::{drops_json, frames_in, impact_column, RunData};
-use super::decisions::{Decision, Decisions, Frames, Kind};
 use super::frames::{RunView, View};
 use super::http::{read_request, same_secret, write_response, ReadError, Request, Response};
 use crate::config::PipelineConfig;
+use crate::dataset::decisions::{Decision, Decisions, Frames, Kind};
 use crate::dataset::{DropRecord, TrackRow};
 
 const PAGE_HTML: &str = include_str!("page.html");
@@ -55,7 +55,7 @@ pub struct ServeOptions {
     /// The output folder (its drops.csv, tracks/ and the runs' inputs).
     pub out: PathBuf,
     /// Where decisions are saved, below `out`
-    /// ([`super::decisions::review_rel`]).
+    /// ([`crate::dataset::decisions::review_rel`]).
     pub review_rel: String,
     /// The configuration: the detection settings the frames are drawn with,
     /// the frame rate for inputs that carry none.

@@ -9,7 +9,7 @@
 //! the row (its line, as a spreadsheet shows it: header = row 1), the column
 //! and the text found there.
 
-use crate::review::decisions::RunReview;
+use super::decisions::RunReview;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 

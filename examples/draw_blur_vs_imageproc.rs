@@ -25,11 +25,11 @@
 
 use dropscope::detect::circle::Circle;
 use dropscope::detect::edges::EdgePoint;
-use dropscope::detect::overlay::{
-    overlay, point_radius_px, OverlayView, CIRCLE_RGB, POINT_RGB, SURFACE_RGB,
-};
 use dropscope::detect::surface::SurfaceLine;
 use dropscope::detect::Band;
+use dropscope::figures::overlay::{
+    overlay, point_radius_px, OverlayView, CIRCLE_RGB, POINT_RGB, SURFACE_RGB,
+};
 use dropscope::render::raster::blur_frame;
 use image::{ImageBuffer, Luma, Rgb, RgbImage};
 use imageproc::drawing::{draw_filled_circle_mut, draw_hollow_circle_mut, draw_line_segment_mut};

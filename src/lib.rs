@@ -15,12 +15,11 @@
 //! | [`calibrate`] | mm/px (given, from free fall pooled per camera set-up, or from the radius), lens distortion, camera set-ups inferred from the images |
 //! | [`measure`] | one drop from track to record: the surface's frame and the events, kinematics, force law, free flight alone, quality flags |
 //! | [`dataset`] | the run manifest `runs.csv`, the per-drop record ([`dataset::DropRecord`]) and `drops.csv`, the decisions `review.csv`, the id of a `drops.csv`, run names that are file names |
-//! | [`pictures`] | a run's overlays with their captions, and its animated impact |
 //! | [`process`] | one run (or camera set-up) → record, track, overlays; runs in parallel |
 //! | [`process_job`] | `dropscope process`: the runs through the main job's cache → drops.csv, per-drop figures |
 //! | [`progress`] | the main job's progress bars, or plain lines off a terminal |
 //! | [`collapse`] | drops.csv → dimensionless groups, Ψ(Ξ), Ω(Ξ), exponent fits |
-//! | [`figures`] | the domain's figures as bytes: the collapse's, each drop's |
+//! | [`figures`] | the domain's figures as bytes: the collapse's, each drop's, a frame's detection overlay, a run's overlays and animated impact |
 //! | [`collapse_job`] | `dropscope collapse`: drops.csv → the collapse's tables and figures in the output folder |
 //! | [`per_drop`] | the per-drop figures drawn from the tracks beside a drops.csv, written into the output folder |
 //! | [`batch`] | the main job (`dropscope run`): process then collapse, with progress |
@@ -57,7 +56,6 @@ pub mod leftovers;
 pub mod lock;
 pub mod measure;
 pub mod per_drop;
-pub mod pictures;
 pub mod plot;
 pub mod process;
 pub mod process_job;

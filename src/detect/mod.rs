@@ -15,7 +15,6 @@
 //! | [`edges`] | sub-pixel edge points along normals to a predicted circle |
 //! | [`circle`] | algebraic (hyper) start, robust geometric refinement, covariance, radius-held variant |
 //! | [`calibrate`] | R_px from the full-circle frames; the scale and its check against the manifest |
-//! | [`overlay`] | a picture of one frame's detection (frame, edge points, circle, surface line) |
 //! | [`synth`] | exact anti-aliased test scenes (disk, tilted pillar band) with known truth |
 //! | `types` | what the stages hand each other: [`Band`], [`EdgePoint`], [`SurfaceLine`] |
 //! | `error` | [`DetectError`] |
@@ -42,7 +41,6 @@ pub mod coarse;
 pub mod columns;
 pub mod edges;
 mod error;
-pub mod overlay;
 pub mod surface;
 pub mod synth;
 mod types;

@@ -46,7 +46,7 @@ pub(super) fn with_files(record: DropRecord, f: Files<'_>) -> Result<RunOutcome,
         run, meta, tr, sc, ..
     } = recording;
     let pictures = || {
-        let mut pictures = crate::pictures::Pictures {
+        let mut pictures = crate::figures::pictures::Pictures {
             source,
             meta,
             track: tr,

@@ -16,10 +16,10 @@ use image::RgbImage;
 
 use crate::config::PipelineConfig;
 use crate::dataset::TrackRow;
-use crate::detect::overlay::{OverlayView, Scene};
 use crate::detect::{
     measure_circle, Background, Band, Circle, EdgePoint, EdgeScratch, SurfaceLine,
 };
+use crate::figures::overlay::{OverlayView, Scene};
 use crate::source::{Frame, FrameSource, OpenOptions, SourceMeta};
 use crate::track::TrackSettings;
 
@@ -202,7 +202,7 @@ impl RunView {
             .unwrap_or(img),
             _ => img,
         };
-        let png = crate::detect::overlay::encode_png(&img).map_err(|e| e.to_string())?;
+        let png = crate::figures::overlay::encode_png(&img).map_err(|e| e.to_string())?;
         Ok((png, overlay_view))
     }
 

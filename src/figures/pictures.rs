@@ -4,8 +4,8 @@
 //! impact (an animated PNG: every frame from before contact to after the
 //! rebound, with the circle, the edge points and the surface line).
 
-use crate::detect::overlay::{encode_indexed_apng, IndexedFrame, OverlayView, Scene};
 use crate::detect::Band;
+use crate::figures::overlay::{encode_indexed_apng, IndexedFrame, OverlayView, Scene};
 use crate::plot::{caption_band, with_caption, Caption};
 use crate::source::{Frame, FrameSource, SourceMeta};
 use crate::track::{edge_points_in, window_columns, FrameTrack, Track, TrackSettings};
@@ -66,7 +66,7 @@ impl Pictures<'_> {
             STILL_ZOOM,
             |scene, caption| with_caption(&scene.rgb(), caption).ok(),
         )?;
-        crate::detect::overlay::encode_png(&img).ok()
+        crate::figures::overlay::encode_png(&img).ok()
     }
 
     /// The frames of the impact: fitted frames from `t_contact_s` less a
@@ -257,8 +257,8 @@ mod tests {
     use super::*;
     use crate::detect::circle::Circle;
     use crate::detect::edges::EdgePoint;
-    use crate::detect::overlay::{encode_indexed_apng, to_indexed};
     use crate::detect::surface::SurfaceLine;
+    use crate::figures::overlay::{encode_indexed_apng, to_indexed};
     use rand::{Rng, SeedableRng};
 
     /// An animation frame as it was made before it was drawn in the

@@ -12,10 +12,7 @@
 
 use image::RgbImage;
 
-use super::circle::Circle;
-use super::types::EdgePoint;
-use super::types::SurfaceLine;
-use super::Band;
+use crate::detect::{Band, Circle, EdgePoint, SurfaceLine};
 
 /// Colours: fitted circle, edge points, surface line.
 pub const CIRCLE_RGB: [u8; 3] = [255, 40, 40];

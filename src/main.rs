@@ -23,7 +23,7 @@ struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
     #[command(flatten)]
-    run: dropscope::batch::RunArgs,
+    run: dropscope::cli::run::RunArgs,
 }
 
 #[derive(Debug, Subcommand)]
@@ -38,7 +38,7 @@ enum Command {
     /// any moment, even by kill -9, is finished by running it again.
     /// OUT/provenance.json records version, source hash, configuration and
     /// input fingerprints.
-    Run(dropscope::batch::RunArgs),
+    Run(dropscope::cli::run::RunArgs),
     /// Validate a pipeline.toml and print the resolved configuration.
     CheckConfig {
         /// The configuration file (default: ./pipeline.toml, else the embedded default).
@@ -51,18 +51,18 @@ enum Command {
         default: bool,
     },
     /// What a folder of frames or a .cine holds (frames, size, fps, bit depth, gaps…).
-    Inspect(dropscope::inspect::InspectArgs),
+    Inspect(dropscope::cli::inspect::InspectArgs),
     /// Write frames exactly as read, as 16-bit PNG `<input>_<index>.png`.
     ///
     /// The index counts from 0, zero-padded to the movie's last;
     /// `<input>_frames.csv` gives each file's camera number and time.
-    Export(dropscope::inspect::ExportArgs),
+    Export(dropscope::cli::inspect::ExportArgs),
     /// Render synthetic drops with exact truth, as PCC-style frame folders.
     Render(Box<dropscope::render::RenderArgs>),
     /// Dimensionless groups, Ψ(Ξ) and Ω(Ξ) fits, exponents and plots from a drops.csv.
     Collapse {
         #[command(flatten)]
-        args: dropscope::collapse_job::CollapseArgs,
+        args: dropscope::job::collapse_job::CollapseArgs,
         /// When another job holds the output folder, wait for it to end.
         #[arg(long)]
         wait: bool,
@@ -77,7 +77,7 @@ enum Command {
     /// run failed, 1 when some did, 2 when the command could not run.
     Process {
         #[command(flatten)]
-        args: dropscope::process::ProcessArgs,
+        args: dropscope::cli::process::ProcessArgs,
         /// When another job holds the output folder, wait for it to end.
         #[arg(long)]
         wait: bool,
@@ -106,7 +106,7 @@ enum Command {
     /// shard (`run --shard slurm`), and a finishing job (`run`) that starts
     /// once every task succeeded and assembles drops.csv, the collapse and
     /// the report. Writes both scripts; --submit also submits them.
-    Slurm(dropscope::slurm::SlurmArgs),
+    Slurm(dropscope::job::slurm::SlurmArgs),
     /// Write DIR/report.html from the drops.csv, collapse files and plots in DIR.
     ///
     /// Refuses a folder whose collapse files were computed from another
@@ -134,7 +134,7 @@ fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<(PipelineConfig
     Ok(PipelineConfig::load_resolved(path)?)
 }
 
-/// Hold output folder `out` for a `kind` command (see `dropscope::lock`),
+/// Hold output folder `out` for a `kind` command (see `dropscope::job::lock`),
 /// creating it; a stale lock taken over is said on stderr.
 fn hold_folder(
     out: &std::path::Path,
@@ -142,18 +142,20 @@ fn hold_folder(
     cfg: &PipelineConfig,
     runs: &[dropscope::dataset::manifest::RunSpec],
     wait: bool,
-) -> anyhow::Result<dropscope::lock::FolderLock> {
+) -> anyhow::Result<dropscope::job::lock::FolderLock> {
     std::fs::create_dir_all(out)
         .map_err(|e| anyhow::anyhow!("{}: cannot create the output folder: {e}", out.display()))?;
-    let me =
-        dropscope::lock::Holder::this_process(&dropscope::cache::job_id(kind, cfg, runs), None);
-    Ok(dropscope::lock::acquire(out, &me, wait, &|m| {
+    let me = dropscope::job::lock::Holder::this_process(
+        &dropscope::job::cache::job_id(kind, cfg, runs),
+        None,
+    );
+    Ok(dropscope::job::lock::acquire(out, &me, wait, &|m| {
         dropscope::errln!("{m}")
     })?)
 }
 
 /// "N runs: … measured, … reused from the cache; F frames read in T s on N threads (X frames/s)".
-fn job_counts(job: &dropscope::batch::JobSummary) -> String {
+fn job_counts(job: &dropscope::job::batch::JobSummary) -> String {
     use dropscope::dataset::DropStatus;
     format!(
         "{}: {} measured, {} with warnings, {}{} failed{}, {} reused from the cache; {}",
@@ -191,8 +193,8 @@ fn tracked_count(n: usize) -> String {
 }
 
 /// `dropscope run` (and `dropscope` alone): exit 1 when some runs failed.
-fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
-    dropscope::batch::check_threads(args.threads.map(usize::from))?;
+fn run_main_job(args: &dropscope::cli::run::RunArgs) -> anyhow::Result<ExitCode> {
+    dropscope::job::batch::check_threads(args.threads.map(usize::from))?;
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
     cfg.command_line = args.recording.values();
@@ -213,23 +215,23 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
     let shard = args
         .shard
         .as_deref()
-        .map(|spec| dropscope::shard::Shard::parse(spec, &env))
+        .map(|spec| dropscope::job::shard::Shard::parse(spec, &env))
         .transpose()?;
     let start = std::time::Instant::now();
     if args.timings {
         dropscope::util::timings::enable();
     }
-    let progress = dropscope::progress::JobProgress::new();
-    let options = dropscope::batch::JobOptions {
+    let progress = dropscope::job::progress::JobProgress::new();
+    let options = dropscope::job::batch::JobOptions {
         force: args.force,
         threads: args
             .threads
             .map(usize::from)
-            .or_else(|| dropscope::shard::slurm_cpus_per_task(&env)),
+            .or_else(|| dropscope::job::shard::slurm_cpus_per_task(&env)),
         shard,
         wait: args.wait,
     };
-    let job = dropscope::batch::run_job(&cfg, &name, &out, &options, &|e| progress.event(e));
+    let job = dropscope::job::batch::run_job(&cfg, &name, &out, &options, &|e| progress.event(e));
     progress.finish();
     let job = job?;
     let timings = args.timings.then(|| {
@@ -252,7 +254,7 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
         // succeeded) reports them with exit status 1.
         return Ok(ExitCode::SUCCESS);
     }
-    for w in dropscope::progress::closing_warnings(&job.records)
+    for w in dropscope::job::progress::closing_warnings(&job.records)
         .iter()
         .chain(&job.collapse_warnings)
     {
@@ -281,13 +283,16 @@ fn run_main_job(args: &dropscope::batch::RunArgs) -> anyhow::Result<ExitCode> {
 }
 
 /// `dropscope process`: every run in parallel; exit 1 when some runs failed.
-fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Result<ExitCode> {
+fn run_process(
+    args: &dropscope::cli::process::ProcessArgs,
+    wait: bool,
+) -> anyhow::Result<ExitCode> {
     use dropscope::dataset::DropStatus;
     let start = std::time::Instant::now();
     if args.timings {
         dropscope::util::timings::enable();
     }
-    dropscope::batch::check_threads(args.threads.map(usize::from))?;
+    dropscope::job::batch::check_threads(args.threads.map(usize::from))?;
     let (mut cfg, name) = load_config(args.config.as_deref())?;
     cfg.output.animation &= !args.no_animation;
     cfg.camera.apply_flips &= !args.no_flips;
@@ -295,22 +300,22 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     cfg.command_line = args.recording.values();
     let runs = match &args.manifest {
         Some(m) => dropscope::dataset::manifest::read_job_manifest(m)?,
-        None => dropscope::process::runs_from_inputs(
-            &dropscope::batch::expand_inputs(&args.inputs),
+        None => dropscope::pipeline::runs_from_inputs(
+            &dropscope::job::batch::expand_inputs(&args.inputs),
             args.radius_mm,
             &cfg,
         )?,
     };
     let out = args.out.clone().unwrap_or_else(|| cfg.output.dir.clone());
     let _held = hold_folder(&out, "process", &cfg, &runs, wait)?;
-    let options = dropscope::batch::JobOptions {
+    let options = dropscope::job::batch::JobOptions {
         force: args.force,
         threads: args.threads.map(usize::from),
         shard: None,
         wait,
     };
-    let progress = dropscope::progress::JobProgress::new();
-    let job = dropscope::process_job::run(
+    let progress = dropscope::job::progress::JobProgress::new();
+    let job = dropscope::job::process_job::run(
         &runs,
         &cfg,
         &name,
@@ -321,7 +326,7 @@ fn run_process(args: &dropscope::process::ProcessArgs, wait: bool) -> anyhow::Re
     );
     progress.finish();
     let job = job?;
-    for w in dropscope::progress::closing_warnings(&job.records)
+    for w in dropscope::job::progress::closing_warnings(&job.records)
         .iter()
         .chain(&job.warnings)
     {
@@ -377,12 +382,12 @@ fn speed(frames: usize, secs: f64, threads: usize) -> String {
 
 /// `dropscope collapse`: groups, fits and plots; exit 1 when rows were skipped.
 fn run_collapse(
-    args: &dropscope::collapse_job::CollapseArgs,
+    args: &dropscope::job::collapse_job::CollapseArgs,
     wait: bool,
 ) -> anyhow::Result<ExitCode> {
     let (cfg, name) = load_config(args.config.as_deref())?;
     let _held = hold_folder(&args.out_dir(), "collapse", &cfg, &[], wait)?;
-    let s = dropscope::collapse_job::run(args, &cfg, &name)?;
+    let s = dropscope::job::collapse_job::run(args, &cfg, &name)?;
     for w in &s.warnings {
         match &s.fits.few_drops {
             Some(note) if note == w => dropscope::errln!("note: {w}"),
@@ -461,8 +466,8 @@ fn run_report(
 /// `dropscope export`: the frames, and a warning when their times are at a
 /// frame rate the input does not hold and `--fps` did not give (the
 /// configuration's camera.fps).
-fn run_export(args: &dropscope::inspect::ExportArgs) -> anyhow::Result<ExitCode> {
-    let files = dropscope::inspect::run_export(args)?;
+fn run_export(args: &dropscope::cli::inspect::ExportArgs) -> anyhow::Result<ExitCode> {
+    let files = dropscope::cli::inspect::run_export(args)?;
     dropscope::errln!("wrote {} frame(s) to {}", files.len(), args.out.display());
     if args.source.fps.is_none() {
         // Opened again (headers only) to learn where its frame rate came from.
@@ -502,12 +507,12 @@ fn run_review(
     let review_file = out.join(&review_rel);
     // Read now: a decisions file that cannot be read is said before the page opens.
     decisions::Decisions::read_in(&out, &review_rel)?;
-    let me = dropscope::lock::Holder::this_process("dropscope review", None);
-    let _held = match dropscope::lock::acquire_in(&out, REVIEW_LOCK, &me, false, &|m| {
+    let me = dropscope::job::lock::Holder::this_process("dropscope review", None);
+    let _held = match dropscope::job::lock::acquire_in(&out, REVIEW_LOCK, &me, false, &|m| {
         dropscope::errln!("{m}")
     }) {
         Ok(l) => l,
-        Err(dropscope::lock::LockError::Busy { holder, ticket, .. }) => anyhow::bail!(
+        Err(dropscope::job::lock::LockError::Busy { holder, ticket, .. }) => anyhow::bail!(
             "{} is already open for review (pid {} on host {}: `{}`): use the address it \
              printed, or stop it with Ctrl-C first. If that process is gone (another \
              machine), remove {} and try again",
@@ -521,7 +526,7 @@ fn run_review(
     };
     // The manifest's frame numbering, where it gives one (a configuration
     // whose runs cannot be listed now only loses that).
-    let number_digits = dropscope::batch::configured_runs(&cfg, &name)
+    let number_digits = dropscope::job::batch::configured_runs(&cfg, &name)
         .unwrap_or_default()
         .into_iter()
         .filter_map(|r| Some((r.run, r.number_digits?)))
@@ -555,7 +560,7 @@ fn run_review(
     Ok(ExitCode::SUCCESS)
 }
 
-/// The lock `dropscope review` holds in its output folder (see [`dropscope::lock::acquire_in`]).
+/// The lock `dropscope review` holds in its output folder (see [`dropscope::job::lock::acquire_in`]).
 const REVIEW_LOCK: &str = ".dropscope.review.lock";
 
 /// `dropscope check-config`: validate, check that the manifest it names is
@@ -584,11 +589,11 @@ fn run_check_config(config: Option<&std::path::Path>) -> anyhow::Result<ExitCode
 }
 
 /// `dropscope slurm`: write the scripts, and with --submit submit them.
-fn run_slurm(args: &dropscope::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
-    use dropscope::slurm;
+fn run_slurm(args: &dropscope::job::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
+    use dropscope::job::slurm;
     let (cfg, name) = load_config(args.config.as_deref())?;
     // The jobs would fail on a configuration naming no runs: say it now.
-    let runs = dropscope::batch::configured_runs(&cfg, &name)?;
+    let runs = dropscope::job::batch::configured_runs(&cfg, &name)?;
     let local = std::path::Path::new("pipeline.toml");
     let plan = slurm::Plan::new(
         args,
@@ -697,7 +702,7 @@ fn main() -> ExitCode {
             default: false,
         } => run_check_config(config.as_deref()),
         Command::Inspect(args) => {
-            dropscope::inspect::run_inspect(&args).map(|()| ExitCode::SUCCESS)
+            dropscope::cli::inspect::run_inspect(&args).map(|()| ExitCode::SUCCESS)
         }
         Command::Export(args) => run_export(&args),
         Command::Render(args) => run_render(&args),

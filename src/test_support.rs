@@ -126,13 +126,13 @@ pub fn out_with_tracks(tracks: &[(&str, &[u8])]) -> (tempfile::TempDir, std::pat
 pub fn cache_entry(
     run: &str,
     key: &str,
-    outputs: Vec<crate::cache::OutputFile>,
-) -> crate::cache::Entry {
-    crate::cache::Entry {
-        schema: crate::cache::CACHE_SCHEMA,
+    outputs: Vec<crate::job::cache::OutputFile>,
+) -> crate::job::cache::Entry {
+    crate::job::cache::Entry {
+        schema: crate::job::cache::CACHE_SCHEMA,
         dropscope_version: env!("CARGO_PKG_VERSION").into(),
         key: key.into(),
-        input: crate::cache::Fingerprint::unreadable(std::path::Path::new("x")),
+        input: crate::job::cache::Fingerprint::unreadable(std::path::Path::new("x")),
         outputs,
         frames: 1,
         record: crate::dataset::DropRecord::failed(run, 4.5, "why"),

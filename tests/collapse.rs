@@ -10,9 +10,9 @@ use dropscope::collapse::groups::ContactRadius;
 use dropscope::collapse::synthetic::{
     contact_track, eq8_dataset, power_law_dataset, write_track, SyntheticSpec,
 };
-use dropscope::collapse_job::{self, CollapseArgs};
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::{self, DropRecord};
+use dropscope::job::collapse_job::{self, CollapseArgs};
 
 fn config() -> PipelineConfig {
     PipelineConfig::from_toml_str(EMBEDDED_DEFAULT, Path::new("pipeline.toml"), Path::new("."))

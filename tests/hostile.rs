@@ -6,7 +6,7 @@
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::manifest::{read_manifest, RunSpec};
 use dropscope::dataset::{read_csv, DropRecord, DropStatus};
-use dropscope::process::process_all;
+use dropscope::job::run_outputs::process_all;
 use dropscope::source::cine_write::{CinePacking, CineSpec, CineWriter};
 use std::path::{Path, PathBuf};
 use std::process::Command;

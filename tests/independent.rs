@@ -14,7 +14,7 @@
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::{DropRecord, DropStatus};
-use dropscope::process::process_all;
+use dropscope::job::run_outputs::process_all;
 use std::path::Path;
 
 /// The median of `v`.

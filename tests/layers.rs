@@ -5,35 +5,41 @@
 //! through the `pub use` re-exports of the files on its way; code under
 //! `#[cfg(test)]` is left out (tests may reach anywhere).
 //!
-//! Asserted, with today's files standing for the folders that ARCHITECTURE.md
-//! names (the groups below):
+//! Asserted (the groups below name the folders):
 //!
 //! - no circle among files, and none among the rooms (each folder under
-//!   `src/` taken as one room, `track.rs` with `track/`): an import that
-//!   runs back up to a room above is such a circle;
+//!   `src/` taken as one room): an import that runs back up to a room above
+//!   is such a circle;
 //! - `util/` imports nothing else of the crate;
 //! - `config/` imports no stage;
 //! - `source/` imports only itself and util; its readers (`.cine`, folders
 //!   of frames, Photron) never import each other;
 //! - `detect/` never imports source, config or track;
 //! - `plot/` imports no domain module: only itself and util;
-//! - track (`track.rs`, `track/`) never imports config, measure or calibrate;
+//! - `track/` never imports config, measure or calibrate;
 //! - `measure/` never imports track, detect, source or config;
-//! - `render/` never imports detect, track, measure or calibrate;
-//! - `dataset/` never imports the job level;
-//! - `figures/` never imports the job level and never touches `std::fs`;
-//!   `collapse/` never imports the job level;
-//! - a `mod.rs` (or `track.rs` for `track/`) defines no name that a file
-//!   below it imports: shared types live in a file of their own;
-//! - `clap` only in the files that hold command-line arguments today
-//!   ([`CLAP_FILES`]).
+//! - `render/` never imports detect, track, measure or calibrate (the truth
+//!   is made without the measurement), nor one run or many;
+//! - `dataset/`, `collapse/`, `figures/` and `report/` never import one run
+//!   (`pipeline/`) or many (`job/`); `figures/` never touches `std::fs`;
+//!   `collapse/` never imports figures;
+//! - `pipeline/` (one run) never imports `job/` (many runs): it writes
+//!   nothing into the output folder;
+//! - nothing imports `cli/` but `main.rs`, and nothing imports `review/`
+//!   (a command of its own) but `main.rs`;
+//! - a `mod.rs` defines no name that a file below it imports: shared types
+//!   live in a file of their own;
+//! - lib.rs's table lists every folder, leaves first, each importing only
+//!   those before it (the README's layout table is the same list);
+//! - `clap` only in the files that hold command-line arguments
+//!   ([`CLAP_FILES`]): `cli/`, `main.rs`, and the few that still derive
+//!   clap's traits on their own types.
 //!
-//! Waiting for their folders (each needs code moved first): `cli/` as
-//! clap's only home (until then [`CLAP_FILES`]); `dataset/`, `collapse/`
-//! and `report/` without `std::fs` or the output folder (`dataset/record.rs`
-//! reads its CSV, `collapse/diagnostics.rs` the tracks, `report/` writes
-//! report.html through `out_folder`); `pipeline/` never importing the job
-//! level (`process.rs` reads the cache's entries).
+//! Waiting for code to move first: clap's derives out of `job/collapse_job.rs`
+//! (`CollapseArgs`), `job/slurm.rs` (`SlurmArgs`), `collapse/groups.rs` and
+//! `render/` into `cli/`; `dataset/`, `collapse/` and `report/` without
+//! `std::fs` (`dataset/record.rs` reads its CSV, `collapse/diagnostics.rs`
+//! the tracks, `report/` reads the output folder and writes report.html).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -48,35 +54,45 @@ const DATASET: &[&str] = &["dataset/"];
 const SOURCE: &[&str] = &["source/"];
 const DETECT: &[&str] = &["detect/"];
 const PLOT: &[&str] = &["plot/"];
-const TRACK: &[&str] = &["track.rs", "track/"];
+const TRACK: &[&str] = &["track/"];
 const MEASURE: &[&str] = &["measure/"];
 const CALIBRATE: &[&str] = &["calibrate/"];
 const RENDER: &[&str] = &["render/"];
 const FIGURES: &[&str] = &["figures/"];
 const COLLAPSE: &[&str] = &["collapse/"];
-/// The job level: many runs, the output folder and what a job keeps there.
-const JOB: &[&str] = &[
-    "batch.rs",
-    "process_job.rs",
-    "collapse_job.rs",
-    "cache.rs",
-    "leftovers.rs",
-    "lock.rs",
-    "progress.rs",
-    "shard.rs",
-    "shelf.rs",
-    "slurm.rs",
+const REPORT: &[&str] = &["report/"];
+/// One run: open, track, calibrate, measure.
+const PIPELINE: &[&str] = &["pipeline/"];
+/// Many runs: the output folder and what a job keeps there.
+const JOB: &[&str] = &["job/"];
+const REVIEW: &[&str] = &["review/"];
+const CLI: &[&str] = &["cli/"];
+/// Every part but the command line and `main.rs`.
+const BELOW_CLI: &[&str] = &[
+    "util/",
+    "config/",
+    "source/",
+    "plot/",
+    "detect/",
+    "track/",
+    "dataset/",
+    "measure/",
+    "collapse/",
+    "calibrate/",
+    "figures/",
+    "report/",
+    "render/",
+    "pipeline/",
+    "job/",
+    "review/",
 ];
-/// The files that hold command-line arguments (clap's derives) today; in
-/// the layout to grow into, `cli/` and `main.rs` alone.
+/// The files that hold command-line arguments (clap's derives): `cli/` and
+/// `main.rs`, and the types below them that still derive clap's traits.
 const CLAP_FILES: &[&str] = &[
     "main.rs",
-    "cli_values.rs",
-    "inspect.rs",
-    "batch.rs",
-    "collapse_job.rs",
-    "process/args.rs",
-    "slurm.rs",
+    "cli/",
+    "job/collapse_job.rs",
+    "job/slurm.rs",
     "collapse/groups.rs",
     "render/contact.rs",
     "render/export.rs",
@@ -169,7 +185,7 @@ const RULES: &[Rule] = &[
     },
     Rule {
         part: TRACK,
-        name: "track (track.rs, track/)",
+        name: "track/",
         allowed: Allowed::Never(&[CONFIG, MEASURE, CALIBRATE]),
         why: "track never imports config (it takes TrackSettings), measure or calibrate",
     },
@@ -182,26 +198,66 @@ const RULES: &[Rule] = &[
     Rule {
         part: RENDER,
         name: "render/",
-        allowed: Allowed::Never(&[DETECT, TRACK, MEASURE, CALIBRATE]),
+        allowed: Allowed::Never(&[DETECT, TRACK, MEASURE, CALIBRATE, PIPELINE, JOB]),
         why: "the truth is made without the measurement",
     },
     Rule {
         part: DATASET,
         name: "dataset/",
-        allowed: Allowed::Never(&[JOB]),
-        why: "dataset is the records' schema: the job level reads and writes it",
+        allowed: Allowed::Never(&[PIPELINE, JOB]),
+        why: "dataset is the records' schema: one run fills it, the job level writes it",
     },
     Rule {
         part: FIGURES,
         name: "figures/",
-        allowed: Allowed::Never(&[JOB]),
+        allowed: Allowed::Never(&[PIPELINE, JOB]),
         why: "figures are bytes in, bytes out: the job level writes them",
     },
     Rule {
         part: COLLAPSE,
         name: "collapse/",
-        allowed: Allowed::Never(&[JOB, FIGURES]),
+        allowed: Allowed::Never(&[PIPELINE, JOB, FIGURES]),
         why: "collapse computes; the job level draws and writes",
+    },
+    Rule {
+        part: REPORT,
+        name: "report/",
+        allowed: Allowed::Never(&[PIPELINE, JOB]),
+        why: "report.html is made from the job's files; the job level calls it",
+    },
+    Rule {
+        part: PIPELINE,
+        name: "pipeline/",
+        allowed: Allowed::Never(&[JOB]),
+        why: "one run writes nothing into the output folder: the job level does",
+    },
+    Rule {
+        part: BELOW_CLI,
+        name: "every part but cli/ and main.rs",
+        allowed: Allowed::Never(&[CLI]),
+        why: "the command line is parsed at the top: below it, plain settings",
+    },
+    Rule {
+        part: &[
+            "util/",
+            "config/",
+            "source/",
+            "plot/",
+            "detect/",
+            "track/",
+            "dataset/",
+            "measure/",
+            "collapse/",
+            "calibrate/",
+            "figures/",
+            "report/",
+            "render/",
+            "pipeline/",
+            "job/",
+        ],
+        name: "every part but review/, cli/ and main.rs",
+        allowed: Allowed::Never(&[REVIEW]),
+        why: "review is a command of its own: what the job needs of it (review.csv) is in dataset/",
     },
 ];
 
@@ -760,11 +816,10 @@ fn in_group(file: &str, group: &[&str]) -> bool {
     })
 }
 
-/// The room of a file: its top folder under src/ (`track.rs` with `track/`).
+/// The room of a file: its top folder under src/, or the file itself.
 fn room(file: &str) -> String {
     match file.split_once('/') {
         Some((dir, _)) => format!("{dir}/"),
-        None if file == "track.rs" => "track/".into(),
         None => file.into(),
     }
 }
@@ -857,8 +912,8 @@ fn the_reader_sees_the_imports_it_must() {
         "via detect's re-export"
     );
     assert!(
-        has("process/tracked.rs", "track/run.rs"),
-        "process/tracked.rs -> track/run.rs"
+        has("pipeline/tracked.rs", "track/run.rs"),
+        "pipeline/tracked.rs -> track/run.rs"
     );
     assert!(
         has("detect/edges.rs", "detect/circle/types.rs"),
@@ -1024,4 +1079,44 @@ fn rel(file: &Path) -> String {
         .unwrap_or(file)
         .to_string_lossy()
         .replace('\\', "/")
+}
+
+#[test]
+fn lib_rs_lists_every_folder_in_the_order_of_the_imports() {
+    // The table that opens lib.rs: `//! | [`name`] | what |`, leaves first.
+    let lib = read(&src().join("lib.rs"));
+    let order: Vec<String> = lib
+        .lines()
+        .filter_map(|l| l.strip_prefix("//! | [`"))
+        .filter_map(|l| l.split_once("`]"))
+        .map(|(name, _)| format!("{name}/"))
+        .collect();
+    let rooms: BTreeSet<String> = walk(&src())
+        .iter()
+        .map(|f| room(&rel(f)))
+        .filter(|r| r.ends_with('/'))
+        .collect();
+    let listed: BTreeSet<String> = order.iter().cloned().collect();
+    assert_eq!(
+        listed, rooms,
+        "lib.rs's table of modules and the folders of src/ differ"
+    );
+    let at = |r: &str| order.iter().position(|o| o == r);
+    let mut upward = Vec::new();
+    for i in imports() {
+        let (a, b) = (room(&i.from), room(&i.to));
+        if let (Some(ia), Some(ib)) = (at(&a), at(&b)) {
+            if ib > ia {
+                upward.push(format!(
+                    "src/{} ({a}) imports {} ({b}), listed after it",
+                    i.from, i.path
+                ));
+            }
+        }
+    }
+    assert!(
+        upward.is_empty(),
+        "lib.rs lists its modules leaves first: each imports only those before it\n{}",
+        upward.join("\n")
+    );
 }

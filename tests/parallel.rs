@@ -7,7 +7,7 @@ use crate::render::{args, files, pool};
 use dropscope::config::{DetectConfig, PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::DropStatus;
-use dropscope::process::process_all;
+use dropscope::job::run_outputs::process_all;
 use dropscope::source::{open, OpenOptions};
 use dropscope::track::{track, TrackSettings};
 use std::path::Path;

@@ -5,7 +5,7 @@
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::{read_csv, DropStatus};
-use dropscope::process::process_all;
+use dropscope::job::run_outputs::process_all;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -96,7 +96,7 @@ fn real_phantom_samples_give_no_sphere_rows_not_numbers() {
     }
     inputs.sort();
     assert_eq!(inputs.len(), 8);
-    let runs = dropscope::process::runs_from_inputs(&inputs, Some(3.0), &config()).unwrap();
+    let runs = dropscope::pipeline::runs_from_inputs(&inputs, Some(3.0), &config()).unwrap();
     let out = tempfile::tempdir().unwrap();
     let records = process_all(&runs, &config(), out.path(), &|_| {}).unwrap();
     for r in &records {
@@ -206,14 +206,14 @@ fn outputs_are_byte_identical_across_runs_and_thread_counts() {
 /// the run holds (numbers it does not hold are skipped).
 #[test]
 fn overlays_of_requested_frames_are_drawn() {
-    let runs = dropscope::process::runs_from_inputs(
+    let runs = dropscope::pipeline::runs_from_inputs(
         &[root().join("fixtures/R7mm_H50cm_01")],
         Some(7.0),
         &config(),
     )
     .unwrap();
     let out = tempfile::tempdir().unwrap();
-    dropscope::process::process_all_with_overlays(
+    dropscope::job::run_outputs::process_all_with_overlays(
         &runs,
         &config(),
         out.path(),

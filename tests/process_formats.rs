@@ -10,7 +10,7 @@ use crate::render::args;
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::manifest::{read_manifest, RunSpec};
 use dropscope::dataset::{DropRecord, DropStatus};
-use dropscope::process::process_all;
+use dropscope::job::run_outputs::process_all;
 use dropscope::source::cine_write::{CinePacking, CineSpec, CineWriter};
 use dropscope::source::{open, Frame, OpenOptions};
 

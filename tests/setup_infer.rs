@@ -2,11 +2,11 @@
 //! a manifest without a `setup` column, as independent footage comes, still
 //! gets each set-up's pooled free-fall scale.
 
-use dropscope::batch::{process_runs, JobOptions};
-use dropscope::cache::cached_scene;
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::manifest::{read_manifest, RunSpec};
 use dropscope::dataset::{DropRecord, DropStatus};
+use dropscope::job::batch::{process_runs, JobOptions};
+use dropscope::job::cache::cached_scene;
 use dropscope::render::render;
 use std::path::Path;
 
@@ -153,7 +153,7 @@ fn setups_are_found_from_the_images_when_the_manifest_names_none() {
     let mut alone_cfg = cfg.clone();
     alone_cfg.camera.infer_setups = false;
     let fast = read.iter().position(|r| r.run.contains("H25cm")).unwrap();
-    let alone = dropscope::process::process_run(&read[fast], &alone_cfg, &[]).record;
+    let alone = dropscope::pipeline::process_run(&read[fast], &alone_cfg, &[]).record;
     let pooled_err = records[fast].v_impact_m_s_err.unwrap();
     assert!(
         alone.v_impact_m_s_err.unwrap() > 10.0 * pooled_err,
@@ -198,7 +198,8 @@ fn a_run_alone_is_scaled_by_its_silhouette_less_the_jobs_edge_offset() {
         PipelineConfig::from_toml_str(EMBEDDED_DEFAULT, Path::new("pipeline.toml"), dir.path())
             .unwrap();
     let records =
-        dropscope::process::process_all(&runs, &cfg, &dir.path().join("out"), &|_| {}).unwrap();
+        dropscope::job::run_outputs::process_all(&runs, &cfg, &dir.path().join("out"), &|_| {})
+            .unwrap();
     let slow: Vec<f64> = records[..3]
         .iter()
         .map(|r| {
@@ -236,7 +237,7 @@ fn a_run_alone_is_scaled_by_its_silhouette_less_the_jobs_edge_offset() {
     // Each run alone: the fixed 0.3 px, uncorrected.
     let mut alone = cfg.clone();
     alone.camera.infer_setups = false;
-    let r = dropscope::process::process_run(&runs[3], &alone, &[]).record;
+    let r = dropscope::pipeline::process_run(&runs[3], &alone, &[]).record;
     assert_eq!(
         (r.scale_source.as_str(), r.edge_offset_px),
         ("radius", None)

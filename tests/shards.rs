@@ -278,9 +278,9 @@ fn process_collapse_and_report_are_refused_a_held_folder() {
     let d = dir.path();
     repeated_manifest(d, 1);
     let out = d.join("out");
-    let held = dropscope::lock::acquire(
+    let held = dropscope::job::lock::acquire(
         &out,
-        &dropscope::lock::Holder::this_process("another job", None),
+        &dropscope::job::lock::Holder::this_process("another job", None),
         false,
         &|_| {},
     )

@@ -791,7 +791,7 @@ fn write_tiff16_packbits(path: &Path, f: &Frame) {
 }
 
 fn write_png16(path: &Path, f: &Frame) {
-    std::fs::write(path, dropscope::inspect::png16(f).unwrap()).unwrap();
+    std::fs::write(path, dropscope::cli::inspect::png16(f).unwrap()).unwrap();
 }
 
 /// An 8-bit paletted grey BMP, bottom-up, rows padded to 4 bytes.
@@ -1137,7 +1137,7 @@ fn export_frames(input: &Path, frames: &str, out: &Path) {
 }
 
 /// The side file `<name>_frames.csv` an export writes beside its PNGs.
-fn exported_frames(csv: &Path) -> Vec<dropscope::inspect::ExportedFrame> {
+fn exported_frames(csv: &Path) -> Vec<dropscope::cli::inspect::ExportedFrame> {
     csv::Reader::from_path(csv)
         .unwrap()
         .deserialize()

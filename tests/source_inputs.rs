@@ -21,7 +21,7 @@ fn samples() -> PathBuf {
 /// the search finds every cine of the tree, and no frame sequence there.
 #[test]
 fn a_folder_search_finds_every_cine_beside_loose_exports() {
-    let found = dropscope::batch::discover_runs(&[samples()]).unwrap();
+    let found = dropscope::job::batch::discover_runs(&[samples()]).unwrap();
     let names: Vec<String> = found
         .iter()
         .map(|p| p.strip_prefix(samples()).unwrap().display().to_string())
@@ -41,7 +41,7 @@ fn a_folder_search_finds_every_cine_beside_loose_exports() {
     );
     // `process DIR` takes the same runs.
     assert_eq!(
-        dropscope::batch::expand_inputs(&[samples().join("cinefiles-jl")]).len(),
+        dropscope::job::batch::expand_inputs(&[samples().join("cinefiles-jl")]).len(),
         5
     );
     // A folder of frames with a cine beside them: both are runs.
@@ -53,7 +53,7 @@ fn a_folder_search_finds_every_cine_beside_loose_exports() {
     }
     std::fs::copy(samples().join("pims/cine_781.cine"), run.join("other.cine")).unwrap();
     assert_eq!(
-        dropscope::batch::discover_runs(&[dir.path().to_path_buf()]).unwrap(),
+        dropscope::job::batch::discover_runs(&[dir.path().to_path_buf()]).unwrap(),
         vec![run.clone(), run.join("other.cine")]
     );
 }

@@ -491,7 +491,7 @@ fn inspect_export_and_process_take_the_mraw_its_header_or_its_folder() {
 
 #[test]
 fn a_folder_search_finds_the_mraw_once_and_the_png_sequence() {
-    let found = dropscope::batch::discover_runs(&[ball_dir()]).unwrap();
+    let found = dropscope::job::batch::discover_runs(&[ball_dir()]).unwrap();
     assert_eq!(
         found,
         vec![

@@ -11,7 +11,7 @@
 use dropscope::config::{DetectConfig, PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::DropStatus;
-use dropscope::process::process_all;
+use dropscope::job::run_outputs::process_all;
 use dropscope::source::memory::MemorySource;
 use dropscope::source::{open, Frame, FrameSource, OpenOptions};
 use dropscope::track::{track, Flag, FrameTrack, Track, TrackSettings};

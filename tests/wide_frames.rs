@@ -8,7 +8,7 @@ use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::manifest::read_manifest;
 use dropscope::dataset::{DropRecord, DropStatus};
 use dropscope::detect::columns::REACH_RADII;
-use dropscope::process::process_all;
+use dropscope::job::run_outputs::process_all;
 use dropscope::render::render;
 use dropscope::source::{open, OpenOptions};
 use dropscope::track::{background_and_surface, TrackSettings};

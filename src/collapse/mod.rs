@@ -14,8 +14,8 @@
 //!
 //! The whole `dropscope collapse` command, which reads drops.csv and writes
 //! `collapse.csv`, `fits.json` and the figures into the output folder, is
-//! [`crate::collapse_job::run`]; the per-drop figures are
-//! [`crate::per_drop`]'s.
+//! [`crate::job::collapse_job::run`]; the per-drop figures are
+//! [`crate::job::per_drop`]'s.
 
 pub mod diagnostics;
 mod error;

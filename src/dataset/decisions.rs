@@ -205,7 +205,7 @@ impl Decision {
 }
 
 /// What the review decided about one run, as processing applies it.
-/// Serialised into the run's cache key ([`crate::cache::key`], through its
+/// Serialised into the run's cache key ([`crate::job::cache::key`], through its
 /// [`super::manifest::RunSpec`]): a run without decisions serialises to
 /// nothing, so only the runs a decision touches are measured again. The
 /// decisions' times are not in it.

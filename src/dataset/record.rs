@@ -387,7 +387,7 @@ impl DropRecord {
 
 impl DropRecord {
     /// The numeric columns whose value is not finite (`inf`, `NaN`): none
-    /// in a measured row ([`crate::process::process_setup`] fails the run).
+    /// in a measured row ([`crate::pipeline::process_setup`] fails the run).
     pub fn non_finite_columns(&self) -> Vec<String> {
         const TEXT: [&str; 9] = [
             "run",

@@ -7,9 +7,9 @@ use super::html::{escape, pm};
 use super::render_report;
 use crate::collapse::groups::ContactRadius;
 use crate::collapse::synthetic::{eq8_dataset, SyntheticSpec};
-use crate::collapse_job::CollapseArgs;
 use crate::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use crate::dataset::{self, DropRecord, DropStatus};
+use crate::job::collapse_job::CollapseArgs;
 
 const EVIL_RUN: &str = "<script>alert(\"run\")</script>";
 const EVIL_REASON: &str = "cannot open /data/a&b/<img src=x onerror=alert(1)>.cine: 'bad'";
@@ -45,7 +45,7 @@ fn collapse_into(out: &Path, recs: &[DropRecord]) {
         seed: 5,
         no_plots: false,
     };
-    crate::collapse_job::run(&args, &cfg, "pipeline.toml").unwrap();
+    crate::job::collapse_job::run(&args, &cfg, "pipeline.toml").unwrap();
 }
 
 /// Every value of a `src="…"`, `data-src="…"`, `data-full="…"` or `href="…"` attribute

@@ -80,7 +80,7 @@ pub struct RunView {
 
 impl RunView {
     /// Open `path` (a run's input) under `cfg` read as `options` say (as
-    /// the job read it: [`crate::stage_settings::open_options`]), and find its
+    /// the job read it: [`crate::pipeline::settings::open_options`]), and find its
     /// background and surface line as the tracker does;
     /// `used_row_at_impact` and `impact_column_px` place the line the
     /// measurement used.

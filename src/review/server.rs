@@ -494,7 +494,7 @@ impl State {
             Some(p) => RunView::open(
                 &p,
                 &self.cfg,
-                &crate::stage_settings::open_options(
+                &crate::pipeline::settings::open_options(
                     &self.cfg,
                     self.number_digits.get(&rec.run).copied(),
                     rec.fps.or(self.cfg.camera.fps),

@@ -530,7 +530,7 @@ mod tests {
             assert!(back == bytes, "{memory_max}");
             assert_eq!(
                 s.sha256_hex(),
-                crate::cache::OutputFile::new(String::new(), &bytes).sha256
+                crate::job::cache::OutputFile::new(String::new(), &bytes).sha256
             );
             // Written atomically from the spool: the same bytes in the file.
             let dir = tempfile::tempdir().unwrap();

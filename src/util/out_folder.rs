@@ -11,7 +11,7 @@
 //!   target is not touched). The output folder itself may be a link.
 //! - A file is removed only when an earlier job listed it as its own with
 //!   the SHA-256 of its bytes, and it still holds them: the run files in
-//!   `provenance.json` and the run's cache entry ([`crate::leftovers`]); the
+//!   `provenance.json` and the run's cache entry ([`crate::job::leftovers`]); the
 //!   job-level files (the collapse's tables and figures, the per-drop
 //!   figures, `report.html`) in the folder's [`Ledger`],
 //!   `.dropscope-files.json`. A file of yours, or one you changed, stays.

@@ -33,7 +33,7 @@ pub enum Stage {
     /// Tracking pass 2 (radius held).
     Pass2,
     /// Tracks put in the job's temporary file when the runs' set-ups are
-    /// read, and read back for their processing ([`crate::shelf`]).
+    /// read, and read back for their processing ([`crate::pipeline::shelf`]).
     Shelf,
     /// Events, kinematics, scale and the force table: the measurement but
     /// for the force fits.

@@ -4,64 +4,25 @@
 //!
 //! Runs are processed in parallel, each streaming its frames; each run's
 //! files are written as soon as it is done, and its cache entry
-//! (`runs/<run>.json`, see [`crate::cache`]) last, so a job killed at any
+//! (`runs/<run>.json`, see [`crate::job::cache`]) last, so a job killed at any
 //! moment and started again redoes only the runs it had not committed, and
 //! ends with the outputs of an uninterrupted job. `drops.csv` is assembled
 //! from the entries in the manifest's order; `provenance.json` records the
 //! version, the resolved configuration and every input's fingerprint.
 
-use crate::cache::{self, Entry};
 use crate::collapse::groups::ContactRadius;
-use crate::collapse_job::CollapseArgs;
 use crate::config::PipelineConfig;
 use crate::dataset::manifest::{read_job_manifest, RunSpec};
 use crate::dataset::{DropRecord, DropStatus};
-use crate::process::{process_setup, write_file, write_run_outputs};
+use crate::job::cache::{self, Entry};
+use crate::job::collapse_job::CollapseArgs;
+use crate::job::run_outputs::{write_file, write_run_outputs};
+use crate::pipeline::process_setup;
 use crate::source::listing::{recording_kind, Listing};
 use crate::source::SourceError;
 use crate::util::timings::{self, Stage};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
-
-/// The command line of `dropscope run`.
-#[derive(Debug, Default, clap::Args)]
-pub struct RunArgs {
-    /// The configuration file (default: ./pipeline.toml, else the embedded default).
-    #[arg(long)]
-    pub config: Option<PathBuf>,
-    /// Output folder (default: the configuration's output.dir).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// Reprocess every run, even those whose cached result is still valid.
-    #[arg(long)]
-    pub force: bool,
-    /// Worker threads (default: SLURM_CPUS_PER_TASK inside a Slurm job, else one per core).
-    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
-    pub threads: Option<u16>,
-    /// Process only the K-th of N frame-balanced shares of the runs (0 <= K < N),
-    /// committing each into the output folder's cache, with no drops.csv,
-    /// collapse or report; `slurm` takes K and N from the Slurm array task.
-    /// A plain `run` on the folder afterwards assembles everything.
-    #[arg(long, value_name = "K/N|slurm")]
-    pub shard: Option<String>,
-    /// When another job holds the output folder, wait for it to end
-    /// instead of stopping.
-    #[arg(long)]
-    pub wait: bool,
-    /// Draw no animated impact (`plots/impacts/<run>.png`, about 0.5 MB a
-    /// drop): the configuration's `output.animation = false`.
-    #[arg(long)]
-    pub no_animation: bool,
-    /// After the job, print on stderr where its time went: wall and CPU
-    /// seconds per stage (reading, tracking passes, force fits, pictures,
-    /// writes, …) summed over runs, each stage's share and its mean per
-    /// drop. Changes no output.
-    #[arg(long)]
-    pub timings: bool,
-    /// Values for recordings that lack them (`--fps`, `--mm-per-px`, `--surface-row-px`).
-    #[command(flatten)]
-    pub recording: crate::cli_values::RecordingArgs,
-}
 
 /// Why the job could not run (a bad run is a row, not this).
 #[derive(Debug, thiserror::Error)]
@@ -74,7 +35,7 @@ pub enum BatchError {
     Manifest(#[from] crate::dataset::manifest::ManifestError),
     /// The processing stage could not run (an output not written, an input that is no run).
     #[error(transparent)]
-    Process(#[from] crate::process::ProcessError),
+    Process(#[from] crate::pipeline::ProcessError),
     /// The collapse could not run.
     #[error(transparent)]
     Collapse(#[from] crate::collapse::CollapseError),
@@ -100,7 +61,7 @@ pub enum BatchError {
     NothingFound(String),
     /// The output folder could not be taken.
     #[error(transparent)]
-    Lock(#[from] crate::lock::LockError),
+    Lock(#[from] crate::job::lock::LockError),
     /// The review's decisions could not be read.
     #[error(transparent)]
     Review(#[from] crate::dataset::decisions::ReviewError),
@@ -143,7 +104,7 @@ pub struct JobOptions {
     /// Worker threads; `None` is rayon's default (one per core).
     pub threads: Option<usize>,
     /// Only this share of the runs, and no drops.csv, collapse or report.
-    pub shard: Option<crate::shard::Shard>,
+    pub shard: Option<crate::job::shard::Shard>,
     /// Wait for another job holding the output folder instead of stopping.
     pub wait: bool,
 }
@@ -196,7 +157,7 @@ pub struct JobSummary {
     /// Whether the collapse stage ran (it needs at least one measured drop).
     pub collapsed: bool,
     /// The share of the runs this job took (`None`: all, and it assembled them).
-    pub shard: Option<crate::shard::Shard>,
+    pub shard: Option<crate::job::shard::Shard>,
     /// Warnings of the collapse (also in fits.json).
     pub collapse_warnings: Vec<String>,
     /// Too few drops for the collapse's exponents and series: what they can
@@ -230,7 +191,7 @@ fn is_output_folder(dir: &Path) -> bool {
 fn is_output_part(path: &Path) -> bool {
     path.file_name()
         .and_then(|n| n.to_str())
-        .is_some_and(|n| matches!(n, "plots" | "tracks" | "runs" | crate::lock::LOCK_DIR))
+        .is_some_and(|n| matches!(n, "plots" | "tracks" | "runs" | crate::job::lock::LOCK_DIR))
 }
 
 /// Deepest folder level searched under an input path (guards symlink loops).
@@ -298,7 +259,7 @@ pub fn discover_runs(paths: &[PathBuf]) -> Result<Vec<PathBuf>, BatchError> {
 /// recordings beside them, or the runs under it); any other input (a
 /// recording, a folder with nothing found in it) is kept, so
 /// that it gets its own row and reason, and a path that is not there is
-/// kept for [`crate::process::runs_from_inputs`] to refuse.
+/// kept for [`crate::pipeline::runs_from_inputs`] to refuse.
 pub fn expand_inputs(inputs: &[PathBuf]) -> Vec<PathBuf> {
     let mut out = Vec::new();
     for p in inputs {
@@ -327,21 +288,21 @@ pub fn configured_runs(
         return Err(BatchError::NoInput);
     }
     let found = discover_runs(&cfg.input.paths)?;
-    Ok(crate::process::runs_from_inputs(&found, None, cfg)?)
+    Ok(crate::pipeline::runs_from_inputs(&found, None, cfg)?)
 }
 
-/// The runs of one camera set-up (see [`crate::process::setups`]): their
+/// The runs of one camera set-up (see [`crate::pipeline::setups`]): their
 /// cached results when all are still valid, else all processed together
 /// (their scale is pooled) and committed. A run's key in a set-up of
 /// several also covers the other runs' keys, since its numbers depend on them.
-/// `kept`: the members' tracks [`crate::process::prepare`] kept, if any.
+/// `kept`: the members' tracks [`crate::pipeline::prepare`] kept, if any.
 fn run_setup(
     members: &[&RunSpec],
     cfg: &PipelineConfig,
     out: &Path,
     force: bool,
     overlay_frames: &[i64],
-    kept: Vec<Option<crate::process::KeptRun>>,
+    kept: Vec<Option<crate::pipeline::KeptRun>>,
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<Vec<(Entry, bool)>, BatchError> {
     // The inputs' fingerprints and the runs' keys. An input that cannot be
@@ -502,7 +463,7 @@ pub(crate) fn provenance_json(
         run: &'a str,
         key: &'a str,
         input: &'a cache::Fingerprint,
-        /// The files the run wrote (what [`crate::leftovers`] removes when
+        /// The files the run wrote (what [`crate::job::leftovers`] removes when
         /// a later job into the folder does not write them again).
         outputs: &'a [cache::OutputFile],
     }
@@ -553,7 +514,7 @@ pub(crate) fn provenance_json(
 }
 
 /// Remove what the previous job in `out` wrote and this one did not
-/// ([`crate::leftovers`]), saying so, then write this job's `provenance.json`.
+/// ([`crate::job::leftovers`]), saying so, then write this job's `provenance.json`.
 pub(crate) fn replace_provenance(
     out: &Path,
     cfg: &PipelineConfig,
@@ -562,7 +523,7 @@ pub(crate) fn replace_provenance(
     review: &Review,
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<(), BatchError> {
-    let removed = crate::leftovers::remove(out, entries).map_err(|source| BatchError::Io {
+    let removed = crate::job::leftovers::remove(out, entries).map_err(|source| BatchError::Io {
         path: out.to_path_buf(),
         source,
     })?;
@@ -646,7 +607,7 @@ impl Review {
 /// cached results when still valid (unless `options.force`), else processed
 /// and committed to the cache. `overlay_frames` are extra overlays drawn for
 /// every run (part of the cache key). Writes no drops.csv; the runs' files
-/// are on the disk when it returns ([`crate::process::sync_outputs`]).
+/// are on the disk when it returns ([`crate::job::run_outputs::sync_outputs`]).
 pub fn process_runs(
     runs: &[RunSpec],
     cfg: &PipelineConfig,
@@ -658,13 +619,13 @@ pub fn process_runs(
     let processed = process_runs_unsynced(runs, cfg, out, options, overlay_frames, events)?;
     // The runs' files and cache entries, written unsynced, made durable at
     // once before the caller's drops.csv.
-    crate::process::sync_outputs(out)?;
+    crate::job::run_outputs::sync_outputs(out)?;
     Ok(processed)
 }
 
 /// [`process_runs`] but for its end: the runs' files and cache entries are
 /// written and renamed into place, not yet synced. The caller makes them
-/// durable ([`crate::process::sync_outputs`]) before it writes drops.csv;
+/// durable ([`crate::job::run_outputs::sync_outputs`]) before it writes drops.csv;
 /// meanwhile it may read them (`process` draws the per-drop figures from
 /// the tracks while the disk syncs).
 pub fn process_runs_unsynced(
@@ -688,10 +649,10 @@ pub fn process_runs_unsynced(
     // On the job's threads, finding the set-ups too.
     let work = || {
         let threads = rayon::current_num_threads();
-        let crate::process::Prepared { runs, cfg, kept } =
-            crate::process::prepare(runs, cfg, &scene_of, &notice);
+        let crate::pipeline::Prepared { runs, cfg, kept } =
+            crate::pipeline::prepare(runs, cfg, &scene_of, &notice);
         let (runs, cfg, kept) = (&runs, &cfg, &kept);
-        let groups = crate::process::setups(runs);
+        let groups = crate::pipeline::setups(runs);
         groups
             .par_iter()
             .map(|g| {
@@ -763,7 +724,7 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> BatchError {
 /// collapse of the measured ones. With `options.shard`, only that share of
 /// the runs, and nothing assembled.
 ///
-/// The output folder is held for the job ([`crate::lock`]): another job
+/// The output folder is held for the job ([`crate::job::lock`]): another job
 /// into it is refused (or waited for), shards of this one are let in.
 pub fn run_job(
     cfg: &PipelineConfig,
@@ -774,15 +735,16 @@ pub fn run_job(
 ) -> Result<JobSummary, BatchError> {
     let runs = configured_runs(cfg, config_name)?;
     std::fs::create_dir_all(out).map_err(io(out))?;
-    let me = crate::lock::Holder::this_process(
+    let me = crate::job::lock::Holder::this_process(
         &cache::job_id("run", cfg, &runs),
         options.shard.map(|s| s.to_string()),
     );
-    let _held = crate::lock::acquire(out, &me, options.wait, &|m| events(RunEvent::Notice(m)))?;
-    crate::util::io::remove_stale_temporaries(out, &crate::lock::writer_is_gone)
+    let _held =
+        crate::job::lock::acquire(out, &me, options.wait, &|m| events(RunEvent::Notice(m)))?;
+    crate::util::io::remove_stale_temporaries(out, &crate::job::lock::writer_is_gone)
         .map_err(io(out))?;
     let runs = match options.shard {
-        Some(shard) => crate::shard::select(&runs, shard, cfg.camera.infer_setups),
+        Some(shard) => crate::job::shard::select(&runs, shard, cfg.camera.infer_setups),
         None => runs,
     };
     on_threads(options.threads, out, || {
@@ -839,7 +801,7 @@ fn job_on_pool(
     // since failed or left the manifest survives (nor all of it when no
     // drop is measured now).
     let mut ledger = crate::util::out_folder::Ledger::open(out);
-    crate::collapse_job::remove_outputs(&mut ledger)
+    crate::job::collapse_job::remove_outputs(&mut ledger)
         .and_then(|()| ledger.save())
         .map_err(io(out))?;
     let (collapsed, collapse_warnings, collapse_note) = if measured > 0 {
@@ -853,7 +815,7 @@ fn job_on_pool(
             seed: 20190614,
             no_plots: false,
         };
-        let s = crate::collapse_job::run(&args, cfg, config_name)?;
+        let s = crate::job::collapse_job::run(&args, cfg, config_name)?;
         let note = s.fits.few_drops.clone();
         let warnings = s
             .warnings
@@ -862,7 +824,7 @@ fn job_on_pool(
             .collect();
         (true, warnings, note)
     } else {
-        let replaced = crate::per_drop::replace(&mut ledger, Vec::new(), &mut Vec::new());
+        let replaced = crate::job::per_drop::replace(&mut ledger, Vec::new(), &mut Vec::new());
         ledger.save().map_err(io(out))?;
         replaced?;
         (false, Vec::new(), None)

@@ -148,7 +148,7 @@ pub fn assign(weights: &[u64], count: usize) -> Vec<usize> {
 /// is found from all of their images (so every shard count gives the same
 /// numbers).
 pub fn select(runs: &[RunSpec], shard: Shard, infer_setups: bool) -> Vec<RunSpec> {
-    let mut groups = crate::process::setups(runs);
+    let mut groups = crate::pipeline::setups(runs);
     let open = |g: &Vec<usize>| runs[g[0]].setup.is_none();
     if infer_setups && groups.iter().filter(|g| open(g)).count() >= 2 {
         let joined: Vec<usize> = groups

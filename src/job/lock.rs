@@ -11,7 +11,7 @@
 //! `--wait`, tries again every half second).
 //!
 //! The job id is derived from the configuration and the run list (see
-//! [`crate::cache::job_id`]), so every shard of a job computes the same id
+//! [`crate::job::cache::job_id`]), so every shard of a job computes the same id
 //! without talking to the others, and another configuration is kept out.
 //!
 //! Only primitives that cluster file systems (NFS, Lustre, GPFS) make atomic

@@ -1,6 +1,6 @@
 use super::{failure::*, inputs::*, prepare::*, run::*, tracked::*, types::*};
 use crate::dataset::DropRecord;
-use crate::shelf::Shelf;
+use crate::pipeline::shelf::Shelf;
 use crate::util::io::Spool;
 use std::path::{Path, PathBuf};
 

@@ -1,6 +1,6 @@
 //! `dropscope slurm`: the main job on a Slurm cluster — an
 //! array job whose tasks are the shards (`run --shard slurm`, see
-//! [`crate::shard`]), and a finishing job (`run`) that Slurm starts only
+//! [`crate::job::shard`]), and a finishing job (`run`) that Slurm starts only
 //! after every task succeeded (`--dependency=afterok`), which finds every
 //! run in the cache and assembles drops.csv, the collapse and the report.
 //!

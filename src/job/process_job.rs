@@ -1,19 +1,19 @@
 //! `dropscope process` as a job: the runs named on the command line (or a
-//! manifest) through the main job's processing ([`crate::batch::process_runs`]:
+//! manifest) through the main job's processing ([`crate::job::batch::process_runs`]:
 //! the result cache, `--force`, `--threads`, progress events), then
 //! `drops.csv`, `provenance.json` and the per-drop figures
 //! (`plots/drops/<run>.svg|png`); no collapse and no report.
 
 use std::path::Path;
 
-use crate::batch::{
-    on_threads, process_runs_unsynced, replace_provenance, BatchError, JobOptions, Processed,
-    RunEvent,
-};
 use crate::config::PipelineConfig;
 use crate::dataset::manifest::RunSpec;
 use crate::dataset::{DropRecord, DropStatus};
-use crate::process::write_file;
+use crate::job::batch::{
+    on_threads, process_runs_unsynced, replace_provenance, BatchError, JobOptions, Processed,
+    RunEvent,
+};
+use crate::job::run_outputs::write_file;
 use crate::util::out_folder::Ledger;
 use crate::util::timings::{time, Stage};
 
@@ -43,7 +43,7 @@ impl ProcessSummary {
 
 /// Remove the collapse files and report an earlier job left in `out`,
 /// computed from another drops.csv than the one just written (dataset
-/// `id`), saying which ([`crate::leftovers::remove_other_dataset`]): a
+/// `id`), saying which ([`crate::job::leftovers::remove_other_dataset`]): a
 /// process job writes no collapse, and they would no longer match.
 fn remove_other_collapse(
     ledger: &mut Ledger,
@@ -51,11 +51,12 @@ fn remove_other_collapse(
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<(), BatchError> {
     let out = ledger.out().to_path_buf();
-    let removed =
-        crate::leftovers::remove_other_dataset(ledger, id).map_err(|source| BatchError::Io {
+    let removed = crate::job::leftovers::remove_other_dataset(ledger, id).map_err(|source| {
+        BatchError::Io {
             path: out.clone(),
             source,
-        })?;
+        }
+    })?;
     if !removed.is_empty() {
         let (figures, files): (Vec<&String>, Vec<&String>) =
             removed.iter().partition(|f| f.starts_with("plots/"));
@@ -74,7 +75,7 @@ fn remove_other_collapse(
     Ok(())
 }
 
-/// Process `runs` into `out`, which the caller holds ([`crate::lock`]), all
+/// Process `runs` into `out`, which the caller holds ([`crate::job::lock`]), all
 /// of it on `options.threads` ([`on_threads`]).
 pub fn run(
     runs: &[RunSpec],
@@ -100,7 +101,7 @@ fn run_on_pool(
     overlay_frames: &[i64],
     events: &(dyn Fn(RunEvent) + Sync),
 ) -> Result<ProcessSummary, BatchError> {
-    crate::util::io::remove_stale_temporaries(out, &crate::lock::writer_is_gone).map_err(
+    crate::util::io::remove_stale_temporaries(out, &crate::job::lock::writer_is_gone).map_err(
         |source| BatchError::Io {
             path: out.to_path_buf(),
             source,
@@ -131,7 +132,7 @@ fn run_on_pool(
     let (written, drawn) = std::thread::scope(|scope| {
         let ledger = &mut ledger;
         let writer = scope.spawn(|| {
-            crate::process::sync_outputs(out)?;
+            crate::job::run_outputs::sync_outputs(out)?;
             time(Stage::Writes, || -> Result<(), BatchError> {
                 write_file(out, "drops.csv", &drops)?;
                 remove_other_collapse(ledger, &id, events)?;
@@ -139,7 +140,7 @@ fn run_on_pool(
             })
         });
         let drawn = time(Stage::Figures, || {
-            crate::per_drop::draw(&out.join("drops.csv"), &records, cfg, &id)
+            crate::job::per_drop::draw(&out.join("drops.csv"), &records, cfg, &id)
         });
         let written = writer
             .join()
@@ -158,7 +159,7 @@ fn run_on_pool(
     }
     let (drawn, warnings) = drawn?;
     let replaced = time(Stage::Figures, || {
-        crate::per_drop::replace(&mut ledger, drawn, &mut Vec::new())
+        crate::job::per_drop::replace(&mut ledger, drawn, &mut Vec::new())
     });
     saved(&mut ledger)?;
     replaced?;

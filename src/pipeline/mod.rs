@@ -1,16 +1,15 @@
-//! `dropscope process`: every run → track → events → kinematics → one row
-//! of `drops.csv`, `tracks/<run>.csv`, an overlay at maximum penetration
-//! (`plots/overlays/<run>.png`) and the animated impact
-//! (`plots/impacts/<run>.png`). Runs are processed in parallel; a run that
-//! cannot be measured gets a `failed` row with its reason and never stops
-//! the others. Every file is written whole or not at all.
+//! One run (or the runs of one camera set-up): open the recording → track
+//! → calibrate → events → kinematics → force law → one row of `drops.csv`,
+//! with the run's track rows, its overlay at maximum penetration and its
+//! animated impact as bytes. A run that cannot be measured gets a `failed`
+//! row with its reason and never stops the others. Nothing here writes into
+//! the output folder: [`crate::job`] writes what these return.
 //!
 //! | file | what |
 //! | --- | --- |
-//! | `args.rs` | [`ProcessArgs`], the command line |
 //! | `types.rs` | [`RunOutcome`], [`ProcessError`] |
 //! | `inputs.rs` | the runs from the input paths, the runs of a set-up |
-//! | `run.rs` | one run's flow, a failed run's row; every run of a job |
+//! | `run.rs` | one run's flow, a failed run's row; the runs of one set-up |
 //! | `failure.rs` | a run's failure (a panic too) caught into its reason |
 //! | `tracked.rs` | a run opened and tracked |
 //! | `prepare.rs` | runs tracked ahead, kept, restored |
@@ -18,9 +17,10 @@
 //! | `checks.rs` | the frame rate's and the saturated background's checks |
 //! | `points.rs` | the held fits as the event stage's points |
 //! | `corrections.rs` | the speeds at the impact's scale, distortion, a_max's edge error |
-//! | `outputs.rs` | a run's files drawn and written |
+//! | `outputs.rs` | a run's pictures drawn and its track rows spooled |
+//! | [`settings`] | the stages' own settings from the configuration: how a recording is opened, detected and tracked |
+//! | [`shelf`] | tracks kept in a temporary file between reading the runs' set-ups and processing them |
 
-mod args;
 mod checks;
 mod corrections;
 mod failure;
@@ -30,15 +30,15 @@ mod outputs;
 mod points;
 mod prepare;
 mod run;
+pub mod settings;
+pub mod shelf;
 #[cfg(test)]
 mod tests;
 mod tracked;
 mod types;
 
-pub use args::ProcessArgs;
 pub use corrections::A_MAX_EDGE_SYSTEMATIC_PX;
 pub use inputs::{runs_from_inputs, setups};
-pub use outputs::{sync_outputs, write_file, write_run_outputs};
 pub use prepare::{prepare, KeptRun, KeptRuns, Prepared};
-pub use run::{process_all, process_all_with_overlays, process_run, process_setup};
+pub use run::{process_run, process_setup};
 pub use types::{ProcessError, RunOutcome, TRACK_CSV_IN_MEMORY_MAX};

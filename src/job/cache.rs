@@ -386,7 +386,7 @@ fn key_for_source(source: &str, cfg: &PipelineConfig, run: &RunSpec, fp: &Finger
     hex(&Sha256::digest(&json))
 }
 
-/// The id of a job writing into an output folder (see [`crate::lock`]):
+/// The id of a job writing into an output folder (see [`crate::job::lock`]):
 /// SHA-256 over what it is (`kind`: `"run"`, `"process"`, …), this build's
 /// sources, the configuration (less the output folder) and its runs. Every
 /// shard of a job computes the same id; another configuration or run list

@@ -9,8 +9,8 @@ use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::dataset::manifest::RunSpec;
 use crate::measure::events::{EventConfig, SurfaceFrame};
+use crate::pipeline::settings::open_options;
 use crate::source::open;
-use crate::stage_settings::open_options;
 use crate::track::{track, Track, TrackSettings};
 
 /// A run tracked but not yet measured.

@@ -7,7 +7,7 @@ use crate::calibrate::free_fall::Curvature;
 use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::dataset::manifest::RunSpec;
-use crate::shelf::{Shelf, ShelvedTrack};
+use crate::pipeline::shelf::{Shelf, ShelvedTrack};
 use crate::track::TrackSettings;
 use rayon::prelude::*;
 use std::sync::Arc;

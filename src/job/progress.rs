@@ -3,8 +3,8 @@
 //! plain line per finished run. Either way a failed run's reason is printed
 //! when it fails, not only at the end.
 
-use crate::batch::RunEvent;
 use crate::dataset::{DropRecord, DropStatus};
+use crate::job::batch::RunEvent;
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::collections::BTreeMap;
 use std::io::IsTerminal;

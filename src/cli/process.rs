@@ -23,7 +23,7 @@ pub struct ProcessArgs {
     pub radius_mm: Option<f64>,
     /// Values for recordings that lack them (`--fps`, `--mm-per-px`, `--surface-row-px`).
     #[command(flatten)]
-    pub recording: crate::cli_values::RecordingArgs,
+    pub recording: crate::cli::values::RecordingArgs,
     /// Also draw the overlay of these camera image numbers (comma-separated,
     /// e.g. `-5,0,12`) for every run: `plots/overlays/<run>_<number>.png`.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]

@@ -9,7 +9,7 @@ use crate::collapse::groups::{ContactRadius, DropGroups};
 use crate::collapse::{compute_groups, fit, output, CollapseError};
 use crate::config::PipelineConfig;
 use crate::dataset::{self, DatasetError};
-use crate::per_drop;
+use crate::job::per_drop;
 use crate::util::out_folder::Ledger;
 
 /// `dropscope collapse DROPS.csv [--out DIR] [--config FILE]`.

@@ -1,6 +1,6 @@
 //! Tracks kept on a shelf between a job's two looks at its runs.
 //!
-//! With `camera.infer_setups`, [`crate::process::prepare`] tracks every run
+//! With `camera.infer_setups`, [`crate::pipeline::prepare`] tracks every run
 //! without a `setup` to read its scene; the runs are then processed by
 //! camera set-up, each set-up's runs tracked together. Tracking is most of
 //! a short drop's cost (its background and surface line), so each track is

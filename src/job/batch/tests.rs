@@ -1,4 +1,4 @@
-//! Tests of [`crate::batch`].
+//! Tests of [`crate::job::batch`].
 
 use super::*;
 

@@ -1,13 +1,13 @@
-//! One run's flow, a failure caught into its row ([`process_run`],
-//! [`process_setup`]), and every run of a job ([`process_all`]).
+//! One run's flow and a failure caught into its row ([`process_run`]), and
+//! the runs of one camera set-up tracked and measured together
+//! ([`process_setup`]). The job level writes what these return
+//! ([`crate::job::run_outputs`]).
 
 use super::failure::{caught, Recording, RunFailure};
-use super::inputs::setups;
 use super::measure_run::measure_run;
-use super::outputs::{sync_outputs, write_file, write_run_outputs};
-use super::prepare::{prepare, KeptRun, Prepared};
+use super::prepare::KeptRun;
 use super::tracked::{open_run, track_run, Tracked};
-use super::types::{ProcessError, RunOutcome};
+use super::types::RunOutcome;
 use crate::calibrate::free_fall::Curvature;
 use crate::config::PipelineConfig;
 use crate::dataset::manifest::RunSpec;
@@ -15,7 +15,6 @@ use crate::dataset::DropRecord;
 use crate::measure::quality;
 use crate::util::io::Spool;
 use rayon::prelude::*;
-use std::path::Path;
 
 /// Process one run; never fails: problems become a `failed` record, and so
 /// does a panic in any stage (caught here, at the run's boundary, so that
@@ -33,7 +32,7 @@ pub fn process_run(run: &RunSpec, cfg: &PipelineConfig, overlay_frames: &[i64]) 
 /// cannot be measured, or panics, gets a `failed` record; the outcomes come in `runs`'
 /// order.
 ///
-/// `kept` holds, member by member, the track [`prepare`] made of it, if
+/// `kept` holds, member by member, the track [`super::prepare::prepare`] made of it, if
 /// any: taken off its shelf rather than made again (the same track).
 pub fn process_setup(
     runs: &[&RunSpec],
@@ -190,53 +189,4 @@ pub(super) fn failed_outcome(
         seconds: 0.0,
         notes: meta.map(|m| m.reading_notes()).unwrap_or_default(),
     }
-}
-
-/// Process `runs` in parallel and write `drops.csv`, `tracks/` and
-/// `plots/overlays/` into `out`. Returns the records in the runs' order.
-pub fn process_all(
-    runs: &[RunSpec],
-    cfg: &PipelineConfig,
-    out: &Path,
-    progress: &(dyn Fn(&DropRecord) + Sync),
-) -> Result<Vec<DropRecord>, ProcessError> {
-    process_all_with_overlays(runs, cfg, out, &[], progress)
-}
-
-/// [`process_all`], also drawing the overlays of the image numbers
-/// `overlay_frames` of every run (`plots/overlays/<run>_<number>.png`).
-/// Each run's files are written as soon as it is done, so memory holds only
-/// the runs in flight.
-pub fn process_all_with_overlays(
-    runs: &[RunSpec],
-    cfg: &PipelineConfig,
-    out: &Path,
-    overlay_frames: &[i64],
-    progress: &(dyn Fn(&DropRecord) + Sync),
-) -> Result<Vec<DropRecord>, ProcessError> {
-    let Prepared { runs, cfg, kept } = prepare(runs, cfg, &|_| None, &|_| {});
-    let (runs, cfg, kept) = (&runs, &cfg, &kept);
-    let groups = setups(runs);
-    let done = groups
-        .par_iter()
-        .map(|g| {
-            let members: Vec<&RunSpec> = g.iter().map(|&i| &runs[i]).collect();
-            let kept = g.iter().map(|&i| kept.take(i)).collect();
-            let outcomes = process_setup(&members, cfg, overlay_frames, kept);
-            let mut recs = Vec::with_capacity(g.len());
-            for (&i, o) in g.iter().zip(outcomes) {
-                write_run_outputs(out, &o)?;
-                progress(&o.record);
-                recs.push((i, o.record));
-            }
-            Ok(recs)
-        })
-        .collect::<Result<Vec<_>, ProcessError>>()?;
-    // Back in the runs' order.
-    let mut done: Vec<(usize, DropRecord)> = done.into_iter().flatten().collect();
-    done.sort_by_key(|(i, _)| *i);
-    let records: Vec<DropRecord> = done.into_iter().map(|(_, r)| r).collect();
-    sync_outputs(out)?;
-    write_file(out, "drops.csv", &crate::dataset::to_csv_bytes(&records))?;
-    Ok(records)
 }

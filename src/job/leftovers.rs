@@ -23,7 +23,7 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::cache::{self, Entry, OutputFile};
+use crate::job::cache::{self, Entry, OutputFile};
 use crate::util::out_folder::Ledger;
 
 /// The part of an earlier `provenance.json` read here.
@@ -141,7 +141,7 @@ pub fn remove_other_dataset(ledger: &mut Ledger, id: &str) -> std::io::Result<Ve
         crate::dataset::id::of_svg(&t).map(str::to_string)
     };
     let stems = crate::figures::FIGURE_STEMS;
-    let tagged = crate::collapse_job::TABLES
+    let tagged = crate::job::collapse_job::TABLES
         .iter()
         .map(|s| s.to_string())
         .chain(stems.iter().map(|s| format!("plots/{s}.svg")))

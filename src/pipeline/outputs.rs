@@ -1,18 +1,15 @@
-//! A run's files drawn and written: overlays, the animated impact, the track
-//! CSV, each written whole or not at all.
+//! A run's files drawn, as bytes for the job level to write: overlays, the
+//! animated impact, the track CSV (spooled, never whole in memory).
 
 use super::checks::{frame_rate_checks, saturated_share};
-use super::types::{ProcessError, RunOutcome, TRACK_CSV_IN_MEMORY_MAX};
-use crate::cache::OutputFile;
+use super::types::{RunOutcome, TRACK_CSV_IN_MEMORY_MAX};
 use crate::calibrate::setup_infer::SceneSignature;
 use crate::config::PipelineConfig;
 use crate::dataset::manifest::RunSpec;
 use crate::dataset::{DropRecord, TrackRow};
 use crate::measure::quality;
 use crate::track::{FrameTrack, Track, TrackSettings};
-use crate::util::io::{Durable, Spool};
-use std::io::Write;
-use std::path::Path;
+use crate::util::io::Spool;
 
 /// What a run's files are drawn and written from.
 pub(super) struct Files<'a> {
@@ -125,107 +122,6 @@ pub(super) fn track_row(f: &FrameTrack) -> TrackRow {
         force_n: None,
         flags: f.flags.text(),
     }
-}
-
-/// Write `bytes` to `out/rel` atomically, creating folders.
-pub fn write_file(out: &Path, rel: &str, bytes: &[u8]) -> Result<(), ProcessError> {
-    write_file_as(out, rel, Durable::Now, |f| f.write_all(bytes))
-}
-
-/// Write what `write` writes to `out/rel` atomically, creating folders,
-/// durable as `durable` says.
-pub(super) fn write_file_as(
-    out: &Path,
-    rel: &str,
-    durable: Durable,
-    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
-) -> Result<(), ProcessError> {
-    crate::util::out_folder::write_as(out, rel, durable, write)
-        .map(drop)
-        .map_err(|source| ProcessError::Write {
-            path: out.join(rel),
-            source,
-        })
-}
-
-/// Make the files written by [`write_run_outputs`] (and the cache entries)
-/// into `out` durable, all at once: called before the drops.csv that lists
-/// them. Until then an operating-system crash may leave a run's file short;
-/// the cache finds it by its SHA-256 and processes the run again.
-pub fn sync_outputs(out: &Path) -> Result<(), ProcessError> {
-    crate::util::io::sync_file_system(out).map_err(|source| ProcessError::Write {
-        path: out.to_path_buf(),
-        source,
-    })
-}
-
-/// Write one run's track (`tracks/<run>.csv`), overlays
-/// (`plots/overlays/<run>[_<number>].png`) and animated impact
-/// (`plots/impacts/<run>.png`) into `out`, each atomically but unsynced:
-/// the job makes them durable at once ([`sync_outputs`]) before its
-/// drops.csv. A track, main overlay or animation that this run's previous
-/// cache entry lists, and that this outcome does not have (the run now
-/// fails), is removed while it holds the bytes written then
-/// ([`crate::util::out_folder::remove_if_holds`]). A run whose name
-/// is no file name writes and removes nothing. Returns the files written,
-/// relative to `out`, with the SHA-256 of their bytes.
-pub fn write_run_outputs(out: &Path, o: &RunOutcome) -> Result<Vec<OutputFile>, ProcessError> {
-    let run = &o.record.run;
-    if crate::dataset::run_name::check(run).is_err() {
-        // Its row says why it failed; it has no files and removes none.
-        return Ok(Vec::new());
-    }
-    let track = format!("tracks/{run}.csv");
-    let main_overlay = format!("plots/overlays/{run}.png");
-    let before = crate::cache::listed_outputs(out, run);
-    let remove_if_present = |out: &Path, rel: &str| remove_if_listed(out, rel, &before);
-    let mut written = Vec::new();
-    if o.track_csv.is_empty() {
-        remove_if_present(out, &track)?;
-    } else {
-        // From its spool to the file, never whole in memory.
-        write_file_as(out, &track, Durable::WithTheJob, |f| o.track_csv.copy_to(f))?;
-        written.push(OutputFile {
-            sha256: o.track_csv.sha256_hex(),
-            path: track,
-        });
-    }
-    let mut write = |rel: String, bytes: &[u8]| -> Result<(), ProcessError> {
-        write_file_as(out, &rel, Durable::WithTheJob, |f| f.write_all(bytes))?;
-        written.push(OutputFile::new(rel, bytes));
-        Ok(())
-    };
-    match &o.overlay {
-        Some(png) => write(main_overlay, png)?,
-        None => remove_if_present(out, &main_overlay)?,
-    }
-    let impact = format!("plots/impacts/{run}.png");
-    match &o.impact {
-        Some(apng) => write(impact, apng)?,
-        None => remove_if_present(out, &impact)?,
-    }
-    for (n, png) in &o.frame_overlays {
-        write(format!("plots/overlays/{run}_{n}.png"), png)?;
-    }
-    Ok(written)
-}
-
-/// Remove `out/rel` if `listed` (what an earlier job wrote for the run)
-/// names it and it still holds the bytes listed there.
-pub(super) fn remove_if_listed(
-    out: &Path,
-    rel: &str,
-    listed: &[OutputFile],
-) -> Result<(), ProcessError> {
-    let Some(f) = listed.iter().find(|f| f.path == rel) else {
-        return Ok(());
-    };
-    crate::util::out_folder::remove_if_holds(out, rel, &f.sha256)
-        .map(drop)
-        .map_err(|source| ProcessError::Write {
-            path: out.join(rel),
-            source,
-        })
 }
 
 /// What a run's row says of its recording, its scale and its checks,

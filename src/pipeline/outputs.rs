@@ -137,7 +137,28 @@ pub(super) struct RecordingRow<'a> {
     pub(super) fps_source: &'a str,
 }
 
-impl RecordingRow<'_> {
+impl<'a> RecordingRow<'a> {
+    /// The parts of a run's row that its recording gives.
+    pub(super) fn new(
+        run: &'a RunSpec,
+        cfg: &'a PipelineConfig,
+        meta: &'a crate::source::SourceMeta,
+        tr: &'a Track,
+        sc: &'a crate::calibrate::scale::Scale,
+        edge_offset: Option<(f64, f64)>,
+        fps_source: &'a str,
+    ) -> Self {
+        RecordingRow {
+            run,
+            cfg,
+            meta,
+            tr,
+            sc,
+            edge_offset,
+            fps_source,
+        }
+    }
+
     /// Fill `record`'s manifest, scale and frame-rate columns and flag what
     /// weakens them (scale disagreement, saturation, frame times, an
     /// assumed or disagreeing frame rate).

@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::collapse::groups::{ContactRadius, DropGroups};
-use crate::collapse::{compute_groups, fit, output, CollapseError};
+use crate::collapse::{compute_groups, fit, output, CollapseError, DropOutcome};
 use crate::config::PipelineConfig;
 use crate::dataset::{self, DatasetError};
 use crate::job::per_drop;
@@ -131,48 +131,7 @@ pub fn run(
     };
     let fits = fit::fit_all(&used, settings);
 
-    let mut warnings = Vec::new();
-    let n_geo = used.iter().filter(|g| g.a_source.is_geometric()).count();
-    if n_geo > 0 {
-        let runs: Vec<&str> = used
-            .iter()
-            .filter(|g| g.a_source.is_geometric())
-            .map(|g| g.run.as_str())
-            .take(5)
-            .collect();
-        warnings.push(format!(
-            "GEOMETRIC CONTACT RADIUS: {n_geo} of {} drops use a = sqrt(R^2 - (R - delta)^2) \
-             (requested, a_max_mm missing, or a_max_mm equal to it; e.g. {}). For them \
-             Xi^2 = Psi (2 - Pi) holds by construction, so their collapse of Psi(Xi) is not an \
-             experimental result (docs/physics.md)",
-            used.len(),
-            runs.join(", ")
-        ));
-    }
-    let n_rejected = records
-        .iter()
-        .filter(|r| r.status == dataset::DropStatus::Rejected)
-        .count();
-    // A rejected drop is listed under `skipped` with its reason, and said
-    // apart: a person's decision, not a problem of the row.
-    let n_skipped = outcomes
-        .iter()
-        .filter(|o| o.skipped())
-        .count()
-        .saturating_sub(n_rejected);
-    if n_skipped > 0 {
-        warnings.push(format!(
-            "{n_skipped} of {} rows skipped (listed under `skipped`)",
-            outcomes.len()
-        ));
-    }
-    if n_rejected > 0 {
-        warnings.push(format!(
-            "{} rejected in review left out (listed under `skipped`)",
-            crate::util::text::plural(n_rejected, "drop")
-        ));
-    }
-    warnings.extend(fits.warnings.iter().cloned());
+    let (mut warnings, n_skipped, n_rejected) = warnings_of(&used, &records, &outcomes, &fits);
 
     // Per-drop diagnostics where tracks/<run>.csv exists beside drops.csv.
     let (diags, track_warnings) = per_drop::diagnose_all(&args.drops, &records, |i, _| {
@@ -181,34 +140,7 @@ pub fn run(
     warnings.extend(track_warnings);
     let force_laws: Vec<_> = diags.iter().filter_map(|d| d.force_law.clone()).collect();
 
-    let names: std::collections::BTreeSet<&str> = used.iter().map(|g| g.surface.as_str()).collect();
-    let surfaces = names
-        .into_iter()
-        .map(|n| {
-            let s = &cfg.surfaces[n];
-            output::SurfaceUsed {
-                name: n.to_string(),
-                modulus_pa: s.modulus_pa,
-                pillar_height_m: s.pillar_height_m,
-                solid_fraction: s.solid_fraction,
-            }
-        })
-        .collect();
-    let prov = output::Provenance {
-        dropscope_version: env!("CARGO_PKG_VERSION"),
-        drops_csv: args
-            .drops
-            .file_name()
-            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
-        dataset_id: dataset_id.clone(),
-        contact_radius: match args.contact_radius {
-            ContactRadius::Measured => "measured",
-            ContactRadius::Geometric => "geometric",
-        },
-        bootstrap_resamples: args.bootstrap,
-        seed: args.seed,
-        surfaces,
-    };
+    let prov = provenance(args, cfg, &used, &dataset_id);
 
     let out_dir = args.out_dir();
     let ledger = &mut Ledger::open(&out_dir);
@@ -262,4 +194,95 @@ pub fn run(
         warnings,
         files,
     })
+}
+
+/// The collapse's warnings (drops on the geometric contact radius, rows
+/// skipped, drops rejected in review, the fits'), with the counts of rows
+/// skipped and of drops rejected.
+fn warnings_of(
+    used: &[DropGroups],
+    records: &[dataset::DropRecord],
+    outcomes: &[DropOutcome],
+    fits: &fit::Fits,
+) -> (Vec<String>, usize, usize) {
+    let mut warnings = Vec::new();
+    let n_geo = used.iter().filter(|g| g.a_source.is_geometric()).count();
+    if n_geo > 0 {
+        let runs: Vec<&str> = used
+            .iter()
+            .filter(|g| g.a_source.is_geometric())
+            .map(|g| g.run.as_str())
+            .take(5)
+            .collect();
+        warnings.push(format!(
+            "GEOMETRIC CONTACT RADIUS: {n_geo} of {} drops use a = sqrt(R^2 - (R - delta)^2) \
+             (requested, a_max_mm missing, or a_max_mm equal to it; e.g. {}). For them \
+             Xi^2 = Psi (2 - Pi) holds by construction, so their collapse of Psi(Xi) is not an \
+             experimental result (docs/physics.md)",
+            used.len(),
+            runs.join(", ")
+        ));
+    }
+    let n_rejected = records
+        .iter()
+        .filter(|r| r.status == dataset::DropStatus::Rejected)
+        .count();
+    // A rejected drop is listed under `skipped` with its reason, and said
+    // apart: a person's decision, not a problem of the row.
+    let n_skipped = outcomes
+        .iter()
+        .filter(|o| o.skipped())
+        .count()
+        .saturating_sub(n_rejected);
+    if n_skipped > 0 {
+        warnings.push(format!(
+            "{n_skipped} of {} rows skipped (listed under `skipped`)",
+            outcomes.len()
+        ));
+    }
+    if n_rejected > 0 {
+        warnings.push(format!(
+            "{} rejected in review left out (listed under `skipped`)",
+            crate::util::text::plural(n_rejected, "drop")
+        ));
+    }
+    warnings.extend(fits.warnings.iter().cloned());
+    (warnings, n_skipped, n_rejected)
+}
+
+/// What `fits.json` records of how the collapse was made.
+fn provenance(
+    args: &CollapseArgs,
+    cfg: &PipelineConfig,
+    used: &[DropGroups],
+    dataset_id: &str,
+) -> output::Provenance {
+    let names: std::collections::BTreeSet<&str> = used.iter().map(|g| g.surface.as_str()).collect();
+    let surfaces = names
+        .into_iter()
+        .map(|n| {
+            let s = &cfg.surfaces[n];
+            output::SurfaceUsed {
+                name: n.to_string(),
+                modulus_pa: s.modulus_pa,
+                pillar_height_m: s.pillar_height_m,
+                solid_fraction: s.solid_fraction,
+            }
+        })
+        .collect();
+    output::Provenance {
+        dropscope_version: env!("CARGO_PKG_VERSION"),
+        drops_csv: args
+            .drops
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+        dataset_id: dataset_id.to_string(),
+        contact_radius: match args.contact_radius {
+            ContactRadius::Measured => "measured",
+            ContactRadius::Geometric => "geometric",
+        },
+        bootstrap_resamples: args.bootstrap,
+        seed: args.seed,
+        surfaces,
+    }
 }

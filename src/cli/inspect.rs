@@ -161,13 +161,23 @@ pub fn run_inspect(args: &InspectArgs) -> anyhow::Result<()> {
 
 /// The inspect report as JSON (`json`) or as aligned text.
 pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, crate::source::SourceError> {
-    let d = &m.details;
     let times = m.timestamps_s.as_ref();
     // The first and the last time stamp, when there are any.
     let (first_time, last_time) = match times.filter(|t| !t.is_empty()) {
         Some(t) => (t.get(0)?, t.get(t.len() - 1)?),
         None => (None, None),
     };
+    let times = [first_time, last_time];
+    Ok(if json {
+        inspect_json(m, times)
+    } else {
+        inspect_text(m, times)
+    })
+}
+
+/// The inspect report as JSON; `times`: the first and the last time stamp.
+fn inspect_json(m: &SourceMeta, [first_time, last_time]: [Option<f64>; 2]) -> String {
+    let d = &m.details;
     let value = json!({
         "path": m.path.display().to_string(),
         "format": m.format,
@@ -193,7 +203,7 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, crate::sourc
         "software_version": d.software_version,
         "setup_length": d.setup_length,
         "side_file": d.side_file.as_ref().map(|p| p.display().to_string()),
-        "has_timestamps": times.is_some(),
+        "has_timestamps": m.timestamps_s.is_some(),
         "first_time_s": first_time,
         "last_time_s": last_time,
         "name_prefix": d.frame_names.as_ref().map(|n| n.prefix.clone()),
@@ -205,10 +215,14 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, crate::sourc
         },
         "warnings": d.warnings,
     });
-    if json {
-        let doc = serde_json::to_string_pretty(&value).unwrap_or_default();
-        return Ok(crate::util::text::json(&doc).into_owned());
-    }
+    let doc = serde_json::to_string_pretty(&value).unwrap_or_default();
+    crate::util::text::json(&doc).into_owned()
+}
+
+/// The inspect report as aligned text; `times`: the first and the last
+/// time stamp.
+fn inspect_text(m: &SourceMeta, [first_time, last_time]: [Option<f64>; 2]) -> String {
+    let d = &m.details;
     let opt = |v: Option<String>| v.unwrap_or_else(|| "—".into());
     let mut lines = vec![
         format!("path          {}", m.path.display()),
@@ -237,24 +251,7 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, crate::sourc
             "exposure      {}",
             opt(m.exposure_s.map(|e| format!("{:.3} µs", e * 1e6)))
         ),
-        format!(
-            "gaps          {}",
-            if m.gaps.is_empty() {
-                "none".to_string()
-            } else {
-                m.gaps
-                    .iter()
-                    .map(|(a, b)| {
-                        if a == b {
-                            format!("{a}")
-                        } else {
-                            format!("{a}…{b}")
-                        }
-                    })
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            }
-        ),
+        format!("gaps          {}", gaps_text(&m.gaps)),
         format!(
             "black/white   {} / {}",
             opt(d.black_level.map(|v| v.to_string())),
@@ -304,7 +301,24 @@ pub fn inspect_report(m: &SourceMeta, json: bool) -> Result<String, crate::sourc
     for w in &d.warnings {
         lines.push(format!("warning       {w}"));
     }
-    Ok(lines.join("\n"))
+    lines.join("\n")
+}
+
+/// The gaps in the frame numbers, `a…b` each (`none`).
+fn gaps_text(gaps: &[(i64, i64)]) -> String {
+    if gaps.is_empty() {
+        return "none".to_string();
+    }
+    gaps.iter()
+        .map(|(a, b)| {
+            if a == b {
+                format!("{a}")
+            } else {
+                format!("{a}…{b}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// `--numbers A:B` (or `A`): the indices of camera numbers A..B−1.

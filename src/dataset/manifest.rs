@@ -218,97 +218,7 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
         if runs.iter().any(|x| x.run == r.run) {
             return Err(row_err(row, format!("run `{}` is listed twice", r.run)));
         }
-        // Each number within its physical range ([`crate::util::ranges`]).
-        let ranged = |col: &str,
-                      range: crate::util::ranges::Range,
-                      v: Option<f64>|
-         -> Result<Option<f64>, ManifestError> {
-            match v {
-                Some(x) if x.is_finite() && x <= 0.0 => Err(row_err(
-                    row,
-                    format!("column `{col}` = {x}: must be a number greater than 0"),
-                )),
-                Some(x) => match range.check(x) {
-                    Ok(_) => Ok(v),
-                    Err(allowed) => Err(row_err(
-                        row,
-                        format!(
-                            "column `{col}` = {}: {allowed}",
-                            crate::util::ranges::show(x)
-                        ),
-                    )),
-                },
-                None => Ok(v),
-            }
-        };
-        use crate::util::ranges::{
-            DENSITY_KG_M3, DROP_HEIGHT_CM, FPS, MM_PER_PX, SPHERE_RADIUS_MM,
-        };
-        ranged(
-            "sphere_radius_mm",
-            SPHERE_RADIUS_MM,
-            Some(r.sphere_radius_mm),
-        )?;
-        let fps = ranged("fps", FPS, r.fps)?;
-        let mm_per_px = ranged("mm_per_px", MM_PER_PX, r.mm_per_px)?;
-        let density = ranged(
-            "sphere_density_kg_m3",
-            DENSITY_KG_M3,
-            r.sphere_density_kg_m3,
-        )?;
-        let height = ranged("drop_height_cm", DROP_HEIGHT_CM, r.drop_height_cm)?;
-        if r.path
-            .as_os_str()
-            .to_string_lossy()
-            .chars()
-            .any(|c| c.is_control())
-        {
-            return Err(row_err(
-                row,
-                format!(
-                    "column `path` = {:?}: holds a control character",
-                    crate::util::text::one_line(&r.path.to_string_lossy())
-                ),
-            ));
-        }
-        for (col, v) in [("surface", &r.surface), ("setup", &r.setup)] {
-            if let Some(v) = v.as_deref().filter(|v| {
-                v.chars()
-                    .any(|c| c.is_control() || crate::util::text::is_format(c))
-            }) {
-                return Err(row_err(
-                    row,
-                    format!(
-                        "column `{col}` = {:?}: holds a control or invisible format character",
-                        crate::util::text::one_line(v)
-                    ),
-                ));
-            }
-        }
-        if let Some(d) = r.number_digits.filter(|d| !(1..=18).contains(d)) {
-            return Err(row_err(
-                row,
-                format!("column `number_digits` = {d}: must be a whole number from 1 to 18"),
-            ));
-        }
-        let p = if r.path.is_absolute() {
-            r.path.clone()
-        } else {
-            base.join(&r.path)
-        };
-        runs.push(RunSpec {
-            run: r.run,
-            path: p,
-            sphere_radius_mm: r.sphere_radius_mm,
-            drop_height_cm: height,
-            fps,
-            mm_per_px,
-            surface: r.surface.filter(|s| !s.is_empty()),
-            sphere_density_kg_m3: density,
-            setup: r.setup.filter(|s| !s.is_empty()),
-            review: Default::default(),
-            number_digits: r.number_digits.map(|d| d as usize),
-        });
+        runs.push(run_of(r, base).map_err(|message| row_err(row, message))?);
     }
     if runs.is_empty() {
         return Err(ManifestError::Empty {
@@ -316,6 +226,91 @@ pub fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Vec<RunSpec>, Manifes
         });
     }
     Ok(runs)
+}
+
+/// The run of a manifest row `r` whose run name is checked: each number
+/// within its physical range ([`crate::util::ranges`]), no control
+/// character in a path or name, a relative path taken from `base`; or what
+/// is wrong with the row.
+fn run_of(r: ManifestRow, base: &Path) -> Result<RunSpec, String> {
+    // Each number within its physical range ([`crate::util::ranges`]).
+    let ranged = |col: &str,
+                  range: crate::util::ranges::Range,
+                  v: Option<f64>|
+     -> Result<Option<f64>, String> {
+        match v {
+            Some(x) if x.is_finite() && x <= 0.0 => Err(format!(
+                "column `{col}` = {x}: must be a number greater than 0"
+            )),
+            Some(x) => match range.check(x) {
+                Ok(_) => Ok(v),
+                Err(allowed) => Err(format!(
+                    "column `{col}` = {}: {allowed}",
+                    crate::util::ranges::show(x)
+                )),
+            },
+            None => Ok(v),
+        }
+    };
+    use crate::util::ranges::{DENSITY_KG_M3, DROP_HEIGHT_CM, FPS, MM_PER_PX, SPHERE_RADIUS_MM};
+    ranged(
+        "sphere_radius_mm",
+        SPHERE_RADIUS_MM,
+        Some(r.sphere_radius_mm),
+    )?;
+    let fps = ranged("fps", FPS, r.fps)?;
+    let mm_per_px = ranged("mm_per_px", MM_PER_PX, r.mm_per_px)?;
+    let density = ranged(
+        "sphere_density_kg_m3",
+        DENSITY_KG_M3,
+        r.sphere_density_kg_m3,
+    )?;
+    let height = ranged("drop_height_cm", DROP_HEIGHT_CM, r.drop_height_cm)?;
+    if r.path
+        .as_os_str()
+        .to_string_lossy()
+        .chars()
+        .any(|c| c.is_control())
+    {
+        return Err(format!(
+            "column `path` = {:?}: holds a control character",
+            crate::util::text::one_line(&r.path.to_string_lossy())
+        ));
+    }
+    for (col, v) in [("surface", &r.surface), ("setup", &r.setup)] {
+        if let Some(v) = v.as_deref().filter(|v| {
+            v.chars()
+                .any(|c| c.is_control() || crate::util::text::is_format(c))
+        }) {
+            return Err(format!(
+                "column `{col}` = {:?}: holds a control or invisible format character",
+                crate::util::text::one_line(v)
+            ));
+        }
+    }
+    if let Some(d) = r.number_digits.filter(|d| !(1..=18).contains(d)) {
+        return Err(format!(
+            "column `number_digits` = {d}: must be a whole number from 1 to 18"
+        ));
+    }
+    let p = if r.path.is_absolute() {
+        r.path.clone()
+    } else {
+        base.join(&r.path)
+    };
+    Ok(RunSpec {
+        run: r.run,
+        path: p,
+        sphere_radius_mm: r.sphere_radius_mm,
+        drop_height_cm: height,
+        fps,
+        mm_per_px,
+        surface: r.surface.filter(|s| !s.is_empty()),
+        sphere_density_kg_m3: density,
+        setup: r.setup.filter(|s| !s.is_empty()),
+        review: Default::default(),
+        number_digits: r.number_digits.map(|d| d as usize),
+    })
 }
 
 /// What is wrong with a header, if anything: required columns missing,

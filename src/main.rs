@@ -106,7 +106,7 @@ enum Command {
     /// shard (`run --shard slurm`), and a finishing job (`run`) that starts
     /// once every task succeeded and assembles drops.csv, the collapse and
     /// the report. Writes both scripts; --submit also submits them.
-    Slurm(dropscope::job::slurm::SlurmArgs),
+    Slurm(dropscope::cli::slurm::SlurmArgs),
     /// Write DIR/report.html from the drops.csv, collapse files and plots in DIR.
     ///
     /// Refuses a folder whose collapse files were computed from another
@@ -589,8 +589,9 @@ fn run_check_config(config: Option<&std::path::Path>) -> anyhow::Result<ExitCode
 }
 
 /// `dropscope slurm`: write the scripts, and with --submit submit them.
-fn run_slurm(args: &dropscope::job::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
+fn run_slurm(args: &dropscope::cli::slurm::SlurmArgs) -> anyhow::Result<ExitCode> {
     use dropscope::job::slurm;
+    let args = &args.options();
     let (cfg, name) = load_config(args.config.as_deref())?;
     // The jobs would fail on a configuration naming no runs: say it now.
     let runs = dropscope::job::batch::configured_runs(&cfg, &name)?;

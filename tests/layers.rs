@@ -36,8 +36,7 @@
 //!   clap's traits on their own types.
 //!
 //! Waiting for code to move first: clap's derives out of `job/collapse_job.rs`
-//! (`CollapseArgs`), `job/slurm.rs` (`SlurmArgs`), `collapse/groups.rs` and
-//! `render/` into `cli/`; `dataset/`, `collapse/` and `report/` without
+//! (`CollapseArgs`), `collapse/groups.rs` and `render/` into `cli/`; `dataset/`, `collapse/` and `report/` without
 //! `std::fs` (`dataset/record.rs` reads its CSV, `collapse/diagnostics.rs`
 //! the tracks, `report/` reads the output folder and writes report.html).
 
@@ -92,7 +91,6 @@ const CLAP_FILES: &[&str] = &[
     "main.rs",
     "cli/",
     "job/collapse_job.rs",
-    "job/slurm.rs",
     "collapse/groups.rs",
     "render/contact.rs",
     "render/export.rs",

@@ -6,10 +6,12 @@
 //! | --- | --- |
 //! | [`run`] | [`run::RunArgs`], `dropscope run` (the main job) |
 //! | [`process`] | [`process::ProcessArgs`], `dropscope process` |
+//! | [`slurm`] | [`slurm::SlurmArgs`], `dropscope slurm` |
 //! | [`values`] | [`values::RecordingArgs`]: `--fps`, `--mm-per-px`, `--surface-row-px` for recordings that lack them |
 //! | [`inspect`] | `dropscope inspect` and `dropscope export`: what an input holds, its frames as 16-bit PNG |
 
 pub mod inspect;
 pub mod process;
 pub mod run;
+pub mod slurm;
 pub mod values;

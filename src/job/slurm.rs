@@ -10,36 +10,28 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The command line of `dropscope slurm`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct SlurmArgs {
+/// What `dropscope slurm` is asked for (the command line's
+/// `crate::cli::slurm::SlurmOptions`, checked).
+#[derive(Debug, Clone)]
+pub struct SlurmOptions {
     /// Tasks of the array: the runs are split into this many frame-balanced shares.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub array: u32,
     /// Slurm partition (default: the cluster's default partition).
-    #[arg(long)]
     pub partition: Option<String>,
     /// Time limit of each task and of the finishing job, as sbatch takes it (e.g. 2:00:00).
-    #[arg(long)]
     pub time: Option<String>,
     /// Memory of each task and of the finishing job, as sbatch takes it (e.g. 4G).
-    #[arg(long)]
     pub mem: Option<String>,
     /// CPUs of each task; the task runs that many worker threads.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
     pub cpus_per_task: u16,
     /// The configuration file (default: ./pipeline.toml, else the embedded default).
-    #[arg(long)]
     pub config: Option<PathBuf>,
     /// Output folder (default: the configuration's output.dir); it must be
     /// on a file system every node sees.
-    #[arg(long)]
     pub out: Option<PathBuf>,
     /// Folder for the two scripts and the jobs' logs (default: OUT.slurm beside OUT).
-    #[arg(long)]
     pub scripts: Option<PathBuf>,
     /// Submit both jobs with sbatch and print their ids.
-    #[arg(long)]
     pub submit: bool,
 }
 
@@ -114,7 +106,7 @@ fn sbatch_path_char(c: char) -> bool {
 /// folder and the logs' folder (written into `#SBATCH` lines:
 /// `SBATCH_PATH`), and the binary, configuration and output folder
 /// (quoted in the command line: any character but a control or format one).
-pub fn check_values(args: &SlurmArgs, plan: &Plan) -> Result<(), SlurmError> {
+pub fn check_values(args: &SlurmOptions, plan: &Plan) -> Result<(), SlurmError> {
     if let Some(p) = &args.partition {
         check_field("--partition", p, "letters, digits and _ . , -", |c| {
             c.is_ascii_alphanumeric() || "_.,-".contains(c)
@@ -222,7 +214,7 @@ impl Plan {
     /// output folder the configuration names and `local_config` the
     /// configuration file found there when `--config` is not given.
     pub fn new(
-        args: &SlurmArgs,
+        args: &SlurmOptions,
         workdir: &Path,
         out: &Path,
         local_config: Option<&Path>,
@@ -258,7 +250,7 @@ pub fn quote(s: &Path) -> String {
 }
 
 /// The `#SBATCH` lines both jobs share.
-fn resources(args: &SlurmArgs) -> String {
+fn resources(args: &SlurmOptions) -> String {
     let mut s = format!("#SBATCH --cpus-per-task={}\n", args.cpus_per_task);
     for (flag, value) in [
         ("partition", &args.partition),
@@ -287,7 +279,7 @@ fn run_line(plan: &Plan, extra: &str) -> String {
 }
 
 /// The array job's script: task K of N runs shard K/N.
-pub fn array_script(args: &SlurmArgs, plan: &Plan) -> String {
+pub fn array_script(args: &SlurmOptions, plan: &Plan) -> String {
     format!(
         "#!/bin/bash\n\
          # dropscope {version}: the main job's runs in {n} frame-balanced shards, one per task;\n\
@@ -310,7 +302,7 @@ pub fn array_script(args: &SlurmArgs, plan: &Plan) -> String {
 
 /// The finishing job's script: the whole job, which finds every run in the
 /// cache and assembles drops.csv, the collapse and the report.
-pub fn finish_script(args: &SlurmArgs, plan: &Plan) -> String {
+pub fn finish_script(args: &SlurmOptions, plan: &Plan) -> String {
     format!(
         "#!/bin/bash\n\
          # dropscope {version}: after every task of the array succeeded, assemble drops.csv,\n\
@@ -330,7 +322,7 @@ pub fn finish_script(args: &SlurmArgs, plan: &Plan) -> String {
 
 /// Write both scripts (and the logs folder) into `plan.scripts`, once
 /// every value they hold is checked ([`check_values`]).
-pub fn write_scripts(args: &SlurmArgs, plan: &Plan) -> Result<Scripts, SlurmError> {
+pub fn write_scripts(args: &SlurmOptions, plan: &Plan) -> Result<Scripts, SlurmError> {
     check_values(args, plan)?;
     let io = |path: &Path| {
         let path = path.to_path_buf();
@@ -406,8 +398,8 @@ pub fn submit(scripts: &Scripts) -> Result<Submitted, SlurmError> {
 mod tests {
     use super::*;
 
-    fn args() -> SlurmArgs {
-        SlurmArgs {
+    fn args() -> SlurmOptions {
+        SlurmOptions {
             array: 3,
             partition: None,
             time: Some("1:00:00".into()),
@@ -467,7 +459,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let mut p = plan();
         p.scripts = dir.path().join("s");
-        type Edit = fn(&mut SlurmArgs, &mut Plan);
+        type Edit = fn(&mut SlurmOptions, &mut Plan);
         let cases: [(&str, Edit); 9] = [
             ("--partition", |a, _| {
                 a.partition = Some("debug\ntouch /tmp/x".into())

@@ -39,7 +39,7 @@ use std::time::Instant;
 #[derive(Parser)]
 struct Cli {
     #[command(flatten)]
-    args: dropscope::render::RenderArgs,
+    args: dropscope::cli::render::RenderArgs,
 }
 
 fn movie(args: &[&str], dir: &std::path::Path) -> MemorySource {
@@ -47,7 +47,7 @@ fn movie(args: &[&str], dir: &std::path::Path) -> MemorySource {
     let mut argv = vec!["render", "--preset", "realistic", "--seed", "5"];
     argv.extend_from_slice(args);
     argv.extend_from_slice(&["--out", out]);
-    let report = dropscope::render::render(&Cli::parse_from(argv).args).expect("render");
+    let report = dropscope::render::render(&Cli::parse_from(argv).args.options()).expect("render");
     let mut src = open(&report.drops[0].dir, &OpenOptions::default()).expect("open");
     MemorySource::load(src.as_mut()).expect("load")
 }

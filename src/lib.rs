@@ -22,7 +22,7 @@
 //! | [`pipeline`] | one run (or camera set-up): open → track → calibrate → measure → its record, track rows and pictures; writes nothing into the output folder |
 //! | [`job`] | many runs into an output folder: `run`, `process`, `collapse`, the cache, the lock, shards, Slurm, progress |
 //! | [`review`] | `dropscope review`: every frame of a drop in a local web page; a person's decisions written to `review.csv` ([`dataset::decisions`]) |
-//! | [`cli`] | the command line: clap's flags for `run` and `process`, the values every command checks, `inspect` and `export` |
+//! | [`cli`] | the command line, clap's only home: every command's flags, parsed into the plain options of the modules above; `inspect` and `export` |
 //!
 //! Conventions, kept everywhere: the centre of pixel (0, 0) is at (0.0, 0.0),
 //! column `x` grows to the right and row `z` grows downward. Quantities carry

@@ -58,11 +58,11 @@ enum Command {
     /// `<input>_frames.csv` gives each file's camera number and time.
     Export(dropscope::cli::inspect::ExportArgs),
     /// Render synthetic drops with exact truth, as PCC-style frame folders.
-    Render(Box<dropscope::render::RenderArgs>),
+    Render(Box<dropscope::cli::render::RenderArgs>),
     /// Dimensionless groups, Ψ(Ξ) and Ω(Ξ) fits, exponents and plots from a drops.csv.
     Collapse {
         #[command(flatten)]
-        args: dropscope::job::collapse_job::CollapseArgs,
+        args: dropscope::cli::collapse::CollapseArgs,
         /// When another job holds the output folder, wait for it to end.
         #[arg(long)]
         wait: bool,
@@ -382,7 +382,7 @@ fn speed(frames: usize, secs: f64, threads: usize) -> String {
 
 /// `dropscope collapse`: groups, fits and plots; exit 1 when rows were skipped.
 fn run_collapse(
-    args: &dropscope::job::collapse_job::CollapseArgs,
+    args: &dropscope::job::collapse_job::CollapseOptions,
     wait: bool,
 ) -> anyhow::Result<ExitCode> {
     let (cfg, name) = load_config(args.config.as_deref())?;
@@ -414,7 +414,7 @@ fn run_collapse(
 }
 
 /// `dropscope render`: render, then one summary line (with the speed) on stderr.
-fn run_render(args: &dropscope::render::RenderArgs) -> anyhow::Result<ExitCode> {
+fn run_render(args: &dropscope::render::RenderOptions) -> anyhow::Result<ExitCode> {
     let start = std::time::Instant::now();
     let report = dropscope::render::render_with_progress(args, &mut |done, total, run| {
         dropscope::errln!("[{}/{total}] {run}", done + 1);
@@ -706,8 +706,8 @@ fn main() -> ExitCode {
             dropscope::cli::inspect::run_inspect(&args).map(|()| ExitCode::SUCCESS)
         }
         Command::Export(args) => run_export(&args),
-        Command::Render(args) => run_render(&args),
-        Command::Collapse { args, wait } => run_collapse(&args, wait),
+        Command::Render(args) => run_render(&args.options()),
+        Command::Collapse { args, wait } => run_collapse(&args.options(), wait),
         Command::Process { args, wait } => run_process(&args, wait),
         Command::Report {
             dir,

@@ -12,15 +12,15 @@ use dropscope::collapse::synthetic::{
 };
 use dropscope::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use dropscope::dataset::{self, DropRecord};
-use dropscope::job::collapse_job::{self, CollapseArgs};
+use dropscope::job::collapse_job::{self, CollapseOptions};
 
 fn config() -> PipelineConfig {
     PipelineConfig::from_toml_str(EMBEDDED_DEFAULT, Path::new("pipeline.toml"), Path::new("."))
         .unwrap()
 }
 
-fn args(drops: &Path, out: &Path, plots: bool) -> CollapseArgs {
-    CollapseArgs {
+fn args(drops: &Path, out: &Path, plots: bool) -> CollapseOptions {
+    CollapseOptions {
         drops: drops.to_path_buf(),
         out: Some(out.to_path_buf()),
         config: None,

@@ -31,12 +31,10 @@
 //!   live in a file of their own;
 //! - lib.rs's table lists every folder, leaves first, each importing only
 //!   those before it (the README's layout table is the same list);
-//! - `clap` only in the files that hold command-line arguments
-//!   ([`CLAP_FILES`]): `cli/`, `main.rs`, and the few that still derive
-//!   clap's traits on their own types.
+//! - `clap` only in `cli/` and `main.rs` ([`CLAP_FILES`]): below them,
+//!   plain settings.
 //!
-//! Waiting for code to move first: clap's derives out of `job/collapse_job.rs`
-//! (`CollapseArgs`), `collapse/groups.rs` and `render/` into `cli/`; `dataset/`, `collapse/` and `report/` without
+//! Waiting for code to move first: `dataset/`, `collapse/` and `report/` without
 //! `std::fs` (`dataset/record.rs` reads its CSV, `collapse/diagnostics.rs`
 //! the tracks, `report/` reads the output folder and writes report.html).
 
@@ -86,16 +84,8 @@ const BELOW_CLI: &[&str] = &[
     "review/",
 ];
 /// The files that hold command-line arguments (clap's derives): `cli/` and
-/// `main.rs`, and the types below them that still derive clap's traits.
-const CLAP_FILES: &[&str] = &[
-    "main.rs",
-    "cli/",
-    "job/collapse_job.rs",
-    "collapse/groups.rs",
-    "render/contact.rs",
-    "render/export.rs",
-    "render/options.rs",
-];
+/// `main.rs` alone.
+const CLAP_FILES: &[&str] = &["main.rs", "cli/"];
 
 /// What a part may import: only the groups listed (and itself), or anything
 /// but them.

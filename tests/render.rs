@@ -6,6 +6,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use clap::Parser;
+use dropscope::cli::render::RenderArgs;
 use dropscope::config::Surface;
 use dropscope::render::physics::{
     damping_for_restitution, ContactLaw, DropParams, Trajectory, BETA_THIRD_HALF,
@@ -13,7 +14,7 @@ use dropscope::render::physics::{
 };
 use dropscope::render::raster::{Look, Raster, Scene};
 use dropscope::render::truth::Truth;
-use dropscope::render::{render, rng_for, Preset, RenderArgs};
+use dropscope::render::{render, rng_for, Preset, RenderOptions};
 
 #[derive(Parser)]
 struct Cli {
@@ -21,10 +22,13 @@ struct Cli {
     args: RenderArgs,
 }
 
-pub(crate) fn args(list: &[&str]) -> RenderArgs {
+pub(crate) fn args(list: &[&str]) -> RenderOptions {
     let mut v = vec!["render"];
     v.extend_from_slice(list);
-    Cli::try_parse_from(v).expect("valid render arguments").args
+    Cli::try_parse_from(v)
+        .expect("valid render arguments")
+        .args
+        .options()
 }
 
 fn params(radius_mm: f64, v_m_s: f64, g: f64) -> DropParams {

@@ -112,7 +112,7 @@ impl ASource {
 }
 
 /// Which contact radius to use (`--contact-radius`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ContactRadius {
     /// `a_max_mm`, the measured half-width (falls back to geometric, loudly, when missing).
     #[default]

@@ -15,7 +15,7 @@ use crate::config::PipelineConfig;
 use crate::dataset::manifest::{read_job_manifest, RunSpec};
 use crate::dataset::{DropRecord, DropStatus};
 use crate::job::cache::{self, Entry};
-use crate::job::collapse_job::CollapseArgs;
+use crate::job::collapse_job::CollapseOptions;
 use crate::job::run_outputs::{write_file, write_run_outputs};
 use crate::pipeline::process_setup;
 use crate::source::listing::{recording_kind, Listing};
@@ -806,7 +806,7 @@ fn job_on_pool(
         .map_err(io(out))?;
     let (collapsed, collapse_warnings, collapse_note) = if measured > 0 {
         events(RunEvent::Collapsing);
-        let args = CollapseArgs {
+        let args = CollapseOptions {
             drops: out.join("drops.csv"),
             out: Some(out.to_path_buf()),
             config: None,

@@ -12,31 +12,26 @@ use crate::dataset::{self, DatasetError};
 use crate::job::per_drop;
 use crate::util::out_folder::Ledger;
 
-/// `dropscope collapse DROPS.csv [--out DIR] [--config FILE]`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct CollapseArgs {
+/// What `dropscope collapse` is asked for (the command line's
+/// `crate::cli::collapse::CollapseOptions`).
+#[derive(Debug, Clone)]
+pub struct CollapseOptions {
     /// The per-drop dataset (drops.csv from `process`, or any CSV with its columns).
     pub drops: PathBuf,
     /// Output folder (default: the folder holding DROPS, so that the
     /// collapse sits beside the dataset it was computed from).
-    #[arg(long)]
     pub out: Option<PathBuf>,
     /// The configuration holding the `[surface.<name>]` materials
     /// (default: ./pipeline.toml, else the embedded default).
-    #[arg(long)]
     pub config: Option<PathBuf>,
     /// Which contact radius enters ξ and Ξ. `geometric` makes Ψ(Ξ) hold by
     /// construction (Ξ² = Ψ(2 − Π)); use it only to compare.
-    #[arg(long, value_enum, default_value_t = ContactRadius::Measured)]
     pub contact_radius: ContactRadius,
     /// Bootstrap resamples for the 95 % intervals.
-    #[arg(long, default_value_t = 2000)]
     pub bootstrap: usize,
     /// Seed of the bootstrap (same seed, same intervals).
-    #[arg(long, default_value_t = 20190614)]
     pub seed: u64,
     /// Do not draw plots (collapse.csv and fits.json only).
-    #[arg(long)]
     pub no_plots: bool,
 }
 
@@ -95,7 +90,7 @@ fn beside(drops: &Path) -> PathBuf {
     }
 }
 
-impl CollapseArgs {
+impl CollapseOptions {
     /// The folder [`run`] writes into: `--out`, else beside DROPS.
     pub fn out_dir(&self) -> PathBuf {
         self.out.clone().unwrap_or_else(|| beside(&self.drops))
@@ -105,7 +100,7 @@ impl CollapseArgs {
 /// Run the collapse stage: read `args.drops`, write everything into the
 /// output folder. `config_name` names the configuration in messages.
 pub fn run(
-    args: &CollapseArgs,
+    args: &CollapseOptions,
     cfg: &PipelineConfig,
     config_name: &str,
 ) -> Result<CollapseSummary, CollapseError> {
@@ -252,7 +247,7 @@ fn warnings_of(
 
 /// What `fits.json` records of how the collapse was made.
 fn provenance(
-    args: &CollapseArgs,
+    args: &CollapseOptions,
     cfg: &PipelineConfig,
     used: &[DropGroups],
     dataset_id: &str,

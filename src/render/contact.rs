@@ -30,7 +30,7 @@ pub const WIDE_EXPONENT: (f64, f64) = (1.4, 2.6);
 pub const WIDE_RESTITUTION: (f64, f64) = (0.3, 0.98);
 
 /// How each drop's contact law is chosen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ContactMode {
     /// The measurement's model, `π E φ R δ² / h`, with linear damping solved
     /// for `--restitution`; or the law the options below set.
@@ -42,7 +42,7 @@ pub enum ContactMode {
 }
 
 /// The damping named on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DampingArg {
     /// No damping: restitution 1.
     None,

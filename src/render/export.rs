@@ -48,7 +48,7 @@ pub enum ExportError {
 }
 
 /// How the frames of a run are stored.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum FrameFormat {
     /// Uncompressed baseline TIFF, one file per frame (as PCC's TIF8/TIF16).
@@ -65,7 +65,7 @@ pub enum FrameFormat {
 }
 
 /// How a rendered `.cine` stores its samples (`--packing`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CinePackingChoice {
     /// One byte a sample for 8-bit frames, a 16-bit container for 12-bit ones.

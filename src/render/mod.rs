@@ -12,7 +12,7 @@
 //! | [`export`] | frame files, the PCC XML side file, `truth.json` |
 //! | [`truth`] | the `truth.json` schema |
 //! | `one_drop` | one drop, from its layout to its frames and `truth.json` ([`render_drop`]) |
-//! | `options` | presets, [`RenderArgs`] and [`RenderSettings`] |
+//! | `options` | presets, [`RenderOptions`] and [`RenderSettings`] |
 //! | [`campaign`] | the paper's grid and the `runs.csv` manifest |
 //!
 //! # Conventions
@@ -49,7 +49,7 @@ pub mod truth;
 
 pub use error::RenderError;
 pub use one_drop::{default_mm_per_px, render_drop, DropSummary};
-pub use options::{Preset, RenderArgs, RenderSettings};
+pub use options::{Preset, RenderOptions, RenderSettings};
 pub use rng::rng_for;
 
 use std::path::{Path, PathBuf};
@@ -76,13 +76,13 @@ impl RenderReport {
 
 /// Run `dropscope render`: every drop asked for, then the manifest.
 /// A drop that fails is reported and the others carry on.
-pub fn render(args: &RenderArgs) -> Result<RenderReport, RenderError> {
+pub fn render(args: &RenderOptions) -> Result<RenderReport, RenderError> {
     render_with_progress(args, &mut |_, _, _| {})
 }
 
 /// [`render`], calling `progress(done, total, run)` after each drop.
 pub fn render_with_progress(
-    args: &RenderArgs,
+    args: &RenderOptions,
     progress: &mut dyn FnMut(usize, usize, &str),
 ) -> Result<RenderReport, RenderError> {
     let settings = args.settings()?;
@@ -125,7 +125,7 @@ pub fn render_with_progress(
 fn write_manifest(
     path: &Path,
     report: &RenderReport,
-    args: &RenderArgs,
+    args: &RenderOptions,
     settings: &RenderSettings,
     with_scale: bool,
 ) -> Result<(), RenderError> {

@@ -9,7 +9,7 @@ use crate::collapse::groups::ContactRadius;
 use crate::collapse::synthetic::{eq8_dataset, SyntheticSpec};
 use crate::config::{PipelineConfig, EMBEDDED_DEFAULT};
 use crate::dataset::{self, DropRecord, DropStatus};
-use crate::job::collapse_job::CollapseArgs;
+use crate::job::collapse_job::CollapseOptions;
 
 const EVIL_RUN: &str = "<script>alert(\"run\")</script>";
 const EVIL_REASON: &str = "cannot open /data/a&b/<img src=x onerror=alert(1)>.cine: 'bad'";
@@ -36,7 +36,7 @@ fn collapse_into(out: &Path, recs: &[DropRecord]) {
     let cfg =
         PipelineConfig::from_toml_str(EMBEDDED_DEFAULT, Path::new("pipeline.toml"), Path::new("."))
             .unwrap();
-    let args = CollapseArgs {
+    let args = CollapseOptions {
         drops,
         out: Some(out.to_path_buf()),
         config: None,

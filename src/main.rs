@@ -458,7 +458,7 @@ fn run_report(
         None
     };
     let records = dropscope::dataset::read_csv(&out.join("drops.csv"))?;
-    let path = dropscope::report::write_report(&out, &name, &records)?;
+    let path = dropscope::job::report_job::write_report(&out, &name, &records)?;
     say(format_args!("report: {}\n", path.display()))?;
     Ok(ExitCode::SUCCESS)
 }

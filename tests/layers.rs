@@ -36,7 +36,7 @@
 //!
 //! Waiting for code to move first: `dataset/`, `collapse/` and `report/` without
 //! `std::fs` (`dataset/record.rs` reads its CSV, `collapse/diagnostics.rs`
-//! the tracks, `report/` reads the output folder and writes report.html).
+//! the tracks, `report/` reads the files of the output folder it shows).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};

@@ -831,7 +831,7 @@ fn job_on_pool(
     };
     drop(collapse);
     timings::time(Stage::Report, || {
-        crate::report::write_report(out, config_name, &records)
+        crate::job::report_job::write_report(out, config_name, &records)
     })?;
     Ok(JobSummary {
         records,

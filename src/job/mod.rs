@@ -8,6 +8,7 @@
 //! | [`batch`] | the main job (`dropscope run`): every run → process → collapse → report, with progress |
 //! | [`process_job`] | `dropscope process`: the runs through the main job's cache → drops.csv, per-drop figures |
 //! | [`collapse_job`] | `dropscope collapse`: drops.csv → the collapse's tables and figures |
+//! | [`report_job`] | `report.html` written into the output folder |
 //! | [`per_drop`] | the per-drop figures drawn from the tracks beside a drops.csv |
 //! | [`cache`] | the per-run result cache: input fingerprints, keys, entries |
 //! | [`leftovers`] | an earlier job's files that this job did not write again |
@@ -25,6 +26,7 @@ pub mod lock;
 pub mod per_drop;
 pub mod process_job;
 pub mod progress;
+pub mod report_job;
 pub mod run_outputs;
 pub mod shard;
 pub mod slurm;

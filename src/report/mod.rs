@@ -10,8 +10,9 @@
 //!
 //! The page reads what the other stages wrote into the output folder
 //! (`collapse.csv`, `fits.json`, `plots/*.svg`, `plots/overlays/<run>.png`,
-//! `plots/impacts/<run>.png`, `plots/drops/<run>.svg`) and recomputes
-//! nothing. It stays small for thousands of drops: the collapse plots are
+//! `plots/impacts/<run>.png`, `plots/drops/<run>.svg`), recomputes nothing
+//! and writes nothing: [`render_report`] returns its bytes, the job level
+//! writes them (`crate::job::report_job`). It stays small for thousands of drops: the collapse plots are
 //! inline SVG and each overlay an inline thumbnail (a JPEG `data:` URI);
 //! the full-size overlay, the animated impact and the per-drop figure are
 //! the files beside the page, named by relative paths inside `plots/` and
@@ -503,24 +504,4 @@ pub fn render_report(out_dir: &Path, config_name: &str, records: &[DropRecord]) 
          </body></html>"
     );
     out.into_bytes()
-}
-
-/// Write `out_dir/report.html` (atomically) and return its path.
-pub fn write_report(
-    out_dir: &Path,
-    config_name: &str,
-    records: &[DropRecord],
-) -> Result<PathBuf, ReportError> {
-    let mut ledger = Ledger::open(out_dir);
-    check_one_dataset(out_dir)?;
-    let path = out_dir.join("report.html");
-    let bytes = render_report(out_dir, config_name, records);
-    ledger
-        .write_as("report.html", &bytes, crate::util::io::Durable::Now)
-        .and_then(|_| ledger.save())
-        .map_err(|source| ReportError::Write {
-            path: path.clone(),
-            source,
-        })?;
-    Ok(path)
 }

@@ -187,45 +187,8 @@ pub fn compute(
     surface: &Surface,
     choice: ContactRadius,
 ) -> Result<DropGroups, SkipReason> {
-    if rec.status == DropStatus::Failed {
-        let why = if rec.reason.is_empty() {
-            "no reason given"
-        } else {
-            &rec.reason
-        };
-        return Err(SkipReason(format!("status failed ({why})")));
-    }
-    if rec.status == DropStatus::Rejected {
-        return Err(SkipReason(format!("status rejected ({})", rec.reason)));
-    }
-    if rec.status == DropStatus::Tracked {
-        return Err(SkipReason(
-            "status tracked: no contact, so no impact to collapse".into(),
-        ));
-    }
-    let r_mm = positive("sphere_radius_mm", Some(rec.sphere_radius_mm))?;
-    let rho = positive("sphere_density_kg_m3", Some(rec.sphere_density_kg_m3))?;
-    // A hand-made drops.csv's radius and density within their physical
-    // ranges, so that every group below is a finite number.
-    for (name, range, x) in [
-        (
-            "sphere_radius_mm",
-            crate::util::ranges::SPHERE_RADIUS_MM,
-            r_mm,
-        ),
-        (
-            "sphere_density_kg_m3",
-            crate::util::ranges::DENSITY_KG_M3,
-            rho,
-        ),
-    ] {
-        range.check(x).map_err(|allowed| {
-            SkipReason(format!(
-                "{name} = {}: {allowed}",
-                crate::util::ranges::show(x)
-            ))
-        })?;
-    }
+    measured_status(rec)?;
+    let (r_mm, rho) = sphere(rec)?;
     let v = positive("v_impact_m_s", rec.v_impact_m_s)?;
     let delta_mm = positive("delta_max_mm", rec.delta_max_mm)?;
     if delta_mm >= r_mm {
@@ -233,43 +196,7 @@ pub fn compute(
             "delta_max_mm = {delta_mm} is not smaller than the radius {r_mm} mm"
         )));
     }
-    // The geometric contact radius √(R² − (R − δ)²) and its first-order error
-    // σ_a = (R − δ)/a · σ_δ, used when `a_geom_mm_err` is empty (its
-    // correlation with δ is not carried: such drops are flagged as collapsing
-    // by construction anyway).
-    let a_geo_calc = (r_mm * r_mm - (r_mm - delta_mm).powi(2)).sqrt();
-    let geometric = |rec: &DropRecord| -> (f64, Option<f64>) {
-        let from_delta = |a: f64| rec.delta_max_mm_err.map(|e| (r_mm - delta_mm) / a * e);
-        match rec.a_geom_mm.filter(|a| a.is_finite() && *a > 0.0) {
-            Some(a) => (a, rec.a_geom_mm_err.or_else(|| from_delta(a))),
-            None => (a_geo_calc, from_delta(a_geo_calc)),
-        }
-    };
-    let (a_mm, a_err, a_source) = match choice {
-        ContactRadius::Geometric => {
-            let (a, e) = geometric(rec);
-            (a, e, ASource::Geometric)
-        }
-        ContactRadius::Measured => match rec.a_max_mm {
-            Some(a) if a.is_finite() && a > 0.0 => {
-                let src = if ((a - a_geo_calc) / a_geo_calc).abs() < 1e-6 {
-                    ASource::MeasuredEqualsGeometric
-                } else {
-                    ASource::Measured
-                };
-                (a, rec.a_max_mm_err, src)
-            }
-            Some(a) => {
-                return Err(SkipReason(format!(
-                    "a_max_mm = {a} is not a positive number"
-                )))
-            }
-            None => {
-                let (a, e) = geometric(rec);
-                (a, e, ASource::GeometricFallback)
-            }
-        },
-    };
+    let (a_mm, a_err, a_source) = contact_radius(rec, r_mm, delta_mm, choice)?;
     let tau_ms = rec.tau_c_ms.filter(|t| t.is_finite() && *t > 0.0);
 
     let rel_err: RelErrors = [
@@ -300,24 +227,14 @@ pub fn compute(
     // Every group a finite number above 0 (Ψ = Ξ = 0 from an η that
     // overflowed would sit on the plots as data).
     let big_omega = omega.map(|w| w * f3);
-    for (name, x) in [
+    all_normal([
         ("Pi", Some(pi)),
         ("xi", Some(xi)),
         ("eta", Some(eta)),
         ("Psi", Some(pi * f3)),
         ("Xi", Some(xi * f6)),
         ("Omega", big_omega),
-    ] {
-        // Normal doubles only: a subnormal (below 2.2e-308) has lost its
-        // precision, and a log axis cannot reach it.
-        if let Some(x) = x.filter(|x| !(x.is_normal() && *x > 0.0)) {
-            return Err(SkipReason(format!(
-                "{name} = {} is not a finite positive number (a value of the row is out of \
-                 any physical range)",
-                crate::util::ranges::show(x)
-            )));
-        }
-    }
+    ])?;
 
     Ok(DropGroups {
         run: rec.run.clone(),
@@ -338,6 +255,121 @@ pub fn compute(
         pi_prime: q(delta / a, [0.0, 1.0, -1.0, 0.0]),
         kappa_prime: q(h / a, [0.0, 0.0, -1.0, 0.0]),
     })
+}
+
+/// Why a row that is no measured impact (failed, rejected, or tracked
+/// without a contact) is skipped.
+fn measured_status(rec: &DropRecord) -> Result<(), SkipReason> {
+    if rec.status == DropStatus::Failed {
+        let why = if rec.reason.is_empty() {
+            "no reason given"
+        } else {
+            &rec.reason
+        };
+        return Err(SkipReason(format!("status failed ({why})")));
+    }
+    if rec.status == DropStatus::Rejected {
+        return Err(SkipReason(format!("status rejected ({})", rec.reason)));
+    }
+    if rec.status == DropStatus::Tracked {
+        return Err(SkipReason(
+            "status tracked: no contact, so no impact to collapse".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The sphere's radius (mm) and density (kg/m³), positive and within their
+/// physical ranges.
+fn sphere(rec: &DropRecord) -> Result<(f64, f64), SkipReason> {
+    let r_mm = positive("sphere_radius_mm", Some(rec.sphere_radius_mm))?;
+    let rho = positive("sphere_density_kg_m3", Some(rec.sphere_density_kg_m3))?;
+    // A hand-made drops.csv's radius and density within their physical
+    // ranges, so that every group below is a finite number.
+    for (name, range, x) in [
+        (
+            "sphere_radius_mm",
+            crate::util::ranges::SPHERE_RADIUS_MM,
+            r_mm,
+        ),
+        (
+            "sphere_density_kg_m3",
+            crate::util::ranges::DENSITY_KG_M3,
+            rho,
+        ),
+    ] {
+        range.check(x).map_err(|allowed| {
+            SkipReason(format!(
+                "{name} = {}: {allowed}",
+                crate::util::ranges::show(x)
+            ))
+        })?;
+    }
+    Ok((r_mm, rho))
+}
+
+/// The contact radius a (mm), its error and where it came from, as
+/// `choice` asks, for a sphere of radius `r_mm` at penetration `delta_mm`.
+fn contact_radius(
+    rec: &DropRecord,
+    r_mm: f64,
+    delta_mm: f64,
+    choice: ContactRadius,
+) -> Result<(f64, Option<f64>, ASource), SkipReason> {
+    // The geometric contact radius √(R² − (R − δ)²) and its first-order error
+    // σ_a = (R − δ)/a · σ_δ, used when `a_geom_mm_err` is empty (its
+    // correlation with δ is not carried: such drops are flagged as collapsing
+    // by construction anyway).
+    let a_geo_calc = (r_mm * r_mm - (r_mm - delta_mm).powi(2)).sqrt();
+    let geometric = |rec: &DropRecord| -> (f64, Option<f64>) {
+        let from_delta = |a: f64| rec.delta_max_mm_err.map(|e| (r_mm - delta_mm) / a * e);
+        match rec.a_geom_mm.filter(|a| a.is_finite() && *a > 0.0) {
+            Some(a) => (a, rec.a_geom_mm_err.or_else(|| from_delta(a))),
+            None => (a_geo_calc, from_delta(a_geo_calc)),
+        }
+    };
+    Ok(match choice {
+        ContactRadius::Geometric => {
+            let (a, e) = geometric(rec);
+            (a, e, ASource::Geometric)
+        }
+        ContactRadius::Measured => match rec.a_max_mm {
+            Some(a) if a.is_finite() && a > 0.0 => {
+                let src = if ((a - a_geo_calc) / a_geo_calc).abs() < 1e-6 {
+                    ASource::MeasuredEqualsGeometric
+                } else {
+                    ASource::Measured
+                };
+                (a, rec.a_max_mm_err, src)
+            }
+            Some(a) => {
+                return Err(SkipReason(format!(
+                    "a_max_mm = {a} is not a positive number"
+                )))
+            }
+            None => {
+                let (a, e) = geometric(rec);
+                (a, e, ASource::GeometricFallback)
+            }
+        },
+    })
+}
+
+/// Why a drop is skipped when one of its groups (named, `None`: absent) is
+/// no finite number above 0.
+fn all_normal(groups: [(&str, Option<f64>); 6]) -> Result<(), SkipReason> {
+    for (name, x) in groups {
+        // Normal doubles only: a subnormal (below 2.2e-308) has lost its
+        // precision, and a log axis cannot reach it.
+        if let Some(x) = x.filter(|x| !(x.is_normal() && *x > 0.0)) {
+            return Err(SkipReason(format!(
+                "{name} = {} is not a finite positive number (a value of the row is out of \
+                 any physical range)",
+                crate::util::ranges::show(x)
+            )));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::collections::BTreeMap;
 
-use crate::collapse::fit::{self, ExponentFit, Fits, SeriesFit};
+use crate::collapse::fit::{self, ExponentFit, Fits};
 use crate::collapse::groups::{DropGroups, Quantity};
 use crate::plot::layout::{
     along_bars, free_corner, guide_lines, label_corners, legend_box, log_ticks, normalised, range,
@@ -22,6 +22,9 @@ use crate::plot::{
 };
 use crate::plot::{radius_style, Marker, MarkerKind};
 use crate::plot::{Backend, Plane};
+
+mod series;
+use series::{series_plot, Series};
 
 /// Size of every collapse figure, in pixels (SVG user units).
 pub const FIGURE_SIZE: (u32, u32) = (1100, 1040);
@@ -606,251 +609,6 @@ fn tau_vs_v<DB: Backend>(root: &DrawingArea<DB, Shift>, sets: &[RadiusSet]) -> D
     log_log(root, sets, &spec)
 }
 
-/// Ψ vs Ξ or Ω vs Ξ with the series and the theory constant.
-#[allow(clippy::too_many_arguments)]
-fn series_plot<DB: Backend>(
-    root: &DrawingArea<DB, Shift>,
-    sets: &[RadiusSet],
-    heading: &str,
-    y_desc: &str,
-    y_of: &dyn Fn(&DropGroups) -> Option<Quantity>,
-    series: Option<&SeriesFit>,
-    names: [&str; 3],
-    theory: (f64, &str),
-    crossover: Option<f64>,
-) -> DrawResult {
-    const THEORY: RGBColor = RGBColor(90, 90, 90);
-    const CROSS: RGBColor = RGBColor(120, 60, 160);
-    let area = title(root, heading)?;
-    let pts: Vec<Vec<Pt>> = sets
-        .iter()
-        .map(|s| {
-            s.drops
-                .iter()
-                .filter_map(|g| y_of(g).map(|y| pt(&g.big_xi, &y, 1.0, 1.0)))
-                .collect()
-        })
-        .collect();
-    let run_names: Vec<Vec<&str>> = sets
-        .iter()
-        .map(|s| {
-            s.drops
-                .iter()
-                .filter(|g| y_of(g).is_some())
-                .map(|g| g.run.as_str())
-                .collect()
-        })
-        .collect();
-    let all = pts.concat();
-    if all.is_empty() {
-        return no_data(&area);
-    }
-    let res: Vec<Vec<Pt>> = pts
-        .iter()
-        .map(|p| match series {
-            Some(s) => residuals(p, &|x| s.eval(x), false),
-            None => Vec::new(),
-        })
-        .collect();
-    let (area, below) = fit_and_residuals(area, &res);
-    // The fitted series over the data, and its extrapolation to Ξ = 0, where
-    // it is to be compared with the theory constant (A1 vs 2^(1/3), B1 vs C0).
-    let poly = |s: &SeriesFit, lo: f64, hi: f64| -> Vec<(f64, f64)> {
-        (0..=60)
-            .map(|i| {
-                let x = lo + (hi - lo) * i as f64 / 60.0;
-                (x, s.eval(x))
-            })
-            .collect()
-    };
-    let curve = series.map_or(Vec::new(), |s| poly(s, s.xi_range[0], s.xi_range[1]));
-    // Extrapolate only when Ξ = 0 is no farther from the data than their own
-    // span, and let the axis grow for it by at most 30 % of the data's range.
-    let extrapolation = series
-        .filter(|s| fit::reaches_zero(s.xi_range))
-        .map_or(Vec::new(), |s| poly(s, 0.0, s.xi_range[0]));
-    // Far from Ξ = 0 the constant term is no measurement: the figure says so.
-    let far_from_zero = series.and_then(|s| s.extrapolated_from_xi);
-    let (xr, yr0) = range(&all, false, &[theory.0]);
-    let span = yr0[1] - yr0[0];
-    let extra_y: Vec<f64> = extrapolation
-        .iter()
-        .map(|p| p.1)
-        .filter(|y| *y > yr0[0] - 0.3 * span && *y < yr0[1] + 0.3 * span)
-        .chain([theory.0])
-        .collect();
-    let (_, mut yr) = range(&all, false, &extra_y);
-    let xr = if extrapolation.is_empty() {
-        xr
-    } else {
-        [0.0, xr[1]]
-    };
-    let crossover = crossover.filter(|x| *x > xr[0] && *x < xr[1]);
-    let fit_label = series.map(|s| {
-        let pm = |k: usize| match s.coef[k].stderr {
-            Some(e) => format!("{} = {:.3} ± {:.3}", names[k], s.coef[k].value, e),
-            None => format!("{} = {:.3}", names[k], s.coef[k].value),
-        };
-        let extra = if extrapolation.is_empty() {
-            ""
-        } else {
-            " (dashed: to Ξ = 0)"
-        };
-        format!("fit: {}, {}, {}{extra}", pm(0), pm(1), pm(2))
-    });
-    let cross_label = crossover.map(|x| format!("Ξ× = A1/A2 = {x:.3} (leading terms equal)"));
-    let mut labels = vec![theory.1.to_string()];
-    labels.extend(cross_label.clone());
-    labels.extend(fit_label.clone());
-    for (set, p) in sets.iter().zip(&pts) {
-        labels.push(format!("R = {} mm (n = {})", tick(set.radius_mm), p.len()));
-    }
-
-    // Legend: a corner free of points and lines, else a band above them.
-    use SeriesLabelPosition::*;
-    let lbox = legend_box(&labels);
-    let mut occupied = normalised(&along_bars(&all), xr, yr, false);
-    let extra: Vec<Pt> = (0..=40)
-        .map(|i| {
-            (
-                xr[0] + (xr[1] - xr[0]) * i as f64 / 40.0,
-                theory.0,
-                None,
-                None,
-            )
-        })
-        .chain(
-            curve
-                .iter()
-                .chain(&extrapolation)
-                .map(|&(x, y)| (x, y, None, None)),
-        )
-        .chain(crossover.into_iter().flat_map(|x| {
-            (0..=20).map(move |i| (x, yr[0] + (yr[1] - yr[0]) * i as f64 / 20.0, None, None))
-        }))
-        .collect();
-    occupied.extend(normalised(&extra, xr, yr, false));
-    let corner = match free_corner(
-        &occupied,
-        lbox,
-        &[UpperRight, UpperLeft, LowerLeft, LowerRight],
-    ) {
-        Some(c) => c,
-        None => {
-            yr = with_band(yr, lbox.1, false);
-            // In the band only the vertical crossover line can be in the way.
-            match crossover.map(|x| (x - xr[0]) / (xr[1] - xr[0])) {
-                Some(fx) if fx > 1.0 - lbox.0 - 0.03 => UpperLeft,
-                _ => UpperRight,
-            }
-        }
-    };
-
-    // A geometric contact radius makes Ψ(Ξ) hold by construction (docs/physics.md):
-    // say so on the figure itself, not only in fits.json.
-    let n_geo = sets
-        .iter()
-        .flat_map(|s| &s.drops)
-        .filter(|g| g.a_source.is_geometric())
-        .count();
-    let mut alarms = Vec::new();
-    if n_geo > 0 {
-        alarms.push(format!(
-            "WARNING: {n_geo} of {} drops use the geometric contact radius: Ξ² = Ψ(2 − Π) by construction",
-            all.len()
-        ));
-    }
-    if let Some(lo) = far_from_zero {
-        alarms.push(format!(
-            "EXTRAPOLATED: {} is read at Ξ = 0 from Ξ ≥ {lo:.3}, no measurement",
-            names[0]
-        ));
-    }
-    for (i, text) in alarms.iter().enumerate() {
-        area.draw(&Text::new(
-            text.as_str(),
-            (60, 4 + 28 * i as i32),
-            ("sans-serif", LEGEND_FONT)
-                .into_font()
-                .color(&RGBColor(200, 0, 0)),
-        ))?;
-    }
-    const XI_DESC: &str = "Ξ = ξ φ^(1/6) κ^(−1/6) η^(−1/6)";
-    // With a residual panel, the x axis is named under it.
-    let (x_desc, x_label_px) = match below {
-        Some(_) => ("", 50),
-        None => (XI_DESC, 80),
-    };
-    let mut chart = ChartBuilder::on(&area)
-        .margin(18)
-        .margin_top(18 + 28 * alarms.len() as u32)
-        .x_label_area_size(x_label_px)
-        .y_label_area_size(110)
-        .build_cartesian_2d(xr[0]..xr[1], yr[0]..yr[1])?;
-    let fx = |v: &f64| axis_tick(*v, xr[1] - xr[0]);
-    mesh(
-        &mut chart,
-        x_desc,
-        y_desc,
-        &fx,
-        &|v| axis_tick(*v, yr[1] - yr[0]),
-        10,
-    )?;
-    chart
-        .draw_series(DashedLineSeries::new(
-            vec![(xr[0], theory.0), (xr[1], theory.0)],
-            10,
-            6,
-            THEORY.stroke_width(2),
-        ))?
-        .label(theory.1.to_string())
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], THEORY.stroke_width(2)));
-    if let (Some(x), Some(label)) = (crossover, cross_label) {
-        chart
-            .draw_series(DashedLineSeries::new(
-                vec![(x, yr[0]), (x, yr[1])],
-                3,
-                5,
-                CROSS.stroke_width(2),
-            ))?
-            .label(label)
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], CROSS.stroke_width(2)));
-    }
-    if let Some(label) = fit_label {
-        chart.draw_series(DashedLineSeries::new(
-            extrapolation,
-            6,
-            6,
-            BLACK.stroke_width(1),
-        ))?;
-        chart
-            .draw_series(LineSeries::new(curve, BLACK.stroke_width(2)))?
-            .label(label)
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-    }
-    // Markers last, so that no line hides a point.
-    for ((set, p), runs) in sets.iter().zip(&pts).zip(&run_names) {
-        if !p.is_empty() {
-            let label = format!("R = {} mm (n = {})", tick(set.radius_mm), p.len());
-            draw_points(&mut chart, set, (p, runs), false, label, ["Ξ", y_desc])?;
-        }
-    }
-    legend(&mut chart, corner)?;
-    if let Some(below) = below {
-        residual_panel(
-            &below,
-            xr[0]..xr[1],
-            xr,
-            XI_DESC,
-            &fx,
-            &format!("{y_desc} − fit"),
-            sets,
-            &res,
-        )?;
-    }
-    Ok(())
-}
-
 /// File stems of the figures [`collapse_figures`] draws, in its order.
 pub const FIGURE_STEMS: [&str; 4] = ["pi_vs_eta", "tau_vs_v", "psi_vs_xi", "omega_vs_xi"];
 
@@ -868,28 +626,30 @@ pub fn collapse_figures(
         a, &sets
     ))?);
     let psi_label = format!("Ψ → 2^(1/3) = {:.4} (energy balance)", fit::psi_theory());
+    let psi = Series {
+        heading: "Collapse Ψ(Ξ), Ψ = Π φ^(1/3) κ^(−1/3) η^(−1/3) (Eq. 8, cf. Fig. 3b)",
+        y_desc: "Ψ",
+        y_of: |g| Some(g.psi),
+        fit: fits.psi_series.as_ref(),
+        names: ["A1", "A2", "A3"],
+        theory: (fit::psi_theory(), &psi_label),
+        crossover: fits.crossover_xi.as_ref().map(|c| c.value),
+    };
     out.extend(render!(FIGURE_STEMS[2], FIGURE_SIZE, |a| series_plot(
-        a,
-        &sets,
-        "Collapse Ψ(Ξ), Ψ = Π φ^(1/3) κ^(−1/3) η^(−1/3) (Eq. 8, cf. Fig. 3b)",
-        "Ψ",
-        &|g: &DropGroups| Some(g.psi),
-        fits.psi_series.as_ref(),
-        ["A1", "A2", "A3"],
-        (fit::psi_theory(), &psi_label),
-        fits.crossover_xi.as_ref().map(|c| c.value),
+        a, &sets, &psi
     ))?);
     let omega_label = format!("Ω → C0 = {:.4} (energy balance)", fit::omega_theory());
+    let omega = Series {
+        heading: "Collapse Ω(Ξ), Ω = ω φ^(1/3) κ^(−1/3) η^(−1/3), ω = τc v/R (cf. Fig. 4b)",
+        y_desc: "Ω",
+        y_of: |g| g.big_omega,
+        fit: fits.omega_series.as_ref(),
+        names: ["B1", "B2", "B3"],
+        theory: (fit::omega_theory(), &omega_label),
+        crossover: None,
+    };
     out.extend(render!(FIGURE_STEMS[3], FIGURE_SIZE, |a| series_plot(
-        a,
-        &sets,
-        "Collapse Ω(Ξ), Ω = ω φ^(1/3) κ^(−1/3) η^(−1/3), ω = τc v/R (cf. Fig. 4b)",
-        "Ω",
-        &|g: &DropGroups| g.big_omega,
-        fits.omega_series.as_ref(),
-        ["B1", "B2", "B3"],
-        (fit::omega_theory(), &omega_label),
-        None,
+        a, &sets, &omega
     ))?);
     Ok(out)
 }

@@ -5,7 +5,7 @@
 use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
 
-use crate::collapse::diagnostics::{DropDiagnostics, TrackSamples};
+use crate::collapse::diagnostics::{DropDiagnostics, ForceLaw, TrackSamples};
 use crate::plot::PlotError;
 use crate::plot::{axis_tick, file_stem, render, tick, Backend, DrawResult, Plane, LIGHT_LINES};
 
@@ -123,6 +123,14 @@ fn events<'a, DB: Backend + 'a, CT: Plane>(
     Ok(())
 }
 
+/// The panels' tick labels and legends.
+const LABEL: (&str, u32) = ("sans-serif", crate::plot::LEGEND_FONT);
+/// The panels' axis names.
+const DESC: (&str, u32) = ("sans-serif", crate::plot::DESC_FONT - 4);
+/// The track's markers.
+const TRACK: RGBColor = RGBColor(40, 40, 40);
+
+/// The figure under its title: z(t) and δ(t) side by side, then F(δ).
 fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> DrawResult {
     let root = root.titled(
         &format!("Drop {}: trajectory, penetration, force", d.run),
@@ -130,16 +138,23 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
     )?;
     // F(δ) gets 40 % of the width: its legend carries the fit's numbers.
     let (w, _) = root.dim_in_pixel();
-    let (left, force_panel) = root.split_horizontally((f64::from(w) * 0.6) as i32);
-    let mut cols = left.split_evenly((1, 2));
-    cols.push(force_panel);
+    let (left, force) = root.split_horizontally((f64::from(w) * 0.6) as i32);
+    let cols = left.split_evenly((1, 2));
     let t_range = time_span_ms(&d.track);
-    let label = ("sans-serif", crate::plot::LEGEND_FONT);
-    let desc = ("sans-serif", crate::plot::DESC_FONT - 4);
-
-    // z(t): rows grow downward, so the axis is reversed (up on the page is up in the lab).
     // Each panel's points are walked from the track as they are drawn (a
     // long movie's would be copied once for the SVG and once for the PNG).
+    trajectory_panel(&cols[0], d, t_range)?;
+    penetration_panel(&cols[1], d, t_range)?;
+    force_panel(&force, d)
+}
+
+/// z(t) with the free-flight parabolas and the events, over `t_range` (ms).
+fn trajectory_panel<DB: Backend>(
+    area: &DrawingArea<DB, Shift>,
+    d: &DropDiagnostics,
+    t_range: [f64; 2],
+) -> DrawResult {
+    // z(t): rows grow downward, so the axis is reversed (up on the page is up in the lab).
     let samples = &d.track.samples;
     let zs = || {
         samples
@@ -147,7 +162,7 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
             .filter_map(|r| r.z_px.map(|z| (r.t_s * 1e3, z)))
     };
     let zr = span(zs().map(|p| p.1));
-    let mut c = ChartBuilder::on(&cols[0])
+    let mut c = ChartBuilder::on(area)
         .margin(14)
         .x_label_area_size(50)
         .y_label_area_size(70)
@@ -155,20 +170,17 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
     c.configure_mesh()
         .x_desc("t (ms)")
         .y_desc("centre row z (px, downward)")
-        .axis_desc_style(desc)
-        .label_style(label)
+        .axis_desc_style(DESC)
+        .label_style(LABEL)
         .x_label_formatter(&|v| axis_tick(*v, t_range[1] - t_range[0]))
         .y_label_formatter(&|v| axis_tick(*v, zr[1] - zr[0]))
         .light_line_style(RGBColor(238, 238, 238))
         .max_light_lines(LIGHT_LINES)
         .draw()?;
     let coord = c.as_coord_spec().clone();
-    c.draw_series(
-        markers(&coord, zs(), zs().count())
-            .map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
-    )?
-    .label("track")
-    .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
+    c.draw_series(markers(&coord, zs(), zs().count()).map(|p| Circle::new(p, 2, TRACK.filled())))?
+        .label("track")
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, TRACK.filled()));
     for (i, f) in [&d.flight_in, &d.flight_out].into_iter().enumerate() {
         let Some(f) = f else { continue };
         // Drawn from the first frame used to the event it was fitted for.
@@ -196,17 +208,25 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
         .position(SeriesLabelPosition::UpperMiddle)
         .background_style(WHITE.mix(0.9))
         .border_style(RGBColor(120, 120, 120))
-        .label_font(label)
+        .label_font(LABEL)
         .draw()?;
+    Ok(())
+}
 
-    // δ(t).
+/// δ(t) with the surface's zero and the events, over `t_range` (ms).
+fn penetration_panel<DB: Backend>(
+    area: &DrawingArea<DB, Shift>,
+    d: &DropDiagnostics,
+    t_range: [f64; 2],
+) -> DrawResult {
+    let samples = &d.track.samples;
     let ds = || {
         samples
             .iter()
             .filter_map(|r| r.delta_mm.map(|v| (r.t_s * 1e3, v)))
     };
     let dr = span(ds().map(|p| p.1).chain([0.0]));
-    let mut c = ChartBuilder::on(&cols[1])
+    let mut c = ChartBuilder::on(area)
         .margin(14)
         .x_label_area_size(50)
         .y_label_area_size(70)
@@ -214,8 +234,8 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
     c.configure_mesh()
         .x_desc("t (ms)")
         .y_desc("penetration δ (mm)")
-        .axis_desc_style(desc)
-        .label_style(label)
+        .axis_desc_style(DESC)
+        .label_style(LABEL)
         .x_label_formatter(&|v| axis_tick(*v, t_range[1] - t_range[0]))
         .y_label_formatter(&|v| axis_tick(*v, dr[1] - dr[0]))
         .light_line_style(RGBColor(238, 238, 238))
@@ -226,13 +246,14 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
         RGBColor(150, 150, 150).stroke_width(1),
     ))?;
     let coord = c.as_coord_spec().clone();
-    c.draw_series(
-        markers(&coord, ds(), ds().count())
-            .map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
-    )?;
-    events(&mut c, d, dr, false)?;
+    c.draw_series(markers(&coord, ds(), ds().count()).map(|p| Circle::new(p, 2, TRACK.filled())))?;
+    events(&mut c, d, dr, false)
+}
 
-    // F(δ).
+/// F(δ) of the contact frames, with the fitted law and the model's, and
+/// the legend that gives their numbers.
+fn force_panel<DB: Backend>(area: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> DrawResult {
+    let samples = &d.track.samples;
     let fs = || {
         samples
             .iter()
@@ -245,9 +266,45 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
         y_all.push(l.model_k_n_per_mm2 * xr[1].powi(2));
         y_all.push(l.k_n_per_mm_pow_n.value * xr[1].max(0.0).powf(l.n.value));
     }
-    // The legend, upper left, in a band kept free above the data and in a
-    // font small enough for its longest line to fit the panel (it ran off
-    // the figure's right edge).
+    let labels = force_labels(d);
+    let (font, band) = force_legend(area, &labels)?;
+    let fr = crate::plot::layout::with_band(span(y_all.into_iter()), band, false);
+    let mut c = ChartBuilder::on(area)
+        .margin(14)
+        .margin_right(30)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(xr[0]..xr[1], fr[0]..fr[1])?;
+    c.configure_mesh()
+        .x_desc("penetration δ (mm)")
+        .y_desc("contact force F (N)")
+        .axis_desc_style(DESC)
+        .label_style(LABEL)
+        .x_label_formatter(&|v| axis_tick(*v, xr[1] - xr[0]))
+        .y_label_formatter(&|v| axis_tick(*v, fr[1] - fr[0]))
+        .light_line_style(RGBColor(238, 238, 238))
+        .max_light_lines(LIGHT_LINES)
+        .draw()?;
+    let coord = c.as_coord_spec().clone();
+    c.draw_series(markers(&coord, fs(), fs().count()).map(|p| Circle::new(p, 2, TRACK.filled())))?
+        .label(&labels[0])
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, TRACK.filled()));
+    if let Some(l) = &d.force_law {
+        let top = fs().map(|p| p.0).fold(0.0, f64::max);
+        draw_force_laws(&mut c, l, top, &labels)?;
+    }
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.9))
+        .border_style(RGBColor(120, 120, 120))
+        .label_font(("sans-serif", font))
+        .draw()?;
+    Ok(())
+}
+
+/// The F(δ) panel's legend lines: the measured force, and with a fitted
+/// law its numbers and the model's K.
+fn force_labels(d: &DropDiagnostics) -> Vec<String> {
     let mut labels = vec!["F = m(g − d²z/dt²)".to_string()];
     if let Some(l) = &d.force_law {
         let digits = |e: Option<f64>| if e.is_some_and(|e| e < 0.01) { 4 } else { 2 };
@@ -264,72 +321,61 @@ fn panels<DB: Backend>(root: &DrawingArea<DB, Shift>, d: &DropDiagnostics) -> Dr
             tick(l.model_k_n_per_mm2)
         ));
     }
-    let (panel_w, panel_h) = cols[2].dim_in_pixel();
+    labels
+}
+
+/// The F(δ) legend's font and the band (a share of the plotting area's
+/// height) kept for it above the data. The legend sits upper left, in a
+/// band kept free above the data and in a font small enough for its
+/// longest line to fit the panel (it ran off the figure's right edge).
+fn force_legend<DB: Backend>(
+    area: &DrawingArea<DB, Shift>,
+    labels: &[String],
+) -> Result<(u32, f64), Box<dyn std::error::Error>> {
+    let (panel_w, panel_h) = area.dim_in_pixel();
     // Plotting area: the panel less its margins (14, and 30 on the right
     // for the last x tick label at the figure's edge) and label areas.
     let (plot_w, plot_h) = (
         f64::from(panel_w) - 70.0 - 44.0,
         f64::from(panel_h) - 50.0 - 28.0,
     );
-    let font = legend_font(&cols[2], &labels, plot_w)?;
+    let font = legend_font(area, labels, plot_w)?;
     let band = (labels.len() as f64 * 1.3 * f64::from(font) + 24.0) / plot_h;
-    let fr = crate::plot::layout::with_band(span(y_all.into_iter()), band, false);
-    let mut c = ChartBuilder::on(&cols[2])
-        .margin(14)
-        .margin_right(30)
-        .x_label_area_size(50)
-        .y_label_area_size(70)
-        .build_cartesian_2d(xr[0]..xr[1], fr[0]..fr[1])?;
-    c.configure_mesh()
-        .x_desc("penetration δ (mm)")
-        .y_desc("contact force F (N)")
-        .axis_desc_style(desc)
-        .label_style(label)
-        .x_label_formatter(&|v| axis_tick(*v, xr[1] - xr[0]))
-        .y_label_formatter(&|v| axis_tick(*v, fr[1] - fr[0]))
-        .light_line_style(RGBColor(238, 238, 238))
-        .max_light_lines(LIGHT_LINES)
-        .draw()?;
-    let coord = c.as_coord_spec().clone();
-    c.draw_series(
-        markers(&coord, fs(), fs().count())
-            .map(|p| Circle::new(p, 2, RGBColor(40, 40, 40).filled())),
-    )?
-    .label(&labels[0])
-    .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(40, 40, 40).filled()));
-    if let Some(l) = &d.force_law {
-        let (k, n) = (l.k_n_per_mm_pow_n.value, l.n.value);
-        let top = fs().map(|p| p.0).fold(0.0, f64::max);
-        let curve = |kk: f64, nn: f64| {
-            (0..=50).map(move |i| {
-                let x = top * i as f64 / 50.0;
-                (x, kk * x.powf(nn))
-            })
-        };
-        c.draw_series(LineSeries::new(curve(k, n), FIT.stroke_width(2)))?
-            .label(&labels[1])
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], FIT.stroke_width(2)));
-        let km = l.model_k_n_per_mm2;
-        c.draw_series(DashedLineSeries::new(
-            curve(km, 2.0),
-            8,
-            5,
+    Ok((font, band))
+}
+
+/// The fitted F = K δⁿ from 0 to the deepest contact frame (`top`, mm), and
+/// the model's K δ² dashed, with their legend lines (`labels[1]`, `[2]`).
+fn draw_force_laws<'a, DB: Backend + 'a, CT: Plane>(
+    c: &mut ChartContext<'a, DB, CT>,
+    l: &ForceLaw,
+    top: f64,
+    labels: &[String],
+) -> DrawResult {
+    let (k, n) = (l.k_n_per_mm_pow_n.value, l.n.value);
+    let curve = |kk: f64, nn: f64| {
+        (0..=50).map(move |i| {
+            let x = top * i as f64 / 50.0;
+            (x, kk * x.powf(nn))
+        })
+    };
+    c.draw_series(LineSeries::new(curve(k, n), FIT.stroke_width(2)))?
+        .label(&labels[1])
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], FIT.stroke_width(2)));
+    let km = l.model_k_n_per_mm2;
+    c.draw_series(DashedLineSeries::new(
+        curve(km, 2.0),
+        8,
+        5,
+        RGBColor(90, 90, 90).stroke_width(2),
+    ))?
+    .label(&labels[2])
+    .legend(|(x, y)| {
+        PathElement::new(
+            vec![(x, y), (x + 20, y)],
             RGBColor(90, 90, 90).stroke_width(2),
-        ))?
-        .label(&labels[2])
-        .legend(|(x, y)| {
-            PathElement::new(
-                vec![(x, y), (x + 20, y)],
-                RGBColor(90, 90, 90).stroke_width(2),
-            )
-        });
-    }
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.9))
-        .border_style(RGBColor(120, 120, 120))
-        .label_font(("sans-serif", font))
-        .draw()?;
+        )
+    });
     Ok(())
 }
 

@@ -3,10 +3,10 @@
 
 use crate::dataset::{DropRecord, DropStatus, TrackRow};
 use crate::measure::events::{
-    find_events, EventConfig, EventError, Geometry, SurfaceFrame, TrackPoint,
+    find_events, EventConfig, EventError, Events, Geometry, SurfaceFrame, TrackPoint,
 };
 use crate::measure::force::{fit_force_law, force_table, Damping, ForceFitError, ForceLaw};
-use crate::measure::kinematics::{kinematics, Measured, SphereParams};
+use crate::measure::kinematics::{kinematics, Kinematics, Measured, SphereParams};
 use crate::measure::quality;
 
 /// What the measurement of one drop produced.
@@ -78,14 +78,7 @@ pub fn measure_drop_with(
     let (track, geom) = (&level[..], &frame.level_geometry(geom));
     let ev = find_events(track, geom, cfg)?;
     let kin = kinematics(track, &ev, geom, &sphere, cfg.exposure_s)?;
-    // Physically impossible: the numbers are no measurement.
-    if kin.delta_max_m.value >= sphere.radius_m || !kin.delta_max_m.value.is_finite() {
-        return Err(EventError::Impossible(format!(
-            "maximum penetration {:.4} mm is not below the sphere's radius {} mm",
-            kin.delta_max_m.value * 1e3,
-            info.sphere_radius_mm
-        )));
-    }
+    check_penetration(&kin, info)?;
     let law = match law {
         Some(l) => l.clone(),
         None => fit_force_law(
@@ -106,7 +99,45 @@ pub fn measure_drop_with(
         cfg.g_m_s2,
         FORCE_TABLE_HALF_WINDOW,
     );
+    let mut warnings = event_warnings(track, &ev, &kin, cfg);
+    warnings.extend(law_warnings(&law));
+    let surface_row_px = image_geom.surface_row_at(frame.image_col(ev.impact_column_px));
+    let mut record = kinematics_record(info, &kin, &ev, geom, surface_row_px);
+    set_law_columns(&mut record, law.as_ref().ok());
+    for (word, message) in warnings {
+        quality::flag(&mut record, word, message);
+    }
+    let (c0, c1) = ev.contact_span;
+    Ok(DropMeasurement {
+        law,
+        record,
+        forces: table.iter().map(|p| (p.frame, p.force_n)).collect(),
+        in_contact: track[c0..=c1].iter().map(|p| p.frame).collect(),
+    })
+}
 
+/// The error for a maximum penetration no sphere makes (not below its
+/// radius, or not finite): the numbers are no measurement.
+fn check_penetration(kin: &Kinematics, info: &DropInfo) -> Result<(), EventError> {
+    if kin.delta_max_m.value >= info.sphere().radius_m || !kin.delta_max_m.value.is_finite() {
+        return Err(EventError::Impossible(format!(
+            "maximum penetration {:.4} mm is not below the sphere's radius {} mm",
+            kin.delta_max_m.value * 1e3,
+            info.sphere_radius_mm
+        )));
+    }
+    Ok(())
+}
+
+/// The flags of the events and the flights: frames missing in the contact
+/// and at its deepest point, short flights, a free-flight gravity off the
+/// configured one, a second bounce.
+fn event_warnings(
+    track: &[TrackPoint],
+    ev: &Events,
+    kin: &Kinematics,
+    cfg: &EventConfig,
+) -> Vec<(&'static str, String)> {
     let mut warnings: Vec<(&'static str, String)> = Vec::new();
     // Frames missing in the contact, and at its deepest point.
     let (c0, c1) = ev.contact_span;
@@ -163,19 +194,19 @@ pub fn measure_drop_with(
             "a second bounce follows; only the first contact is measured".into(),
         ));
     }
-    warnings.extend(law_warnings(&law));
-    let fitted_law = law.clone();
-    let law = law.ok();
+    warnings
+}
 
-    let damping_of = |kind: Damping| {
-        law.as_ref()
-            .filter(|l| l.model.damping == kind)
-            .map(|l| l.damping)
-    };
-    let (linear, hunt_crossley) = (
-        damping_of(Damping::Linear),
-        damping_of(Damping::HuntCrossley),
-    );
+/// The drop's record with status `ok`: its kinematics, the level frame's
+/// scale (`geom`) and the image's surface row at the impact column; no
+/// contact law yet.
+fn kinematics_record(
+    info: &DropInfo,
+    kin: &Kinematics,
+    ev: &Events,
+    geom: &Geometry,
+    surface_row_px: f64,
+) -> DropRecord {
     let v = |m: Measured| (Some(m.value), Some(m.err));
     let mm = |m: Measured| (Some(m.value * 1e3), Some(m.err * 1e3));
     let (v_in, v_in_err) = v(kin.v_impact_m_s);
@@ -187,7 +218,7 @@ pub fn measure_drop_with(
     let (tau, tau_err) = mm(kin.tau_c_s);
     let (tc, tc_err) = v(kin.t_contact_s);
     let (tr, tr_err) = v(kin.t_rebound_s);
-    let mut record = DropRecord {
+    DropRecord {
         run: info.run.clone(),
         sphere_radius_mm: info.sphere_radius_mm,
         sphere_density_kg_m3: info.sphere_density_kg_m3,
@@ -218,37 +249,36 @@ pub fn measure_drop_with(
         } else {
             geom.mm_per_px_err
         }),
-        surface_row_px: Some(image_geom.surface_row_at(frame.image_col(ev.impact_column_px))),
+        surface_row_px: Some(surface_row_px),
         surface_row_px_err: Some(geom.surface_row_err_px),
         t_max_s: Some(kin.t_max_s),
         second_contact_s: ev.second_contact_s,
         g_fit_m_s2: kin.g_fit_m_s2[0].map(|g| g.value),
         g_fit_m_s2_err: kin.g_fit_m_s2[0].map(|g| g.err),
-        force_k_si: law.as_ref().map(|l| l.k.value),
-        force_k_si_err: law.as_ref().map(|l| l.k.err),
-        force_exponent: law.as_ref().map(|l| l.n.value),
-        force_exponent_err: law.as_ref().map(|l| l.n.err),
-        force_k2_n_m2: law.as_ref().map(|l| l.k_at_n2.value),
-        force_k2_n_m2_err: law.as_ref().map(|l| l.k_at_n2.err),
-        force_model: law
-            .as_ref()
-            .map_or(String::new(), |l| l.model.name().to_string()),
-        damping_n_s_m: linear.map(|c| c.value),
-        damping_n_s_m_err: linear.map(|c| c.err),
-        hunt_crossley_alpha_s_m: hunt_crossley.map(|a| a.value),
-        hunt_crossley_alpha_s_m_err: hunt_crossley.map(|a| a.err),
         status: DropStatus::Ok,
         ..DropRecord::failed(&info.run, info.sphere_radius_mm, "")
-    };
-    for (word, message) in warnings {
-        quality::flag(&mut record, word, message);
     }
-    Ok(DropMeasurement {
-        law: fitted_law,
-        record,
-        forces: table.iter().map(|p| (p.frame, p.force_n)).collect(),
-        in_contact: track[c0..=c1].iter().map(|p| p.frame).collect(),
-    })
+}
+
+/// The record's contact-law columns from `law` (`None`: not fitted, all
+/// empty); the damping in the column of its model's kind.
+fn set_law_columns(record: &mut DropRecord, law: Option<&ForceLaw>) {
+    let damping_of = |kind: Damping| law.filter(|l| l.model.damping == kind).map(|l| l.damping);
+    let (linear, hunt_crossley) = (
+        damping_of(Damping::Linear),
+        damping_of(Damping::HuntCrossley),
+    );
+    record.force_k_si = law.map(|l| l.k.value);
+    record.force_k_si_err = law.map(|l| l.k.err);
+    record.force_exponent = law.map(|l| l.n.value);
+    record.force_exponent_err = law.map(|l| l.n.err);
+    record.force_k2_n_m2 = law.map(|l| l.k_at_n2.value);
+    record.force_k2_n_m2_err = law.map(|l| l.k_at_n2.err);
+    record.force_model = law.map_or(String::new(), |l| l.model.name().to_string());
+    record.damping_n_s_m = linear.map(|c| c.value);
+    record.damping_n_s_m_err = linear.map(|c| c.err);
+    record.hunt_crossley_alpha_s_m = hunt_crossley.map(|a| a.value);
+    record.hunt_crossley_alpha_s_m_err = hunt_crossley.map(|a| a.err);
 }
 
 /// The surface's frame for `track`, pivoting at the column of its deepest

@@ -548,6 +548,55 @@ pub fn find_events(
         .iter()
         .map(|p| geom.penetration_px(p.x_px, p.z_px))
         .collect();
+    let (first_contact, last_contact) = first_contact_span(track, &pen)?;
+
+    // Flight before: clear of the line by the margin.
+    let pre_pts = flight_points(track, &pen, 0..first_contact, cfg);
+    if pre_pts.len() < cfg.min_flight_frames {
+        return Err(EventError::ShortFlightBeforeContact {
+            found: pre_pts.len(),
+            needed: cfg.min_flight_frames,
+        });
+    }
+    // Flight after: from loss of contact up to a second contact, if any.
+    let after = last_contact + 1;
+    let second = pen[after..]
+        .iter()
+        .position(|&d| d > 0.0)
+        .map(|k| after + k);
+    let end = second.unwrap_or(track.len());
+    let post_pts = flight_points(track, &pen, after..end, cfg);
+    if post_pts.len() < cfg.min_flight_frames {
+        return Err(EventError::ShortFlightAfterContact {
+            found: post_pts.len(),
+            needed: cfg.min_flight_frames,
+        });
+    }
+    let pre = fit_flight(&pre_pts, g_px).ok_or(EventError::FitFailed("pre-contact flight"))?;
+    let post = fit_flight(&post_pts, g_px).ok_or(EventError::FitFailed("post-contact flight"))?;
+    let x_imp = impact_column(&pre, track[first_contact].t_s, geom, g_px)?;
+    let peak = fit_peak(track, &pen, (first_contact, last_contact), cfg)?;
+
+    let second_contact_s = second.and_then(|_| {
+        let c = post.z0_px + geom.radius_px - geom.surface_row_at(x_imp);
+        crossing_time(g_px, post.v0_px_s, c, true).map(|tau| post.t_ref_s + tau)
+    });
+
+    Ok(Events {
+        surface_row_at_impact_px: geom.surface_row_at(x_imp),
+        impact_column_px: x_imp,
+        pre,
+        post,
+        peak,
+        contact_span: (first_contact, last_contact),
+        second_contact_s,
+    })
+}
+
+/// The indices of the first contact's first and last frames, from each
+/// frame's penetration `pen` (px): the first with δ > 0, and the last
+/// before δ ≤ 0 again.
+fn first_contact_span(track: &[TrackPoint], pen: &[f64]) -> Result<(usize, usize), EventError> {
     let first_contact =
         pen.iter()
             .position(|&d| d > 0.0)
@@ -567,49 +616,50 @@ pub fn find_events(
             .ok_or(EventError::NoRebound {
                 frame: track[track.len() - 1].frame,
             })?;
+    Ok((first_contact, last_contact))
+}
 
-    // Flight before: clear of the line by the margin.
-    let pre_pts: Vec<TrackPoint> = (0..first_contact)
+/// The points of `range` clear of the line by the flight margin.
+fn flight_points(
+    track: &[TrackPoint],
+    pen: &[f64],
+    range: std::ops::Range<usize>,
+    cfg: &EventConfig,
+) -> Vec<TrackPoint> {
+    range
         .filter(|&i| pen[i] < -cfg.flight_margin_px)
         .map(|i| track[i])
-        .collect();
-    if pre_pts.len() < cfg.min_flight_frames {
-        return Err(EventError::ShortFlightBeforeContact {
-            found: pre_pts.len(),
-            needed: cfg.min_flight_frames,
-        });
-    }
-    // Flight after: from loss of contact up to a second contact, if any.
-    let after = last_contact + 1;
-    let second = pen[after..]
-        .iter()
-        .position(|&d| d > 0.0)
-        .map(|k| after + k);
-    let end = second.unwrap_or(track.len());
-    let post_pts: Vec<TrackPoint> = (after..end)
-        .filter(|&i| pen[i] < -cfg.flight_margin_px)
-        .map(|i| track[i])
-        .collect();
-    if post_pts.len() < cfg.min_flight_frames {
-        return Err(EventError::ShortFlightAfterContact {
-            found: post_pts.len(),
-            needed: cfg.min_flight_frames,
-        });
-    }
-    let pre = fit_flight(&pre_pts, g_px).ok_or(EventError::FitFailed("pre-contact flight"))?;
-    let post = fit_flight(&post_pts, g_px).ok_or(EventError::FitFailed("post-contact flight"))?;
+        .collect()
+}
 
-    // Impact column: iterate x(t_contact) and the tilted line (converges at once
-    // for the small tilts and drifts of real set-ups).
-    let mut x_imp = pre.x_at(track[first_contact].t_s);
+/// The impact column: x at the crossing of the pre-contact flight `pre`
+/// (from x at the first contact frame's `t_contact_s`), iterated with the
+/// tilted line (converges at once for the small tilts and drifts of real
+/// set-ups).
+fn impact_column(
+    pre: &FlightFit,
+    t_contact_s: f64,
+    geom: &Geometry,
+    g_px: f64,
+) -> Result<f64, EventError> {
+    let mut x_imp = pre.x_at(t_contact_s);
     for _ in 0..3 {
         let c = pre.z0_px + geom.radius_px - geom.surface_row_at(x_imp);
         let tau = crossing_time(g_px, pre.v0_px_s, c, true)
             .ok_or(EventError::NoCrossing("pre-contact"))?;
         x_imp = pre.x_at(pre.t_ref_s + tau);
     }
+    Ok(x_imp)
+}
 
-    // Peak: contact frames with δ above a fraction of the largest sample.
+/// The peak's polynomial over the contact frames `(c0, c1)` with δ above a
+/// fraction of the largest sample.
+fn fit_peak(
+    track: &[TrackPoint],
+    pen: &[f64],
+    (first_contact, last_contact): (usize, usize),
+    cfg: &EventConfig,
+) -> Result<PeakFit, EventError> {
     let (k_max, d_max) = (first_contact..=last_contact).map(|k| (k, pen[k])).fold(
         (first_contact, f64::NEG_INFINITY),
         |a, b| if b.1 > a.1 { b } else { a },
@@ -635,28 +685,13 @@ pub fn find_events(
     let t0 = track[k_max].t_s;
     let poly = PolyFit::fit(&ts, &zs, &ss, degree, t0).ok_or(EventError::FitFailed("peak"))?;
     let t_max = poly_max(&poly, t0, ts[0], ts[ts.len() - 1]);
-    let peak = PeakFit {
+    Ok(PeakFit {
         poly,
         t_max_s: t_max,
         frames: (
             track[peak_idx[0]].frame,
             track[*peak_idx.last().unwrap_or(&k_max)].frame,
         ),
-    };
-
-    let second_contact_s = second.and_then(|_| {
-        let c = post.z0_px + geom.radius_px - geom.surface_row_at(x_imp);
-        crossing_time(g_px, post.v0_px_s, c, true).map(|tau| post.t_ref_s + tau)
-    });
-
-    Ok(Events {
-        surface_row_at_impact_px: geom.surface_row_at(x_imp),
-        impact_column_px: x_imp,
-        pre,
-        post,
-        peak,
-        contact_span: (first_contact, last_contact),
-        second_contact_s,
     })
 }
 

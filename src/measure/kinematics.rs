@@ -11,7 +11,7 @@
 //! lower surface line delays the contact and advances the rebound, and τc
 //! sees both.
 
-use crate::measure::events::{crossing_time, EventError, Events, Geometry, TrackPoint};
+use crate::measure::events::{crossing_time, EventError, Events, FlightFit, Geometry, TrackPoint};
 use crate::util::lsq::{quad_form, PolyFit};
 
 use nalgebra::DMatrix;
@@ -83,79 +83,98 @@ struct Layout {
     len: usize,
 }
 
-/// Compute the drop's kinematics (without the force law) and their errors.
-pub fn kinematics(
-    track: &[TrackPoint],
-    ev: &Events,
-    geom: &Geometry,
-    sphere: &SphereParams,
-    exposure_s: f64,
-) -> Result<Kinematics, EventError> {
-    let r_mm = sphere.radius_m * 1e3;
-    // Exposure averaging (see `EventConfig::exposure_s`): value − value''·T²/24.
-    let blur = exposure_s * exposure_s / 24.0;
-    // Half-width of the silhouette at the line around the peak, where measured.
-    let hw_fit = half_width_fit(track, ev);
-
-    let n_peak = ev.peak.poly.coef().len();
-    let mut lay = Layout {
-        pre: 0,
-        post: 2,
-        peak: 4,
-        n_peak,
-        hw: None,
-        r_px: 0,
-        y_s: 0,
-        scale: 0,
-        len: 0,
-    };
-    let mut p: Vec<f64> = vec![ev.pre.z0_px, ev.pre.v0_px_s, ev.post.z0_px, ev.post.v0_px_s];
-    p.extend_from_slice(ev.peak.poly.coef());
-    if let Some(h) = &hw_fit {
-        lay.hw = Some((p.len(), h.coef().len()));
-        p.extend_from_slice(h.coef());
+impl Layout {
+    /// The parameters' layout and their fitted values: the two flight
+    /// parabolas, the peak polynomial, the half-width fit (where measured),
+    /// R_px, the surface row and the scale.
+    fn with_values(ev: &Events, geom: &Geometry, hw_fit: Option<&PolyFit>) -> (Self, Vec<f64>) {
+        let mut lay = Layout {
+            pre: 0,
+            post: 2,
+            peak: 4,
+            n_peak: ev.peak.poly.coef().len(),
+            hw: None,
+            r_px: 0,
+            y_s: 0,
+            scale: 0,
+            len: 0,
+        };
+        let mut p: Vec<f64> = vec![ev.pre.z0_px, ev.pre.v0_px_s, ev.post.z0_px, ev.post.v0_px_s];
+        p.extend_from_slice(ev.peak.poly.coef());
+        if let Some(h) = hw_fit {
+            lay.hw = Some((p.len(), h.coef().len()));
+            p.extend_from_slice(h.coef());
+        }
+        lay.r_px = p.len();
+        p.push(geom.radius_px);
+        lay.y_s = p.len();
+        p.push(ev.surface_row_at_impact_px);
+        lay.scale = p.len();
+        p.push(geom.mm_per_px);
+        lay.len = p.len();
+        (lay, p)
     }
-    lay.r_px = p.len();
-    p.push(geom.radius_px);
-    lay.y_s = p.len();
-    p.push(ev.surface_row_at_impact_px);
-    lay.scale = p.len();
-    p.push(geom.mm_per_px);
-    lay.len = p.len();
 
-    // Block-diagonal covariance of the parameters.
-    let mut cov = DMatrix::zeros(lay.len, lay.len);
-    for (off, c) in [(lay.pre, &ev.pre.cov), (lay.post, &ev.post.cov)] {
-        for i in 0..2 {
-            for j in 0..2 {
-                cov[(off + i, off + j)] = c[i][j];
+    /// Block-diagonal covariance of the parameters.
+    fn covariance(&self, ev: &Events, geom: &Geometry, hw_fit: Option<&PolyFit>) -> DMatrix<f64> {
+        let mut cov = DMatrix::zeros(self.len, self.len);
+        for (off, c) in [(self.pre, &ev.pre.cov), (self.post, &ev.post.cov)] {
+            for i in 0..2 {
+                for j in 0..2 {
+                    cov[(off + i, off + j)] = c[i][j];
+                }
             }
         }
-    }
-    let cp = ev.peak.poly.fit.cov_scaled();
-    for i in 0..n_peak {
-        for j in 0..n_peak {
-            cov[(lay.peak + i, lay.peak + j)] = cp[(i, j)];
-        }
-    }
-    if let (Some((off, n)), Some(h)) = (lay.hw, &hw_fit) {
-        let ch = h.fit.cov_scaled();
-        for i in 0..n {
-            for j in 0..n {
-                cov[(off + i, off + j)] = ch[(i, j)];
+        let cp = ev.peak.poly.fit.cov_scaled();
+        for i in 0..self.n_peak {
+            for j in 0..self.n_peak {
+                cov[(self.peak + i, self.peak + j)] = cp[(i, j)];
             }
         }
+        if let (Some((off, n)), Some(h)) = (self.hw, hw_fit) {
+            let ch = h.fit.cov_scaled();
+            for i in 0..n {
+                for j in 0..n {
+                    cov[(off + i, off + j)] = ch[(i, j)];
+                }
+            }
+        }
+        cov[(self.r_px, self.r_px)] = geom.radius_err_px.powi(2);
+        cov[(self.y_s, self.y_s)] = geom.surface_row_err_px.powi(2);
+        cov[(self.scale, self.scale)] = if geom.scale_from_radius {
+            0.0
+        } else {
+            geom.mm_per_px_err.powi(2)
+        };
+        cov
     }
-    cov[(lay.r_px, lay.r_px)] = geom.radius_err_px.powi(2);
-    cov[(lay.y_s, lay.y_s)] = geom.surface_row_err_px.powi(2);
-    cov[(lay.scale, lay.scale)] = if geom.scale_from_radius {
-        0.0
-    } else {
-        geom.mm_per_px_err.powi(2)
-    };
+}
 
-    let g_px = ev.pre.g_px_s2;
-    let derive = |q: &[f64]| -> Option<Vec<f64>> {
+/// The derived numbers as one function of the parameters (see the module
+/// doc): t_contact, t_rebound, τc, v_impact, v_rebound, e, δmax, a_geom,
+/// a_max (NaN without a half-width fit), t_max, in that order, SI units.
+struct Derivation<'a> {
+    /// The drop's events, whose fits the parameters replace.
+    ev: &'a Events,
+    /// The calibration.
+    geom: &'a Geometry,
+    /// Where each parameter is.
+    lay: &'a Layout,
+    /// The half-width fit around the peak, where measured.
+    hw_fit: Option<&'a PolyFit>,
+    /// The sphere's radius, mm.
+    r_mm: f64,
+    /// Exposure averaging (see `EventConfig::exposure_s`): value − value''·T²/24.
+    blur: f64,
+}
+
+impl Derivation<'_> {
+    /// The derived numbers at the parameters `q` (`None`: a flight does not
+    /// cross the surface).
+    fn at(&self, q: &[f64]) -> Option<Vec<f64>> {
+        let (ev, geom, lay) = (self.ev, self.geom, self.lay);
+        let (r_mm, blur) = (self.r_mm, self.blur);
+        let g_px = ev.pre.g_px_s2;
         let r_px = q[lay.r_px];
         let y_s = q[lay.y_s];
         let s_mm = if geom.scale_from_radius {
@@ -184,7 +203,7 @@ pub fn kinematics(
         let delta_px = peak.eval(t_max) - peak.deriv2(t_max) * blur + r_px - y_s;
         let delta_mm = delta_px * s_mm;
         let a_geom_mm = (r_mm * r_mm - (r_mm - delta_mm).powi(2)).max(0.0).sqrt();
-        let a_mm = match (lay.hw, &hw_fit) {
+        let a_mm = match (lay.hw, self.hw_fit) {
             (Some((off, n)), Some(h)) => {
                 let mut h = h.clone();
                 h.fit.coef.copy_from_slice(&q[off..off + n]);
@@ -205,58 +224,87 @@ pub fn kinematics(
             a_mm * 1e-3,
             t_max,
         ])
-    };
+    }
 
-    let base = derive(&p).ok_or(EventError::NoCrossing("flight"))?;
-    // Central-difference Jacobian; steps scaled to each parameter's σ.
-    let n_out = base.len();
-    let mut jac = DMatrix::zeros(n_out, lay.len);
-    for k in 0..lay.len {
-        let sd = cov[(k, k)].sqrt();
-        if sd == 0.0 {
-            continue;
+    /// The derived numbers at the fitted parameters `p`, with the
+    /// parameters' covariance `cov` carried to them by a central-difference
+    /// Jacobian, its steps scaled to each parameter's σ.
+    fn propagate(&self, p: &[f64], cov: DMatrix<f64>) -> Result<Propagated, EventError> {
+        let base = self.at(p).ok_or(EventError::NoCrossing("flight"))?;
+        let n_out = base.len();
+        let len = self.lay.len;
+        let mut jac = DMatrix::zeros(n_out, len);
+        for k in 0..len {
+            let sd = cov[(k, k)].sqrt();
+            if sd == 0.0 {
+                continue;
+            }
+            let h = sd * 1e-3;
+            let mut qp = p.to_vec();
+            let mut qm = p.to_vec();
+            qp[k] += h;
+            qm[k] -= h;
+            let (fp, fm) = match (self.at(&qp), self.at(&qm)) {
+                (Some(a), Some(b)) => (a, b),
+                _ => continue,
+            };
+            for i in 0..n_out {
+                jac[(i, k)] = (fp[i] - fm[i]) / (2.0 * h);
+            }
         }
-        let h = sd * 1e-3;
-        let mut qp = p.clone();
-        let mut qm = p.clone();
-        qp[k] += h;
-        qm[k] -= h;
-        let (fp, fm) = match (derive(&qp), derive(&qm)) {
-            (Some(a), Some(b)) => (a, b),
-            _ => continue,
-        };
-        for i in 0..n_out {
-            jac[(i, k)] = (fp[i] - fm[i]) / (2.0 * h);
+        Ok(Propagated { base, jac, cov })
+    }
+}
+
+/// The derived numbers (in [`Derivation`]'s order) and what carries the
+/// parameters' covariance to them.
+struct Propagated {
+    /// The derived numbers at the fitted parameters.
+    base: Vec<f64>,
+    /// Their Jacobian with respect to the parameters.
+    jac: DMatrix<f64>,
+    /// The parameters' covariance.
+    cov: DMatrix<f64>,
+}
+
+impl Propagated {
+    /// Derived number `i` with its propagated one-sigma error.
+    fn measured(&self, i: usize) -> Measured {
+        let g: Vec<f64> = (0..self.jac.ncols()).map(|k| self.jac[(i, k)]).collect();
+        Measured {
+            value: self.base[i],
+            err: quad_form(&g, &self.cov).max(0.0).sqrt(),
         }
     }
-    let m = |i: usize| -> Measured {
-        let g: Vec<f64> = (0..lay.len).map(|k| jac[(i, k)]).collect();
-        Measured {
-            value: base[i],
-            err: quad_form(&g, &cov).max(0.0).sqrt(),
-        }
+}
+
+/// Compute the drop's kinematics (without the force law) and their errors.
+pub fn kinematics(
+    track: &[TrackPoint],
+    ev: &Events,
+    geom: &Geometry,
+    sphere: &SphereParams,
+    exposure_s: f64,
+) -> Result<Kinematics, EventError> {
+    // Half-width of the silhouette at the line around the peak, where measured.
+    let hw_fit = half_width_fit(track, ev);
+    let (lay, p) = Layout::with_values(ev, geom, hw_fit.as_ref());
+    let cov = lay.covariance(ev, geom, hw_fit.as_ref());
+    let derivation = Derivation {
+        ev,
+        geom,
+        lay: &lay,
+        hw_fit: hw_fit.as_ref(),
+        r_mm: sphere.radius_m * 1e3,
+        blur: exposure_s * exposure_s / 24.0,
     };
-    let s_m = geom.mm_per_px * 1e-3;
-    let g_fit = |f: &crate::measure::events::FlightFit| {
-        f.g_free_px_s2.map(|(g, e)| Measured {
-            value: g * s_m,
-            err: e * s_m,
-        })
-    };
-    // The flights are fitted with gravity known; where a flight's own
-    // curvature (gravity free) disagrees with it beyond its error, the
-    // positions carry something the parabola does not (a slowly changing
-    // edge bias, a lens left in the track), and the speed at the surface
-    // depends on that choice: the excess curvature times the time from the
-    // fit's centre to the crossing enters the speed's error.
-    let to_m_s = geom.mm_per_px * 1e-3;
-    let flight_sys = |f: &crate::measure::events::FlightFit, t_cross_s: f64| -> f64 {
-        f.g_free_px_s2.map_or(0.0, |(g, e)| {
-            let excess = ((g - f.g_px_s2).abs() - e).max(0.0);
-            excess * (t_cross_s - f.t_ref_s).abs() * to_m_s
-        })
-    };
-    let (sys_in, sys_out) = (flight_sys(&ev.pre, base[0]), flight_sys(&ev.post, base[1]));
+    let out = derivation.propagate(&p, cov)?;
+    let m = |i: usize| out.measured(i);
+    let base = &out.base;
+    let (sys_in, sys_out) = (
+        flight_systematic(&ev.pre, base[0], geom),
+        flight_systematic(&ev.post, base[1], geom),
+    );
     let widen = |mut q: Measured, sys: f64| {
         q.err = q.err.hypot(sys);
         q
@@ -271,23 +319,56 @@ pub fn kinematics(
         restitution: widen(m(5), restitution_sys),
         delta_max_m: m(6),
         a_geom_m: m(7),
-        // The free-radius circle at the peak fits a silhouette smeared over
-        // the positions of the exposure, |z̈|·T²/8 apart; the radius absorbs
-        // some part of that range, unknown between none and all of it: a
-        // systematic term of the range's standard deviation as a uniform
-        // one, L/√12, goes into a_max's error.
-        a_max_m: hw_fit.as_ref().map(|_| {
-            let mut a = m(8);
-            let smear_m =
-                ev.peak.poly.deriv2(base[9]).abs() * exposure_s * exposure_s / 8.0 / 12f64.sqrt()
-                    * geom.mm_per_px
-                    * 1e-3;
-            a.err = a.err.hypot(smear_m);
-            a
-        }),
+        a_max_m: hw_fit
+            .as_ref()
+            .map(|_| with_exposure_smear(m(8), ev, base[9], geom, exposure_s)),
         t_max_s: base[9],
-        g_fit_m_s2: [g_fit(&ev.pre), g_fit(&ev.post)],
+        g_fit_m_s2: [g_free(&ev.pre, geom), g_free(&ev.post, geom)],
     })
+}
+
+/// A flight's gravity fitted free, m/s² (`None`: not fitted).
+fn g_free(f: &FlightFit, geom: &Geometry) -> Option<Measured> {
+    let s_m = geom.mm_per_px * 1e-3;
+    f.g_free_px_s2.map(|(g, e)| Measured {
+        value: g * s_m,
+        err: e * s_m,
+    })
+}
+
+/// The systematic error of a flight's speed at its crossing at
+/// `t_cross_s`, m/s. The flights are fitted with gravity known; where a
+/// flight's own curvature (gravity free) disagrees with it beyond its error,
+/// the positions carry something the parabola does not (a slowly changing
+/// edge bias, a lens left in the track), and the speed at the surface
+/// depends on that choice: the excess curvature times the time from the
+/// fit's centre to the crossing enters the speed's error.
+fn flight_systematic(f: &FlightFit, t_cross_s: f64, geom: &Geometry) -> f64 {
+    let to_m_s = geom.mm_per_px * 1e-3;
+    f.g_free_px_s2.map_or(0.0, |(g, e)| {
+        let excess = ((g - f.g_px_s2).abs() - e).max(0.0);
+        excess * (t_cross_s - f.t_ref_s).abs() * to_m_s
+    })
+}
+
+/// a_max with the exposure's smear in its error. The free-radius circle at
+/// the peak (at `t_max_s`) fits a silhouette smeared over the positions of
+/// the exposure, |z̈|·T²/8 apart; the radius absorbs some part of that
+/// range, unknown between none and all of it: a systematic term of the
+/// range's standard deviation as a uniform one, L/√12, goes into a_max's
+/// error.
+fn with_exposure_smear(
+    mut a: Measured,
+    ev: &Events,
+    t_max_s: f64,
+    geom: &Geometry,
+    exposure_s: f64,
+) -> Measured {
+    let smear_m = ev.peak.poly.deriv2(t_max_s).abs() * exposure_s * exposure_s / 8.0 / 12f64.sqrt()
+        * geom.mm_per_px
+        * 1e-3;
+    a.err = a.err.hypot(smear_m);
+    a
 }
 
 /// A polynomial fit of the measured half-width around the peak, over the

@@ -139,6 +139,9 @@ fn controls(n: usize) -> String {
     )
 }
 
+/// An overlay's path and its thumbnail's JPEG bytes.
+type Thumb = (String, Vec<u8>);
+
 /// The table of every drop, in the records' order, with its filter controls.
 pub fn drops_table(out_dir: &Path, records: &[DropRecord]) -> String {
     let mut out = controls(records.len());
@@ -150,132 +153,165 @@ pub fn drops_table(out_dir: &Path, records: &[DropRecord]) -> String {
         );
     }
     out.push_str("<th>overlay at δ<sub>max</sub></th></tr></thead>");
+    let thumbs = thumbnails(out_dir, records);
+    for ((i, rec), thumb) in records.iter().enumerate().zip(thumbs) {
+        drop_rows(&mut out, out_dir, i + 1, rec, thumb);
+    }
+    out.push_str("</table>");
+    out
+}
+
+/// Each record's overlay and its thumbnail, where there is one.
+fn thumbnails(out_dir: &Path, records: &[DropRecord]) -> Vec<Option<Thumb>> {
     // The thumbnails on every core: a thousand overlays to decode and shrink.
     use rayon::prelude::*;
-    let thumbs: Vec<Option<(String, Vec<u8>)>> = records
+    records
         .par_iter()
         .map(|rec| {
             let rel = figure(out_dir, rec, "overlays", "png")?;
             let jpeg = thumbnail(out_dir, &rel)?;
             Some((rel, jpeg))
         })
-        .collect();
-    for ((i, rec), thumb) in records.iter().enumerate().zip(thumbs) {
-        let (class, label) = status(rec);
-        let run = escape(&rec.run);
-        let measured = rec.status.measured();
-        let keys: String = [
-            ("v", rec.v_impact_m_s),
-            ("delta", rec.delta_max_mm),
-            ("a", rec.a_max_mm),
-            ("tau", rec.tau_c_ms),
-            ("e", rec.restitution),
-            ("vr", rec.v_rebound_m_s),
-        ]
-        .into_iter()
-        .filter(|_| measured)
-        .map(|(k, v)| key(k, v))
-        .collect();
+        .collect()
+}
+
+/// Drop number `n`'s rows: its numbers (or why there are none) and its
+/// overlay, then its folded diagnostics.
+fn drop_rows(out: &mut String, out_dir: &Path, n: usize, rec: &DropRecord, thumb: Option<Thumb>) {
+    let run = escape(&rec.run);
+    row_start(out, n, rec, &run);
+    let reason = if rec.reason.is_empty() {
+        "no reason recorded".into()
+    } else {
+        escape(&rec.reason)
+    };
+    if rec.status == DropStatus::Failed {
         let _ = write!(
             out,
-            "<tbody class=\"{class}\" id=\"drop-{n}\" data-n=\"{n}\" data-run=\"{run}\" \
-             data-status=\"{class}\"{r}{keys} data-text=\"{text}\"><tr><td class=\"num\">{n}</td>\
-             <th class=\"run\">{run}</th><td class=\"num\">{}</td><td class=\"status\">\
-             <span class=\"badge {class}\">{label}</span>",
-            num(rec.sphere_radius_mm),
-            n = i + 1,
-            r = key("r", Some(rec.sphere_radius_mm)),
-            text = escape(&search_text(rec)),
+            "<td colspan=\"{}\" class=\"reason\">{reason}</td>",
+            N_COLUMNS - 4,
         );
-        let noted = matches!(
-            rec.status,
-            DropStatus::Warning | DropStatus::Accepted | DropStatus::Rejected
-        );
-        if noted && !rec.reason.is_empty() {
-            let _ = write!(out, "<div class=\"reason\">{}</div>", escape(&rec.reason));
-        }
-        if !rec.review.is_empty() {
-            let _ = write!(
-                out,
-                "<div class=\"review\" title=\"decided in dropscope review (review.csv)\">\
-                 review: {}</div>",
-                escape(&rec.review)
-            );
-        }
-        out.push_str("</td>");
-        let reason = if rec.reason.is_empty() {
-            "no reason recorded".into()
+    } else {
+        if rec.status == DropStatus::Tracked {
+            tracked_cell(out, rec, &reason);
         } else {
-            escape(&rec.reason)
-        };
-        if rec.status == DropStatus::Failed {
-            let _ = write!(
-                out,
-                "<td colspan=\"{}\" class=\"reason\">{reason}</td>",
-                N_COLUMNS - 4,
-            );
-        } else {
-            if rec.status == DropStatus::Tracked {
-                // No impact: the free flight's velocity at its last frame.
-                let v = match (rec.v_last_m_s, rec.t_last_s) {
-                    (Some(v), Some(t)) => format!(
-                        "v = {} m/s at the last frame ({} ms): ",
-                        pm(v, rec.v_last_m_s_err),
-                        num(t * 1e3)
-                    ),
-                    _ => String::new(),
-                };
-                let _ = write!(
-                    out,
-                    "<td colspan=\"{}\" class=\"reason\">{v}{reason}</td>",
-                    N_COLUMNS - 5,
-                );
-            } else {
-                out.push_str(&cell(rec.v_impact_m_s, rec.v_impact_m_s_err));
-                out.push_str(&cell(rec.delta_max_mm, rec.delta_max_mm_err));
-                out.push_str(&cell(rec.a_max_mm, rec.a_max_mm_err));
-                out.push_str(&cell(rec.tau_c_ms, rec.tau_c_ms_err));
-                out.push_str(&cell(rec.restitution, rec.restitution_err));
-                out.push_str(&cell(rec.v_rebound_m_s, rec.v_rebound_m_s_err));
-            }
-            match thumb {
-                Some((rel, jpeg)) => {
-                    let _ = write!(
-                        out,
-                        "<td><img class=\"thumb\" src=\"{}\" data-full=\"{}\" \
-                         alt=\"overlay of {run}\" title=\"click to enlarge\">",
-                        data_uri("image/jpeg", &jpeg),
-                        url_path(&rel)
-                    );
-                    if let Some(movie) = figure(out_dir, rec, "impacts", "png") {
-                        let _ = write!(
-                            out,
-                            "<a class=\"movie\" href=\"{}\" title=\"the impact, frame by frame\">\
-                             ▶ impact</a>",
-                            url_path(&movie)
-                        );
-                    }
-                    out.push_str("</td>");
-                }
-                None => out.push_str("<td class=\"missing\">no overlay</td>"),
-            }
+            out.push_str(&cell(rec.v_impact_m_s, rec.v_impact_m_s_err));
+            out.push_str(&cell(rec.delta_max_mm, rec.delta_max_mm_err));
+            out.push_str(&cell(rec.a_max_mm, rec.a_max_mm_err));
+            out.push_str(&cell(rec.tau_c_ms, rec.tau_c_ms_err));
+            out.push_str(&cell(rec.restitution, rec.restitution_err));
+            out.push_str(&cell(rec.v_rebound_m_s, rec.v_rebound_m_s_err));
         }
-        out.push_str("</tr>");
-        if let Some(svg) = figure(out_dir, rec, "drops", "svg") {
-            let _ = write!(
-                out,
-                "<tr class=\"diag\"><td></td><td colspan=\"{}\"><details><summary>diagnostics of \
-                 {run}: z(t) with the flight parabolas and events, δ(t), F(δ)</summary>\
-                 <img class=\"diagram\" data-src=\"{url}\" alt=\"diagnostics of {run}\">\
-                 <a href=\"{url}\">the figure alone</a></details></td></tr>",
-                N_COLUMNS - 1,
-                url = url_path(&svg)
-            );
-        }
-        out.push_str("</tbody>");
+        overlay_cell(out, out_dir, rec, &run, thumb);
     }
-    out.push_str("</table>");
-    out
+    out.push_str("</tr>");
+    if let Some(svg) = figure(out_dir, rec, "drops", "svg") {
+        let _ = write!(
+            out,
+            "<tr class=\"diag\"><td></td><td colspan=\"{}\"><details><summary>diagnostics of \
+             {run}: z(t) with the flight parabolas and events, δ(t), F(δ)</summary>\
+             <img class=\"diagram\" data-src=\"{url}\" alt=\"diagnostics of {run}\">\
+             <a href=\"{url}\">the figure alone</a></details></td></tr>",
+            N_COLUMNS - 1,
+            url = url_path(&svg)
+        );
+    }
+    out.push_str("</tbody>");
+}
+
+/// A drop's group with its sort keys and search text, and its row's first
+/// cells: number, run (`run`, escaped), radius, status with the reason and
+/// review.
+fn row_start(out: &mut String, n: usize, rec: &DropRecord, run: &str) {
+    let (class, label) = status(rec);
+    let measured = rec.status.measured();
+    let keys: String = [
+        ("v", rec.v_impact_m_s),
+        ("delta", rec.delta_max_mm),
+        ("a", rec.a_max_mm),
+        ("tau", rec.tau_c_ms),
+        ("e", rec.restitution),
+        ("vr", rec.v_rebound_m_s),
+    ]
+    .into_iter()
+    .filter(|_| measured)
+    .map(|(k, v)| key(k, v))
+    .collect();
+    let _ = write!(
+        out,
+        "<tbody class=\"{class}\" id=\"drop-{n}\" data-n=\"{n}\" data-run=\"{run}\" \
+         data-status=\"{class}\"{r}{keys} data-text=\"{text}\"><tr><td class=\"num\">{n}</td>\
+         <th class=\"run\">{run}</th><td class=\"num\">{}</td><td class=\"status\">\
+         <span class=\"badge {class}\">{label}</span>",
+        num(rec.sphere_radius_mm),
+        r = key("r", Some(rec.sphere_radius_mm)),
+        text = escape(&search_text(rec)),
+    );
+    let noted = matches!(
+        rec.status,
+        DropStatus::Warning | DropStatus::Accepted | DropStatus::Rejected
+    );
+    if noted && !rec.reason.is_empty() {
+        let _ = write!(out, "<div class=\"reason\">{}</div>", escape(&rec.reason));
+    }
+    if !rec.review.is_empty() {
+        let _ = write!(
+            out,
+            "<div class=\"review\" title=\"decided in dropscope review (review.csv)\">\
+             review: {}</div>",
+            escape(&rec.review)
+        );
+    }
+    out.push_str("</td>");
+}
+
+/// A tracked drop's one cell over the numbers: no impact, so the free
+/// flight's velocity at its last frame, and `reason` (escaped).
+fn tracked_cell(out: &mut String, rec: &DropRecord, reason: &str) {
+    let v = match (rec.v_last_m_s, rec.t_last_s) {
+        (Some(v), Some(t)) => format!(
+            "v = {} m/s at the last frame ({} ms): ",
+            pm(v, rec.v_last_m_s_err),
+            num(t * 1e3)
+        ),
+        _ => String::new(),
+    };
+    let _ = write!(
+        out,
+        "<td colspan=\"{}\" class=\"reason\">{v}{reason}</td>",
+        N_COLUMNS - 5,
+    );
+}
+
+/// The overlay's thumbnail, opening the full picture, and the link to the
+/// animated impact; or a note that there is no overlay.
+fn overlay_cell(
+    out: &mut String,
+    out_dir: &Path,
+    rec: &DropRecord,
+    run: &str,
+    thumb: Option<Thumb>,
+) {
+    let Some((rel, jpeg)) = thumb else {
+        out.push_str("<td class=\"missing\">no overlay</td>");
+        return;
+    };
+    let _ = write!(
+        out,
+        "<td><img class=\"thumb\" src=\"{}\" data-full=\"{}\" \
+         alt=\"overlay of {run}\" title=\"click to enlarge\">",
+        data_uri("image/jpeg", &jpeg),
+        url_path(&rel)
+    );
+    if let Some(movie) = figure(out_dir, rec, "impacts", "png") {
+        let _ = write!(
+            out,
+            "<a class=\"movie\" href=\"{}\" title=\"the impact, frame by frame\">\
+             ▶ impact</a>",
+            url_path(&movie)
+        );
+    }
+    out.push_str("</td>");
 }
 
 #[cfg(test)]

@@ -1,5 +1,6 @@
 //! Tests of [`crate::measure::force`].
 
+use super::fit::fit_force_law_to;
 use super::*;
 use crate::measure::events::FORCE_FIT_MAX_TRAJECTORIES;
 

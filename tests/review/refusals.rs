@@ -4,6 +4,18 @@
 use super::*;
 use dropscope::dataset::decisions::Decisions;
 
+/// `POST target` with a JSON `body` and `headers` to the review on `port`:
+/// the status and the body as text.
+fn json_post(port: u16, target: &str, body: &str, headers: &[(&str, &str)]) -> (u16, String) {
+    let mut h = vec![("Content-Type", "application/json")];
+    h.extend_from_slice(headers);
+    let (s, _, b) = http(port, "POST", target, &h, body.as_bytes());
+    (s, text(&b))
+}
+
+/// A refused request: what it is, its status and body, what the refusal says.
+type Refused<W> = (W, (u16, String), &'static str);
+
 /// Every request that is not the page's own, or names what is not in the
 /// folder, gets a 4xx saying what was wrong and changes nothing; a second
 /// review of the folder is told it is open; Ctrl-C stops the first and
@@ -21,7 +33,51 @@ fn bad_requests_are_refused_and_change_nothing_and_ctrl_c_stops_the_review() {
     let (port, t) = (review.port, review.token.clone());
     let run = "R4.5mm_H12cm_01";
 
-    // What the page asks for, answered.
+    assert_the_pages_own_requests_are_answered(&review, run);
+    let origin = format!("http://127.0.0.1:{port}");
+    let file = out.join("review.csv");
+    let before = decide_one(port, &t, run, &origin, &file);
+    let drops_before = std::fs::read(out.join("drops.csv")).unwrap();
+
+    let refusals = refused_gets(port, &t, run);
+    let mut posts = refused_posts_by_their_form(port, &t, run, &origin);
+    posts.extend(refused_decisions(port, &t, run, &origin));
+    for (what, (status, body), says) in refusals
+        .iter()
+        .map(|(w, r, s)| (w.as_str(), r.clone(), *s))
+        .chain(posts)
+    {
+        assert!(
+            (400..500).contains(&status),
+            "{what}: status {status}: {body}"
+        );
+        let message: serde_json::Value =
+            serde_json::from_str(&body).unwrap_or_else(|_| panic!("{what}: not JSON: {body}"));
+        let message = message["error"].as_str().unwrap_or_default();
+        assert!(message.contains(says), "{what}: {status} {message:?}");
+    }
+    assert!(
+        std::fs::read(&file).unwrap() == before,
+        "review.csv changed"
+    );
+    assert!(
+        std::fs::read(out.join("drops.csv")).unwrap() == drops_before,
+        "drops.csv changed"
+    );
+
+    a_second_review_is_told_it_is_open(d, &out, &cfg, &review);
+
+    // Ctrl-C stops it, frees the folder and says where the decisions are.
+    let (status, said) = review.interrupt();
+    assert!(status.success(), "{status}: {said}");
+    assert!(said.contains("review stopped"), "{said}");
+    assert!(!out.join(".dropscope.review.lock").exists());
+    assert!(std::net::TcpStream::connect(("127.0.0.1", port)).is_err());
+}
+
+/// What the page asks for, answered; nothing from the network.
+fn assert_the_pages_own_requests_are_answered(review: &Review, run: &str) {
+    let t = &review.token;
     let (s, page) = review.get(&format!("/?token={t}"));
     assert_eq!(s, 200);
     assert!(text(&page).contains(&format!("/page.js?token={t}")));
@@ -42,36 +98,37 @@ fn bad_requests_are_refused_and_change_nothing_and_ctrl_c_stops_the_review() {
     ));
     assert_eq!(s, 200);
     assert!(body.starts_with(b"\x89PNG"));
-    let origin = format!("http://127.0.0.1:{port}");
-    let json_post = |target: &str, body: &str, headers: &[(&str, &str)]| {
-        let mut h = vec![("Content-Type", "application/json")];
-        h.extend_from_slice(headers);
-        let (s, _, b) = http(port, "POST", target, &h, body.as_bytes());
-        (s, text(&b))
-    };
+}
+
+/// A decision the page makes is taken, and written to review.csv (`file`)
+/// as a text cell: review.csv's bytes after it.
+fn decide_one(port: u16, t: &str, run: &str, origin: &str, file: &Path) -> Vec<u8> {
     let (s, b) = json_post(
+        port,
         &format!("/api/decide?token={t}"),
         &format!(r#"{{"run":"{run}","decision":"exclude","frames":"-3:-2","reason":"=dust"}}"#),
-        &[("Origin", &origin)],
+        &[("Origin", origin)],
     );
     assert_eq!(s, 200, "{b}");
-    let file = out.join("review.csv");
-    let before = std::fs::read(&file).unwrap();
+    let before = std::fs::read(file).unwrap();
     assert!(
         text(&before).ends_with(&format!("{run},exclude,-3:-2,,'=dust,{}\n", {
-            let d = Decisions::read(&file).unwrap();
+            let d = Decisions::read(file).unwrap();
             d.rows[0].time.clone()
         })),
         "{}",
         text(&before)
     );
-    let drops_before = std::fs::read(out.join("drops.csv")).unwrap();
+    before
+}
 
+/// The GET requests refused, made in order.
+fn refused_gets(port: u16, t: &str, run: &str) -> Vec<Refused<String>> {
     let get = |target: String, headers: &[(&str, &str)]| {
         let (s, _, b) = http(port, "GET", &target, headers, b"");
         (s, text(&b))
     };
-    let refusals: Vec<(String, (u16, String), &str)> = vec![
+    vec![
         ("no token".into(), get("/api/drops".into(), &[]), "no token"),
         (
             "a wrong token".into(),
@@ -161,11 +218,19 @@ fn bad_requests_are_refused_and_change_nothing_and_ctrl_c_stops_the_review() {
             get(format!("/api/decide?token={t}"), &[]),
             "takes POST only",
         ),
-    ];
+    ]
+}
+
+/// The decisions refused for how they are sent, made in order.
+fn refused_posts_by_their_form(
+    port: u16,
+    t: &str,
+    run: &str,
+    origin: &str,
+) -> Vec<Refused<&'static str>> {
     let decide = format!("/api/decide?token={t}");
-    let post = |body: &str, headers: &[(&str, &str)]| json_post(&decide, body, headers);
-    let o: &[(&str, &str)] = &[("Origin", &origin)];
-    let posts: Vec<(&str, (u16, String), &str)> = vec![
+    let post = |body: &str, headers: &[(&str, &str)]| json_post(port, &decide, body, headers);
+    vec![
         (
             "a decision without Origin",
             post(
@@ -190,7 +255,7 @@ fn bad_requests_are_refused_and_change_nothing_and_ctrl_c_stops_the_review() {
                     "POST",
                     &decide,
                     &[
-                        ("Origin", &origin),
+                        ("Origin", origin),
                         ("Content-Type", "application/x-www-form-urlencoded"),
                     ],
                     b"run=x",
@@ -199,6 +264,15 @@ fn bad_requests_are_refused_and_change_nothing_and_ctrl_c_stops_the_review() {
             },
             "application/json",
         ),
+    ]
+}
+
+/// The decisions refused for what they say, made in order.
+fn refused_decisions(port: u16, t: &str, run: &str, origin: &str) -> Vec<Refused<&'static str>> {
+    let decide = format!("/api/decide?token={t}");
+    let post = |body: &str, headers: &[(&str, &str)]| json_post(port, &decide, body, headers);
+    let o: &[(&str, &str)] = &[("Origin", origin)];
+    vec![
         (
             "a decision about an unknown run",
             post(r#"{"run":"nope","decision":"reject","reason":"x"}"#, o),
@@ -262,37 +336,18 @@ fn bad_requests_are_refused_and_change_nothing_and_ctrl_c_stops_the_review() {
         (
             "a withdrawal of nothing",
             json_post(
+                port,
                 &format!("/api/withdraw?token={t}"),
                 &format!(r#"{{"run":"{run}","decision":"reject"}}"#),
                 o,
             ),
             "no `reject` decision",
         ),
-    ];
-    for (what, (status, body), says) in refusals
-        .iter()
-        .map(|(w, r, s)| (w.as_str(), r.clone(), *s))
-        .chain(posts)
-    {
-        assert!(
-            (400..500).contains(&status),
-            "{what}: status {status}: {body}"
-        );
-        let message: serde_json::Value =
-            serde_json::from_str(&body).unwrap_or_else(|_| panic!("{what}: not JSON: {body}"));
-        let message = message["error"].as_str().unwrap_or_default();
-        assert!(message.contains(says), "{what}: {status} {message:?}");
-    }
-    assert!(
-        std::fs::read(&file).unwrap() == before,
-        "review.csv changed"
-    );
-    assert!(
-        std::fs::read(out.join("drops.csv")).unwrap() == drops_before,
-        "drops.csv changed"
-    );
+    ]
+}
 
-    // A second review of the folder is told it is open.
+/// A second review of the folder is told it is open.
+fn a_second_review_is_told_it_is_open(d: &Path, out: &Path, cfg: &Path, review: &Review) {
     let second = dropscope(
         d,
         &[
@@ -309,11 +364,4 @@ fn bad_requests_are_refused_and_change_nothing_and_ctrl_c_stops_the_review() {
             && e.contains(&format!("pid {}", review.child.id())),
         "{e}"
     );
-
-    // Ctrl-C stops it, frees the folder and says where the decisions are.
-    let (status, said) = review.interrupt();
-    assert!(status.success(), "{status}: {said}");
-    assert!(said.contains("review stopped"), "{said}");
-    assert!(!out.join(".dropscope.review.lock").exists());
-    assert!(std::net::TcpStream::connect(("127.0.0.1", port)).is_err());
 }

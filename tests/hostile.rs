@@ -165,6 +165,35 @@ fn by<'a>(rows: &'a [DropRecord], run: &str) -> &'a DropRecord {
 fn corrupt_times_rates_and_exposures_fail_their_run_only() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
+    let [reversed, garbled, jittered, long_exposure, nan_rate, zero_rate, deep] =
+        corrupt_side_files(d);
+    let [cine_reversed, cine_exposure, cine_rate, cine_decimation] = corrupt_cines(d);
+    let runs = vec![
+        spec("good", &root().join("fixtures").join(DROP)),
+        spec("reversed", &reversed),
+        spec("garbled", &garbled),
+        spec("jittered", &jittered),
+        spec("long_exposure", &long_exposure),
+        spec("nan_rate", &nan_rate),
+        spec("zero_rate", &zero_rate),
+        spec("deep_xml", &deep),
+        spec("cine_reversed", &cine_reversed),
+        spec("cine_exposure", &cine_exposure),
+        spec("cine_rate", &cine_rate),
+        spec("cine_decimation", &cine_decimation),
+    ];
+    let out = d.join("out");
+    let rows = process_all(&runs, &config(), &out, &|_| {}).unwrap();
+    assert_eq!(by(&rows, "good").status, DropStatus::Ok);
+    assert_each_corrupt_run_failed_naming_its_file(&rows);
+    // drops.csv is written, with every row.
+    assert_eq!(read_csv(&out.join("drops.csv")).unwrap().len(), runs.len());
+}
+
+/// Copies of the fixture drop whose PCC side file holds corrupt frame times,
+/// an exposure longer than a frame, a frame rate of NaN or 0, or elements
+/// nested 100 000 deep: their folders, in that order.
+fn corrupt_side_files(d: &Path) -> [PathBuf; 7] {
     let reversed = variant(
         d,
         "reversed",
@@ -231,6 +260,20 @@ fn corrupt_times_rates_and_exposures_fail_their_run_only() {
         },
         &[],
     );
+    [
+        reversed,
+        garbled,
+        jittered,
+        long_exposure,
+        nan_rate,
+        zero_rate,
+        deep,
+    ]
+}
+
+/// Cines with times running backwards, a 4 s exposure, a frame rate of
+/// 1e300 and a save decimation of 1e-30: their paths, in that order.
+fn corrupt_cines(d: &Path) -> [PathBuf; 4] {
     let cine_reversed = d.join("reversed.cine");
     cine(
         &cine_reversed,
@@ -265,23 +308,12 @@ fn corrupt_times_rates_and_exposures_fail_their_run_only() {
             b[o..o + 4].copy_from_slice(&1e-30f32.to_le_bytes());
         },
     );
-    let runs = vec![
-        spec("good", &root().join("fixtures").join(DROP)),
-        spec("reversed", &reversed),
-        spec("garbled", &garbled),
-        spec("jittered", &jittered),
-        spec("long_exposure", &long_exposure),
-        spec("nan_rate", &nan_rate),
-        spec("zero_rate", &zero_rate),
-        spec("deep_xml", &deep),
-        spec("cine_reversed", &cine_reversed),
-        spec("cine_exposure", &cine_exposure),
-        spec("cine_rate", &cine_rate),
-        spec("cine_decimation", &cine_decimation),
-    ];
-    let out = d.join("out");
-    let rows = process_all(&runs, &config(), &out, &|_| {}).unwrap();
-    assert_eq!(by(&rows, "good").status, DropStatus::Ok);
+    [cine_reversed, cine_exposure, cine_rate, cine_decimation]
+}
+
+/// Every corrupt run failed, naming its file and what is wrong in it, with
+/// no numbers.
+fn assert_each_corrupt_run_failed_naming_its_file(rows: &[DropRecord]) {
     let xml = format!("{DROP}.xml");
     for (run, file, says) in [
         ("reversed", "reversed", "frame -29: time stamp"),
@@ -305,7 +337,7 @@ fn corrupt_times_rates_and_exposures_fail_their_run_only() {
             "save decimation 1.0000000031710769e-30",
         ),
     ] {
-        let r = by(&rows, run);
+        let r = by(rows, run);
         assert_eq!(r.status, DropStatus::Failed, "{run}: {}", r.reason);
         assert!(
             r.reason.contains(file) && r.reason.contains(says),
@@ -314,8 +346,6 @@ fn corrupt_times_rates_and_exposures_fail_their_run_only() {
         );
         assert!(r.delta_max_mm.is_none());
     }
-    // drops.csv is written, with every row.
-    assert_eq!(read_csv(&out.join("drops.csv")).unwrap().len(), runs.len());
 }
 
 /// A manifest run named `../../x` is refused naming the row, and nothing is

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use dropscope::dataset::{read_csv, DropStatus};
+use dropscope::dataset::{read_csv, DropRecord, DropStatus};
 
 use crate::webdriver::CHROMIUM;
 
@@ -97,6 +97,25 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
     let start = Instant::now();
     let dir = tempfile::tempdir().unwrap();
     let work = dir.path();
+    let (config, out, records) = run_the_job_with_a_broken_run(work);
+    let page = out.join("report.html");
+    assert!(page.is_file(), "the main job wrote no report.html");
+    let job_secs = start.elapsed().as_secs_f64();
+
+    assert_the_dom_lists_every_drop(&page, work, &records);
+    let html = std::fs::read_to_string(&page).unwrap();
+    let rects = plot_boxes(&html, work);
+    assert_plot_text_is_readable_and_every_point_titled(&html, work);
+    assert_the_screenshot_is_not_blank(&page, work, &rects, job_secs, start);
+    assert_report_writes_the_same_page_elsewhere(&out, &config, &page, work);
+}
+
+/// The window the page is laid out and photographed in.
+const WINDOW: &str = "--window-size=1280,2000";
+
+/// The main job on the three fixture drops and a corrupt cine, in `work`:
+/// one run fails. The configuration, the output folder and drops.csv's rows.
+fn run_the_job_with_a_broken_run(work: &Path) -> (PathBuf, PathBuf, Vec<DropRecord>) {
     std::fs::write(work.join("broken.cine"), b"CI not really a cine").unwrap();
     let fixtures = root().join("fixtures");
     let mut manifest = String::from("run,path,sphere_radius_mm\n");
@@ -134,13 +153,15 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
     assert_eq!(records.len(), 4);
     assert_eq!(records[3].run, BROKEN_RUN);
     assert_eq!(records[3].status, DropStatus::Failed);
-    let page = out.join("report.html");
-    assert!(page.is_file(), "the main job wrote no report.html");
-    let job_secs = start.elapsed().as_secs_f64();
+    (config, out, records)
+}
 
-    // The rendered DOM (after parsing and the page's script).
-    let dom = String::from_utf8(chromium(&page, &["--dump-dom".into()], work)).unwrap();
-    for r in &records {
+/// The rendered DOM (after parsing and the page's script) lists every drop
+/// once, the failed one with its reason, the plots, overlays, diagnostics
+/// and movies.
+fn assert_the_dom_lists_every_drop(page: &Path, work: &Path, records: &[DropRecord]) {
+    let dom = String::from_utf8(chromium(page, &["--dump-dom".into()], work)).unwrap();
+    for r in records {
         let row = format!("<th class=\"run\">{}</th>", serialised(&r.run));
         assert_eq!(dom.matches(&row).count(), 1, "{row} not rendered once");
     }
@@ -165,11 +186,13 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
         3
     );
     assert!(dom.contains("<span class=\"count failed\">1 failed</span>"));
+}
 
-    // Where the four plots were laid out: a copy of the page with a probe
-    // script that writes each inline SVG's box into the DOM.
+/// Where the four plots were laid out: a copy of the page with a probe
+/// script that writes each inline SVG's box into the DOM. Each plot's box
+/// (left, top, width, height).
+fn plot_boxes(html: &str, work: &Path) -> Vec<[u32; 4]> {
     let probe = work.join("probe.html");
-    let html = std::fs::read_to_string(&page).unwrap();
     std::fs::write(
         &probe,
         html.replace(
@@ -180,10 +203,9 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
         ),
     )
     .unwrap();
-    let window = "--window-size=1280,2000".to_string();
     let probed = String::from_utf8(chromium(
         &probe,
-        &["--dump-dom".into(), window.clone()],
+        &["--dump-dom".into(), WINDOW.to_string()],
         work,
     ))
     .unwrap();
@@ -208,11 +230,13 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
             "aspect {aspect}"
         );
     }
+    rects
+}
 
-    // In a 1400 px window as a user opens it: every text
-    // of the inline plots (tick labels are the smallest) renders at 11 px
-    // or more, and every plotted point has a hover text (SVG <title>)
-    // naming its run.
+/// In a 1400 px window as a user opens it: every text of the inline plots
+/// (tick labels are the smallest) renders at 11 px or more, and every
+/// plotted point has a hover text (SVG <title>) naming its run.
+fn assert_plot_text_is_readable_and_every_point_titled(html: &str, work: &Path) {
     let probe = work.join("probe-fonts.html");
     std::fs::write(
         &probe,
@@ -246,15 +270,26 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
     // Three measured drops, each a point in each of the four figures.
     assert_eq!(attr("data-titles"), 12.0);
     assert!(probed.contains("<title>R3mm_H1.5cm_01 · R = 3 mm · η = "));
+}
 
-    // The screenshot at the same size: not blank as a whole (measured:
-    // 9 % non-white, about 2000 colours; a blank page is one colour), and
-    // every plot box visibly drawn (an SVG that did not render leaves its
-    // box white).
+/// The screenshot at the same size: not blank as a whole (measured:
+/// 9 % non-white, about 2000 colours; a blank page is one colour), and
+/// every plot box visibly drawn (an SVG that did not render leaves its
+/// box white).
+fn assert_the_screenshot_is_not_blank(
+    page: &Path,
+    work: &Path,
+    rects: &[[u32; 4]],
+    job_secs: f64,
+    start: Instant,
+) {
     let shot = work.join("shot.png");
     chromium(
-        &page,
-        &[format!("--screenshot={}", shot.display()), window],
+        page,
+        &[
+            format!("--screenshot={}", shot.display()),
+            WINDOW.to_string(),
+        ],
         work,
     );
     let img = image::open(&shot).unwrap().to_rgb8();
@@ -283,22 +318,29 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
         100.0 * frac
     );
     assert!(colours > 200, "only {colours} colours");
-    for [x, y, w, h] in &rects {
+    for [x, y, w, h] in rects {
         let (frac, colours) = stats(*x, *y, *w, *h);
         eprintln!(
             "plot at {x},{y}: {:.1} % non-white, {colours} colours",
             100.0 * frac
         );
     }
+}
 
-    // `dropscope report` on a copy elsewhere writes the same page.
+/// `dropscope report` on a copy elsewhere writes the same page.
+fn assert_report_writes_the_same_page_elsewhere(
+    out: &Path,
+    config: &Path,
+    page: &Path,
+    work: &Path,
+) {
     let copy = work.join("elsewhere");
-    copy_dir(&out, &copy);
+    copy_dir(out, &copy);
     std::fs::remove_file(copy.join("report.html")).unwrap();
     let again = Command::new(env!("CARGO_BIN_EXE_dropscope"))
         .arg("report")
         .arg("--config")
-        .arg(&config)
+        .arg(config)
         .arg("--out")
         .arg(&copy)
         .output()
@@ -308,7 +350,7 @@ fn the_report_renders_in_chromium_and_lists_every_drop() {
         "{}",
         String::from_utf8_lossy(&again.stderr)
     );
-    assert!(std::fs::read(&page).unwrap() == std::fs::read(copy.join("report.html")).unwrap());
+    assert!(std::fs::read(page).unwrap() == std::fs::read(copy.join("report.html")).unwrap());
 }
 
 /// A report for an archive. 1 000 drops (the three fixture drops'

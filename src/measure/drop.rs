@@ -5,7 +5,8 @@ use crate::dataset::{DropRecord, DropStatus, TrackRow};
 use crate::measure::events::{
     find_events, EventConfig, EventError, Events, Geometry, SurfaceFrame, TrackPoint,
 };
-use crate::measure::force::{fit_force_law, force_table, Damping, ForceFitError, ForceLaw};
+use crate::measure::force::{force_table, Damping, ForceFitError, ForceLaw};
+use crate::measure::force_fit::fit_force_law;
 use crate::measure::kinematics::{kinematics, Kinematics, Measured, SphereParams};
 use crate::measure::quality;
 

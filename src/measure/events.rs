@@ -187,7 +187,7 @@ impl Default for EventConfig {
     }
 }
 
-/// Flight frames on either side of the contact used by [`crate::measure::force::fit_force_law`].
+/// Flight frames on either side of the contact used by [`crate::measure::force_fit::fit_force_law`].
 pub const FLIGHT_FRAMES: usize = 12;
 
 /// The trajectory fit's work limit, in trajectories' worth of steps (a

@@ -7,7 +7,7 @@
 //!   against δ. This is what the track file and the F(δ) plot show. Any
 //!   local smoothing flattens the force peak, so a power law fitted to this
 //!   table is biased (n ≈ 1.94 for ±2 frames on a 24-frame contact).
-//! - [`fit_force_law`]: the law F = K·δⁿ plus a damping term fitted to the
+//! - [`fit_force_law`](crate::measure::force_fit::fit_force_law): the law F = K·δⁿ plus a damping term fitted to the
 //!   trajectory itself: the equation of motion m·δ̈ = m·g − F(δ, δ̇) while
 //!   δ > 0 is integrated (exact in flight, RK4 in contact, touchdown and
 //!   lift-off located exactly) from the first flight frame and its δ(t),
@@ -32,9 +32,6 @@ use crate::measure::events::{Events, Geometry, TrackPoint};
 use crate::measure::kinematics::{Measured, SphereParams};
 use crate::util::lsq::PolyFit;
 use nalgebra::{DMatrix, DVector};
-
-mod fit;
-pub use fit::{fit_force_law, CONTACT_DEPTH_SYSTEMATIC_PX, CONTACT_STEP_SYSTEMATIC_PX};
 
 /// One row of the tabulated force curve.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -146,7 +143,7 @@ impl ContactModel {
     /// and damping coefficient over mass `b` (c/m in 1/s for linear
     /// damping, α in s/m for Hunt–Crossley).
     #[inline]
-    fn acceleration(&self, g: f64, d: f64, v: f64, km: f64, n: f64, b: f64) -> f64 {
+    pub(super) fn acceleration(&self, g: f64, d: f64, v: f64, km: f64, n: f64, b: f64) -> f64 {
         let d = d.max(0.0);
         // n held at the model's 2 multiplies instead of pow.
         let elastic = km * if n == 2.0 { d * d } else { d.powf(n) };
@@ -213,7 +210,7 @@ pub struct ForceLaw {
 
 /// Contact steps of the integration per frame interval (RK4; the flight
 /// between contacts is exact, so only the smooth contact phase is stepped).
-const CONTACT_STEPS_PER_FRAME: f64 = 20.0;
+pub(super) const CONTACT_STEPS_PER_FRAME: f64 = 20.0;
 
 /// Steps one trajectory may take, per time asked for: a trajectory takes
 /// at most [`CONTACT_STEPS_PER_FRAME`] RK4 steps per mean frame interval in
@@ -232,7 +229,7 @@ const STEPS_PER_TIME: usize = 8 * (CONTACT_STEPS_PER_FRAME as usize + 3);
 /// the damping makes δ̈ jump. In contact, RK4 steps of at most `h_max`; a
 /// step that ends above the surface is redone up to the lift-off, found on
 /// the step's cubic Hermite interpolant of (δ, δ̇), and flight resumes there.
-fn integrate_counted(
+pub(super) fn integrate_counted(
     ts: &[f64],
     theta: &[f64],
     g: f64,
@@ -344,17 +341,17 @@ pub enum ForceFitError {
 pub const FORCE_FIT_TIME_LIMIT_S: f64 = 20.0;
 
 /// A Levenberg–Marquardt fit of some parameters of θ.
-struct LmFit {
-    theta: Vec<f64>,
+pub(super) struct LmFit {
+    pub(super) theta: Vec<f64>,
     /// Indices of θ that were fitted, in the order of `cov`.
-    free: Vec<usize>,
+    pub(super) free: Vec<usize>,
     /// (JᵀJ)⁻¹ over the fitted parameters, scaled by max(1, χ²_red).
-    cov: DMatrix<f64>,
+    pub(super) cov: DMatrix<f64>,
     /// (JᵀJ)⁻¹Jᵀ at the solution: the fitted parameters' response to a
     /// change of the residuals is minus this times it.
-    response: DMatrix<f64>,
-    cost: f64,
-    dof: usize,
+    pub(super) response: DMatrix<f64>,
+    pub(super) cost: f64,
+    pub(super) dof: usize,
 }
 
 impl LmFit {
@@ -363,14 +360,14 @@ impl LmFit {
     /// `dr` is the change of the residuals that one standard deviation of
     /// a nuisance makes.
     /// How θ[i] moves when the residuals change by `dr` (0 when held).
-    fn response_to(&self, i: usize, dr: &DVector<f64>) -> f64 {
+    pub(super) fn response_to(&self, i: usize, dr: &DVector<f64>) -> f64 {
         self.free
             .iter()
             .position(|&k| k == i)
             .map_or(0.0, |p| -self.response.row(p).dot(&dr.transpose()))
     }
 
-    fn sd_with(&self, i: usize, nuisances: &[DVector<f64>]) -> f64 {
+    pub(super) fn sd_with(&self, i: usize, nuisances: &[DVector<f64>]) -> f64 {
         let Some(p) = self.free.iter().position(|&k| k == i) else {
             return 0.0;
         };
@@ -388,17 +385,17 @@ impl LmFit {
 /// standard errors (tested against a fit run to 1e-15). Without it the fit
 /// went on for up to 25 iterations that each gained ~1e-13 of the cost,
 /// then spent 20 trials failing.
-const LM_REL_TOL: f64 = 1e-10;
+pub(super) const LM_REL_TOL: f64 = 1e-10;
 
 /// The scaled residuals of a θ and the integrator's steps they took.
 type Residuals<'a> = dyn Fn(&[f64]) -> (DVector<f64>, usize) + Sync + 'a;
 
-/// The trajectory fits' work and time limits (see [`fit_force_law`]).
-struct Limits {
+/// The trajectory fits' work and time limits (see [`fit_force_law`](crate::measure::force_fit::fit_force_law)).
+pub(super) struct Limits {
     /// Integrator steps of all the fits together.
-    max_steps: usize,
-    max_trajectories: usize,
-    started: std::time::Instant,
+    pub(super) max_steps: usize,
+    pub(super) max_trajectories: usize,
+    pub(super) started: std::time::Instant,
 }
 
 /// The integrator's steps of each trajectory a fit computed, in the order
@@ -408,17 +405,17 @@ struct Limits {
 /// once the steps of those before it pass the limit ([`Limits::replay`]),
 /// so where a fit stops does not depend on the threads.
 #[derive(Default)]
-struct Ledger {
-    steps: Vec<usize>,
+pub(super) struct Ledger {
+    pub(super) steps: Vec<usize>,
     /// This fit's own steps so far.
-    total: usize,
+    pub(super) total: usize,
 }
 
 impl Limits {
     /// Why a fit that has taken `ledger`'s steps stops before its next
     /// trajectories: its own steps alone past the limit (those of the fits
     /// before it only add to them, see [`Self::replay`]), or the time limit.
-    fn reached(&self, ledger: &Ledger) -> Option<ForceFitError> {
+    pub(super) fn reached(&self, ledger: &Ledger) -> Option<ForceFitError> {
         if ledger.total > self.max_steps {
             Some(self.work_limit())
         } else if self.started.elapsed().as_secs_f64() > FORCE_FIT_TIME_LIMIT_S {
@@ -428,7 +425,7 @@ impl Limits {
         }
     }
 
-    fn work_limit(&self) -> ForceFitError {
+    pub(super) fn work_limit(&self) -> ForceFitError {
         ForceFitError::Limit(format!("{} trajectories' work", self.max_trajectories))
     }
 
@@ -436,7 +433,7 @@ impl Limits {
     /// steps taken before it: the work limit reached before one of its
     /// trajectories (or before the next it would have asked for) stops it
     /// there; else its own outcome. Adds its steps to `done`.
-    fn replay(
+    pub(super) fn replay(
         &self,
         done: &mut usize,
         ledger: &Ledger,
@@ -460,7 +457,7 @@ impl Ledger {
     /// The residuals of the trajectories `thetas`, computed on every thread,
     /// their steps entered in order; `None` when the limits stop the fit
     /// first.
-    fn trajectories(
+    pub(super) fn trajectories(
         &mut self,
         thetas: &[Vec<f64>],
         resid: &Residuals<'_>,
@@ -486,7 +483,7 @@ impl Ledger {
     }
 
     /// The residuals of one trajectory (see [`Self::trajectories`]).
-    fn trajectory(
+    pub(super) fn trajectory(
         &mut self,
         theta: &[f64],
         resid: &Residuals<'_>,
@@ -503,7 +500,7 @@ impl Ledger {
 /// the diagonal). Stops when an accepted step lowers the cost by less than
 /// `rel_tol` of it ([`LM_REL_TOL`]), or no step helps. Each trajectory's
 /// steps go to `ledger`.
-fn levenberg_marquardt(
+pub(super) fn levenberg_marquardt(
     theta0: &[f64],
     free: &[usize],
     resid: &Residuals<'_>,

@@ -5,7 +5,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{
+use super::kit::{
     draw_points, fit_and_residuals, legend, mesh, no_data, pt, residual_panel, title, RadiusSet,
 };
 use crate::collapse::fit::{self, SeriesFit};

@@ -1,8 +1,8 @@
 //! Tests of [`crate::measure::force`].
 
-use super::fit::fit_force_law_to;
 use super::*;
 use crate::measure::events::FORCE_FIT_MAX_TRAJECTORIES;
+use crate::measure::force_fit::{fit_force_law, fit_force_law_to};
 
 /// The product's fit: [`fit_force_law`] on the test sphere at g = 9.81
 /// with the default work limit.

@@ -1,12 +1,13 @@
-//! The contact law fitted to the trajectory ([`fit_force_law`], see the
-//! parent module's doc): the frames around the contact, the fits under each
-//! contact model, and the law with its errors.
+//! The contact law fitted to the trajectory ([`fit_force_law`]; the
+//! models, the integrator and the least squares are [`crate::measure::force`]'s):
+//! the frames around the contact, the fits under each contact model, and the
+//! law with its errors.
 
-use super::{
+use crate::measure::events::{Events, Geometry, TrackPoint, FLIGHT_FRAMES};
+use crate::measure::force::{
     integrate_counted, levenberg_marquardt, ContactModel, Damping, ForceFitError, ForceLaw, Ledger,
     Limits, LmFit, ModelFit, CONTACT_STEPS_PER_FRAME, LM_REL_TOL,
 };
-use crate::measure::events::{Events, Geometry, TrackPoint, FLIGHT_FRAMES};
 use crate::measure::kinematics::{Measured, SphereParams};
 use crate::util::timings::{time, Stage};
 use nalgebra::DVector;
@@ -17,7 +18,7 @@ use nalgebra::DVector;
 /// frame's exposure time (0: the frames are instants). The fit stops with
 /// [`ForceFitError::Limit`] after `max_trajectories` trajectories' work
 /// (the product's is `FORCE_FIT_MAX_TRAJECTORIES`, set by
-/// `EventConfig::force_fit_max_trajectories`) or [`FORCE_FIT_TIME_LIMIT_S`](super::FORCE_FIT_TIME_LIMIT_S).
+/// `EventConfig::force_fit_max_trajectories`) or [`FORCE_FIT_TIME_LIMIT_S`](crate::measure::force::FORCE_FIT_TIME_LIMIT_S).
 pub fn fit_force_law(
     track: &[TrackPoint],
     ev: &Events,
@@ -42,7 +43,7 @@ pub fn fit_force_law(
 /// [`fit_force_law`] with the fits stopped at `rel_tol` (see [`LM_REL_TOL`])
 /// and after `max_trajectories` (see [`FORCE_FIT_MAX_TRAJECTORIES`]).
 #[allow(clippy::too_many_arguments)]
-pub(super) fn fit_force_law_to(
+pub(crate) fn fit_force_law_to(
     track: &[TrackPoint],
     ev: &Events,
     geom: &Geometry,

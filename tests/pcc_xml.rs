@@ -125,7 +125,22 @@ fn a_side_file_cut_anywhere_is_refused_as_not_xml() {
 fn what_a_stream_could_read_differently_reads_as_the_tree() {
     need!(crate::Need::PhantomSamples);
     let real = std::fs::read_to_string(crate::phantom_sample("cinefiles-jl/cam_1.xml")).unwrap();
-    let edits: Vec<(&str, String)> = vec![
+    let edits = read_alike_edits(&real);
+    for (what, text) in &edits {
+        assert!(text != &real, "{what}: the edit changed nothing");
+        as_the_tree(text, what).unwrap_or_else(|e| panic!("{what}: {e}"));
+    }
+    let refused = refused_edits(&real);
+    for (what, text) in &refused {
+        assert!(text != &real, "{what}: the edit changed nothing");
+        assert!(as_the_tree(text, what).is_err(), "{what} read");
+    }
+}
+
+/// Edits of the real side file `real` that a stream could read otherwise
+/// than the tree, and that both must read alike.
+fn read_alike_edits(real: &str) -> Vec<(&'static str, String)> {
+    vec![
         // References and CDATA in values and attributes.
         (
             "character references",
@@ -174,12 +189,12 @@ fn what_a_stream_could_read_differently_reads_as_the_tree() {
         ("whitespace after the root", format!("{real}\r\n \t")),
         ("whitespace before the root", real.replacen("<!--", "\n \t<!--", 1)),
         ("a comment after the root", format!("{real}<!-- end -->")),
-    ];
-    for (what, text) in &edits {
-        assert!(text != &real, "{what}: the edit changed nothing");
-        as_the_tree(text, what).unwrap_or_else(|e| panic!("{what}: {e}"));
-    }
-    let refused: Vec<(&str, String)> = vec![
+    ]
+}
+
+/// Edits of the real side file `real` that the tree refuses.
+fn refused_edits(real: &str) -> Vec<(&'static str, String)> {
+    vec![
         // A value given twice, differently: which holds is unknown.
         (
             "two frame rates",
@@ -244,11 +259,7 @@ fn what_a_stream_could_read_differently_reads_as_the_tree() {
             "a wrong root",
             real.replace("<chd>", "<cine>").replace("</chd>", "</cine>"),
         ),
-    ];
-    for (what, text) in &refused {
-        assert!(text != &real, "{what}: the edit changed nothing");
-        assert!(as_the_tree(text, what).is_err(), "{what} read");
-    }
+    ]
 }
 
 /// `text` with the first `<name>…</name>` moved to the root's end.
@@ -376,7 +387,7 @@ fn a_million_frame_side_file_reads_as_a_stream() {
 /// comments and processing instructions ([`reference::value`]) and refuses
 /// a value given twice differently.
 mod reference {
-    use dropscope::source::pcc_xml::{local_seconds, PccXml};
+    use dropscope::source::pcc_xml::{local_seconds, LocalInstant, PccXml};
 
     pub fn parse(text: &str) -> Result<PccXml, String> {
         let doc = roxmltree::Document::parse(text).map_err(|e| format!("not valid XML: {e}"))?;
@@ -387,25 +398,7 @@ mod reference {
                 root.tag_name().name()
             ));
         }
-        // Every value of a field, in every block of its name: all alike.
-        for (block, name) in FIELDS {
-            let values: Vec<String> = root
-                .children()
-                .filter(|b| b.is_element() && b.tag_name().name() == block)
-                .flat_map(|b| {
-                    b.children()
-                        .filter(|n| n.is_element() && n.tag_name().name() == name)
-                })
-                .map(|n| value(n).trim().to_string())
-                .collect();
-            if let Some(other) = values.iter().find(|v| **v != values[0]) {
-                return Err(format!(
-                    "<{name}> is given twice, as {:?} and {other:?}: the side file contradicts \
-                     itself (which value holds is unknown); correct it",
-                    values[0]
-                ));
-            }
-        }
+        one_value_a_field(root)?;
         // A field's first element in any block of its name.
         let text_of = |block: &str, name: &str| -> Option<String> {
             root.children()
@@ -461,6 +454,60 @@ mod reference {
                     .ok_or_else(|| format!("TriggerTime {d:?} {tm:?} is not a PCC date/time"))
             });
         let trigger = trigger.transpose()?;
+        let instants = timeblock(root)?;
+        // Relative to the trigger; without one, to the first listed frame.
+        let times = match trigger.or(instants.first().map(|t| t.1)) {
+            Some(origin) => instants
+                .iter()
+                .map(|(f, t)| (*f, t.since(origin)))
+                .collect(),
+            None => Vec::new(),
+        };
+        let exposures = exposureblock(root)?;
+        Ok(PccXml {
+            first_image_no: num(text_of("CineFileHeader", "FirstImageNo"), "FirstImageNo")?,
+            image_count: num(text_of("CineFileHeader", "ImageCount"), "ImageCount")?,
+            width: num(text_of(bitmap, "biWidth"), "biWidth")?,
+            height: num(text_of(bitmap, "biHeight"), "biHeight")?,
+            bit_count: num(text_of(bitmap, "biBitCount"), "biBitCount")?,
+            fps,
+            exposure_s,
+            real_bpp: num(text_of(setup, "RealBPP"), "RealBPP")?,
+            black_level: num(text_of(setup, "BlackLevel"), "BlackLevel")?,
+            white_level: num(text_of(setup, "WhiteLevel"), "WhiteLevel")?,
+            flip_h: boolean(text_of(setup, "bFlipH")),
+            flip_v: boolean(text_of(setup, "bFlipV")),
+            times,
+            exposures,
+        })
+    }
+
+    /// Every value of a field, in every block of its name: all alike, or
+    /// the error a contradicting side file gets.
+    fn one_value_a_field(root: roxmltree::Node<'_, '_>) -> Result<(), String> {
+        for (block, name) in FIELDS {
+            let values: Vec<String> = root
+                .children()
+                .filter(|b| b.is_element() && b.tag_name().name() == block)
+                .flat_map(|b| {
+                    b.children()
+                        .filter(|n| n.is_element() && n.tag_name().name() == name)
+                })
+                .map(|n| value(n).trim().to_string())
+                .collect();
+            if let Some(other) = values.iter().find(|v| **v != values[0]) {
+                return Err(format!(
+                    "<{name}> is given twice, as {:?} and {other:?}: the side file contradicts \
+                 itself (which value holds is unknown); correct it",
+                    values[0]
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The TIMEBLOCK's instants, a frame each.
+    fn timeblock(root: roxmltree::Node<'_, '_>) -> Result<Vec<(i64, LocalInstant)>, String> {
         let mut instants = Vec::new();
         if let Some(block) = child(root, "TIMEBLOCK") {
             // Date and Time elements come in pairs sharing a frame attribute.
@@ -480,8 +527,8 @@ mod reference {
                             .ok_or_else(|| format!("TIMEBLOCK Time frame={frame} has no Date"))?;
                         let t = local_seconds(date, value).ok_or_else(|| {
                             format!(
-                                "TIMEBLOCK frame={frame}: {date:?} {value:?} is not a PCC date/time"
-                            )
+                            "TIMEBLOCK frame={frame}: {date:?} {value:?} is not a PCC date/time"
+                        )
                         })?;
                         instants.push((frame, t));
                     }
@@ -489,14 +536,11 @@ mod reference {
                 }
             }
         }
-        // Relative to the trigger; without one, to the first listed frame.
-        let times = match trigger.or(instants.first().map(|t| t.1)) {
-            Some(origin) => instants
-                .iter()
-                .map(|(f, t)| (*f, t.since(origin)))
-                .collect(),
-            None => Vec::new(),
-        };
+        Ok(instants)
+    }
+
+    /// The EXPOSUREBLOCK's exposures (s), a frame each.
+    fn exposureblock(root: roxmltree::Node<'_, '_>) -> Result<Vec<(i64, f64)>, String> {
         let mut exposures = Vec::new();
         if let Some(block) = child(root, "EXPOSUREBLOCK") {
             for n in block
@@ -511,22 +555,7 @@ mod reference {
                 exposures.push((frame, us * 1e-6));
             }
         }
-        Ok(PccXml {
-            first_image_no: num(text_of("CineFileHeader", "FirstImageNo"), "FirstImageNo")?,
-            image_count: num(text_of("CineFileHeader", "ImageCount"), "ImageCount")?,
-            width: num(text_of(bitmap, "biWidth"), "biWidth")?,
-            height: num(text_of(bitmap, "biHeight"), "biHeight")?,
-            bit_count: num(text_of(bitmap, "biBitCount"), "biBitCount")?,
-            fps,
-            exposure_s,
-            real_bpp: num(text_of(setup, "RealBPP"), "RealBPP")?,
-            black_level: num(text_of(setup, "BlackLevel"), "BlackLevel")?,
-            white_level: num(text_of(setup, "WhiteLevel"), "WhiteLevel")?,
-            flip_h: boolean(text_of(setup, "bFlipH")),
-            flip_v: boolean(text_of(setup, "bFlipV")),
-            times,
-            exposures,
-        })
+        Ok(exposures)
     }
 
     /// The fields read from the header, bitmap and set-up blocks.

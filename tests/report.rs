@@ -353,16 +353,10 @@ fn assert_report_writes_the_same_page_elsewhere(
     assert!(std::fs::read(page).unwrap() == std::fs::read(copy.join("report.html")).unwrap());
 }
 
-/// A report for an archive. 1 000 drops (the three fixture drops'
-/// rows and pictures repeated under new names, every 50th failed, every
-/// 7th with a warning) give a page of a few MB (inline thumbnails, the
-/// full pictures as files beside it) that Chromium renders whole; its
-/// filter and sort work. The load time is measured and printed, not asserted.
-#[test]
-fn a_thousand_drop_report_stays_small_and_sorts_and_filters() {
-    need!(crate::Need::Chromium);
-    let dir = tempfile::tempdir().unwrap();
-    let work = dir.path();
+/// An output folder of 1 000 drops under `work`: the three fixture drops
+/// processed, then their rows and pictures repeated under new names (every
+/// 50th failed, every 7th with a warning).
+fn thousand_drop_archive(work: &Path) -> PathBuf {
     let base = work.join("base");
     let job = Command::new(env!("CARGO_BIN_EXE_dropscope"))
         .args(["process", "--manifest"])
@@ -411,6 +405,20 @@ fn a_thousand_drop_report_stays_small_and_sorts_and_filters() {
         records.push(r);
     }
     dropscope::dataset::write_csv(&out.join("drops.csv"), &records).unwrap();
+    out
+}
+
+/// A report for an archive. 1 000 drops (the three fixture drops'
+/// rows and pictures repeated under new names, every 50th failed, every
+/// 7th with a warning) give a page of a few MB (inline thumbnails, the
+/// full pictures as files beside it) that Chromium renders whole; its
+/// filter and sort work. The load time is measured and printed, not asserted.
+#[test]
+fn a_thousand_drop_report_stays_small_and_sorts_and_filters() {
+    need!(crate::Need::Chromium);
+    let dir = tempfile::tempdir().unwrap();
+    let work = dir.path();
+    let out = thousand_drop_archive(work);
     let start = Instant::now();
     let report = Command::new(env!("CARGO_BIN_EXE_dropscope"))
         .arg("report")

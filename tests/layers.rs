@@ -553,3 +553,20 @@ fn lib_rs_lists_every_folder_in_the_order_of_the_imports() {
         upward.join("\n")
     );
 }
+
+#[test]
+fn every_folder_below_the_commands_is_held_to_their_rule() {
+    // BELOW_COMMANDS is written out (a rule's part is a constant): a new
+    // folder of src/ must join it, or review/ and cli/ could be imported
+    // from it unseen.
+    let rooms: BTreeSet<String> = walk(&src())
+        .iter()
+        .map(|f| room(&rel(f)))
+        .filter(|r| r.ends_with('/') && r != "review/" && r != "cli/")
+        .collect();
+    let listed: BTreeSet<String> = BELOW_COMMANDS.iter().map(|s| s.to_string()).collect();
+    assert_eq!(
+        listed, rooms,
+        "BELOW_COMMANDS in tests/layers.rs and the folders of src/ below review/ and cli/ differ"
+    );
+}
